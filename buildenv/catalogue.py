@@ -1,0 +1,339 @@
+"""The variable catalogue: every input and output of the building model, defined once.
+
+This module is the single source of truth for names, units, ranges, steps and granularity. Sampling
+(:mod:`buildenv.campaign`), the hourly encoding of daily settings (:mod:`buildenv.schedules`), the
+EnergyPlus model (:mod:`buildenv.energyplus.shoebox`), the Gymnasium action space and the calibration
+bounds all read their ranges from here; no range is typed anywhere else.
+
+Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize
+energy loads"):
+
+``theta_build`` (static, one value per building)
+    The paper's 17 building parameters plus the geometry (floor area, number of floors) = 19 variables.
+    Extensive quantities are expressed per m2 of floor area so that one model covers offices of any size:
+    the paper's 28,733 m2 building with 1,000-2,000 occupants gives 0.035-0.070 occupants/m2, and its
+    0-1,000 kW fan-coil power gives 0-35 W/m2. Two deliberate departures, both to cover the offices we
+    calibrate against (DOE/ASHRAE reference offices in climates colder and hotter than Paris):
+    fan-coil heating/cooling power spans 5-50 W/m2 (0 would be a building with no plant at all), and the
+    window-to-wall ratio spans 20-60 % (the paper's 40-50 % excludes the reference offices' 21-38 %).
+``settings`` (I_k, per day of the week: 12 settings x 7 days = 84 values a week)
+    Heating, cooling and ventilation schedules and setpoints of the building management system (BMS).
+``occupancy`` (O_k, per weekday Monday-Friday: 2 x 5 = 10 values a week)
+    Arrival and departure hours; weekends are unoccupied.
+``weather`` (W_k, per hour)
+    The paper's seven series plus wind speed and direction (needed for sim-to-real diagnosis).
+``outputs`` (per hour)
+    The paper's 8 simulated outputs. Energies are hourly amounts per m2 of floor area (Wh/m2 in the hour,
+    numerically the mean power in W/m2); multiply by floor area / 1000 for kWh.
+
+A variable with a ``step`` is sampled on the grid ``min, min + step, ...`` up to ``max`` (the paper's
+uniform sampling over its ranges); ``vol_ventilation`` (0.7-1.7 step 0.3) therefore takes 0.7, 1.0, 1.3
+and 1.6, exactly as the paper's table reads.
+"""
+
+from __future__ import annotations
+
+import difflib
+import hashlib
+import json
+from dataclasses import asdict, dataclass
+from enum import Enum
+from typing import Iterable, Mapping
+
+import numpy as np
+
+from buildenv.errors import CatalogueError
+
+DAYS: tuple[str, ...] = ("monday", "tuesday", "wednesday", "thursday", "friday", "saturday", "sunday")
+WEEKDAYS: tuple[str, ...] = DAYS[:5]
+HOURS_PER_DAY = 24
+HOURS_PER_WEEK = 168
+
+
+class Granularity(str, Enum):
+    """How often a variable takes a new value."""
+
+    STATIC = "static"  # one value per building
+    PER_DAY = "per_day"  # one value for each of the 7 days of the week
+    PER_WEEKDAY = "per_weekday"  # one value for each working day, Monday-Friday
+    PER_HOUR = "per_hour"  # an hourly series
+
+
+@dataclass(frozen=True)
+class Variable:
+    """One catalogue entry.
+
+    Attributes:
+        name: canonical name used everywhere in buildenv.
+        group: ``theta_build``, ``settings``, ``occupancy``, ``weather`` or ``outputs``.
+        unit: physical unit ("m2", "W/m2", "degC", "h", "1/h", "%", ...).
+        min: smallest admissible value (also the sampling and calibration lower bound).
+        max: largest admissible value.
+        step: sampling grid step, or ``None`` for continuous / measured quantities.
+        granularity: see :class:`Granularity`.
+        description: what it means for a building engineer.
+        paper_name: the name in the paper's appendix (accepted as an alias).
+    """
+
+    name: str
+    group: str
+    unit: str
+    min: float
+    max: float
+    step: float | None
+    granularity: Granularity
+    description: str
+    paper_name: str
+
+    def grid(self) -> np.ndarray:
+        """All values the variable takes when sampled: ``min, min+step, ..., <= max`` (shape ``(n,)``)."""
+        if self.step is None:
+            raise CatalogueError(f"variable {self.name!r} is continuous and has no sampling grid")
+        n = int(np.floor((self.max - self.min) / self.step + 1e-9)) + 1
+        return np.round(self.min + self.step * np.arange(n), 10)
+
+    def snap(self, value: np.ndarray | float) -> np.ndarray:
+        """Round values to the nearest grid point (clipped into ``[min, max]``)."""
+        value = np.clip(np.asarray(value, dtype=float), self.min, self.max)
+        if self.step is None:
+            return value
+        grid = self.grid()
+        index = np.clip(np.rint((value - self.min) / self.step), 0, len(grid) - 1).astype(int)
+        return grid[index]
+
+    def check(self, value: np.ndarray | float, where: str = "") -> None:
+        """Raise :class:`CatalogueError` if any value is NaN or outside ``[min, max]``."""
+        arr = np.asarray(value, dtype=float)
+        bad = ~np.isfinite(arr) | (arr < self.min - 1e-9) | (arr > self.max + 1e-9)
+        if bad.any():
+            first = arr.flat[int(np.flatnonzero(bad.ravel())[0])]
+            loc = f" in {where}" if where else ""
+            raise CatalogueError(
+                f"{self.name}={first:g}{loc} is outside its range [{self.min:g}, {self.max:g}] {self.unit}"
+            )
+
+
+def _v(name, group, unit, lo, hi, step, gran, desc, paper) -> Variable:
+    return Variable(name, group, unit, float(lo), float(hi), None if step is None else float(step),
+                    Granularity(gran), desc, paper)
+
+
+S, D, W, H = "static", "per_day", "per_weekday", "per_hour"
+
+THETA_BUILD: tuple[Variable, ...] = (
+    _v("floor_area_m2", "theta_build", "m2", 1000, 50000, 1000, S,
+       "Conditioned floor area of the whole building (all floors).", "(geometry)"),
+    _v("number_of_floors", "theta_build", "-", 1, 15, 1, S,
+       "Number of storeys; with the floor area it fixes footprint, facade and roof areas.", "(geometry)"),
+    _v("infiltration_ach", "theta_build", "1/h", 0.1, 0.5, 0.1, S,
+       "Infiltration air changes per hour of the zone volume (constant, wind-independent).",
+       "airchange_infiltration_vol_per_h"),
+    _v("capacitance_kj_per_k_m3", "theta_build", "kJ/(K m3)", 50, 300, 10, S,
+       "Effective internal heat capacity per m3 of zone volume (furniture, partitions, slabs).",
+       "capacitance_kJ_perdegreK_perm3"),
+    _v("heating_power_w_m2", "theta_build", "W/m2", 5, 50, 5, S,
+       "Installed zone (fan-coil) heating power per m2 of floor area.", "power_VCV_kW_heat"),
+    _v("cooling_power_w_m2", "theta_build", "W/m2", 5, 50, 5, S,
+       "Installed zone (fan-coil) cooling power per m2 of floor area.", "power_VCV_kW_clim"),
+    _v("occupant_density_per_m2", "theta_build", "1/m2", 0.035, 0.070, 0.005, S,
+       "Occupants per m2 of floor area at full occupancy.", "nb_occupants"),
+    _v("pc_density_per_m2", "theta_build", "1/m2", 0.035, 0.070, 0.005, S,
+       "Workstations (PC with screen and its share of shared equipment) per m2 of floor area.", "nb_PCs"),
+    _v("light_night_percent", "theta_build", "%", 0, 70, 10, S,
+       "Lighting left on outside occupied hours, as a percentage of the occupied level.",
+       "percent_light_night"),
+    _v("pc_night_percent", "theta_build", "%", 0, 70, 10, S,
+       "Equipment left on outside occupied hours, as a percentage of the occupied level.",
+       "percent_PCs_night"),
+    _v("wall_insulation_north_m", "theta_build", "m", 0.05, 0.15, 0.05, S,
+       "Insulation thickness of the north facade (layer 2 of concrete/insulation/plasterboard).",
+       "facade_1_thickness_2"),
+    _v("wall_insulation_east_m", "theta_build", "m", 0.05, 0.15, 0.05, S,
+       "Insulation thickness of the east facade.", "facade_2_thickness_2"),
+    _v("wall_insulation_south_m", "theta_build", "m", 0.05, 0.15, 0.05, S,
+       "Insulation thickness of the south facade.", "facade_3_thickness_2"),
+    _v("wall_insulation_west_m", "theta_build", "m", 0.05, 0.15, 0.05, S,
+       "Insulation thickness of the west facade.", "facade_4_thickness_2"),
+    _v("roof_insulation_m", "theta_build", "m", 0.05, 0.15, 0.05, S,
+       "Insulation thickness of the roof.", "roof_1_thickness_3"),
+    _v("window_to_wall_north_percent", "theta_build", "%", 20, 60, 5, S,
+       "Glazed share of the north facade.", "facade_1_window_area_percent"),
+    _v("window_to_wall_east_percent", "theta_build", "%", 20, 60, 5, S,
+       "Glazed share of the east facade.", "facade_2_window_area_percent"),
+    _v("window_to_wall_south_percent", "theta_build", "%", 20, 60, 5, S,
+       "Glazed share of the south facade.", "facade_3_window_area_percent"),
+    _v("window_to_wall_west_percent", "theta_build", "%", 20, 60, 5, S,
+       "Glazed share of the west facade.", "facade_4_window_area_percent"),
+)
+
+SETTINGS: tuple[Variable, ...] = (
+    _v("cooling_start_hour", "settings", "h", 7, 9, 1, D,
+       "Hour the cooling comfort setpoint comes into force.", "start_clim_day"),
+    _v("cooling_end_hour", "settings", "h", 18, 20, 1, D,
+       "Hour the cooling setpoint returns to setback.", "end_clim_day"),
+    _v("cooling_setback_c", "settings", "degC", 24, 30, 0.5, D,
+       "Cooling setpoint outside the cooling period.", "t_clim_red_day"),
+    _v("cooling_comfort_c", "settings", "degC", 20, 24, 0.5, D,
+       "Cooling setpoint during the cooling period.", "t_clim_conf_day"),
+    _v("heating_start_hour", "settings", "h", 6, 8, 1, D,
+       "Hour the heating comfort setpoint comes into force.", "start_heat_day"),
+    _v("heating_end_hour", "settings", "h", 17, 19, 1, D,
+       "Hour the heating setpoint returns to setback.", "end_heat_day"),
+    _v("heating_setback_c", "settings", "degC", 17, 22, 0.5, D,
+       "Heating setpoint outside the heating period.", "t_heat_red_day"),
+    _v("heating_comfort_c", "settings", "degC", 22, 24, 0.5, D,
+       "Heating setpoint during the heating period.", "t_heat_conf_day"),
+    _v("ventilation_start_hour", "settings", "h", 7, 9, 1, D,
+       "Hour the air handling unit starts supplying outdoor air.", "start_ventilation_day"),
+    _v("ventilation_end_hour", "settings", "h", 18, 20, 1, D,
+       "Hour the air handling unit stops.", "end_ventilation_day"),
+    _v("supply_air_c", "settings", "degC", 18, 26, 0.5, D,
+       "Air handling unit supply air temperature (outdoor air heated or cooled to it).", "t_ventilation_day"),
+    _v("ventilation_ach", "settings", "1/h", 0.7, 1.7, 0.3, D,
+       "Outdoor air supplied by the air handling unit, in air changes per hour of the zone volume.",
+       "vol_ventilation_day"),
+)
+
+OCCUPANCY: tuple[Variable, ...] = (
+    _v("occupancy_start_hour", "occupancy", "h", 7, 9, 1, W,
+       "Hour occupants arrive (Monday-Friday; weekends are unoccupied).", "start_occupation"),
+    _v("occupancy_end_hour", "occupancy", "h", 17, 20, 1, W,
+       "Hour occupants leave.", "end_occupation"),
+)
+
+WEATHER: tuple[Variable, ...] = (
+    _v("DNI", "weather", "W/m2", 0, 1400, None, H, "Direct normal irradiance.", "DNI"),
+    _v("IBEAM_H", "weather", "W/m2", 0, 1400, None, H,
+       "Beam (direct) irradiance on a horizontal surface, DNI x cos(zenith).", "IBEAM_H"),
+    _v("IBEAM_N", "weather", "W/m2", 0, 1400, None, H,
+       "Beam irradiance on a vertical north-facing facade. The paper describes IBEAM_N with the same words "
+       "as DNI; a copy of DNI would carry no information, so we read N as the north facade.", "IBEAM_N"),
+    _v("IDIFF_H", "weather", "W/m2", 0, 1000, None, H, "Diffuse horizontal irradiance.", "IDIFF_H"),
+    _v("IGLOB_H", "weather", "W/m2", 0, 1500, None, H, "Global horizontal irradiance.", "IGLOB_H"),
+    _v("RHUM", "weather", "%", 0, 100, None, H, "Outdoor relative humidity.", "RHUM"),
+    _v("TAMB", "weather", "degC", -60, 60, None, H, "Outdoor dry-bulb temperature.", "TAMB"),
+    _v("WIND_SPEED", "weather", "m/s", 0, 60, None, H, "Wind speed at 10 m.", "(added)"),
+    _v("WIND_DIR", "weather", "deg", 0, 360, None, H,
+       "Wind direction, degrees clockwise from north (where the wind comes from).", "(added)"),
+)
+
+OUTPUTS: tuple[Variable, ...] = (
+    _v("Q_AC_OFFICE", "outputs", "Wh/m2", 0, 500, None, H,
+       "Zone (fan-coil) cooling energy delivered in the hour.", "Q_AC_OFFICE"),
+    _v("Q_HEAT_OFFICE", "outputs", "Wh/m2", 0, 500, None, H,
+       "Zone (fan-coil) heating energy delivered in the hour.", "Q_HEAT_OFFICE"),
+    _v("Q_PEOPLE", "outputs", "Wh/m2", 0, 100, None, H,
+       "Heat given off by occupants (sensible + latent) in the hour.", "Q_PEOPLE"),
+    _v("Q_EQP", "outputs", "Wh/m2", 0, 100, None, H,
+       "Electricity used by equipment (computers, office appliances) in the hour.", "Q_EQP"),
+    _v("Q_LIGHT", "outputs", "Wh/m2", 0, 100, None, H, "Electricity used by lighting in the hour.", "Q_LIGHT"),
+    _v("Q_AHU_C", "outputs", "Wh/m2", 0, 500, None, H,
+       "Air handling unit cooling coil energy (outdoor air cooled to the supply temperature).", "Q_AHU_C"),
+    _v("Q_AHU_H", "outputs", "Wh/m2", 0, 500, None, H,
+       "Air handling unit heating coil energy (outdoor air heated to the supply temperature).", "Q_AHU_H"),
+    _v("T_INT_OFFICE", "outputs", "degC", -30, 60, None, H, "Mean indoor air temperature.", "T_INT_OFFICE"),
+)
+
+GROUPS: dict[str, tuple[Variable, ...]] = {
+    "theta_build": THETA_BUILD,
+    "settings": SETTINGS,
+    "occupancy": OCCUPANCY,
+    "weather": WEATHER,
+    "outputs": OUTPUTS,
+}
+
+ALL_VARIABLES: tuple[Variable, ...] = tuple(v for group in GROUPS.values() for v in group)
+_BY_NAME: dict[str, Variable] = {v.name: v for v in ALL_VARIABLES}
+_ALIASES: dict[str, str] = {v.paper_name.lower(): v.name for v in ALL_VARIABLES if not v.paper_name.startswith("(")}
+
+THETA_NAMES: tuple[str, ...] = tuple(v.name for v in THETA_BUILD)
+SETTING_NAMES: tuple[str, ...] = tuple(v.name for v in SETTINGS)
+OCCUPANCY_NAMES: tuple[str, ...] = tuple(v.name for v in OCCUPANCY)
+WEATHER_NAMES: tuple[str, ...] = tuple(v.name for v in WEATHER)
+OUTPUT_NAMES: tuple[str, ...] = tuple(v.name for v in OUTPUTS)
+TEMPERATURE_OUTPUTS: tuple[str, ...] = ("T_INT_OFFICE",)
+#: Outputs summed into the measured "heat consumption" of the paper's calibration appendix.
+HEAT_CONSUMPTION_OUTPUTS: tuple[str, ...] = ("Q_HEAT_OFFICE", "Q_AHU_H", "Q_EQP", "Q_LIGHT")
+
+
+def get(name: str) -> Variable:
+    """Look a variable up by canonical name or paper alias; unknown names suggest the closest match."""
+    if name in _BY_NAME:
+        return _BY_NAME[name]
+    alias = _ALIASES.get(name.lower())
+    if alias is not None:
+        return _BY_NAME[alias]
+    close = difflib.get_close_matches(name, list(_BY_NAME) + list(_ALIASES), n=1)
+    hint = f"; did you mean {close[0]!r}?" if close else ""
+    raise CatalogueError(f"unknown variable {name!r}{hint} (see `buildenv catalogue`)")
+
+
+def weekly_names(group: str) -> tuple[str, ...]:
+    """Flat names of one week's values of a per-day or per-weekday group, day-major.
+
+    ``weekly_names("settings")`` gives ``("cooling_start_hour_monday", ..., "ventilation_ach_sunday")``
+    (84 names); ``weekly_names("occupancy")`` gives the 10 Monday-Friday names.
+    """
+    variables = GROUPS[group]
+    days = DAYS if variables[0].granularity is Granularity.PER_DAY else WEEKDAYS
+    return tuple(f"{v.name}_{day}" for day in days for v in variables)
+
+
+def bounds(group: str) -> tuple[np.ndarray, np.ndarray]:
+    """Lower and upper bounds of a group's variables, in catalogue order (two arrays of shape ``(n,)``)."""
+    variables = GROUPS[group]
+    return np.array([v.min for v in variables]), np.array([v.max for v in variables])
+
+
+def check_values(group: str, values: np.ndarray, where: str = "") -> None:
+    """Validate an array whose last axis follows the group's catalogue order; raise on the first bad value."""
+    values = np.asarray(values, dtype=float)
+    variables = GROUPS[group]
+    if values.shape[-1] != len(variables):
+        raise CatalogueError(
+            f"{group}{' in ' + where if where else ''}: last axis has {values.shape[-1]} values, "
+            f"expected {len(variables)} ({', '.join(v.name for v in variables)})"
+        )
+    for i, var in enumerate(variables):
+        var.check(values[..., i], where)
+
+
+def from_mapping(group: str, mapping: Mapping[str, float], defaults: Mapping[str, float] | None = None,
+                 where: str = "") -> np.ndarray:
+    """Build a group vector (catalogue order) from named values, rejecting unknown or out-of-range names.
+
+    Args:
+        group: a static group (``theta_build``).
+        mapping: ``{name or paper alias: value}``.
+        defaults: values for names missing from ``mapping``; without it every name is required.
+        where: file or argument name used in error messages.
+    """
+    names = [v.name for v in GROUPS[group]]
+    resolved: dict[str, float] = {}
+    for key, value in mapping.items():
+        var = get(key)
+        if var.group != group:
+            raise CatalogueError(f"{key!r}{' in ' + where if where else ''} belongs to {var.group}, not {group}")
+        resolved[var.name] = float(value)
+    missing = [n for n in names if n not in resolved and not (defaults and n in defaults)]
+    if missing:
+        raise CatalogueError(f"{where or group}: missing value(s) for {', '.join(missing)}")
+    vector = np.array([resolved.get(n, defaults[n] if defaults else np.nan) for n in names])
+    check_values(group, vector, where)
+    return vector
+
+
+def catalogue_hash() -> str:
+    """SHA-256 (first 16 hex digits) of every variable definition; stored in datasets and checkpoints."""
+    payload = json.dumps([{**asdict(v), "granularity": v.granularity.value} for v in ALL_VARIABLES],
+                         sort_keys=True)
+    return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+def describe(groups: Iterable[str] | None = None) -> list[dict]:
+    """The catalogue as a list of plain dicts (for the CLI, docs and JSON export)."""
+    out = []
+    for group in groups or GROUPS:
+        for v in GROUPS[group]:
+            out.append({**asdict(v), "granularity": v.granularity.value})
+    return out

@@ -1,0 +1,197 @@
+"""The ``buildenv`` command line.
+
+Subcommands:
+    catalogue   list the variable catalogue (names, units, ranges, steps, granularity)
+    weather     list the shipped weather files, or summarise one
+    week        simulate one week of a building with EnergyPlus, print a summary and plot it
+    simulate    run a simulation campaign into a dataset directory (parallel, resumable, Dask-capable)
+    demo        what `make demo` runs: the default building's week, summary and plot
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import logging
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.errors import BuildenvError
+
+
+def _parse_assignments(items: list[str]) -> dict[str, float]:
+    values: dict[str, float] = {}
+    for item in items:
+        name, sep, value = item.partition("=")
+        if not sep:
+            raise BuildenvError(f"--set {item!r}: expected NAME=VALUE")
+        try:
+            values[name.strip()] = float(value)
+        except ValueError:
+            raise BuildenvError(f"--set {item!r}: {value!r} is not a number") from None
+    return values
+
+
+def _cmd_catalogue(args: argparse.Namespace) -> int:
+    rows = cat.describe([args.group] if args.group else None)
+    if args.json:
+        print(json.dumps({"catalogue_hash": cat.catalogue_hash(), "variables": rows}, indent=2))
+        return 0
+    print(f"catalogue {cat.catalogue_hash()}")
+    fmt = "{:<14} {:<32} {:>10} {:>9} {:>9} {:>7} {:<12} {}"
+    print(fmt.format("group", "name", "unit", "min", "max", "step", "granularity", "paper name"))
+    for r in rows:
+        step = "" if r["step"] is None else f"{r['step']:g}"
+        print(fmt.format(r["group"], r["name"], r["unit"], f"{r['min']:g}", f"{r['max']:g}", step,
+                         r["granularity"], r["paper_name"]))
+    return 0
+
+
+def _cmd_weather(args: argparse.Namespace) -> int:
+    from buildenv.weather import load_weather, shipped_weather
+
+    if not args.name:
+        for name, path in shipped_weather().items():
+            print(f"{name:<26} {path}")
+        return 0
+    w = load_weather(args.name)
+    tamb = w.channel("TAMB")
+    info = {"name": w.name, "path": str(w.path), "latitude_deg": w.latitude_deg, "longitude_deg": w.longitude_deg,
+            "tamb_mean_c": round(float(tamb.mean()), 2), "tamb_min_c": float(tamb.min()),
+            "tamb_max_c": float(tamb.max()), "ghi_annual_kwh_m2": round(float(w.channel("IGLOB_H").sum()) / 1000, 1)}
+    print(json.dumps(info, indent=2))
+    return 0
+
+
+def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Path, as_json: bool) -> int:
+    from buildenv.defaults import DEFAULT_DAY_SETTINGS, DEFAULT_THETA, default_week
+    from buildenv.energyplus.simulate import simulate_weeks
+    from buildenv.plotting import plot_week
+    from buildenv.schedules import hourly_schedules
+    from buildenv.summary import week_summary
+
+    theta_values = dict(DEFAULT_THETA)
+    settings, occupancy = default_week()
+    for name, value in overrides.items():
+        var = cat.get(name)
+        if var.group == "theta_build":
+            theta_values[var.name] = value
+        elif var.group == "settings":
+            var.check(value, f"--set {name}")
+            settings[..., cat.SETTING_NAMES.index(var.name)] = value
+        elif var.group == "occupancy":
+            var.check(value, f"--set {name}")
+            occupancy[..., cat.OCCUPANCY_NAMES.index(var.name)] = value
+        else:
+            raise BuildenvError(f"--set {name}: only theta_build, settings and occupancy variables can be set")
+    theta = cat.from_mapping("theta_build", theta_values, where="--set")
+    if not 0 <= week <= 51:
+        raise BuildenvError(f"--week {week}: weeks of the year run from 0 to 51")
+    result = simulate_weeks(theta, settings, occupancy, epw, week)
+    sched = {k: v[0] for k, v in hourly_schedules(settings, occupancy).items()}
+    area = float(theta[cat.THETA_NAMES.index("floor_area_m2")])
+    summary = week_summary(result.outputs[0], sched["occupancy_fraction"], area)
+    out.mkdir(parents=True, exist_ok=True)
+    png = plot_week(result.outputs[0], result.weather[0], sched, out / "week.png",
+                    title=f"default building, {epw}, week {week} of the year ({area:.0f} m2)")
+    np.savez(out / "week.npz", outputs=result.outputs[0], weather=result.weather[0], theta=theta,
+             settings=settings[0], occupancy=occupancy[0])
+    record = {"epw": epw, "week_of_year": week, "floor_area_m2": area, "summary": summary, "plot": str(png),
+              "settings_per_day": {k: v for k, v in DEFAULT_DAY_SETTINGS.items()} if not overrides else None}
+    (out / "week.json").write_text(json.dumps(record, indent=2))
+    if as_json:
+        print(json.dumps(record, indent=2))
+    else:
+        print(f"One simulated week: {epw}, week {week} of the year, {area:.0f} m2 office (EnergyPlus shoebox)")
+        for key, value in summary.items():
+            unit = "kWh" if key.endswith("_kwh") else "degC"
+            print(f"  {key[:-4] if key.endswith('_kwh') else key:<28} {value:10.1f} {unit}")
+        print(f"  plot: {png}")
+    return 0
+
+
+def _cmd_week(args: argparse.Namespace) -> int:
+    return _simulate_one_week(args.epw, args.week, _parse_assignments(args.set), Path(args.out), args.json)
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from buildenv.defaults import DEFAULT_EPW
+
+    return _simulate_one_week(DEFAULT_EPW, args.week, {}, Path(args.out), False)
+
+
+def _cmd_simulate(args: argparse.Namespace) -> int:
+    from buildenv.campaign import DEFAULT_CLIMATES, CampaignConfig, run_campaign
+
+    config = CampaignConfig(weeks=args.weeks, seed=args.seed, epw=args.epw or list(DEFAULT_CLIMATES),
+                            weeks_per_run=args.weeks_per_run, sampling=args.sampling)
+    path = run_campaign(config, Path(args.out), workers=args.workers, scheduler=args.scheduler,
+                        progress=not args.quiet)
+    manifest = json.loads((Path(args.out) / "manifest.json").read_text())
+    print(json.dumps({"dataset": str(path), "weeks": manifest["weeks"], "runs": manifest["runs"],
+                      "seconds_last_session": manifest["seconds_last_session"]}))
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of the ``buildenv`` command."""
+    parser = argparse.ArgumentParser(prog="buildenv", description=__doc__.split("\n\n")[0])
+    parser.add_argument("-v", "--verbose", action="store_true", help="log progress details")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("catalogue", help="list the variable catalogue")
+    p.add_argument("--group", choices=list(cat.GROUPS), help="only this group")
+    p.add_argument("--json", action="store_true", help="machine-readable output")
+    p.set_defaults(func=_cmd_catalogue)
+
+    p = sub.add_parser("weather", help="list shipped weather files or summarise one")
+    p.add_argument("name", nargs="?", help="short name (usa_il_chicago) or EPW path")
+    p.set_defaults(func=_cmd_weather)
+
+    p = sub.add_parser("week", help="simulate one week of the default building (values overridable)")
+    p.add_argument("--epw", default="usa_il_chicago", help="weather short name or EPW path")
+    p.add_argument("--week", type=int, default=2, help="week of the year, 0-51 (weeks start Mondays)")
+    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
+                   help="override a theta_build variable, or a setting/occupancy variable on every day")
+    p.add_argument("--out", default="out/week", help="directory for week.png, week.json, week.npz")
+    p.add_argument("--json", action="store_true", help="print the summary as JSON")
+    p.set_defaults(func=_cmd_week)
+
+    p = sub.add_parser("demo", help="the end-to-end demo (for now: one simulated week of the default building)")
+    p.add_argument("--out", default="out/demo")
+    p.add_argument("--week", type=int, default=2, help="week of the year, 0-51")
+    p.set_defaults(func=_cmd_demo)
+
+    p = sub.add_parser("simulate", help="run a simulation campaign into a dataset directory")
+    p.add_argument("--weeks", type=int, required=True, help="number of one-week samples")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", required=True, help="dataset directory (rerun the same command to resume)")
+    p.add_argument("--epw", nargs="+", help="weather short names or EPW paths (default: all 16 shipped TMY3)")
+    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
+    p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786")
+    p.add_argument("--weeks-per-run", type=int, default=52, help="consecutive weeks per EnergyPlus run (1-52)")
+    p.add_argument("--sampling", choices=["uniform", "lhs"], default="uniform")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_simulate)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of the ``buildenv`` console script; returns the exit status."""
+    args = build_parser().parse_args(argv)
+    logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
+    try:
+        return args.func(args)
+    except BuildenvError as exc:
+        print(f"buildenv {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"buildenv {args.command}: interrupted; finished work is kept (rerun to resume)", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

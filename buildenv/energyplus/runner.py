@@ -1,0 +1,110 @@
+"""Running EnergyPlus through the ``pyenergyplus`` API shipped by ``pyenergyplus-lbnl``.
+
+One call runs one model in the calling process with a fresh EnergyPlus state. EnergyPlus states are not
+thread-safe and each run leaves a few MB behind in the process, so parallel campaigns run this in worker
+processes that are recycled (see :mod:`buildenv.campaign`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+from pathlib import Path
+
+import numpy as np
+
+from buildenv.errors import SimulationError
+
+_SEVERE = re.compile(r"\*\*\s+(Severe|Fatal)\s+\*\*")
+
+
+def energyplus_version() -> str:
+    """Version string of the EnergyPlus library shipped with pyenergyplus-lbnl (e.g. ``25.2.0``)."""
+    import pyenergyplus
+
+    lib_dir = Path(pyenergyplus.__file__).resolve().parent.parent
+    for lib in sorted(lib_dir.glob("libenergyplusapi.so.*")):
+        return lib.name.split(".so.")[-1]
+    return "unknown"
+
+
+def severe_lines(err_path: Path, limit: int = 8) -> list[str]:
+    """The severe/fatal lines of an ``eplusout.err`` and their continuation lines (at most ``limit``)."""
+    if not err_path.is_file():
+        return []
+    out: list[str] = []
+    keep = False
+    for line in err_path.read_text(errors="replace").splitlines():
+        if _SEVERE.search(line):
+            keep = True
+        elif not line.lstrip().startswith("**   ~~~   **"):
+            keep = False
+        if keep:
+            out.append(line.strip())
+        if len(out) >= limit:
+            break
+    return out
+
+
+def run_energyplus(model: dict | Path, epw: Path, workdir: Path, label: str = "model") -> Path:
+    """Run one EnergyPlus simulation and return the output directory.
+
+    Args:
+        model: an epJSON dict (written to ``workdir/<label>.epJSON``) or the path of an IDF/epJSON file.
+        epw: weather file.
+        workdir: directory for the model and EnergyPlus outputs (created).
+        label: file stem of the written model, used in error messages.
+    Raises:
+        SimulationError: EnergyPlus returned non-zero or reported a severe error; the message names the
+            model and quotes the first severe lines of ``eplusout.err``.
+    """
+    from pyenergyplus.api import EnergyPlusAPI
+
+    workdir.mkdir(parents=True, exist_ok=True)
+    if isinstance(model, dict):
+        model_path = workdir / f"{label}.epJSON"
+        model_path.write_text(json.dumps(model))
+    else:
+        model_path = Path(model).resolve()
+    api = EnergyPlusAPI()
+    state = api.state_manager.new_state()
+    try:
+        api.runtime.set_console_output_status(state, False)
+        code = api.runtime.run_energyplus(state, ["-w", str(epw), "-d", str(workdir), str(model_path)])
+    finally:
+        api.state_manager.delete_state(state)
+    err = workdir / "eplusout.err"
+    severe = severe_lines(err)
+    if code != 0 or severe:
+        detail = " | ".join(severe) if severe else f"exit code {code}, see {err}"
+        raise SimulationError(f"EnergyPlus failed on {model_path}: {detail}")
+    return workdir
+
+
+def read_hourly_csv(csv_path: Path, columns: dict[str, tuple[str, str]]) -> dict[str, np.ndarray]:
+    """Read hourly EnergyPlus CSV output into ``{output name: (hours,) array}`` in the file's units.
+
+    Args:
+        csv_path: ``eplusout.csv``.
+        columns: ``{output name: (key value, report variable name)}``; keys match case-insensitively.
+    """
+    import pandas as pd
+
+    frame = pd.read_csv(csv_path)
+    headers = {h.upper(): h for h in frame.columns}
+    out: dict[str, np.ndarray] = {}
+    for name, (key, variable) in columns.items():
+        wanted = f"{key}:{variable}".upper()
+        match = [orig for upper, orig in headers.items() if upper.startswith(wanted + " [")]
+        if not match:
+            raise SimulationError(f"{csv_path}: no column for {key}:{variable} (is the Output:Variable present?)")
+        out[name] = frame[match[0]].to_numpy(dtype=float)
+    return out
+
+
+def clean_outputs(workdir: Path, keep: tuple[str, ...] = ("eplusout.err",)) -> None:
+    """Delete EnergyPlus output files of a finished run except ``keep``."""
+    for path in workdir.iterdir():
+        if path.is_file() and path.name not in keep:
+            os.unlink(path)

@@ -1,0 +1,397 @@
+"""The building energy model: a single-thermal-zone office generated from theta_build as epJSON.
+
+Modelling choices (each a constant below, so that a reader can find and change it):
+
+Geometry
+    The whole building is one thermal zone (the paper's "single thermal zone including vertical walls, a
+    horizontal roof and a horizontal ground"). A square footprint of side ``sqrt(floor_area / floors)``
+    and a height of ``floors * FLOOR_HEIGHT_M``; the zone floor area is set to the full floor area and its
+    volume to ``floor_area * FLOOR_HEIGHT_M``. Facades face north, east, south and west (catalogue order
+    1-4). Each facade carries one horizontal window band, centred, of the facade's window-to-wall ratio.
+Envelope
+    Walls: concrete ``WALL_CONCRETE_M`` / insulation (theta) / plasterboard, from outside in. Roof: membrane /
+    insulation (theta) / concrete slab. Ground floor: insulation ``GROUND_INSULATION_M`` under a concrete
+    slab, on ground at a monthly temperature of annual mean + ``GROUND_SWING`` x (previous month's mean -
+    annual mean) of the weather file. Glazing: a simple glazing system (``GLAZING_U``, ``GLAZING_SHGC``).
+Capacitance
+    The catalogue's effective heat capacity per m3 (50-300 kJ/K/m3) is an InternalMass of concrete with
+    both faces exposed (surface ``2 x floor area``) whose thickness gives ``capacitance x volume``.
+Infiltration
+    Constant air changes per hour (no wind or stack dependence: that is one of the effects the gap
+    diagnosis looks for).
+Internal gains
+    Occupants at ``PERSON_ACTIVITY_W`` each; workstations at ``PC_POWER_W`` each; lighting at
+    ``LIGHTING_W_M2``. All follow the hourly occupancy; lights and equipment stay at the night percentage
+    of theta_build outside occupied hours.
+Zone heating and cooling (fan coils)
+    ``ZoneHVAC:IdealLoadsAirSystem`` on a dual-setpoint thermostat, capacity-limited to the heating and
+    cooling power of theta_build, sensible only (no humidity control). Q_HEAT_OFFICE / Q_AC_OFFICE are its
+    delivered heating / cooling energy. Setpoints follow the hourly schedules of :mod:`buildenv.schedules`.
+Air handling unit
+    ``ZoneHVAC:OutdoorAirUnit``: 100 % outdoor air, ``ventilation_ach`` x volume while the ventilation
+    schedule is on, heated by an electric coil (Q_AHU_H, efficiency 1 so energy = heat) or cooled by a DX
+    coil (Q_AHU_C, total coil cooling including dehumidification) to the day's supply air temperature
+    (neutral control with equal high and low control temperatures), then blown into the zone; a matching
+    exhaust fan keeps the zone balanced. The zone ideal loads then meet what is left of the zone load.
+Schedules
+    Every hourly schedule is a column of one Schedule:File (absolute path), so every week may differ.
+Outputs
+    Hourly: zone mean air temperature and the seven energies, converted to Wh per m2 of floor area.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.schedules import hourly_schedules, usage_fraction
+from buildenv.weather import Weather
+
+FLOOR_HEIGHT_M = 3.5
+WALL_CONCRETE_M = 0.20
+ROOF_CONCRETE_M = 0.20
+GROUND_INSULATION_M = 0.05
+GROUND_SWING = 0.3
+GLAZING_U = 2.4  # W/(m2 K)
+GLAZING_SHGC = 0.40
+WINDOW_MARGIN = 0.05  # share of the facade width left opaque at each end of the window band
+PERSON_ACTIVITY_W = 120.0
+PC_POWER_W = 150.0
+LIGHTING_W_M2 = 10.0
+AHU_FAN_PRESSURE_PA = 300.0
+AHU_MAX_SUPPLY_DELTA_K = 60.0  # heating coil sized to lift the maximum outdoor air flow by this much
+DX_FLOW_PER_CAPACITY = 6.0e-5  # m3/s per W of rated cooling capacity (EnergyPlus admits 4.03e-5..6.04e-5)
+DX_RATED_FLOW_FACTOR = 2.0  # DX coil rated at twice the AHU flow: ~29 kJ/kg of cooling at full flow
+TIMESTEPS_PER_HOUR = 4
+
+CONCRETE = {"conductivity": 1.95, "density": 2240.0, "specific_heat": 900.0}
+INSULATION = {"conductivity": 0.035, "density": 30.0, "specific_heat": 1400.0}
+PLASTERBOARD = {"conductivity": 0.25, "density": 900.0, "specific_heat": 1000.0}
+MEMBRANE = {"conductivity": 0.17, "density": 1100.0, "specific_heat": 1000.0}
+
+ZONE = "Office"
+IDEAL_LOADS = "Office Fan Coils"
+AHU = "Office AHU"
+AHU_HEATING_COIL = "AHU Heating Coil"
+AHU_COOLING_COIL = "AHU Cooling Coil"
+
+#: EnergyPlus report variable (key, name) behind each catalogue output.
+OUTPUT_VARIABLES: dict[str, tuple[str, str]] = {
+    "Q_AC_OFFICE": (IDEAL_LOADS, "Zone Ideal Loads Supply Air Total Cooling Energy"),
+    "Q_HEAT_OFFICE": (IDEAL_LOADS, "Zone Ideal Loads Supply Air Total Heating Energy"),
+    "Q_PEOPLE": (ZONE, "Zone People Total Heating Energy"),
+    "Q_EQP": (ZONE, "Zone Electric Equipment Electricity Energy"),
+    "Q_LIGHT": (ZONE, "Zone Lights Electricity Energy"),
+    "Q_AHU_C": (AHU_COOLING_COIL, "Cooling Coil Total Cooling Energy"),
+    "Q_AHU_H": (AHU_HEATING_COIL, "Heating Coil Heating Energy"),
+    "T_INT_OFFICE": (ZONE, "Zone Mean Air Temperature"),
+}
+
+#: Columns of the Schedule:File, in order.
+SCHEDULE_COLUMNS: tuple[str, ...] = (
+    "heating_setpoint_c", "cooling_setpoint_c", "occupancy_fraction", "lighting_fraction",
+    "equipment_fraction", "ventilation_on", "ventilation_fraction", "supply_air_c",
+)
+
+FACADES = ("north", "east", "south", "west")
+
+
+@dataclass(frozen=True)
+class Geometry:
+    """Derived geometry of the shoebox (m, m2, m3)."""
+
+    floor_area_m2: float
+    floors: int
+    side_m: float
+    height_m: float
+    volume_m3: float
+
+    @classmethod
+    def from_theta(cls, theta: dict[str, float]) -> "Geometry":
+        """Geometry from theta_build values (``floor_area_m2``, ``number_of_floors``)."""
+        area, floors = float(theta["floor_area_m2"]), int(round(theta["number_of_floors"]))
+        side = math.sqrt(area / floors)
+        return cls(area, floors, side, floors * FLOOR_HEIGHT_M, area * FLOOR_HEIGHT_M)
+
+    def facade(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Bottom-left corner seen from outside and the unit vector along the facade, for a facade name."""
+        s = self.side_m
+        return {
+            "south": (np.array([0.0, 0.0, 0.0]), np.array([1.0, 0.0, 0.0])),
+            "east": (np.array([s, 0.0, 0.0]), np.array([0.0, 1.0, 0.0])),
+            "north": (np.array([s, s, 0.0]), np.array([-1.0, 0.0, 0.0])),
+            "west": (np.array([0.0, s, 0.0]), np.array([0.0, -1.0, 0.0])),
+        }[name]
+
+
+def theta_dict(theta: np.ndarray | dict[str, float]) -> dict[str, float]:
+    """theta_build as ``{name: value}``, validated against the catalogue."""
+    if isinstance(theta, dict):
+        vector = cat.from_mapping("theta_build", theta, where="theta_build")
+    else:
+        vector = np.asarray(theta, dtype=float)
+        cat.check_values("theta_build", vector, "theta_build")
+    return dict(zip(cat.THETA_NAMES, (float(x) for x in vector)))
+
+
+def _rect(origin: np.ndarray, along: np.ndarray, x0: float, width: float, z0: float, height: float) -> list[dict]:
+    """Four vertices, upper-left first, counter-clockwise seen from outside."""
+    up = np.array([0.0, 0.0, 1.0])
+    pts = [origin + along * x0 + up * (z0 + height), origin + along * x0 + up * z0,
+           origin + along * (x0 + width) + up * z0, origin + along * (x0 + width) + up * (z0 + height)]
+    return [{"vertex_x_coordinate": round(float(p[0]), 4), "vertex_y_coordinate": round(float(p[1]), 4),
+             "vertex_z_coordinate": round(float(p[2]), 4)} for p in pts]
+
+
+def _xyz(points: list[tuple[float, float, float]]) -> list[dict]:
+    return [{"vertex_x_coordinate": x, "vertex_y_coordinate": y, "vertex_z_coordinate": z} for x, y, z in points]
+
+
+def _material(thickness: float, props: dict, roughness: str = "MediumRough") -> dict:
+    return {"roughness": roughness, "thickness": round(thickness, 5), **props,
+            "thermal_absorptance": 0.9, "solar_absorptance": 0.6, "visible_absorptance": 0.6}
+
+
+def ground_temperatures_c(weather: Weather) -> list[float]:
+    """Monthly temperature under the slab (degC): annual mean + GROUND_SWING x (last month's mean - annual)."""
+    monthly = weather.monthly_mean_temperature_c()
+    lagged = np.roll(monthly, 1)
+    return [round(float(monthly.mean() + GROUND_SWING * (t - monthly.mean())), 2) for t in lagged]
+
+
+def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
+                   start_week: int) -> np.ndarray:
+    """The Schedule:File contents: ``(8760, len(SCHEDULE_COLUMNS))`` for weeks starting at ``start_week``.
+
+    Args:
+        theta: theta_build values.
+        settings: I_k of each simulated week, ``(weeks, 7, 12)``.
+        occupancy: O_k of each simulated week, ``(weeks, 5, 2)``.
+        start_week: week of year (0 = the week starting January 1st) of the first simulated week.
+    Hours outside the simulated weeks repeat the first week (EnergyPlus never uses them).
+    """
+    weeks = settings.shape[0]
+    series = hourly_schedules(settings, occupancy)
+    max_ach = cat.get("ventilation_ach").max
+    columns = {
+        "heating_setpoint_c": series["heating_setpoint_c"],
+        "cooling_setpoint_c": series["cooling_setpoint_c"],
+        "occupancy_fraction": series["occupancy_fraction"],
+        "lighting_fraction": usage_fraction(series["occupancy_fraction"], theta["light_night_percent"]),
+        "equipment_fraction": usage_fraction(series["occupancy_fraction"], theta["pc_night_percent"]),
+        "ventilation_on": series["ventilation_on"],
+        "ventilation_fraction": series["ventilation_ach"] / max_ach,
+        "supply_air_c": series["supply_air_c"],
+    }
+    block = np.stack([columns[c].reshape(-1) for c in SCHEDULE_COLUMNS], axis=1)  # (weeks*168, n)
+    table = np.tile(block[: cat.HOURS_PER_WEEK], (53, 1))[:8760]
+    lo = start_week * cat.HOURS_PER_WEEK
+    table[lo: lo + weeks * cat.HOURS_PER_WEEK] = block
+    return table
+
+
+def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedule_csv: Path,
+                 start_week: int, n_weeks: int) -> dict:
+    """Generate the shoebox as an epJSON document.
+
+    Args:
+        theta: theta_build (catalogue order array or ``{name: value}``).
+        weather: the weather the model runs with (site location and ground temperatures come from it).
+        schedule_csv: path of the Schedule:File written by :func:`schedule_table` (made absolute here).
+        start_week: week of year of the first simulated week (weeks start on Mondays; Jan 1st is a Monday).
+        n_weeks: number of consecutive weeks to simulate.
+    Returns:
+        The epJSON model as a dict (``json.dump`` it to a ``.epJSON`` file).
+    """
+    t = theta_dict(theta)
+    g = Geometry.from_theta(t)
+    csv = str(Path(schedule_csv).resolve())
+    if start_week < 0 or start_week + n_weeks > 52:
+        raise ValueError(f"weeks {start_week}..{start_week + n_weeks - 1} do not fit in weeks 0..51 of the year")
+    first = dt.date(2001, 1, 1) + dt.timedelta(days=7 * start_week)
+    last = first + dt.timedelta(days=7 * n_weeks - 1)
+
+    m: dict[str, dict] = {}
+
+    def add(kind: str, name: str, **fields) -> None:
+        m.setdefault(kind, {})[name] = fields
+
+    add("Version", "Version 1", version_identifier="25.2")
+    add("SimulationControl", "SimulationControl 1", do_zone_sizing_calculation="No",
+        do_system_sizing_calculation="No", do_plant_sizing_calculation="No",
+        run_simulation_for_sizing_periods="No", run_simulation_for_weather_file_run_periods="Yes")
+    add("Building", "buildenv shoebox", north_axis=0.0, terrain="City", solar_distribution="FullExterior",
+        maximum_number_of_warmup_days=25, minimum_number_of_warmup_days=6)
+    add("Timestep", "Timestep 1", number_of_timesteps_per_hour=TIMESTEPS_PER_HOUR)
+    add("GlobalGeometryRules", "GlobalGeometryRules 1", starting_vertex_position="UpperLeftCorner",
+        vertex_entry_direction="Counterclockwise", coordinate_system="Relative")
+    add("Site:Location", weather.name, latitude=weather.latitude_deg, longitude=weather.longitude_deg,
+        time_zone=weather.timezone_h, elevation=weather.elevation_m)
+    add("RunPeriod", "weeks", begin_month=first.month, begin_day_of_month=first.day, end_month=last.month,
+        end_day_of_month=last.day, day_of_week_for_start_day="Monday",
+        use_weather_file_holidays_and_special_days="No", use_weather_file_daylight_saving_period="No",
+        apply_weekend_holiday_rule="No", use_weather_file_rain_indicators="Yes",
+        use_weather_file_snow_indicators="Yes")
+    months = ["january", "february", "march", "april", "may", "june", "july", "august", "september",
+              "october", "november", "december"]
+    add("Site:GroundTemperature:BuildingSurface", "ground",
+        **{f"{mo}_ground_temperature": tg for mo, tg in zip(months, ground_temperatures_c(weather))})
+    add("OutputControl:Files", "OutputControl:Files 1", output_csv="Yes", output_eso="No", output_mtr="No",
+        output_eio="No", output_tabular="No", output_sqlite="No", output_json="No", output_audit="No",
+        output_bnd="No", output_rdd="No", output_mdd="No", output_mtd="No", output_end="No", output_shd="No",
+        output_dfs="No", output_perflog="No", output_sln="No", output_sci="No", output_wrl="No",
+        output_screen="No", output_extshd="No", output_tarcog="No", output_dxf="No", output_edd="No",
+        output_dbg="No", output_space_sizing="No", output_zone_sizing="No", output_system_sizing="No",
+        output_plant_component_sizing="No", output_delightin="No", output_delighteldmp="No",
+        output_delightdfdmp="No", output_glhe="No")
+
+    # Materials and constructions.
+    add("Material", "Concrete wall", **_material(WALL_CONCRETE_M, CONCRETE))
+    add("Material", "Concrete roof", **_material(ROOF_CONCRETE_M, CONCRETE))
+    add("Material", "Plasterboard", **_material(0.013, PLASTERBOARD, "Smooth"))
+    add("Material", "Membrane", **_material(0.01, MEMBRANE, "Rough"))
+    add("Material", "Ground insulation", **_material(GROUND_INSULATION_M, INSULATION))
+    for facade in FACADES:
+        add("Material", f"Insulation {facade}", **_material(t[f"wall_insulation_{facade}_m"], INSULATION))
+        add("Construction", f"Wall {facade}", outside_layer="Concrete wall", layer_2=f"Insulation {facade}",
+            layer_3="Plasterboard")
+    add("Material", "Insulation roof", **_material(t["roof_insulation_m"], INSULATION))
+    add("Construction", "Roof", outside_layer="Membrane", layer_2="Insulation roof", layer_3="Concrete roof")
+    add("Construction", "Ground floor", outside_layer="Ground insulation", layer_2="Concrete roof")
+    capacity_j_per_k = t["capacitance_kj_per_k_m3"] * 1000.0 * g.volume_m3
+    mass_area = 2.0 * g.floor_area_m2
+    mass_thickness = capacity_j_per_k / (CONCRETE["density"] * CONCRETE["specific_heat"] * mass_area)
+    add("Material", "Internal mass concrete", **_material(mass_thickness, CONCRETE, "Smooth"))
+    add("Construction", "Internal mass", outside_layer="Internal mass concrete")
+    add("WindowMaterial:SimpleGlazingSystem", "Glazing", u_factor=GLAZING_U,
+        solar_heat_gain_coefficient=GLAZING_SHGC, visible_transmittance=0.6)
+    add("Construction", "Window", outside_layer="Glazing")
+
+    # Zone and surfaces.
+    add("Zone", ZONE, ceiling_height=FLOOR_HEIGHT_M, volume=round(g.volume_m3, 3),
+        floor_area=round(g.floor_area_m2, 3), part_of_total_floor_area="Yes")
+    s, h = g.side_m, g.height_m
+    for facade in FACADES:
+        origin, along = g.facade(facade)
+        add("BuildingSurface:Detailed", f"Wall {facade}", surface_type="Wall", construction_name=f"Wall {facade}",
+            zone_name=ZONE, outside_boundary_condition="Outdoors", sun_exposure="SunExposed",
+            wind_exposure="WindExposed", vertices=_rect(origin, along, 0.0, s, 0.0, h))
+        wwr = t[f"window_to_wall_{facade}_percent"] / 100.0
+        width = s * (1.0 - 2.0 * WINDOW_MARGIN)
+        height = wwr * s * h / width
+        fields = {"surface_type": "Window", "construction_name": "Window", "building_surface_name": f"Wall {facade}",
+                  "number_of_vertices": 4}
+        for i, v in enumerate(_rect(origin, along, s * WINDOW_MARGIN, width, (h - height) / 2.0, height), 1):
+            fields.update({f"vertex_{i}_{axis}_coordinate": v[f"vertex_{axis}_coordinate"] for axis in "xyz"})
+        add("FenestrationSurface:Detailed", f"Window {facade}", **fields)
+    add("BuildingSurface:Detailed", "Roof", surface_type="Roof", construction_name="Roof", zone_name=ZONE,
+        outside_boundary_condition="Outdoors", sun_exposure="SunExposed", wind_exposure="WindExposed",
+        vertices=_xyz([(0.0, s, h), (0.0, 0.0, h), (s, 0.0, h), (s, s, h)]))
+    add("BuildingSurface:Detailed", "Ground floor", surface_type="Floor", construction_name="Ground floor",
+        zone_name=ZONE, outside_boundary_condition="Ground", sun_exposure="NoSun", wind_exposure="NoWind",
+        vertices=_xyz([(s, s, 0.0), (s, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, s, 0.0)]))
+    add("InternalMass", "Internal mass", construction_name="Internal mass", zone_or_zonelist_name=ZONE,
+        surface_area=round(mass_area, 3))
+
+    # Schedules: constants and one Schedule:File column per hourly series.
+    add("ScheduleTypeLimits", "Any Number")
+    add("Schedule:Constant", "Always on", schedule_type_limits_name="Any Number", hourly_value=1.0)
+    add("Schedule:Constant", "Dual setpoint", schedule_type_limits_name="Any Number", hourly_value=4.0)
+    add("Schedule:Constant", "Activity", schedule_type_limits_name="Any Number", hourly_value=PERSON_ACTIVITY_W)
+    for column, name in enumerate(SCHEDULE_COLUMNS, 1):
+        add("Schedule:File", name, schedule_type_limits_name="Any Number", file_name=csv, column_number=column,
+            rows_to_skip_at_top=1, number_of_hours_of_data=8760, column_separator="Comma",
+            interpolate_to_timestep="No", minutes_per_item=60)
+
+    # Internal gains and infiltration.
+    add("People", "Occupants", zone_or_zonelist_or_space_or_spacelist_name=ZONE,
+        number_of_people_schedule_name="occupancy_fraction", number_of_people_calculation_method="People",
+        number_of_people=round(t["occupant_density_per_m2"] * g.floor_area_m2, 3), fraction_radiant=0.3,
+        sensible_heat_fraction="Autocalculate", activity_level_schedule_name="Activity")
+    add("Lights", "Lighting", zone_or_zonelist_or_space_or_spacelist_name=ZONE, schedule_name="lighting_fraction",
+        design_level_calculation_method="LightingLevel", lighting_level=round(LIGHTING_W_M2 * g.floor_area_m2, 3),
+        fraction_radiant=0.42, fraction_visible=0.18)
+    add("ElectricEquipment", "Workstations", zone_or_zonelist_or_space_or_spacelist_name=ZONE,
+        schedule_name="equipment_fraction", design_level_calculation_method="EquipmentLevel",
+        design_level=round(t["pc_density_per_m2"] * g.floor_area_m2 * PC_POWER_W, 3), fraction_radiant=0.3)
+    add("ZoneInfiltration:DesignFlowRate", "Infiltration", zone_or_zonelist_or_space_or_spacelist_name=ZONE,
+        schedule_name="Always on", design_flow_rate_calculation_method="AirChanges/Hour",
+        air_changes_per_hour=t["infiltration_ach"], constant_term_coefficient=1.0,
+        temperature_term_coefficient=0.0, velocity_term_coefficient=0.0, velocity_squared_term_coefficient=0.0)
+
+    # Thermostat and zone equipment.
+    add("ThermostatSetpoint:DualSetpoint", "Setpoints", heating_setpoint_temperature_schedule_name="heating_setpoint_c",
+        cooling_setpoint_temperature_schedule_name="cooling_setpoint_c")
+    add("ZoneControl:Thermostat", "Thermostat", zone_or_zonelist_name=ZONE, control_type_schedule_name="Dual setpoint",
+        control_1_object_type="ThermostatSetpoint:DualSetpoint", control_1_name="Setpoints")
+    add("NodeList", "Zone inlets", nodes=[{"node_name": "Fan coil supply"}, {"node_name": "AHU supply"}])
+    add("NodeList", "Zone exhausts", nodes=[{"node_name": "Fan coil exhaust"}, {"node_name": "AHU exhaust"}])
+    add("ZoneHVAC:EquipmentConnections", ZONE, zone_name=ZONE, zone_conditioning_equipment_list_name="Equipment",
+        zone_air_inlet_node_or_nodelist_name="Zone inlets", zone_air_exhaust_node_or_nodelist_name="Zone exhausts",
+        zone_air_node_name="Zone air", zone_return_air_node_or_nodelist_name="Zone return")
+    add("ZoneHVAC:EquipmentList", "Equipment", load_distribution_scheme="SequentialLoad", equipment=[
+        {"zone_equipment_object_type": "ZoneHVAC:OutdoorAirUnit", "zone_equipment_name": AHU,
+         "zone_equipment_cooling_sequence": 1, "zone_equipment_heating_or_no_load_sequence": 1},
+        {"zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem", "zone_equipment_name": IDEAL_LOADS,
+         "zone_equipment_cooling_sequence": 2, "zone_equipment_heating_or_no_load_sequence": 2}])
+    add("ZoneHVAC:IdealLoadsAirSystem", IDEAL_LOADS, zone_supply_air_node_name="Fan coil supply",
+        zone_exhaust_air_node_name="Fan coil exhaust", maximum_heating_supply_air_temperature=50.0,
+        minimum_cooling_supply_air_temperature=13.0, maximum_heating_supply_air_humidity_ratio=0.0156,
+        minimum_cooling_supply_air_humidity_ratio=0.0077, heating_limit="LimitCapacity",
+        maximum_sensible_heating_capacity=round(t["heating_power_w_m2"] * g.floor_area_m2, 3),
+        cooling_limit="LimitCapacity",
+        maximum_total_cooling_capacity=round(t["cooling_power_w_m2"] * g.floor_area_m2, 3),
+        dehumidification_control_type="None", humidification_control_type="None")
+
+    # Air handling unit: outdoor air -> DX cooling coil -> electric heating coil -> supply fan -> zone.
+    oa_flow = cat.get("ventilation_ach").max * g.volume_m3 / 3600.0
+    add("ZoneHVAC:OutdoorAirUnit", AHU, availability_schedule_name="ventilation_on", zone_name=ZONE,
+        outdoor_air_flow_rate=round(oa_flow, 5), outdoor_air_schedule_name="ventilation_fraction",
+        supply_fan_name="AHU supply fan", supply_fan_placement="DrawThrough", exhaust_fan_name="AHU exhaust fan",
+        exhaust_air_flow_rate=round(oa_flow, 5), exhaust_air_schedule_name="ventilation_fraction",
+        unit_control_type="NeutralControl", high_air_control_temperature_schedule_name="supply_air_c",
+        low_air_control_temperature_schedule_name="supply_air_c", outdoor_air_node_name="AHU outdoor air",
+        airoutlet_node_name="AHU supply", airinlet_node_name="AHU exhaust",
+        supply_fanoutlet_node_name="AHU supply", outdoor_air_unit_list_name="AHU components")
+    add("ZoneHVAC:OutdoorAirUnit:EquipmentList", "AHU components",
+        component_1_object_type="CoilSystem:Cooling:DX", component_1_name="AHU cooling system",
+        component_2_object_type="Coil:Heating:Electric", component_2_name=AHU_HEATING_COIL)
+    add("CoilSystem:Cooling:DX", "AHU cooling system", availability_schedule_name="ventilation_on",
+        dx_cooling_coil_system_inlet_node_name="AHU outdoor air",
+        dx_cooling_coil_system_outlet_node_name="AHU cooled air",
+        dx_cooling_coil_system_sensor_node_name="AHU cooled air",
+        cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed", cooling_coil_name=AHU_COOLING_COIL)
+    add("Coil:Cooling:DX:SingleSpeed", AHU_COOLING_COIL, availability_schedule_name="ventilation_on",
+        gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * oa_flow / DX_FLOW_PER_CAPACITY, 2),
+        gross_rated_sensible_heat_ratio=0.75, gross_rated_cooling_cop=3.0,
+        rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * oa_flow, 5),
+        air_inlet_node_name="AHU outdoor air", air_outlet_node_name="AHU cooled air",
+        total_cooling_capacity_function_of_temperature_curve_name="Constant biquadratic",
+        total_cooling_capacity_function_of_flow_fraction_curve_name="Constant quadratic",
+        energy_input_ratio_function_of_temperature_curve_name="Constant biquadratic",
+        energy_input_ratio_function_of_flow_fraction_curve_name="Constant quadratic",
+        part_load_fraction_correlation_curve_name="Constant quadratic")
+    add("Coil:Heating:Electric", AHU_HEATING_COIL, availability_schedule_name="ventilation_on", efficiency=1.0,
+        nominal_capacity=round(oa_flow * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
+        air_inlet_node_name="AHU cooled air", air_outlet_node_name="AHU heated air")
+    add("Fan:ConstantVolume", "AHU supply fan", availability_schedule_name="ventilation_on", fan_total_efficiency=0.6,
+        pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5), motor_efficiency=0.9,
+        motor_in_airstream_fraction=1.0, air_inlet_node_name="AHU heated air", air_outlet_node_name="AHU supply")
+    add("Fan:ConstantVolume", "AHU exhaust fan", availability_schedule_name="ventilation_on",
+        fan_total_efficiency=0.6, pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5),
+        motor_efficiency=0.9, motor_in_airstream_fraction=1.0, air_inlet_node_name="AHU exhaust",
+        air_outlet_node_name="AHU relief")
+    add("Curve:Biquadratic", "Constant biquadratic", coefficient1_constant=1.0, coefficient2_x=0.0,
+        coefficient3_x_2=0.0, coefficient4_y=0.0, coefficient5_y_2=0.0, coefficient6_x_y=0.0,
+        minimum_value_of_x=-50.0, maximum_value_of_x=60.0, minimum_value_of_y=-50.0, maximum_value_of_y=60.0)
+    add("Curve:Quadratic", "Constant quadratic", coefficient1_constant=1.0, coefficient2_x=0.0,
+        coefficient3_x_2=0.0, minimum_value_of_x=0.0, maximum_value_of_x=1.5)
+
+    for i, (key, variable) in enumerate(OUTPUT_VARIABLES.values()):
+        add("Output:Variable", f"Output {i}", key_value=key, variable_name=variable, reporting_frequency="Hourly")
+    return m

@@ -1,0 +1,92 @@
+"""Simulate consecutive weeks of the shoebox: theta_build + weekly I_k, O_k + weather -> hourly outputs."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.energyplus.runner import read_hourly_csv, run_energyplus
+from buildenv.energyplus.shoebox import OUTPUT_VARIABLES, SCHEDULE_COLUMNS, build_epjson, schedule_table, theta_dict
+from buildenv.weather import load_weather
+
+J_PER_WH = 3600.0
+
+
+@dataclass(frozen=True)
+class WeeksResult:
+    """Hourly outputs of consecutive simulated weeks.
+
+    Attributes:
+        outputs: ``(weeks, 168, 8)`` in catalogue output order (Wh/m2 per hour; degC for T_INT_OFFICE).
+        weather: ``(weeks, 168, 9)`` W_k of the same hours, catalogue weather order.
+        start_week: week of year of the first week.
+    """
+
+    outputs: np.ndarray
+    weather: np.ndarray
+    start_week: int
+
+
+def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
+                   epw: str | Path, start_week: int, workdir: Path | None = None,
+                   keep_files: bool = False) -> WeeksResult:
+    """Run EnergyPlus for ``len(settings)`` consecutive weeks of one building.
+
+    Args:
+        theta: theta_build (catalogue order or ``{name: value}``).
+        settings: I_k per week, ``(weeks, 7, 12)``; validated against the catalogue.
+        occupancy: O_k per week, ``(weeks, 5, 2)``; validated against the catalogue.
+        epw: weather short name or EPW path.
+        start_week: week of year of the first week (0 = the week starting Monday January 1st).
+        workdir: where EnergyPlus runs (a temporary directory, removed afterwards, if ``None``).
+        keep_files: keep the model, schedules and EnergyPlus outputs in ``workdir``.
+    Returns:
+        :class:`WeeksResult`.
+    """
+    settings = np.asarray(settings, dtype=float)
+    occupancy = np.asarray(occupancy, dtype=float)
+    if settings.ndim == 2:
+        settings = settings[None]
+    if occupancy.ndim == 2:
+        occupancy = occupancy[None]
+    cat.check_values("settings", settings, "settings")
+    cat.check_values("occupancy", occupancy, "occupancy")
+    n_weeks = settings.shape[0]
+    t = theta_dict(theta)
+    weather = load_weather(epw)
+    tmp = None
+    if workdir is None:
+        tmp = tempfile.mkdtemp(prefix="buildenv-eplus-")
+        workdir = Path(tmp)
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    try:
+        table = schedule_table(t, settings, occupancy, start_week)
+        csv = workdir / "schedules.csv"
+        np.savetxt(csv, table, delimiter=",", fmt="%.4f", header=",".join(SCHEDULE_COLUMNS), comments="")
+        model = build_epjson(t, weather, csv, start_week, n_weeks)
+        if keep_files:
+            (workdir / "shoebox.epJSON").write_text(json.dumps(model, indent=1))
+        run_energyplus(model, weather.path, workdir, label="shoebox")
+        raw = read_hourly_csv(workdir / "eplusout.csv", OUTPUT_VARIABLES)
+    finally:
+        if tmp is not None and not keep_files:
+            shutil.rmtree(tmp, ignore_errors=True)
+    hours = n_weeks * cat.HOURS_PER_WEEK
+    area = t["floor_area_m2"]
+    columns = []
+    for name in cat.OUTPUT_NAMES:
+        series = raw[name]
+        if len(series) != hours:
+            from buildenv.errors import SimulationError
+
+            raise SimulationError(f"EnergyPlus returned {len(series)} hours for {n_weeks} weeks ({workdir})")
+        columns.append(series if name in cat.TEMPERATURE_OUTPUTS else series / J_PER_WH / area)
+    outputs = np.stack(columns, axis=-1).reshape(n_weeks, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES))
+    return WeeksResult(outputs, weather.weeks(start_week, n_weeks), start_week)

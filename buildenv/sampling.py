@@ -1,0 +1,42 @@
+"""Sampling catalogue variables on their grids: uniform (the paper's choice) or Latin hypercube."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from buildenv import catalogue as cat
+
+METHODS = ("uniform", "lhs")
+
+
+def sample_group(group: str, n: int, rng: np.random.Generator, method: str = "uniform") -> np.ndarray:
+    """Draw ``n`` vectors of a group's variables on their catalogue grids.
+
+    Args:
+        group: catalogue group with stepped variables (``theta_build``, ``settings``, ``occupancy``).
+        n: number of vectors.
+        rng: random generator (the only source of randomness).
+        method: ``uniform`` (each grid value equally likely, independently) or ``lhs`` (Latin hypercube over
+            the unit cube, mapped onto the grids, so each variable's grid values appear in near-equal shares).
+    Returns:
+        ``(n, len(group))`` array in catalogue order and physical units.
+    """
+    variables = cat.GROUPS[group]
+    grids = [v.grid() for v in variables]
+    if method == "uniform":
+        u = rng.random((n, len(variables)))
+    elif method == "lhs":
+        from scipy.stats import qmc
+
+        u = qmc.LatinHypercube(d=len(variables), seed=rng).random(n) if n > 0 else np.zeros((0, len(variables)))
+    else:
+        raise ValueError(f"unknown sampling method {method!r}; choose one of {', '.join(METHODS)}")
+    columns = [grid[np.minimum((u[:, i] * len(grid)).astype(int), len(grid) - 1)] for i, grid in enumerate(grids)]
+    return np.stack(columns, axis=1) if n else np.zeros((0, len(variables)))
+
+
+def sample_weeks(n_weeks: int, rng: np.random.Generator, method: str = "uniform") -> tuple[np.ndarray, np.ndarray]:
+    """Weekly settings ``(n_weeks, 7, 12)`` and occupancy ``(n_weeks, 5, 2)``, every day drawn independently."""
+    settings = sample_group("settings", n_weeks * 7, rng, method).reshape(n_weeks, 7, -1)
+    occupancy = sample_group("occupancy", n_weeks * 5, rng, method).reshape(n_weeks, 5, -1)
+    return settings, occupancy

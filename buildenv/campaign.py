@@ -238,7 +238,8 @@ def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, 
     path = _consolidate(out, config, tasks)
     manifest = {**_config_record(config), "complete": True, "weeks": config.weeks, "runs": len(tasks),
                 "weather": [str(resolve_epw(e)) for e in config.epw], "versions": _versions(),
-                "seconds_last_session": round(elapsed, 1), "workers": None if scheduler else workers,
+                "seconds_last_session": round(elapsed, 1), "runs_simulated_last_session": len(todo),
+                "weeks_simulated_last_session": config.weeks - done_weeks, "workers": None if scheduler else workers,
                 "scheduler": scheduler, "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
     tmp = out / "manifest.json.tmp"
     tmp.write_text(json.dumps(manifest, indent=2))

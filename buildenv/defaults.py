@@ -18,7 +18,7 @@ DEFAULT_EPW = "usa_il_chicago"
 
 DEFAULT_THETA: dict[str, float] = {
     "floor_area_m2": 5000, "number_of_floors": 3, "infiltration_ach": 0.3, "capacitance_kj_per_k_m3": 150,
-    "heating_power_w_m2": 35, "cooling_power_w_m2": 35, "occupant_density_per_m2": 0.05,
+    "heating_power_w_m2": 60, "cooling_power_w_m2": 80, "occupant_density_per_m2": 0.05,
     "pc_density_per_m2": 0.055, "light_night_percent": 10, "pc_night_percent": 30,
     "wall_insulation_north_m": 0.1, "wall_insulation_east_m": 0.1, "wall_insulation_south_m": 0.1,
     "wall_insulation_west_m": 0.1, "roof_insulation_m": 0.1, "window_to_wall_north_percent": 35,

@@ -31,7 +31,9 @@ Air handling unit
     ``ZoneHVAC:OutdoorAirUnit``: 100 % outdoor air, ``ventilation_ach`` x volume while the ventilation
     schedule is on, heated by an electric coil (Q_AHU_H, efficiency 1 so energy = heat) or cooled by a DX
     coil (Q_AHU_C, total coil cooling including dehumidification) to the day's supply air temperature
-    (neutral control with equal high and low control temperatures), then blown into the zone; a matching
+    (``TemperatureControl`` with equal high and low control temperatures: outdoor air below it is heated
+    to it, above it cooled to it; ``NeutralControl`` would supply at zone temperature and ignore the
+    setting), then blown into the zone, the supply fan's heat included; a matching
     exhaust fan keeps the zone balanced. The zone ideal loads then meet what is left of the zone load.
 Schedules
     Every hourly schedule is a column of one Schedule:File (absolute path), so every week may differ.
@@ -195,6 +197,14 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
     return table
 
 
+def write_schedule_file(path: Path, theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
+                        start_week: int) -> Path:
+    """Write the Schedule:File CSV (header row + 8760 rows) of :func:`schedule_table`; returns ``path``."""
+    table = schedule_table(theta, settings, occupancy, start_week)
+    np.savetxt(path, table, delimiter=",", fmt="%.4f", header=",".join(SCHEDULE_COLUMNS), comments="")
+    return Path(path)
+
+
 def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedule_csv: Path,
                  start_week: int, n_weeks: int) -> dict:
     """Generate the shoebox as an epJSON document.
@@ -354,7 +364,7 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
         outdoor_air_flow_rate=round(oa_flow, 5), outdoor_air_schedule_name="ventilation_fraction",
         supply_fan_name="AHU supply fan", supply_fan_placement="DrawThrough", exhaust_fan_name="AHU exhaust fan",
         exhaust_air_flow_rate=round(oa_flow, 5), exhaust_air_schedule_name="ventilation_fraction",
-        unit_control_type="NeutralControl", high_air_control_temperature_schedule_name="supply_air_c",
+        unit_control_type="TemperatureControl", high_air_control_temperature_schedule_name="supply_air_c",
         low_air_control_temperature_schedule_name="supply_air_c", outdoor_air_node_name="AHU outdoor air",
         airoutlet_node_name="AHU supply", airinlet_node_name="AHU exhaust",
         supply_fanoutlet_node_name="AHU supply", outdoor_air_unit_list_name="AHU components")

@@ -12,7 +12,8 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.energyplus.runner import read_hourly_csv, run_energyplus
-from buildenv.energyplus.shoebox import OUTPUT_VARIABLES, SCHEDULE_COLUMNS, build_epjson, schedule_table, theta_dict
+from buildenv.energyplus.shoebox import OUTPUT_VARIABLES, build_epjson, theta_dict, write_schedule_file
+from buildenv.errors import SimulationError
 from buildenv.weather import load_weather
 
 J_PER_WH = 3600.0
@@ -67,9 +68,7 @@ def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, o
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)
     try:
-        table = schedule_table(t, settings, occupancy, start_week)
-        csv = workdir / "schedules.csv"
-        np.savetxt(csv, table, delimiter=",", fmt="%.4f", header=",".join(SCHEDULE_COLUMNS), comments="")
+        csv = write_schedule_file(workdir / "schedules.csv", t, settings, occupancy, start_week)
         model = build_epjson(t, weather, csv, start_week, n_weeks)
         if keep_files:
             (workdir / "shoebox.epJSON").write_text(json.dumps(model, indent=1))
@@ -84,8 +83,6 @@ def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, o
     for name in cat.OUTPUT_NAMES:
         series = raw[name]
         if len(series) != hours:
-            from buildenv.errors import SimulationError
-
             raise SimulationError(f"EnergyPlus returned {len(series)} hours for {n_weeks} weeks ({workdir})")
         columns.append(series if name in cat.TEMPERATURE_OUTPUTS else series / J_PER_WH / area)
     outputs = np.stack(columns, axis=-1).reshape(n_weeks, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES))

@@ -1,0 +1,150 @@
+"""Simulation campaigns: deterministic, resumable after a kill, runnable on Dask; datasets and splits."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from buildenv import catalogue as cat
+from buildenv.campaign import CampaignConfig, plan_campaign, run_campaign
+from buildenv.dataset import ARRAYS, open_dataset
+from buildenv.errors import DatasetError
+
+SMALL = dict(weeks=4, seed=3, epw=["usa_il_chicago", "usa_fl_miami"], weeks_per_run=2)
+
+
+def _arrays(directory: Path) -> dict[str, np.ndarray]:
+    with open_dataset(directory) as ds:
+        return {name: getattr(ds, name)[:] for name in ARRAYS}
+
+
+@pytest.fixture(scope="module")
+def small_dataset(tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("campaign") / "small"
+    run_campaign(CampaignConfig(**SMALL), out, workers=2, progress=False)
+    return out
+
+
+def test_plan_is_deterministic_and_seed_dependent():
+    a, b = plan_campaign(CampaignConfig(**SMALL)), plan_campaign(CampaignConfig(**SMALL))
+    c = plan_campaign(CampaignConfig(**{**SMALL, "seed": 4}))
+    for x, y in zip(a, b):
+        np.testing.assert_array_equal(x.theta, y.theta)
+        np.testing.assert_array_equal(x.settings, y.settings)
+        assert (x.epw, x.start_week) == (y.epw, y.start_week)
+    assert not all(np.array_equal(x.theta, z.theta) for x, z in zip(a, c))
+    assert sum(t.n_weeks for t in a) == SMALL["weeks"]
+    for task in a:
+        cat.check_values("theta_build", task.theta)
+        cat.check_values("settings", task.settings)
+        assert 0 <= task.start_week and task.start_week + task.n_weeks <= 52
+
+
+def test_dataset_contents(small_dataset):
+    with open_dataset(small_dataset) as ds:
+        assert len(ds) == 4
+        assert ds.outputs.shape == (4, 168, len(cat.OUTPUT_NAMES))
+        assert ds.weather.shape == (4, 168, len(cat.WEATHER_NAMES))
+        assert ds.settings.shape == (4, 7, 12) and ds.occupancy.shape == (4, 5, 2) and ds.theta.shape == (4, 19)
+        assert json.loads(ds._h5["outputs"].attrs["names"]) == list(cat.OUTPUT_NAMES)
+        assert ds.manifest["catalogue_hash"] == cat.catalogue_hash()
+        assert ds.manifest["versions"]["energyplus"].startswith("25.")
+        assert np.isfinite(ds.outputs[:]).all()
+        # consecutive weeks of a run are linked: week 1 of each run follows week 0
+        prev = ds.previous_week()
+        assert list(prev) == [-1, 0, -1, 2]
+        np.testing.assert_array_equal(ds.week_of_year[1::2], ds.week_of_year[0::2] + 1)
+        # the stored weather is the EPW's weather of that week of the year
+        from buildenv.weather import load_weather
+
+        w = load_weather(ds.weather_names[int(ds.weather_index[0])]).weeks(int(ds.week_of_year[0]), 1)[0]
+        np.testing.assert_allclose(ds.weather[0], w, rtol=1e-6)
+
+
+def test_same_seed_gives_identical_dataset(small_dataset, tmp_path):
+    again = tmp_path / "again"
+    run_campaign(CampaignConfig(**SMALL), again, workers=1, progress=False)
+    first, second = _arrays(small_dataset), _arrays(again)
+    for name in ARRAYS:
+        np.testing.assert_array_equal(first[name], second[name], err_msg=name)
+
+
+def test_other_campaign_in_same_directory_is_refused(small_dataset):
+    with pytest.raises(DatasetError, match="another campaign"):
+        run_campaign(CampaignConfig(**{**SMALL, "seed": 99}), small_dataset, workers=1, progress=False)
+
+
+def test_unfinished_directory_is_not_a_dataset(tmp_path):
+    (tmp_path / "half").mkdir()
+    with pytest.raises(DatasetError, match="resume"):
+        open_dataset(tmp_path / "half")
+
+
+def test_resume_after_kill_redoes_nothing(tmp_path):
+    out = tmp_path / "killed"
+    args = ["--weeks", "6", "--seed", "5", "--epw", "usa_co_golden", "--weeks-per-run", "1", "--workers", "1",
+            "--quiet", "--out", str(out)]
+    cmd = [sys.executable, "-m", "buildenv.cli", "simulate", *args]
+    proc = subprocess.Popen(cmd, start_new_session=True)
+    deadline = time.time() + 120
+    while time.time() < deadline and len(list((out / "shards").glob("run_*[0-9].npz"))) < 2:
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    done_before = len(list((out / "shards").glob("run_*[0-9].npz")))
+    assert 2 <= done_before < 6, "the campaign should have been killed part-way"
+    assert not (out / "manifest.json").exists()
+    with pytest.raises(DatasetError):
+        open_dataset(out)
+
+    subprocess.run(cmd, check=True)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["complete"] is True
+    assert manifest["runs_simulated_last_session"] == 6 - done_before
+
+    reference = tmp_path / "reference"
+    subprocess.run([sys.executable, "-m", "buildenv.cli", "simulate", *args[:-1], str(reference)], check=True)
+    resumed, clean = _arrays(out), _arrays(reference)
+    for name in ARRAYS:
+        np.testing.assert_array_equal(resumed[name], clean[name], err_msg=name)
+
+
+def test_dask_cluster_gives_the_same_dataset(small_dataset, tmp_path):
+    from distributed import LocalCluster
+
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
+        run_campaign(CampaignConfig(**SMALL), tmp_path / "dask", scheduler=cluster.scheduler_address,
+                     progress=False)
+    manifest = json.loads((tmp_path / "dask" / "manifest.json").read_text())
+    assert manifest["scheduler"].startswith("tcp://")
+    local, dask = _arrays(small_dataset), _arrays(tmp_path / "dask")
+    for name in ARRAYS:
+        np.testing.assert_array_equal(local[name], dask[name], err_msg=name)
+
+
+def test_splits(small_dataset, tmp_path):
+    out = tmp_path / "splits"
+    run_campaign(CampaignConfig(weeks=12, seed=1, epw=["usa_il_chicago", "usa_fl_miami", "usa_co_golden"],
+                                weeks_per_run=2), out, workers=2, progress=False)
+    with open_dataset(out) as ds:
+        for kind in ("random", "weather_weeks", "climate"):
+            parts = ds.split(kind, fractions=(0.5, 0.17, 0.33), seed=0)
+            together = np.concatenate(list(parts.values()))
+            assert sorted(together.tolist()) == list(range(len(ds))), kind
+        ww = ds.split("weather_weeks", fractions=(0.5, 0.17, 0.33))
+        key = ds.weather_index[:].astype(int) * 100 + ds.week_of_year[:].astype(int)
+        assert not set(key[ww["train"]]) & set(key[ww["test"]])
+        held = ds.split("climate", test_climates=["usa_fl_miami"])
+        miami = ds.weather_names.index("usa_fl_miami")
+        assert set(ds.weather_index[:][held["test"]]) == {miami}
+        assert miami not in set(ds.weather_index[:][held["train"]])
+        with pytest.raises(DatasetError, match="not in"):
+            ds.split("climate", test_climates=["usa_xx_nowhere"])

@@ -1,0 +1,341 @@
+"""The variable catalogue: sizes, grids, conversions, lookup, validation, hashing."""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+
+import numpy as np
+import pytest
+
+from buildenv import catalogue as cat
+from buildenv.errors import BuildenvError, CatalogueError
+
+PAPER_WEATHER = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H", "RHUM", "TAMB")
+PAPER_OUTPUTS = ("Q_AC_OFFICE", "Q_HEAT_OFFICE", "Q_PEOPLE", "Q_EQP", "Q_LIGHT", "Q_AHU_C", "Q_AHU_H",
+                 "T_INT_OFFICE")
+STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
+
+
+# --------------------------------------------------------------------------- group sizes
+def test_group_sizes_match_the_paper():
+    assert len(cat.THETA_BUILD) == 19
+    assert len(cat.SETTINGS) == 12
+    assert len(cat.OCCUPANCY) == 2
+    assert len(cat.WEATHER) == 9
+    assert len(cat.OUTPUTS) == 8
+    assert len(cat.ALL_VARIABLES) == 19 + 12 + 2 + 9 + 8
+    assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
+
+
+def test_names_are_unique_and_groups_consistent():
+    names = [v.name for v in cat.ALL_VARIABLES]
+    assert len(names) == len(set(names))
+    for group, variables in cat.GROUPS.items():
+        assert all(v.group == group for v in variables), group
+    assert cat.THETA_NAMES == tuple(v.name for v in cat.THETA_BUILD)
+    assert cat.WEATHER_NAMES == tuple(v.name for v in cat.WEATHER)
+
+
+def test_geometry_variables():
+    area = cat.get("floor_area_m2")
+    floors = cat.get("number_of_floors")
+    assert area.group == floors.group == "theta_build"
+    assert (area.min, area.max) == (1000.0, 50000.0)
+    assert (floors.min, floors.max) == (1.0, 15.0)
+    assert floors.step == 1.0
+    np.testing.assert_array_equal(floors.grid(), np.arange(1, 16))
+
+
+def test_paper_weather_and_output_names():
+    assert set(PAPER_WEATHER) <= set(cat.WEATHER_NAMES)
+    assert cat.WEATHER_NAMES[:7] == PAPER_WEATHER
+    assert set(cat.OUTPUT_NAMES) == set(PAPER_OUTPUTS)
+    for name in PAPER_WEATHER + PAPER_OUTPUTS:
+        assert cat.get(name).paper_name == name
+
+
+def test_granularities():
+    assert all(v.granularity is cat.Granularity.STATIC for v in cat.THETA_BUILD)
+    assert all(v.granularity is cat.Granularity.PER_DAY for v in cat.SETTINGS)
+    assert all(v.granularity is cat.Granularity.PER_WEEKDAY for v in cat.OCCUPANCY)
+    assert all(v.granularity is cat.Granularity.PER_HOUR for v in cat.WEATHER + cat.OUTPUTS)
+    # inputs that are sampled have a grid, measured series are continuous
+    assert all(v.step is not None for v in cat.THETA_BUILD + cat.SETTINGS + cat.OCCUPANCY)
+    assert all(v.step is None for v in cat.WEATHER + cat.OUTPUTS)
+
+
+def test_min_below_max_everywhere():
+    for v in cat.ALL_VARIABLES:
+        assert v.min < v.max, v.name
+
+
+# --------------------------------------------------------------------------- grids
+@pytest.mark.parametrize("var", STEPPED, ids=lambda v: v.name)
+def test_grid_starts_at_min_stays_within_max_and_has_the_step(var):
+    grid = var.grid()
+    assert grid.ndim == 1 and len(grid) >= 2
+    assert grid[0] == pytest.approx(var.min)
+    assert grid[-1] <= var.max + 1e-9
+    # the grid goes as far as it can: one more step would overshoot max
+    assert grid[-1] + var.step > var.max + 1e-9
+    np.testing.assert_allclose(np.diff(grid), var.step, rtol=0, atol=1e-9)
+
+
+def test_vol_ventilation_grid_is_the_papers():
+    np.testing.assert_allclose(cat.get("ventilation_ach").grid(), [0.7, 1.0, 1.3, 1.6])
+    assert cat.get("ventilation_ach").max == 1.7  # 1.7 itself is not on the grid
+
+
+def test_grid_of_continuous_variable_raises():
+    with pytest.raises(CatalogueError, match="TAMB"):
+        cat.get("TAMB").grid()
+
+
+# --------------------------------------------------------------------------- per-m2 conversions
+def test_paper_occupants_per_m2_match_density_range():
+    paper_area = 28_733.0
+    dens = cat.get("occupant_density_per_m2")
+    assert round(1000 / paper_area, 3) == pytest.approx(dens.min)
+    assert round(2000 / paper_area, 3) == pytest.approx(dens.max)
+    # same workstation density range (nb_PCs)
+    pcs = cat.get("pc_density_per_m2")
+    assert (pcs.min, pcs.max) == (dens.min, dens.max)
+
+
+def test_paper_fan_coil_power_per_m2_within_range():
+    # the paper's 1,000 kW on 28,733 m2 is about 35 W/m2, inside 5-50 W/m2
+    w_m2 = 1000e3 / 28_733
+    assert w_m2 == pytest.approx(34.8, abs=0.05)
+    for name in ("heating_power_w_m2", "cooling_power_w_m2"):
+        v = cat.get(name)
+        assert v.min <= w_m2 <= v.max
+
+
+# --------------------------------------------------------------------------- snap / check
+@pytest.mark.parametrize("var", STEPPED, ids=lambda v: v.name)
+def test_snap_round_trips_grid_values(var):
+    grid = var.grid()
+    np.testing.assert_array_equal(var.snap(grid), grid)
+
+
+def test_snap_rounds_to_nearest_and_clips():
+    vent = cat.get("ventilation_ach")
+    assert float(vent.snap(1.1)) == pytest.approx(1.0)
+    assert float(vent.snap(1.2)) == pytest.approx(1.3)
+    assert float(vent.snap(1.7)) == pytest.approx(1.6)  # max is clipped to the last grid point
+    assert float(vent.snap(-5.0)) == pytest.approx(0.7)
+    assert float(vent.snap(99.0)) == pytest.approx(1.6)
+    area = cat.get("floor_area_m2")
+    np.testing.assert_array_equal(area.snap([10.0, 2499.0, 2501.0, 1e9]), [1000.0, 2000.0, 3000.0, 50000.0])
+    # a continuous variable is only clipped
+    tamb = cat.get("TAMB")
+    np.testing.assert_array_equal(tamb.snap([-100.0, 12.34, 100.0]), [-60.0, 12.34, 60.0])
+
+
+def test_check_accepts_in_range_values():
+    v = cat.get("heating_comfort_c")
+    v.check(22.0)
+    v.check(24.0)
+    v.check(np.array([[22.0, 23.3], [24.0, 22.5]]))
+
+
+@pytest.mark.parametrize("bad", [21.0, 30.0, -1.0])
+def test_check_rejects_out_of_range_naming_variable_and_value(bad):
+    v = cat.get("heating_comfort_c")
+    with pytest.raises(CatalogueError) as info:
+        v.check(np.array([23.0, bad, 22.0]), where="test.csv:3")
+    msg = str(info.value)
+    assert "heating_comfort_c" in msg
+    assert f"{bad:g}" in msg
+    assert "[22, 24]" in msg
+    assert "test.csv:3" in msg
+    assert isinstance(info.value, BuildenvError)
+
+
+def test_check_rejects_nan_and_inf():
+    v = cat.get("floor_area_m2")
+    with pytest.raises(CatalogueError, match=r"floor_area_m2=nan"):
+        v.check(float("nan"))
+    with pytest.raises(CatalogueError, match=r"floor_area_m2=inf"):
+        v.check(np.array([5000.0, np.inf]))
+
+
+def test_check_values_checks_each_column_and_shape():
+    lo, hi = cat.bounds("occupancy")
+    cat.check_values("occupancy", np.stack([lo, hi]))
+    with pytest.raises(CatalogueError, match="occupancy_end_hour=21"):
+        cat.check_values("occupancy", np.array([[8.0, 18.0], [8.0, 21.0]]))
+    with pytest.raises(CatalogueError, match="expected 2"):
+        cat.check_values("occupancy", np.zeros((4, 3)))
+
+
+def test_bounds_follow_catalogue_order():
+    lo, hi = cat.bounds("settings")
+    assert lo.shape == hi.shape == (12,)
+    assert lo[cat.SETTING_NAMES.index("heating_comfort_c")] == 22.0
+    assert hi[cat.SETTING_NAMES.index("ventilation_ach")] == 1.7
+
+
+# --------------------------------------------------------------------------- get
+@pytest.mark.parametrize("alias, canonical", [
+    ("t_heat_conf_day", "heating_comfort_c"),
+    ("airchange_infiltration_vol_per_h", "infiltration_ach"),
+    ("capacitance_kJ_perdegreK_perm3", "capacitance_kj_per_k_m3"),
+    ("nb_occupants", "occupant_density_per_m2"),
+    ("vol_ventilation_day", "ventilation_ach"),
+    ("T_HEAT_CONF_DAY", "heating_comfort_c"),  # aliases are case-insensitive
+])
+def test_get_accepts_paper_aliases(alias, canonical):
+    assert cat.get(alias).name == canonical
+    assert cat.get(alias) is cat.get(canonical)
+
+
+def test_get_canonical_names():
+    for v in cat.ALL_VARIABLES:
+        assert cat.get(v.name) is v
+
+
+@pytest.mark.parametrize("typo, suggestion", [
+    ("heating_comfrt_c", "heating_comfort_c"),
+    ("floor_aera_m2", "floor_area_m2"),
+    ("t_heat_conf_dya", "t_heat_conf_day"),
+])
+def test_get_suggests_close_name(typo, suggestion):
+    with pytest.raises(CatalogueError) as info:
+        cat.get(typo)
+    msg = str(info.value)
+    assert repr(typo) in msg
+    assert f"did you mean {suggestion!r}" in msg
+
+
+def test_get_unknown_name_without_close_match():
+    with pytest.raises(CatalogueError) as info:
+        cat.get("zzzzzzzzzzzz")
+    assert "zzzzzzzzzzzz" in str(info.value)
+    assert "did you mean" not in str(info.value)
+    # a CatalogueError is also a KeyError, but prints its message unquoted
+    assert isinstance(info.value, KeyError)
+    assert not str(info.value).startswith('"')
+
+
+# --------------------------------------------------------------------------- from_mapping
+def _theta_mapping(**overrides):
+    values = {v.name: float(v.grid()[len(v.grid()) // 2]) for v in cat.THETA_BUILD}
+    values.update(overrides)
+    return values
+
+
+def test_from_mapping_builds_vector_in_catalogue_order():
+    mapping = _theta_mapping()
+    vector = cat.from_mapping("theta_build", dict(reversed(list(mapping.items()))))
+    assert vector.shape == (19,)
+    np.testing.assert_array_equal(vector, [mapping[n] for n in cat.THETA_NAMES])
+
+
+def test_from_mapping_accepts_aliases_and_defaults():
+    mapping = _theta_mapping()
+    defaults = dict(mapping)
+    vector = cat.from_mapping("theta_build", {"airchange_infiltration_vol_per_h": 0.5}, defaults=defaults)
+    assert vector[cat.THETA_NAMES.index("infiltration_ach")] == 0.5
+    assert vector[cat.THETA_NAMES.index("floor_area_m2")] == defaults["floor_area_m2"]
+
+
+def test_from_mapping_rejects_unknown_name():
+    with pytest.raises(CatalogueError, match="floor_aera_m2.*did you mean 'floor_area_m2'"):
+        cat.from_mapping("theta_build", {"floor_aera_m2": 5000}, defaults=_theta_mapping())
+
+
+def test_from_mapping_rejects_wrong_group():
+    with pytest.raises(CatalogueError) as info:
+        cat.from_mapping("theta_build", {"heating_comfort_c": 22}, defaults=_theta_mapping(), where="b.json")
+    msg = str(info.value)
+    assert "heating_comfort_c" in msg and "settings" in msg and "theta_build" in msg and "b.json" in msg
+
+
+def test_from_mapping_rejects_missing_names():
+    mapping = _theta_mapping()
+    del mapping["roof_insulation_m"]
+    del mapping["number_of_floors"]
+    with pytest.raises(CatalogueError) as info:
+        cat.from_mapping("theta_build", mapping)
+    msg = str(info.value)
+    assert "missing" in msg and "roof_insulation_m" in msg and "number_of_floors" in msg
+
+
+def test_from_mapping_rejects_out_of_range():
+    with pytest.raises(CatalogueError, match=r"number_of_floors=20.*\[1, 15\]"):
+        cat.from_mapping("theta_build", _theta_mapping(number_of_floors=20))
+
+
+# --------------------------------------------------------------------------- weekly names
+def test_weekly_names_sizes_and_order():
+    settings = cat.weekly_names("settings")
+    occupancy = cat.weekly_names("occupancy")
+    assert len(settings) == 84 and len(set(settings)) == 84
+    assert len(occupancy) == 10 and len(set(occupancy)) == 10
+    # day-major: all of Monday's settings first, in catalogue order, then Tuesday's ...
+    assert settings[:12] == tuple(f"{n}_monday" for n in cat.SETTING_NAMES)
+    assert settings[12] == "cooling_start_hour_tuesday"
+    assert settings[0] == "cooling_start_hour_monday"
+    assert settings[-1] == "ventilation_ach_sunday"
+    assert occupancy == ("occupancy_start_hour_monday", "occupancy_end_hour_monday",
+                         "occupancy_start_hour_tuesday", "occupancy_end_hour_tuesday",
+                         "occupancy_start_hour_wednesday", "occupancy_end_hour_wednesday",
+                         "occupancy_start_hour_thursday", "occupancy_end_hour_thursday",
+                         "occupancy_start_hour_friday", "occupancy_end_hour_friday")
+    # the flat order matches a C-order reshape of (7, 12) arrays
+    idx = np.arange(84).reshape(7, 12)
+    assert settings[idx[3, 7]] == f"{cat.SETTING_NAMES[7]}_{cat.DAYS[3]}"
+
+
+# --------------------------------------------------------------------------- hash / describe
+def test_catalogue_hash_is_stable():
+    h = cat.catalogue_hash()
+    assert h == cat.catalogue_hash()
+    assert len(h) == 16
+    int(h, 16)
+
+
+def test_catalogue_hash_changes_when_a_variable_changes(monkeypatch):
+    before = cat.catalogue_hash()
+    changed = dataclasses.replace(cat.THETA_BUILD[0], max=60000.0)
+    new_theta = (changed,) + cat.THETA_BUILD[1:]
+    monkeypatch.setattr(cat, "THETA_BUILD", new_theta)
+    monkeypatch.setitem(cat.GROUPS, "theta_build", new_theta)
+    monkeypatch.setattr(cat, "ALL_VARIABLES", tuple(v for g in cat.GROUPS.values() for v in g))
+    after = cat.catalogue_hash()
+    assert after != before
+    monkeypatch.undo()
+    assert cat.catalogue_hash() == before
+    assert cat.GROUPS["theta_build"][0].max == 50000.0
+
+
+def test_catalogue_hash_changes_with_a_description(monkeypatch):
+    before = cat.catalogue_hash()
+    variables = list(cat.ALL_VARIABLES)
+    variables[-1] = dataclasses.replace(variables[-1], description="changed")
+    monkeypatch.setattr(cat, "ALL_VARIABLES", tuple(variables))
+    assert cat.catalogue_hash() != before
+
+
+def test_describe_is_json_serialisable():
+    rows = cat.describe()
+    assert len(rows) == len(cat.ALL_VARIABLES)
+    text = json.dumps(rows)
+    back = json.loads(text)
+    assert back == rows
+    first = back[0]
+    assert set(first) == {"name", "group", "unit", "min", "max", "step", "granularity", "description",
+                          "paper_name"}
+    assert first["name"] == "floor_area_m2" and first["granularity"] == "static"
+    tamb = next(r for r in back if r["name"] == "TAMB")
+    assert tamb["step"] is None and tamb["granularity"] == "per_hour"
+    assert all(isinstance(r["min"], float) and math.isfinite(r["min"]) for r in back)
+
+
+def test_describe_selected_groups():
+    rows = cat.describe(["occupancy", "settings"])
+    assert [r["name"] for r in rows] == list(cat.OCCUPANCY_NAMES + cat.SETTING_NAMES)
+    json.dumps(rows)

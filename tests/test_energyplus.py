@@ -1,0 +1,126 @@
+"""The EnergyPlus shoebox is physically sane (real runs of one or two weeks)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from buildenv import catalogue as cat
+from buildenv.defaults import DEFAULT_THETA, default_week
+from buildenv.energyplus.runner import run_energyplus
+from buildenv.energyplus.shoebox import LIGHTING_W_M2, PC_POWER_W, build_epjson, write_schedule_file
+from buildenv.energyplus.simulate import simulate_weeks
+from buildenv.errors import SimulationError
+from buildenv.schedules import hourly_schedules
+from buildenv.weather import load_weather
+
+JANUARY, JULY = 2, 28
+OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
+
+
+def _week(epw: str, week: int, theta: dict | None = None, **setting_overrides):
+    settings, occupancy = default_week()
+    for name, value in setting_overrides.items():
+        settings[..., cat.SETTING_NAMES.index(name)] = value
+    result = simulate_weeks({**DEFAULT_THETA, **(theta or {})}, settings, occupancy, epw, week)
+    return result.outputs[0], hourly_schedules(settings, occupancy)
+
+
+@pytest.fixture(scope="module")
+def chicago_january():
+    return _week("usa_il_chicago", JANUARY, {"heating_power_w_m2": 100})
+
+
+@pytest.fixture(scope="module")
+def chicago_july():
+    return _week("usa_il_chicago", JULY, {"cooling_power_w_m2": 100})
+
+
+def test_january_heats_and_does_not_cool(chicago_january):
+    out, _ = chicago_january
+    heating = out[:, OUT["Q_HEAT_OFFICE"]].sum() + out[:, OUT["Q_AHU_H"]].sum()
+    cooling = out[:, OUT["Q_AC_OFFICE"]].sum() + out[:, OUT["Q_AHU_C"]].sum()
+    assert heating > 500.0  # Wh/m2 in a Chicago January week
+    assert cooling < 0.02 * heating
+
+
+def test_july_cools_and_does_not_heat(chicago_july):
+    out, _ = chicago_july
+    cooling = out[:, OUT["Q_AC_OFFICE"]].sum() + out[:, OUT["Q_AHU_C"]].sum()
+    assert cooling > 300.0
+    assert out[:, OUT["Q_AC_OFFICE"]].sum() > 0 and out[:, OUT["Q_AHU_C"]].sum() > 0
+    assert out[:, OUT["Q_HEAT_OFFICE"]].sum() < 0.05 * cooling
+
+
+def test_indoor_temperature_tracks_comfort_setpoint_when_occupied(chicago_january, chicago_july):
+    for out, sched in (chicago_january, chicago_july):
+        t_int = out[:, OUT["T_INT_OFFICE"]]
+        occ = sched["occupancy_fraction"][0] > 0
+        occupied = occ & np.roll(occ, 1)  # the first occupied hour of a day is the start-up
+        heat_sp, cool_sp = sched["heating_setpoint_c"][0], sched["cooling_setpoint_c"][0]
+        # within the dead band, give or take half a kelvin, in every occupied hour after the start-up hour
+        assert np.all(t_int[occupied] > heat_sp[occupied] - 0.5)
+        assert np.all(t_int[occupied] < cool_sp[occupied] + 0.5)
+
+
+def test_january_occupied_temperature_sits_at_heating_comfort(chicago_january):
+    out, sched = chicago_january
+    occupied = sched["occupancy_fraction"][0] > 0
+    t_int = out[occupied, OUT["T_INT_OFFICE"]]
+    assert abs(np.median(t_int) - sched["heating_setpoint_c"][0][occupied][0]) < 0.3
+
+
+def test_internal_gains_follow_schedules_exactly(chicago_january):
+    out, sched = chicago_january
+    occ = sched["occupancy_fraction"][0]
+    light = DEFAULT_THETA["light_night_percent"] / 100 + (1 - DEFAULT_THETA["light_night_percent"] / 100) * occ
+    eqp = DEFAULT_THETA["pc_night_percent"] / 100 + (1 - DEFAULT_THETA["pc_night_percent"] / 100) * occ
+    np.testing.assert_allclose(out[:, OUT["Q_LIGHT"]], LIGHTING_W_M2 * light, rtol=1e-3, atol=1e-3)
+    np.testing.assert_allclose(out[:, OUT["Q_EQP"]], DEFAULT_THETA["pc_density_per_m2"] * PC_POWER_W * eqp,
+                               rtol=1e-3, atol=1e-3)
+    assert np.all(out[occ == 0, OUT["Q_PEOPLE"]] == 0)
+    assert np.all(out[occ > 0, OUT["Q_PEOPLE"]] > 0)
+
+
+def test_ahu_energy_rises_with_ventilation_volume_and_supply_temperature():
+    low = _week("usa_il_chicago", JANUARY, ventilation_ach=0.7)[0][:, OUT["Q_AHU_H"]].sum()
+    high = _week("usa_il_chicago", JANUARY, ventilation_ach=1.6)[0][:, OUT["Q_AHU_H"]].sum()
+    warm = _week("usa_il_chicago", JANUARY, ventilation_ach=0.7, supply_air_c=25)[0][:, OUT["Q_AHU_H"]].sum()
+    assert high / low == pytest.approx(1.6 / 0.7, rel=0.1)  # heating outdoor air scales with its flow
+    assert warm > 1.1 * low
+
+
+def test_ahu_runs_only_in_ventilation_hours(chicago_january):
+    out, sched = chicago_january
+    off = sched["ventilation_on"][0] == 0
+    assert np.all(out[off, OUT["Q_AHU_H"]] == 0) and np.all(out[off, OUT["Q_AHU_C"]] == 0)
+
+
+def test_same_inputs_give_identical_outputs():
+    a = _week("usa_ca_san_francisco", 10)[0]
+    b = _week("usa_ca_san_francisco", 10)[0]
+    np.testing.assert_array_equal(a, b)
+
+
+def test_consecutive_weeks_in_one_run_carry_thermal_state():
+    settings, occupancy = default_week(2)
+    two = simulate_weeks(DEFAULT_THETA, settings, occupancy, "usa_il_chicago", JANUARY).outputs
+    assert two.shape == (2, 168, 8)
+    # Monday 00:00 of week 2 continues from Sunday 23:00 of week 1 (no jump to a warm-up state)
+    t = two[..., OUT["T_INT_OFFICE"]].reshape(-1)
+    assert abs(t[168] - t[167]) < 1.0
+
+
+def test_energyplus_severe_error_is_reported_with_err_lines(tmp_path):
+    settings, occupancy = default_week()
+    weather = load_weather("usa_il_chicago")
+    csv = write_schedule_file(tmp_path / "schedules.csv", DEFAULT_THETA, settings, occupancy, 0)
+    model = build_epjson(DEFAULT_THETA, weather, csv, 0, 1)
+    del model["Material"]["Plasterboard"]  # three wall constructions now name a missing layer
+    with pytest.raises(SimulationError) as info:
+        run_energyplus(model, weather.path, tmp_path / "run", label="broken")
+    message = str(info.value)
+    assert "\n" not in message  # one line
+    assert "broken.epJSON" in message
+    assert "Severe" in message or "Fatal" in message
+    assert "PLASTERBOARD" in message.upper()

@@ -278,7 +278,12 @@ def weekly_names(group: str) -> tuple[str, ...]:
     (84 names); ``weekly_names("occupancy")`` gives the 10 Monday-Friday names.
     """
     variables = GROUPS[group]
-    days = DAYS if variables[0].granularity is Granularity.PER_DAY else WEEKDAYS
+    if variables[0].granularity is Granularity.PER_DAY:
+        days = DAYS
+    elif variables[0].granularity is Granularity.PER_WEEKDAY:
+        days = WEEKDAYS
+    else:
+        raise CatalogueError(f"group {group!r} is {variables[0].granularity.value}, not per day or per weekday")
     return tuple(f"{v.name}_{day}" for day in days for v in variables)
 
 
@@ -336,7 +341,7 @@ def catalogue_hash() -> str:
 def describe(groups: Iterable[str] | None = None) -> list[dict]:
     """The catalogue as a list of plain dicts (for the CLI, docs and JSON export)."""
     out = []
-    for group in groups or GROUPS:
+    for group in GROUPS if groups is None else groups:
         for v in GROUPS[group]:
             out.append({**asdict(v), "granularity": v.granularity.value})
     return out

@@ -13,6 +13,7 @@ from __future__ import annotations
 import argparse
 import json
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -188,6 +189,9 @@ def main(argv: list[str] | None = None) -> int:
     except BuildenvError as exc:
         print(f"buildenv {args.command}: error: {exc}", file=sys.stderr)
         return 2
+    except BrokenPipeError:  # output piped into `head` and the like
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 0
     except KeyboardInterrupt:
         print(f"buildenv {args.command}: interrupted; finished work is kept (rerun to resume)", file=sys.stderr)
         return 130

@@ -75,7 +75,7 @@ class Weather:
     def weeks(self, start_week: int, n_weeks: int) -> np.ndarray:
         """Weeks ``start_week .. start_week + n_weeks - 1`` as ``(n_weeks, 168, channels)``."""
         lo, hi = start_week * cat.HOURS_PER_WEEK, (start_week + n_weeks) * cat.HOURS_PER_WEEK
-        if start_week < 0 or hi > HOURS_PER_YEAR:
+        if n_weeks < 1 or start_week < 0 or hi > HOURS_PER_YEAR:
             raise WeatherError(f"weeks {start_week}..{start_week + n_weeks - 1} fall outside the year of {self.path}")
         return self.hourly[lo:hi].reshape(n_weeks, cat.HOURS_PER_WEEK, -1)
 
@@ -88,7 +88,7 @@ class Weather:
 
 
 @functools.lru_cache(maxsize=32)
-def _load_cached(path: str) -> Weather:
+def _load_cached(path: str, mtime_ns: int, size: int) -> Weather:  # keyed on the file's state too
     import pandas as pd
     import pvlib
 
@@ -135,4 +135,6 @@ def _load_cached(path: str) -> Weather:
 
 def load_weather(name_or_path: str | os.PathLike) -> Weather:
     """Read an EPW (short name or path) into a :class:`Weather` (cached per process)."""
-    return _load_cached(str(resolve_epw(name_or_path)))
+    path = resolve_epw(name_or_path)
+    stat = path.stat()
+    return _load_cached(str(path), stat.st_mtime_ns, stat.st_size)

@@ -151,7 +151,8 @@ def main(argv: list[str] | None = None) -> None:
               f"{r['projection_h_40k_weeks_2_cores']:.2f} |" for r in rows]
     print("\n".join(lines))
     sb = rows[0]
-    notes = [f"- Shoebox: 52 weeks from Monday January 1st (+ warm-up days, no sizing); EnergyPlus call {sb['eplus_median_s']:.2f} s, Python overhead (schedules, epJSON, "
+    notes = [f"- Shoebox: 52 weeks from Monday January 1st (+ warm-up days, no sizing); EnergyPlus call "
+             f"{sb['eplus_median_s']:.2f} s, Python overhead (schedules, epJSON, "
              f"CSV read) {sb['overhead_median_s']:.2f} s (medians); all times: "
              f"{', '.join(f'{t:.2f}' for t in sb['times_s'])} s."]
     if ratio is not None:

@@ -55,7 +55,7 @@ class Dataset:
         """Close the HDF5 file."""
         self._h5.close()
 
-    def __enter__(self) -> "Dataset":
+    def __enter__(self) -> Dataset:
         return self
 
     def __exit__(self, *exc) -> None:

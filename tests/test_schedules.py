@@ -197,7 +197,8 @@ def test_property_setpoints_come_from_the_days_settings(random_weeks):
     np.testing.assert_array_equal(heat[on], comfort[on])
     np.testing.assert_array_equal(heat[~on], setback[~on])
     # comfort periods are contiguous blocks of end - start hours
-    np.testing.assert_array_equal(on.sum(-1), settings[..., S["heating_end_hour"]] - settings[..., S["heating_start_hour"]])
+    length = settings[..., S["heating_end_hour"]] - settings[..., S["heating_start_hour"]]
+    np.testing.assert_array_equal(on.sum(-1), length)
 
 
 def test_property_cooling_in_force_is_the_setting_or_the_interlock(random_weeks):

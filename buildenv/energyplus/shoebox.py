@@ -114,7 +114,7 @@ class Geometry:
     volume_m3: float
 
     @classmethod
-    def from_theta(cls, theta: dict[str, float]) -> "Geometry":
+    def from_theta(cls, theta: dict[str, float]) -> Geometry:
         """Geometry from theta_build values (``floor_area_m2``, ``number_of_floors``)."""
         area, floors = float(theta["floor_area_m2"]), int(round(theta["number_of_floors"]))
         side = math.sqrt(area / floors)

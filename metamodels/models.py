@@ -1,0 +1,176 @@
+"""Sequence metamodels: one contract, ``(batch, hours, inputs) -> (batch, hours, outputs)``.
+
+``MODELS`` maps a name to its class; :func:`build` makes one from a plain config dict (what checkpoints
+store). All models see the whole input sequence of a week (its inputs are known in advance: weather,
+settings, occupancy), so the bidirectional ones may look ahead.
+
+- ``transformer``: the paper's. Linear embedding to ``d_model`` (64), sinusoidal positions, ``layers``
+  (4) encoder layers of local self-attention, then ``layers`` decoder layers of local self-attention and
+  local attention onto the encoder's latent vectors, and a linear read-out. 8 heads with query/key/value
+  size 8. "Local" is the paper's attention size Delta = 12: hour k attends to hours k-12 .. k+12.
+- ``bigru``: bidirectional GRU, linear read-out.
+- ``lstm``: (forward) LSTM, linear read-out.
+- ``convgru``: two 1-D convolutions (kernel 5, ReLU) then a bidirectional GRU.
+- ``ffn``: a per-hour multilayer perceptron with ReLU on the hour's inputs and those of the ``lags``
+  preceding hours (the feed-forward baseline of earlier work; unlike the authors' code, it has activations).
+"""
+
+from __future__ import annotations
+
+import math
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+
+def band_mask(hours: int, window: int, device: torch.device | None = None) -> torch.Tensor:
+    """``(hours, hours)`` boolean mask, True where ``|i - j| <= window`` (the attention band)."""
+    idx = torch.arange(hours, device=device)
+    return (idx[:, None] - idx[None, :]).abs() <= window
+
+
+def sinusoidal_positions(hours: int, dim: int) -> torch.Tensor:
+    """Fixed sinusoidal position encoding, ``(hours, dim)``."""
+    pos = torch.arange(hours, dtype=torch.float32)[:, None]
+    freq = torch.exp(torch.arange(0, dim, 2, dtype=torch.float32) * (-math.log(10000.0) / dim))
+    pe = torch.zeros(hours, dim)
+    pe[:, 0::2] = torch.sin(pos * freq)
+    pe[:, 1::2] = torch.cos(pos * freq[: dim // 2])
+    return pe
+
+
+class LocalAttention(nn.Module):
+    """Multi-head attention restricted to a band of hours."""
+
+    def __init__(self, d_model: int, heads: int, head_dim: int, dropout: float):
+        super().__init__()
+        self.heads, self.head_dim = heads, head_dim
+        self.q = nn.Linear(d_model, heads * head_dim)
+        self.kv = nn.Linear(d_model, 2 * heads * head_dim)
+        self.out = nn.Linear(heads * head_dim, d_model)
+        self.dropout = dropout
+
+    def forward(self, x: torch.Tensor, memory: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+        b, t, _ = x.shape
+        q = self.q(x).view(b, t, self.heads, self.head_dim).transpose(1, 2)
+        k, v = self.kv(memory).view(b, memory.shape[1], 2, self.heads, self.head_dim).permute(2, 0, 3, 1, 4)
+        z = F.scaled_dot_product_attention(q, k, v, attn_mask=mask, dropout_p=self.dropout if self.training else 0.0)
+        return self.out(z.transpose(1, 2).reshape(b, t, self.heads * self.head_dim))
+
+
+class _Block(nn.Module):
+    """Post-norm residual block: attention(s) then a ReLU feed-forward network."""
+
+    def __init__(self, d_model: int, heads: int, head_dim: int, d_ff: int, dropout: float, cross: bool):
+        super().__init__()
+        self.self_attn = LocalAttention(d_model, heads, head_dim, dropout)
+        self.cross_attn = LocalAttention(d_model, heads, head_dim, dropout) if cross else None
+        self.ff = nn.Sequential(nn.Linear(d_model, d_ff), nn.ReLU(), nn.Linear(d_ff, d_model))
+        self.norms = nn.ModuleList(nn.LayerNorm(d_model) for _ in range(3 if cross else 2))
+        self.drop = nn.Dropout(dropout)
+
+    def forward(self, x: torch.Tensor, mask: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
+        x = self.norms[0](x + self.drop(self.self_attn(x, x, mask)))
+        if self.cross_attn is not None:
+            x = self.norms[1](x + self.drop(self.cross_attn(x, memory, mask)))
+        return self.norms[-1](x + self.drop(self.ff(x)))
+
+
+class Transformer(nn.Module):
+    """The paper's encoder-decoder Transformer with local attention (see module docstring)."""
+
+    def __init__(self, inputs: int, outputs: int, d_model: int = 64, heads: int = 8, head_dim: int = 8,
+                 layers: int = 4, window: int = 12, d_ff: int = 256, dropout: float = 0.0, max_hours: int = 512):
+        super().__init__()
+        self.window = window
+        self.embed = nn.Linear(inputs, d_model)
+        self.register_buffer("positions", sinusoidal_positions(max_hours, d_model), persistent=False)
+        self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
+        self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
+        self.readout = nn.Linear(d_model, outputs)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        hours = x.shape[1]
+        mask = band_mask(hours, self.window, x.device)
+        h = self.embed(x) + self.positions[:hours]
+        memory = h
+        for layer in self.encoder:
+            memory = layer(memory, mask)
+        y = memory + self.positions[:hours]
+        for layer in self.decoder:
+            y = layer(y, mask, memory)
+        return self.readout(y)
+
+
+class BiGRU(nn.Module):
+    """Bidirectional GRU."""
+
+    def __init__(self, inputs: int, outputs: int, hidden: int = 64, layers: int = 4, dropout: float = 0.0):
+        super().__init__()
+        self.rnn = nn.GRU(inputs, hidden, num_layers=layers, batch_first=True, bidirectional=True,
+                          dropout=dropout if layers > 1 else 0.0)
+        self.readout = nn.Linear(2 * hidden, outputs)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.readout(self.rnn(x)[0])
+
+
+class LSTM(nn.Module):
+    """Forward LSTM."""
+
+    def __init__(self, inputs: int, outputs: int, hidden: int = 64, layers: int = 4, dropout: float = 0.0):
+        super().__init__()
+        self.rnn = nn.LSTM(inputs, hidden, num_layers=layers, batch_first=True,
+                           dropout=dropout if layers > 1 else 0.0)
+        self.readout = nn.Linear(hidden, outputs)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        return self.readout(self.rnn(x)[0])
+
+
+class ConvGRU(nn.Module):
+    """Two temporal convolutions (kernel 5, ReLU) feeding a bidirectional GRU."""
+
+    def __init__(self, inputs: int, outputs: int, hidden: int = 64, layers: int = 2, kernel: int = 5,
+                 dropout: float = 0.0):
+        super().__init__()
+        self.conv = nn.Sequential(nn.Conv1d(inputs, hidden, kernel, padding=kernel // 2), nn.ReLU(),
+                                  nn.Conv1d(hidden, hidden, kernel, padding=kernel // 2), nn.ReLU())
+        self.rnn = nn.GRU(hidden, hidden, num_layers=layers, batch_first=True, bidirectional=True,
+                          dropout=dropout if layers > 1 else 0.0)
+        self.readout = nn.Linear(2 * hidden, outputs)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        h = self.conv(x.transpose(1, 2)).transpose(1, 2)
+        return self.readout(self.rnn(h)[0])
+
+
+class FFN(nn.Module):
+    """Per-hour MLP (ReLU) on the inputs of the hour and of the ``lags`` hours before it."""
+
+    def __init__(self, inputs: int, outputs: int, hidden: int = 256, layers: int = 3, lags: int = 6):
+        super().__init__()
+        self.lags = lags
+        widths = [inputs * (lags + 1)] + [hidden] * layers
+        body: list[nn.Module] = []
+        for a, b in zip(widths[:-1], widths[1:]):
+            body += [nn.Linear(a, b), nn.ReLU()]
+        self.mlp = nn.Sequential(*body, nn.Linear(widths[-1], outputs))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        padded = F.pad(x, (0, 0, self.lags, 0), mode="replicate") if self.lags else x
+        window = padded.unfold(1, self.lags + 1, 1)  # (B, H, C, lags+1)
+        return self.mlp(window.flatten(2))
+
+
+MODELS: dict[str, type[nn.Module]] = {
+    "transformer": Transformer, "bigru": BiGRU, "lstm": LSTM, "convgru": ConvGRU, "ffn": FFN,
+}
+
+
+def build(name: str, inputs: int, outputs: int, **config) -> nn.Module:
+    """Instantiate a registered model; ``config`` holds its keyword arguments (see each class)."""
+    if name not in MODELS:
+        raise ValueError(f"unknown model {name!r}; choose one of {', '.join(MODELS)}")
+    return MODELS[name](inputs, outputs, **config)

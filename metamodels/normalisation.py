@@ -1,0 +1,43 @@
+"""Per-channel standardisation, fitted on the training split only and saved with the model."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import torch
+
+
+@dataclass
+class Standardiser:
+    """``(x - mean) / std`` per channel (last axis). ``std`` is floored so constant channels stay finite."""
+
+    mean: np.ndarray
+    std: np.ndarray
+
+    @classmethod
+    def fit(cls, data: np.ndarray, min_std: float = 1e-6) -> Standardiser:
+        """Fit on ``data`` of shape ``(..., channels)`` (float64 accumulation; pass the training split only)."""
+        flat = np.asarray(data, dtype=np.float64).reshape(-1, data.shape[-1])
+        return cls(flat.mean(0).astype(np.float32), np.maximum(flat.std(0), min_std).astype(np.float32))
+
+    def transform(self, x: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+        """Standardise (numpy or torch, any leading shape)."""
+        if isinstance(x, torch.Tensor):
+            return (x - torch.as_tensor(self.mean, device=x.device)) / torch.as_tensor(self.std, device=x.device)
+        return (np.asarray(x, dtype=np.float32) - self.mean) / self.std
+
+    def inverse(self, z: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
+        """Back to physical units."""
+        if isinstance(z, torch.Tensor):
+            return z * torch.as_tensor(self.std, device=z.device) + torch.as_tensor(self.mean, device=z.device)
+        return np.asarray(z, dtype=np.float32) * self.std + self.mean
+
+    def state(self) -> dict[str, list[float]]:
+        """JSON-serialisable form."""
+        return {"mean": self.mean.tolist(), "std": self.std.tolist()}
+
+    @classmethod
+    def from_state(cls, state: dict[str, list[float]]) -> Standardiser:
+        """Inverse of :meth:`state`."""
+        return cls(np.asarray(state["mean"], dtype=np.float32), np.asarray(state["std"], dtype=np.float32))

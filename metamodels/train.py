@@ -1,0 +1,146 @@
+"""Training loop: Adam on the paper's loss, early stopping on validation, a checkpoint every epoch.
+
+Read it top to bottom in :func:`fit`. Data are already-normalised tensors; the loss counts only the hours
+where ``hour_mask`` is True (the week, not the context hours that precede it). Every epoch writes
+``<out>.last`` (weights, optimiser, epoch, history) so that a killed run continues where it stopped, and
+``<out>`` itself whenever validation improves. A CSV log line is written per epoch.
+"""
+
+from __future__ import annotations
+
+import csv
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import torch
+
+from metamodels.checkpoint import Checkpoint, load_checkpoint
+from metamodels.loss import paper_loss
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class TrainConfig:
+    """Hyper-parameters of a training run (CLI flags of ``buildenv train`` map onto these)."""
+
+    epochs: int = 100
+    batch_size: int = 64
+    lr: float = 1e-3
+    weight_decay: float = 0.0
+    patience: int = 10  # epochs without validation improvement before stopping
+    alpha: float = 1.0
+    beta: float = 0.3
+    seed: int = 0
+    device: str = "auto"  # "auto": CUDA when present, else CPU
+    temperature_channels: list[int] = field(default_factory=list)
+    consumption_channels: list[int] = field(default_factory=list)
+
+
+def pick_device(name: str) -> torch.device:
+    """``auto`` -> CUDA if available else CPU; otherwise the named device."""
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
+@torch.no_grad()
+def evaluate_loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, hour_mask: torch.Tensor,
+                  cfg: TrainConfig, device: torch.device, batch_size: int = 512) -> float:
+    """Mean paper loss over a dataset (batched, eval mode)."""
+    model.eval()
+    total = 0.0
+    for start in range(0, len(x), batch_size):
+        xb, yb = x[start:start + batch_size].to(device), y[start:start + batch_size].to(device)
+        mask = hour_mask.to(device).expand(len(xb), -1)
+        loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha, cfg.beta,
+                          mask)
+        total += float(loss) * len(xb)
+    return total / max(len(x), 1)
+
+
+def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_val: torch.Tensor,
+        y_val: torch.Tensor, hour_mask: torch.Tensor, cfg: TrainConfig, out: Path,
+        progress: bool = True) -> dict:
+    """Train ``checkpoint.model`` in place and save the best model to ``out``.
+
+    Args:
+        checkpoint: model + normalisation + metadata (the model's initial weights are used unless ``out.last``
+            exists, in which case training resumes from it).
+        x_train, y_train, x_val, y_val: normalised ``(weeks, hours, channels)`` float tensors.
+        hour_mask: ``(hours,)`` boolean, hours counted by the loss.
+        cfg: hyper-parameters.
+        out: path of the best checkpoint; ``out.last`` and ``out.csv`` sit beside it.
+        progress: show a progress bar per epoch.
+    Returns:
+        ``{"best_val_loss", "best_epoch", "epochs_run", "seconds", "history": [...]}``.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    last = out.with_name(out.name + ".last")
+    log_path = out.with_name(out.name + ".csv")
+    device = pick_device(cfg.device)
+    torch.manual_seed(cfg.seed)
+    model = checkpoint.model.to(device)
+    optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    state = {"epoch": 0, "best_val_loss": float("inf"), "best_epoch": -1, "history": [], "seconds": 0.0}
+    if last.exists():
+        resumed = load_checkpoint(last)
+        model.load_state_dict(resumed.model.state_dict())
+        optimiser.load_state_dict(resumed.training["optimiser"])
+        state = {k: resumed.training[k] for k in state}
+        log.info("resuming %s from epoch %d", out, state["epoch"])
+    generator = torch.Generator().manual_seed(cfg.seed)
+    for _ in range(state["epoch"]):  # replay the shuffles so a resumed run sees the same batches
+        torch.randperm(len(x_train), generator=generator)
+    mask = hour_mask.to(device)
+    with open(log_path, "a", newline="") as handle:
+        writer = csv.writer(handle)
+        if state["epoch"] == 0:
+            writer.writerow(["epoch", "train_loss", "val_loss", "seconds"])
+        while state["epoch"] < cfg.epochs and state["epoch"] - state["best_epoch"] <= cfg.patience:
+            started = time.perf_counter()
+            model.train()
+            order = torch.randperm(len(x_train), generator=generator)
+            running, seen = 0.0, 0
+            bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {state['epoch'] + 1}", leave=False,
+                       disable=not progress)
+            for start in bar:
+                idx = order[start:start + cfg.batch_size]
+                xb, yb = x_train[idx].to(device), y_train[idx].to(device)
+                loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha,
+                                  cfg.beta, mask.expand(len(idx), -1))
+                optimiser.zero_grad(set_to_none=True)
+                loss.backward()
+                optimiser.step()
+                running += float(loss) * len(idx)
+                seen += len(idx)
+                bar.set_postfix(loss=f"{running / seen:.4f}")
+            val_loss = evaluate_loss(model, x_val, y_val, hour_mask, cfg, device)
+            seconds = time.perf_counter() - started
+            state["epoch"] += 1
+            state["seconds"] += seconds
+            state["history"].append({"epoch": state["epoch"], "train_loss": running / max(seen, 1),
+                                     "val_loss": val_loss, "seconds": seconds})
+            writer.writerow([state["epoch"], f"{running / max(seen, 1):.6f}", f"{val_loss:.6f}", f"{seconds:.1f}"])
+            handle.flush()
+            model.cpu()
+            if val_loss < state["best_val_loss"]:
+                state["best_val_loss"], state["best_epoch"] = val_loss, state["epoch"]
+                checkpoint.training = {"config": asdict(cfg), **state}
+                checkpoint.save(out)
+            checkpoint.training = {"config": asdict(cfg), **state, "optimiser": optimiser.state_dict()}
+            checkpoint.save(last)
+            model.to(device)
+            log.info("epoch %d train %.5f val %.5f (%.1fs)", state["epoch"], running / max(seen, 1), val_loss,
+                     seconds)
+    model.cpu().eval()
+    best = load_checkpoint(out)
+    checkpoint.model.load_state_dict(best.model.state_dict())
+    checkpoint.training = best.training
+    return {"best_val_loss": state["best_val_loss"], "best_epoch": state["best_epoch"],
+            "epochs_run": state["epoch"], "seconds": state["seconds"], "history": state["history"]}
+

@@ -137,6 +137,25 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_train(args: argparse.Namespace) -> int:
+    from buildenv.training import train_metamodel
+
+    config = json.loads(args.model_config) if args.model_config else None
+    result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
+                             model_config=config, seed=args.seed, progress=not args.quiet, epochs=args.epochs,
+                             batch_size=args.batch_size, lr=args.lr, patience=args.patience, device=args.device)
+    print(json.dumps(result, indent=None if args.json else 2))
+    return 0
+
+
+def _cmd_evaluate(args: argparse.Namespace) -> int:
+    from buildenv.training import evaluate_metamodel
+
+    result = evaluate_metamodel(args.checkpoint, args.data, subset=args.subset)
+    print(json.dumps(result, indent=None if args.json else 2))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of the ``buildenv`` command."""
     parser = argparse.ArgumentParser(prog="buildenv", description=__doc__.split("\n\n")[0])
@@ -177,6 +196,31 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sampling", choices=["uniform", "lhs"], default="uniform")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)
+
+    p = sub.add_parser("train", help="train a metamodel on a dataset")
+    p.add_argument("--model", required=True, choices=["transformer", "bigru", "lstm", "convgru", "ffn"])
+    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("--out", required=True, help="checkpoint path (rerun to resume from CKPT.last)")
+    p.add_argument("--split", default="weather_weeks", choices=["random", "weather_weeks", "climate"])
+    p.add_argument("--max-weeks", type=int, default=None, help="at most this many training weeks")
+    p.add_argument("--model-config", default=None, help='JSON keyword arguments of the model, e.g. \'{"layers": 2}\'')
+    p.add_argument("--epochs", type=int, default=100)
+    p.add_argument("--batch-size", type=int, default=64)
+    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--patience", type=int, default=10, help="early stopping: epochs without improvement")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--device", default="auto", help="auto (CUDA when present), cpu, cuda")
+    p.add_argument("--json", action="store_true", help="one-line JSON")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_train)
+
+    p = sub.add_parser("evaluate", help="score a metamodel checkpoint on a dataset")
+    p.add_argument("--checkpoint", default="default", help="checkpoint path or 'default'")
+    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument("--subset", default="test", choices=["test", "all"],
+                   help="test: the checkpoint's held-out weeks when DATA is its training dataset")
+    p.add_argument("--json", action="store_true", help="one-line JSON")
+    p.set_defaults(func=_cmd_evaluate)
     return parser
 
 

@@ -41,39 +41,40 @@ def sinusoidal_positions(hours: int, dim: int) -> torch.Tensor:
 
 
 class LocalAttention(nn.Module):
-    """Multi-head attention restricted to a band of hours."""
+    """Multi-head attention restricted to a band of ``window`` hours either side."""
 
-    def __init__(self, d_model: int, heads: int, head_dim: int, dropout: float):
+    def __init__(self, d_model: int, heads: int, head_dim: int, window: int, dropout: float):
         super().__init__()
-        self.heads, self.head_dim = heads, head_dim
+        self.heads, self.head_dim, self.window = heads, head_dim, window
         self.q = nn.Linear(d_model, heads * head_dim)
         self.kv = nn.Linear(d_model, 2 * heads * head_dim)
         self.out = nn.Linear(heads * head_dim, d_model)
-        self.dropout = dropout
+        self.drop = nn.Dropout(dropout)
 
-    def forward(self, x: torch.Tensor, memory: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, memory: torch.Tensor) -> torch.Tensor:
         b, t, _ = x.shape
         q = self.q(x).view(b, t, self.heads, self.head_dim).transpose(1, 2)
         k, v = self.kv(memory).view(b, memory.shape[1], 2, self.heads, self.head_dim).permute(2, 0, 3, 1, 4)
-        z = F.scaled_dot_product_attention(q, k, v, attn_mask=mask, dropout_p=self.dropout if self.training else 0.0)
-        return self.out(z.transpose(1, 2).reshape(b, t, self.heads * self.head_dim))
+        mask = band_mask(t, self.window, x.device)  # dense attention, band-masked: fastest here on CPU
+        z = F.scaled_dot_product_attention(q, k, v, attn_mask=mask)
+        return self.drop(self.out(z.transpose(1, 2).reshape(b, t, self.heads * self.head_dim)))
 
 
 class _Block(nn.Module):
     """Post-norm residual block: attention(s) then a ReLU feed-forward network."""
 
-    def __init__(self, d_model: int, heads: int, head_dim: int, d_ff: int, dropout: float, cross: bool):
+    def __init__(self, d_model: int, heads: int, head_dim: int, window: int, d_ff: int, dropout: float, cross: bool):
         super().__init__()
-        self.self_attn = LocalAttention(d_model, heads, head_dim, dropout)
-        self.cross_attn = LocalAttention(d_model, heads, head_dim, dropout) if cross else None
+        self.self_attn = LocalAttention(d_model, heads, head_dim, window, dropout)
+        self.cross_attn = LocalAttention(d_model, heads, head_dim, window, dropout) if cross else None
         self.ff = nn.Sequential(nn.Linear(d_model, d_ff), nn.ReLU(), nn.Linear(d_ff, d_model))
         self.norms = nn.ModuleList(nn.LayerNorm(d_model) for _ in range(3 if cross else 2))
         self.drop = nn.Dropout(dropout)
 
-    def forward(self, x: torch.Tensor, mask: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
-        x = self.norms[0](x + self.drop(self.self_attn(x, x, mask)))
+    def forward(self, x: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
+        x = self.norms[0](x + self.self_attn(x, x))
         if self.cross_attn is not None:
-            x = self.norms[1](x + self.drop(self.cross_attn(x, memory, mask)))
+            x = self.norms[1](x + self.cross_attn(x, memory))
         return self.norms[-1](x + self.drop(self.ff(x)))
 
 
@@ -86,20 +87,20 @@ class Transformer(nn.Module):
         self.window = window
         self.embed = nn.Linear(inputs, d_model)
         self.register_buffer("positions", sinusoidal_positions(max_hours, d_model), persistent=False)
-        self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
-        self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
+        self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, window, d_ff, dropout, False)
+                                     for _ in range(layers))
+        self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, window, d_ff, dropout, True)
+                                     for _ in range(layers))
         self.readout = nn.Linear(d_model, outputs)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         hours = x.shape[1]
-        mask = band_mask(hours, self.window, x.device)
-        h = self.embed(x) + self.positions[:hours]
-        memory = h
+        memory = self.embed(x) + self.positions[:hours]
         for layer in self.encoder:
-            memory = layer(memory, mask)
+            memory = layer(memory)
         y = memory + self.positions[:hours]
         for layer in self.decoder:
-            y = layer(y, mask, memory)
+            y = layer(y, memory)
         return self.readout(y)
 
 

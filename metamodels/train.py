@@ -80,6 +80,7 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
     from tqdm import tqdm
 
     out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
     last = out.with_name(out.name + ".last")
     log_path = out.with_name(out.name + ".csv")
     device = pick_device(cfg.device)
@@ -116,7 +117,7 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
                 optimiser.zero_grad(set_to_none=True)
                 loss.backward()
                 optimiser.step()
-                running += float(loss) * len(idx)
+                running += loss.item() * len(idx)
                 seen += len(idx)
                 bar.set_postfix(loss=f"{running / seen:.4f}")
             val_loss = evaluate_loss(model, x_val, y_val, hour_mask, cfg, device)

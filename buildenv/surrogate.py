@@ -1,0 +1,167 @@
+"""The metamodel as "simulate a week fast": catalogue data in, hourly outputs in physical units out.
+
+Encoding (one row per hour, ``CONTEXT_HOURS + 168`` rows per week):
+
+- weather: the W_k channels of :data:`WEATHER_INPUTS` (the paper's seven plus wind speed);
+- the hourly schedules of :mod:`buildenv.schedules` (setpoints in force, comfort masks, ventilation on and
+  flow, supply temperature, occupancy);
+- calendar: sine and cosine of the hour of day;
+- theta_build, the same on every hour;
+- ``is_context``: 1 on the context hours, 0 on the week.
+
+The context is the day before the week (its weather and schedules): a week cut from a longer simulation
+starts from the state the previous days left, and the model needs to see them. When the previous week is
+unknown (a simulation's first week, which EnergyPlus warms up by repeating its first day) the week's own
+first day stands in for it, as EnergyPlus's warm-up does.
+
+Outputs are the 8 catalogue outputs, standardised per channel with statistics of the training split only
+(saved in the checkpoint). The checkpoint's metadata carries the catalogue hash and the channel names;
+loading one made for another catalogue raises :class:`CheckpointError`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.errors import BuildenvError
+from buildenv.schedules import HOURLY_CHANNELS, hourly_encoding
+
+CONTEXT_HOURS = 24
+WEATHER_INPUTS: tuple[str, ...] = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H", "RHUM", "TAMB", "WIND_SPEED")
+CALENDAR_INPUTS: tuple[str, ...] = ("hour_sin", "hour_cos")
+INPUT_CHANNELS: tuple[str, ...] = (*WEATHER_INPUTS, *HOURLY_CHANNELS, *CALENDAR_INPUTS, *cat.THETA_NAMES,
+                                   "is_context")
+TEMPERATURE_CHANNELS: list[int] = [cat.OUTPUT_NAMES.index(n) for n in cat.TEMPERATURE_OUTPUTS]
+CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
+DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "data" / "metamodel_default.pt"
+
+
+class CheckpointError(BuildenvError):
+    """A checkpoint is missing or was made for another catalogue or encoding."""
+
+
+def _calendar(hours: int) -> np.ndarray:
+    angle = 2 * np.pi * (np.arange(hours) % 24) / 24.0
+    return np.stack([np.sin(angle), np.cos(angle)], axis=-1)
+
+
+def _week_rows(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray) -> np.ndarray:
+    """(N, 168, channels-1) rows without the context flag."""
+    n = len(theta)
+    w_idx = [cat.WEATHER_NAMES.index(c) for c in WEATHER_INPUTS]
+    parts = [np.asarray(weather, dtype=np.float32)[..., w_idx],
+             hourly_encoding(settings, occupancy).astype(np.float32),
+             np.broadcast_to(_calendar(cat.HOURS_PER_WEEK), (n, cat.HOURS_PER_WEEK, 2)).astype(np.float32),
+             np.broadcast_to(np.asarray(theta, dtype=np.float32)[:, None, :],
+                             (n, cat.HOURS_PER_WEEK, len(cat.THETA_NAMES)))]
+    return np.concatenate(parts, axis=-1)
+
+
+def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
+                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                 has_previous: np.ndarray | None = None) -> np.ndarray:
+    """Model inputs of weeks, physical units (not yet standardised).
+
+    Args:
+        theta: ``(N, 19)``; settings: ``(N, 7, 12)``; occupancy: ``(N, 5, 2)``; weather: ``(N, 168, 9)``.
+        previous: settings, occupancy and weather of each week's preceding week (same shapes), or ``None``.
+        has_previous: ``(N,)`` booleans, False where ``previous`` holds no real preceding week.
+    Returns:
+        ``(N, CONTEXT_HOURS + 168, len(INPUT_CHANNELS))`` float32.
+    """
+    rows = _week_rows(theta, settings, occupancy, weather)
+    context = rows[:, :CONTEXT_HOURS].copy()  # the week's first day, as EnergyPlus's warm-up repeats it
+    if previous is not None:
+        prev_rows = _week_rows(theta, *previous)[:, -CONTEXT_HOURS:]
+        use = np.ones(len(rows), bool) if has_previous is None else np.asarray(has_previous, bool)
+        context[use] = prev_rows[use]
+    flag = np.concatenate([np.ones(CONTEXT_HOURS), np.zeros(cat.HOURS_PER_WEEK)]).astype(np.float32)
+    x = np.concatenate([context, rows], axis=1)
+    return np.concatenate([x, np.broadcast_to(flag[None, :, None], (len(x), len(flag), 1))], axis=-1)
+
+
+def _read(ds, name: str, ids: np.ndarray) -> np.ndarray:
+    """Rows ``ids`` (any order, repeats allowed) of a dataset array; h5py wants increasing unique indices."""
+    unique, back = np.unique(ids, return_inverse=True)
+    return getattr(ds, name)[unique][back]
+
+
+def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048) -> tuple[np.ndarray, np.ndarray]:
+    """Inputs ``(n, 192, C)`` and outputs ``(n, 168, 8)`` of dataset weeks (in ``indices`` order), each with
+    its real preceding day as context where the dataset has it."""
+    indices = np.asarray(indices)
+    previous = ds.previous_week()
+    xs, ys = [], []
+    for start in range(0, len(indices), chunk):
+        idx = indices[start:start + chunk]
+        has = previous[idx] >= 0
+        prev_idx = np.where(has, previous[idx], idx)
+        prev = tuple(_read(ds, name, prev_idx) for name in ("settings", "occupancy", "weather"))
+        week = [_read(ds, name, idx) for name in ("theta", "settings", "occupancy", "weather")]
+        xs.append(encode_weeks(*week, prev, has))
+        ys.append(_read(ds, "outputs", idx))
+    return np.concatenate(xs), np.concatenate(ys).astype(np.float32)
+
+
+def metadata() -> dict:
+    """What a checkpoint must agree on with this buildenv to be usable."""
+    return {"catalogue_hash": cat.catalogue_hash(), "input_channels": list(INPUT_CHANNELS),
+            "output_channels": list(cat.OUTPUT_NAMES), "context_hours": CONTEXT_HOURS}
+
+
+@dataclass
+class Surrogate:
+    """A trained metamodel that simulates weeks: ``predict`` takes catalogue arrays, returns physical outputs."""
+
+    checkpoint: object  # metamodels.checkpoint.Checkpoint
+    path: Path | None = None
+
+    def predict(self, theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
+                previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+                has_previous: np.ndarray | None = None, batch_size: int = 4096) -> np.ndarray:
+        """Hourly outputs ``(N, 168, 8)`` (Wh/m2, degC) of N weeks in as few model calls as the batch allows.
+
+        Arguments as :func:`encode_weeks`.
+        """
+        x = encode_weeks(theta, settings, occupancy, weather, previous, has_previous)
+        return self.predict_encoded(x, batch_size)
+
+    def predict_encoded(self, x: np.ndarray, batch_size: int = 4096) -> np.ndarray:
+        """Outputs ``(N, 168, 8)`` in physical units from already encoded inputs ``(N, 192, C)``."""
+        import torch
+
+        ck = self.checkpoint
+        out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
+        with torch.inference_mode():
+            for start in range(0, len(x), batch_size):
+                xb = torch.from_numpy(np.ascontiguousarray(ck.input_norm.transform(x[start:start + batch_size])))
+                y = ck.model(xb)[:, CONTEXT_HOURS:]
+                out[start:start + batch_size] = ck.output_norm.inverse(y).numpy()
+        return out
+
+
+def load_metamodel(path: str | Path | None = None) -> Surrogate:
+    """Load a metamodel checkpoint (``None`` or ``"default"``: the one shipped in the package).
+
+    Raises:
+        CheckpointError: missing file, or a checkpoint made for another catalogue or input encoding.
+    """
+    from metamodels.checkpoint import load_checkpoint
+
+    path = DEFAULT_CHECKPOINT if path in (None, "default") else Path(path)
+    if not path.is_file():
+        raise CheckpointError(f"metamodel checkpoint not found: {path}")
+    ck = load_checkpoint(path)
+    expected = metadata()
+    for key, value in expected.items():
+        if ck.metadata.get(key) != value:
+            found = ck.metadata.get(key)
+            if key == "catalogue_hash":
+                raise CheckpointError(f"{path} was trained for catalogue {found}, this buildenv has {value}: "
+                                      "retrain it on a dataset simulated with this catalogue")
+            raise CheckpointError(f"{path}: its {key} differs from this buildenv's; retrain it")
+    return Surrogate(ck, path)

@@ -1,0 +1,106 @@
+"""Training and evaluating metamodels on a campaign's dataset (what ``buildenv train`` / ``evaluate`` run).
+
+The split (kind and seed) is stored in the checkpoint, so ``evaluate`` on the same dataset scores exactly
+the weeks held out of training. Normalisation statistics come from the training weeks only.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv import surrogate as sg
+from buildenv.dataset import open_dataset
+from buildenv.metrics import summarise, week_metrics
+
+
+def _tensors(x: np.ndarray, y: np.ndarray, ck):
+    import torch
+
+    pad = np.zeros((len(y), sg.CONTEXT_HOURS, y.shape[-1]), np.float32)
+    y_full = np.concatenate([pad, ck.output_norm.transform(y)], axis=1)
+    return torch.from_numpy(ck.input_norm.transform(x)), torch.from_numpy(y_full)
+
+
+def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = "weather_weeks",
+                    max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
+                    progress: bool = True, **train_options) -> dict:
+    """Train one metamodel on a dataset and score it on the held-out test weeks.
+
+    Args:
+        data: dataset directory (``buildenv simulate --out``).
+        model: ``transformer``, ``bigru``, ``lstm``, ``convgru`` or ``ffn``.
+        out: checkpoint path (``out.last`` and ``out.csv`` are written beside it; a rerun resumes).
+        split: ``random``, ``weather_weeks`` or ``climate`` (see :meth:`buildenv.dataset.Dataset.split`).
+        max_weeks: use at most this many training weeks (a seeded random subset), e.g. for learning curves.
+        model_config: keyword arguments of the model class.
+        seed: seed of the split, the subset, the weights and the batch order.
+        progress: progress bars.
+        train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
+    Returns:
+        ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
+    """
+    import torch
+
+    from metamodels.checkpoint import Checkpoint
+    from metamodels.models import build
+    from metamodels.normalisation import Standardiser
+    from metamodels.train import TrainConfig, fit
+
+    started = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    with open_dataset(data) as ds:
+        parts = ds.split(split, seed=seed)
+        train_idx = parts["train"]
+        if max_weeks is not None and max_weeks < len(train_idx):
+            train_idx = np.sort(rng.choice(train_idx, size=max_weeks, replace=False))
+        x_tr, y_tr = sg.encode_dataset(ds, train_idx)
+        x_va, y_va = sg.encode_dataset(ds, parts["val"])
+        x_te, y_te = sg.encode_dataset(ds, parts["test"])
+    torch.manual_seed(seed)
+    config = dict(model_config or {})
+    net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
+    metadata = {**sg.metadata(), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
+                "train_weeks": int(len(train_idx))}
+    ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
+    cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
+                      consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
+    hour_mask = torch.tensor([False] * sg.CONTEXT_HOURS + [True] * cat.HOURS_PER_WEEK)
+    history = fit(ck, *_tensors(x_tr, y_tr, ck), *_tensors(x_va, y_va, ck), hour_mask, cfg, Path(out), progress)
+    test = score(sg.Surrogate(ck), x_te, y_te)
+    return {"model": model, "config": config, "train": asdict(cfg), "train_weeks": int(len(train_idx)),
+            "val_weeks": int(len(parts["val"])), "test_weeks": int(len(parts["test"])),
+            "seconds": round(time.perf_counter() - started, 1),
+            "fit": {k: v for k, v in history.items() if k != "history"}, "test": test}
+
+
+def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, float]:
+    """Metrics (mean and std over weeks) of a surrogate on encoded weeks ``x`` with true outputs ``y``."""
+    pred = surrogate.predict_encoded(x)
+    occupied = x[:, sg.CONTEXT_HOURS:, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
+    norm = surrogate.checkpoint.output_norm
+    return summarise(week_metrics(y, pred, occupied, norm.mean, norm.std))
+
+
+def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: str = "test") -> dict:
+    """Score a checkpoint on a dataset.
+
+    ``subset="test"`` scores the checkpoint's own held-out weeks when ``data`` is the dataset it was trained
+    on (same split kind and seed), and every week otherwise; ``subset="all"`` scores every week.
+    """
+    surrogate = sg.load_metamodel(checkpoint)
+    meta = surrogate.checkpoint.metadata
+    with open_dataset(data) as ds:
+        same = meta.get("dataset") == str(Path(data).resolve())
+        if subset == "test" and same:
+            idx = ds.split(meta["split"], seed=meta["split_seed"])["test"]
+        else:
+            idx = np.arange(len(ds))
+        x, y = sg.encode_dataset(ds, idx)
+    result = score(surrogate, x, y)
+    result["subset"] = "test" if subset == "test" and same else "all"
+    return result

@@ -1,0 +1,118 @@
+"""Metamodels: every model learns, checkpoints round-trip exactly, catalogue mismatches are refused."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import torch
+
+from buildenv import catalogue as cat
+from buildenv import surrogate as sg
+from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.training import evaluate_metamodel, train_metamodel
+from metamodels.checkpoint import Checkpoint, load_checkpoint
+from metamodels.loss import paper_loss
+from metamodels.models import MODELS, band_mask, build
+from metamodels.normalisation import Standardiser
+
+SMALL_CONFIGS = {"transformer": {"layers": 1}, "bigru": {"layers": 1}, "lstm": {"layers": 1},
+                 "convgru": {"layers": 1}, "ffn": {"layers": 2}}
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_model_overfits_a_tiny_batch(name):
+    torch.manual_seed(0)
+    x = torch.randn(4, 48, 6)
+    # a target every architecture can represent: a smoothed nonlinear function of the inputs
+    y = torch.stack([torch.tanh(x[..., 0] + 0.5 * x[..., 1]), x[..., 2] * x[..., 3]], -1)
+    model = build(name, 6, 2, **SMALL_CONFIGS[name])
+    opt = torch.optim.Adam(model.parameters(), lr=3e-3)
+    first = None
+    for _ in range(300):
+        loss = paper_loss(model(x), y, [0], [1])
+        first = loss.item() if first is None else first
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+    assert loss.item() < 0.25 * first, (name, first, loss.item())
+
+
+def test_paper_loss_is_log_of_rmse():
+    pred, target = torch.zeros(1, 10, 2), torch.zeros(1, 10, 2)
+    target[..., 0], target[..., 1] = 2.0, 3.0  # RMSE_T = 2, RMSE_Q = 3
+    loss = paper_loss(pred, target, [0], [1], alpha=1.0, beta=0.3)
+    assert float(loss) == pytest.approx(np.log(3.0) + 0.3 * np.log(4.0), rel=1e-5)
+    mask = torch.zeros(1, 10, dtype=torch.bool)
+    mask[0, :5] = True
+    target[0, 5:] = 100.0  # masked hours do not count
+    assert float(paper_loss(pred, target, [0], [1], mask=mask)) == pytest.approx(float(loss), rel=1e-5)
+
+
+def test_transformer_attention_is_local():
+    torch.manual_seed(0)
+    model = build("transformer", 3, 1, layers=1, window=2).eval()
+    x = torch.randn(1, 30, 3)
+    y = model(x)
+    x2 = x.clone()
+    x2[0, 29] += 10.0  # hour 29 can reach hour 29-4 at most through two attention hops (encoder, decoder)
+    y2 = model(x2)
+    assert torch.allclose(y[0, :24], y2[0, :24], atol=1e-6)
+    assert not torch.allclose(y[0, 26:], y2[0, 26:])
+    assert band_mask(5, 1).sum() == 13
+
+
+def test_standardiser_uses_only_what_it_is_given():
+    train = np.random.default_rng(0).normal(5.0, 2.0, (100, 3))
+    norm = Standardiser.fit(train)
+    np.testing.assert_allclose(norm.transform(train).mean(0), 0, atol=1e-5)
+    np.testing.assert_allclose(norm.inverse(norm.transform(train)), train, rtol=1e-5)
+
+
+def test_checkpoint_round_trip_is_bit_exact(tmp_path):
+    torch.manual_seed(1)
+    model = build("transformer", 5, 3, layers=1)
+    norm_in, norm_out = Standardiser.fit(np.random.rand(10, 5)), Standardiser.fit(np.random.rand(10, 3))
+    ck = Checkpoint("transformer", {"layers": 1}, model, norm_in, norm_out, {"note": "x"})
+    path = ck.save(tmp_path / "m.pt")
+    loaded = load_checkpoint(path)
+    x = torch.randn(2, 20, 5)
+    model.eval()
+    with torch.no_grad():
+        assert torch.equal(model(x), loaded.model(x))
+    assert loaded.metadata == {"note": "x"}
+    np.testing.assert_array_equal(loaded.input_norm.mean, norm_in.mean)
+
+
+@pytest.fixture(scope="module")
+def tiny_dataset(tmp_path_factory):
+    out = tmp_path_factory.mktemp("mm") / "data"
+    run_campaign(CampaignConfig(weeks=12, seed=2, epw=["usa_il_chicago", "usa_co_golden"], weeks_per_run=3),
+                 out, workers=2, progress=False)
+    return out
+
+
+def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monkeypatch):
+    ckpt = tmp_path / "lstm.pt"
+    result = train_metamodel(tiny_dataset, "lstm", ckpt, split="random", model_config={"layers": 1}, epochs=2,
+                             batch_size=4, progress=False)
+    assert result["fit"]["epochs_run"] == 2 and np.isfinite(result["test"]["loss"])
+    assert (tmp_path / "lstm.pt.last").exists() and (tmp_path / "lstm.pt.csv").exists()
+    # rerunning with more epochs resumes from epoch 2 instead of starting over
+    again = train_metamodel(tiny_dataset, "lstm", ckpt, split="random", model_config={"layers": 1}, epochs=3,
+                            batch_size=4, progress=False)
+    assert again["fit"]["epochs_run"] == 3
+    assert len((tmp_path / "lstm.pt.csv").read_text().strip().splitlines()) == 1 + 3
+    evaluated = evaluate_metamodel(ckpt, tiny_dataset)
+    assert evaluated["subset"] == "test" and evaluated["weeks"] == result["test_weeks"]
+    assert evaluated["loss"] == pytest.approx(again["test"]["loss"], rel=1e-5)
+    surrogate = sg.load_metamodel(ckpt)
+    from buildenv.dataset import open_dataset
+
+    with open_dataset(tiny_dataset) as ds:
+        x, y = sg.encode_dataset(ds, np.arange(3))
+        assert x.shape == (3, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
+        pred = surrogate.predict(ds.theta[:3], ds.settings[:3], ds.occupancy[:3], ds.weather[:3])
+    assert pred.shape == (3, 168, len(cat.OUTPUT_NAMES)) and np.isfinite(pred).all()
+    monkeypatch.setattr(cat, "catalogue_hash", lambda: "0000000000000000")
+    with pytest.raises(sg.CheckpointError, match="catalogue"):
+        sg.load_metamodel(ckpt)

@@ -1,0 +1,105 @@
+"""Simulated weeks per second: metamodels vs the EnergyPlus shoebox, measured in one run on this machine.
+
+EnergyPlus: ``buildenv simulate`` of ``--eplus-weeks`` weeks (one-year runs, all cores), timed end to end.
+Metamodels: batched inference (``torch.inference_mode``, all cores) of each architecture/configuration on
+encoded weeks, best of ``--repeats`` timings. Speed does not depend on the weights, so untrained models
+of the shipped configurations are timed; accuracy belongs to ``bench/results/metamodels.md``.
+
+    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--batch 4096] [--repeats 3]
+
+Writes ``bench/results/metamodel_speed.{md,json}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import shutil
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from buildenv import surrogate as sg
+from buildenv.campaign import CampaignConfig, run_campaign
+from metamodels.models import build
+
+RESULTS = Path(__file__).resolve().parent / "results"
+CONFIGS: list[tuple[str, dict]] = [
+    ("transformer", {}),  # the paper's: hourly tokens, 4+4 layers
+    ("transformer", {"patch_hours": 4}),
+    ("transformer", {"patch_hours": 6}),
+    ("transformer", {"patch_hours": 8}),
+    ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128}),
+    ("bigru", {}), ("lstm", {}), ("convgru", {}), ("ffn", {}),
+]
+
+
+def energyplus_weeks_per_second(weeks: int) -> float:
+    """Time a real campaign of ``weeks`` weeks with all cores; weeks per second."""
+    out = Path(tempfile.mkdtemp(prefix="bench-eplus-")) / "data"
+    try:
+        started = time.perf_counter()
+        run_campaign(CampaignConfig(weeks=weeks, seed=0, epw=["usa_il_chicago", "usa_fl_miami"]), out,
+                     progress=False)
+        return weeks / (time.perf_counter() - started)
+    finally:
+        shutil.rmtree(out.parent, ignore_errors=True)
+
+
+def model_weeks_per_second(name: str, config: dict, batch: int, repeats: int) -> float:
+    """Best-of-``repeats`` batched inference speed of a model on random encoded weeks."""
+    torch.manual_seed(0)
+    model = build(name, len(sg.INPUT_CHANNELS), 8, **config).eval()
+    x = torch.randn(batch, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
+    best = float("inf")
+    with torch.inference_mode():
+        model(x[:64])
+        for _ in range(repeats):
+            started = time.perf_counter()
+            model(x)
+            best = min(best, time.perf_counter() - started)
+    return batch / best
+
+
+def main() -> None:
+    """Measure and write the results."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--eplus-weeks", type=int, default=1040)
+    parser.add_argument("--batch", type=int, default=4096)
+    parser.add_argument("--repeats", type=int, default=3)
+    args = parser.parse_args()
+    torch.set_num_threads(os.cpu_count() or 1)
+    eplus = energyplus_weeks_per_second(args.eplus_weeks)
+    rows = []
+    for name, config in CONFIGS:
+        speed = model_weeks_per_second(name, config, args.batch, args.repeats)
+        params = sum(p.numel() for p in build(name, len(sg.INPUT_CHANNELS), 8, **config).parameters())
+        rows.append({"model": name, "config": config, "parameters": params, "weeks_per_second": round(speed, 1),
+                     "speedup_vs_energyplus": round(speed / eplus, 1)})
+        print(f"{name:12s} {json.dumps(config):45s} {speed:9.1f} weeks/s  x{speed / eplus:6.1f}")
+    result = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
+              "torch": torch.__version__, "command": "bench/metamodel_speed.py " + " ".join(
+                  f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items()),
+              "energyplus_weeks_per_second": round(eplus, 2), "models": rows}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "metamodel_speed.json").write_text(json.dumps(result, indent=2) + "\n")
+    lines = [f"# Metamodel vs EnergyPlus speed ({result['date']})", "",
+             f"Machine: {result['machine']}; torch {result['torch']}. Command: `.venv/bin/python "
+             f"{result['command']}`.", "",
+             f"EnergyPlus shoebox, `buildenv simulate` of {args.eplus_weeks} weeks on all cores: "
+             f"**{eplus:.1f} weeks/s**.", "",
+             f"Metamodels, batched inference of {args.batch} weeks (192 hours x {len(sg.INPUT_CHANNELS)} inputs), "
+             "all cores, best of the repeats:", "",
+             "| model | config | parameters | weeks/s | x EnergyPlus |", "|---|---|---|---|---|"]
+    lines += [f"| {r['model']} | `{json.dumps(r['config'])}` | {r['parameters']} | {r['weeks_per_second']} | "
+              f"{r['speedup_vs_energyplus']} |" for r in rows]
+    (RESULTS / "metamodel_speed.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()

@@ -40,7 +40,6 @@ from buildenv.weather import resolve_epw, shipped_weather
 
 log = logging.getLogger(__name__)
 
-WEEKS_PER_YEAR = 52
 TASKS_PER_WORKER = 50  # recycle worker processes after this many EnergyPlus runs (each leaves ~3 MB behind)
 DEFAULT_CLIMATES: tuple[str, ...] = tuple(shipped_weather())
 
@@ -60,15 +59,15 @@ class CampaignConfig:
     weeks: int
     seed: int = 0
     epw: list[str] = field(default_factory=lambda: list(DEFAULT_CLIMATES))
-    weeks_per_run: int = WEEKS_PER_YEAR
+    weeks_per_run: int = cat.WEEKS_PER_YEAR
     sampling: str = "uniform"
 
     def validate(self) -> None:
         """Raise :class:`BuildenvError` on a value no campaign can use."""
         if self.weeks < 1:
             raise BuildenvError(f"--weeks must be at least 1 (got {self.weeks})")
-        if not 1 <= self.weeks_per_run <= WEEKS_PER_YEAR:
-            raise BuildenvError(f"--weeks-per-run must be within 1..{WEEKS_PER_YEAR} (got {self.weeks_per_run})")
+        if not 1 <= self.weeks_per_run <= cat.WEEKS_PER_YEAR:
+            raise BuildenvError(f"--weeks-per-run must be within 1..{cat.WEEKS_PER_YEAR} (got {self.weeks_per_run})")
         if self.sampling not in METHODS:
             raise BuildenvError(f"--sampling must be one of {', '.join(METHODS)} (got {self.sampling!r})")
         if not self.epw:
@@ -104,7 +103,7 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     settings, occupancy = sample_weeks(config.weeks, rng, config.sampling)
     order = np.resize(rng.permutation(len(config.epw)), n_runs)
     climates = rng.permutation(order)
-    starts = [int(rng.integers(0, WEEKS_PER_YEAR - n + 1)) for n in lengths]
+    starts = [int(rng.integers(0, cat.WEEKS_PER_YEAR - n + 1)) for n in lengths]
     tasks, offset = [], 0
     for r, n in enumerate(lengths):
         tasks.append(RunTask(r, thetas[r], settings[offset:offset + n], occupancy[offset:offset + n],

@@ -51,6 +51,7 @@ DAYS: tuple[str, ...] = ("monday", "tuesday", "wednesday", "thursday", "friday",
 WEEKDAYS: tuple[str, ...] = DAYS[:5]
 HOURS_PER_DAY = 24
 HOURS_PER_WEEK = 168
+WEEKS_PER_YEAR = 52  # whole weeks of a 365-day weather year (January 1st is a Monday)
 
 
 class Granularity(str, Enum):

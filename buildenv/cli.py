@@ -68,7 +68,7 @@ def _cmd_weather(args: argparse.Namespace) -> int:
 
 
 def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Path, as_json: bool) -> int:
-    from buildenv.defaults import DEFAULT_DAY_SETTINGS, DEFAULT_THETA, default_week
+    from buildenv.defaults import DEFAULT_THETA, default_week
     from buildenv.energyplus.simulate import simulate_weeks
     from buildenv.plotting import plot_week
     from buildenv.schedules import hourly_schedules
@@ -89,8 +89,8 @@ def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Pa
         else:
             raise BuildenvError(f"--set {name}: only theta_build, settings and occupancy variables can be set")
     theta = cat.from_mapping("theta_build", theta_values, where="--set")
-    if not 0 <= week <= 51:
-        raise BuildenvError(f"--week {week}: weeks of the year run from 0 to 51")
+    if not 0 <= week < cat.WEEKS_PER_YEAR:
+        raise BuildenvError(f"--week {week}: weeks of the year run from 0 to {cat.WEEKS_PER_YEAR - 1}")
     result = simulate_weeks(theta, settings, occupancy, epw, week)
     sched = {k: v[0] for k, v in hourly_schedules(settings, occupancy).items()}
     area = float(theta[cat.THETA_NAMES.index("floor_area_m2")])
@@ -101,7 +101,9 @@ def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Pa
     np.savez(out / "week.npz", outputs=result.outputs[0], weather=result.weather[0], theta=theta,
              settings=settings[0], occupancy=occupancy[0])
     record = {"epw": epw, "week_of_year": week, "floor_area_m2": area, "summary": summary, "plot": str(png),
-              "settings_per_day": {k: v for k, v in DEFAULT_DAY_SETTINGS.items()} if not overrides else None}
+              "settings_every_day": dict(zip(cat.SETTING_NAMES, settings[0, 0].tolist())),
+              "occupancy_every_weekday": dict(zip(cat.OCCUPANCY_NAMES, occupancy[0, 0].tolist())),
+              "theta_build": dict(zip(cat.THETA_NAMES, theta.tolist()))}
     (out / "week.json").write_text(json.dumps(record, indent=2))
     if as_json:
         print(json.dumps(record, indent=2))
@@ -192,7 +194,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--epw", nargs="+", help="weather short names or EPW paths (default: all 16 shipped TMY3)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786")
-    p.add_argument("--weeks-per-run", type=int, default=52, help="consecutive weeks per EnergyPlus run (1-52)")
+    p.add_argument("--weeks-per-run", type=int, default=cat.WEEKS_PER_YEAR,
+                   help=f"consecutive weeks per EnergyPlus run (1-{cat.WEEKS_PER_YEAR})")
     p.add_argument("--sampling", choices=["uniform", "lhs"], default="uniform")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)

@@ -46,19 +46,18 @@ def sinusoidal_positions(hours: int, dim: int) -> torch.Tensor:
 class LocalAttention(nn.Module):
     """Multi-head attention restricted to a band of ``window`` hours either side."""
 
-    def __init__(self, d_model: int, heads: int, head_dim: int, window: int, dropout: float):
+    def __init__(self, d_model: int, heads: int, head_dim: int, dropout: float):
         super().__init__()
-        self.heads, self.head_dim, self.window = heads, head_dim, window
+        self.heads, self.head_dim = heads, head_dim
         self.q = nn.Linear(d_model, heads * head_dim)
         self.kv = nn.Linear(d_model, 2 * heads * head_dim)
         self.out = nn.Linear(heads * head_dim, d_model)
         self.drop = nn.Dropout(dropout)
 
-    def forward(self, x: torch.Tensor, memory: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, memory: torch.Tensor, mask: torch.Tensor) -> torch.Tensor:
         b, t, _ = x.shape
         q = self.q(x).view(b, t, self.heads, self.head_dim).transpose(1, 2)
         k, v = self.kv(memory).view(b, memory.shape[1], 2, self.heads, self.head_dim).permute(2, 0, 3, 1, 4)
-        mask = band_mask(t, self.window, x.device)  # dense attention, band-masked: fastest here on CPU
         z = F.scaled_dot_product_attention(q, k, v, attn_mask=mask)
         return self.drop(self.out(z.transpose(1, 2).reshape(b, t, self.heads * self.head_dim)))
 
@@ -66,18 +65,18 @@ class LocalAttention(nn.Module):
 class _Block(nn.Module):
     """Post-norm residual block: attention(s) then a ReLU feed-forward network."""
 
-    def __init__(self, d_model: int, heads: int, head_dim: int, window: int, d_ff: int, dropout: float, cross: bool):
+    def __init__(self, d_model: int, heads: int, head_dim: int, d_ff: int, dropout: float, cross: bool):
         super().__init__()
-        self.self_attn = LocalAttention(d_model, heads, head_dim, window, dropout)
-        self.cross_attn = LocalAttention(d_model, heads, head_dim, window, dropout) if cross else None
+        self.self_attn = LocalAttention(d_model, heads, head_dim, dropout)
+        self.cross_attn = LocalAttention(d_model, heads, head_dim, dropout) if cross else None
         self.ff = nn.Sequential(nn.Linear(d_model, d_ff), nn.ReLU(), nn.Linear(d_ff, d_model))
         self.norms = nn.ModuleList(nn.LayerNorm(d_model) for _ in range(3 if cross else 2))
         self.drop = nn.Dropout(dropout)
 
-    def forward(self, x: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
-        x = self.norms[0](x + self.self_attn(x, x))
+    def forward(self, x: torch.Tensor, mask: torch.Tensor, memory: torch.Tensor | None = None) -> torch.Tensor:
+        x = self.norms[0](x + self.self_attn(x, x, mask))
         if self.cross_attn is not None:
-            x = self.norms[1](x + self.cross_attn(x, memory))
+            x = self.norms[1](x + self.cross_attn(x, memory, mask))
         return self.norms[-1](x + self.drop(self.ff(x)))
 
 
@@ -89,13 +88,11 @@ class Transformer(nn.Module):
                  max_hours: int = 512):
         super().__init__()
         self.patch, self.outputs = patch_hours, outputs
-        token_window = math.ceil(window / patch_hours)
+        self.token_window = math.ceil(window / patch_hours)
         self.embed = nn.Linear(inputs * patch_hours, d_model)
         self.register_buffer("positions", sinusoidal_positions(max_hours, d_model), persistent=False)
-        self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, token_window, d_ff, dropout, False)
-                                     for _ in range(layers))
-        self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, token_window, d_ff, dropout, True)
-                                     for _ in range(layers))
+        self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
+        self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
         self.readout = nn.Linear(d_model, outputs * patch_hours)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -103,12 +100,13 @@ class Transformer(nn.Module):
         if hours % self.patch:
             raise ValueError(f"{hours} hours do not split into patches of {self.patch}")
         tokens = hours // self.patch
+        mask = band_mask(tokens, self.token_window, x.device)  # built once, shared by every attention
         memory = self.embed(x.reshape(batch, tokens, -1)) + self.positions[:tokens]
         for layer in self.encoder:
-            memory = layer(memory)
+            memory = layer(memory, mask)
         y = memory + self.positions[:tokens]
         for layer in self.decoder:
-            y = layer(y, memory)
+            y = layer(y, mask, memory)
         return self.readout(y).reshape(batch, hours, self.outputs)
 
 

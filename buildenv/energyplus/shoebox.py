@@ -221,8 +221,9 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
     t = theta_dict(theta)
     g = Geometry.from_theta(t)
     csv = str(Path(schedule_csv).resolve())
-    if start_week < 0 or start_week + n_weeks > 52:
-        raise ValueError(f"weeks {start_week}..{start_week + n_weeks - 1} do not fit in weeks 0..51 of the year")
+    if start_week < 0 or start_week + n_weeks > cat.WEEKS_PER_YEAR:
+        raise ValueError(f"weeks {start_week}..{start_week + n_weeks - 1} do not fit in weeks "
+                         f"0..{cat.WEEKS_PER_YEAR - 1} of the year")
     first = dt.date(2001, 1, 1) + dt.timedelta(days=7 * start_week)
     last = first + dt.timedelta(days=7 * n_weeks - 1)
 

@@ -1,11 +1,14 @@
 """Simulated weeks per second: metamodels vs the EnergyPlus shoebox, measured in one run on this machine.
 
 EnergyPlus: ``buildenv simulate`` of ``--eplus-weeks`` weeks (one-year runs, all cores), timed end to end.
-Metamodels: batched inference (``torch.inference_mode``, all cores) of each architecture/configuration on
-encoded weeks, best of ``--repeats`` timings. Speed does not depend on the weights, so untrained models
-of the shipped configurations are timed; accuracy belongs to ``bench/results/metamodels.md``.
+Metamodels: batched inference (``torch.inference_mode``, all cores, ``--batch`` weeks per model call) of
+each architecture/configuration on ``--weeks`` encoded weeks, eager PyTorch, best of ``--repeats``
+timings. Speed does not depend on the weights, so untrained models are timed; accuracy belongs to
+``bench/results/metamodels_table1.md``. Then the product path end to end: :meth:`Surrogate.predict` of
+the shipped default checkpoint from catalogue arrays (encoding included, traced model), the call the
+environment and calibration make.
 
-    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--batch 4096] [--repeats 3]
+    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--weeks 4096] [--batch 256] [--repeats 3]
 
 Writes ``bench/results/metamodel_speed.{md,json}``.
 """
@@ -21,10 +24,14 @@ import tempfile
 import time
 from pathlib import Path
 
+import numpy as np
 import torch
 
+from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.sampling import sample_group, sample_weeks
+from buildenv.weather import load_weather
 from metamodels.models import build
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -34,6 +41,7 @@ CONFIGS: list[tuple[str, dict]] = [
     ("transformer", {"patch_hours": 6}),
     ("transformer", {"patch_hours": 8}),
     ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128}),
+    ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128, "hourly_head": 64}),  # the shipped default
     ("bigru", {}), ("lstm", {}), ("convgru", {}), ("ffn", {}),
 ]
 
@@ -50,33 +58,52 @@ def energyplus_weeks_per_second(weeks: int) -> float:
         shutil.rmtree(out.parent, ignore_errors=True)
 
 
-def model_weeks_per_second(name: str, config: dict, batch: int, repeats: int) -> float:
+def model_weeks_per_second(name: str, config: dict, weeks: int, batch: int, repeats: int) -> float:
     """Best-of-``repeats`` batched inference speed of a model on random encoded weeks."""
     torch.manual_seed(0)
     model = build(name, len(sg.INPUT_CHANNELS), 8, **config).eval()
-    x = torch.randn(batch, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
+    x = torch.randn(weeks, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
     best = float("inf")
     with torch.inference_mode():
-        model(x[:64])
+        model(x[:batch])
         for _ in range(repeats):
             started = time.perf_counter()
-            model(x)
+            for start in range(0, weeks, batch):
+                model(x[start:start + batch])
             best = min(best, time.perf_counter() - started)
-    return batch / best
+    return weeks / best
+
+
+def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int) -> float:
+    """Best-of-``repeats`` speed of ``load_metamodel().predict`` on dataset-like catalogue arrays."""
+    rng = np.random.default_rng(0)
+    surrogate = sg.load_metamodel()
+    theta = sample_group("theta", weeks, rng)
+    settings, occupancy = sample_weeks(weeks, rng)
+    year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
+    weather = year[np.arange(weeks) % cat.WEEKS_PER_YEAR]
+    surrogate.predict(theta[:batch], settings[:batch], occupancy[:batch], weather[:batch])
+    best = float("inf")
+    for _ in range(repeats):
+        started = time.perf_counter()
+        surrogate.predict(theta, settings, occupancy, weather, batch_size=batch)
+        best = min(best, time.perf_counter() - started)
+    return weeks / best
 
 
 def main() -> None:
     """Measure and write the results."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--eplus-weeks", type=int, default=1040)
-    parser.add_argument("--batch", type=int, default=4096)
+    parser.add_argument("--weeks", type=int, default=4096, help="weeks per timing")
+    parser.add_argument("--batch", type=int, default=256, help="weeks per model call")
     parser.add_argument("--repeats", type=int, default=3)
     args = parser.parse_args()
     torch.set_num_threads(os.cpu_count() or 1)
     eplus = energyplus_weeks_per_second(args.eplus_weeks)
     rows = []
     for name, config in CONFIGS:
-        speed = model_weeks_per_second(name, config, args.batch, args.repeats)
+        speed = model_weeks_per_second(name, config, args.weeks, args.batch, args.repeats)
         params = sum(p.numel() for p in build(name, len(sg.INPUT_CHANNELS), 8, **config).parameters())
         rows.append({"model": name, "config": config, "parameters": params, "weeks_per_second": round(speed, 1),
                      "speedup_vs_energyplus": round(speed / eplus, 1)})
@@ -85,6 +112,13 @@ def main() -> None:
               "torch": torch.__version__, "command": "bench/metamodel_speed.py " + " ".join(
                   f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items()),
               "energyplus_weeks_per_second": round(eplus, 2), "models": rows}
+    shipped = sg.DEFAULT_CHECKPOINT.is_file()
+    if shipped:
+        speed = surrogate_weeks_per_second(args.weeks, args.batch, args.repeats)
+        result["default_surrogate"] = {"config": sg.load_metamodel().checkpoint.config,
+                                       "weeks_per_second": round(speed, 1),
+                                       "speedup_vs_energyplus": round(speed / eplus, 1)}
+        print(f"load_metamodel().predict (encoding included, traced): {speed:9.1f} weeks/s  x{speed / eplus:6.1f}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "metamodel_speed.json").write_text(json.dumps(result, indent=2) + "\n")
     lines = [f"# Metamodel vs EnergyPlus speed ({result['date']})", "",
@@ -92,11 +126,17 @@ def main() -> None:
              f"{result['command']}`.", "",
              f"EnergyPlus shoebox, `buildenv simulate` of {args.eplus_weeks} weeks on all cores: "
              f"**{eplus:.1f} weeks/s**.", "",
-             f"Metamodels, batched inference of {args.batch} weeks (192 hours x {len(sg.INPUT_CHANNELS)} inputs), "
-             "all cores, best of the repeats:", "",
+             f"Metamodels, inference of {args.weeks} encoded weeks (192 hours x {len(sg.INPUT_CHANNELS)} inputs) in "
+             f"calls of {args.batch} weeks, eager PyTorch, all cores, best of the repeats:", "",
              "| model | config | parameters | weeks/s | x EnergyPlus |", "|---|---|---|---|---|"]
     lines += [f"| {r['model']} | `{json.dumps(r['config'])}` | {r['parameters']} | {r['weeks_per_second']} | "
               f"{r['speedup_vs_energyplus']} |" for r in rows]
+    if shipped:
+        d = result["default_surrogate"]
+        lines += ["", f"The product path: `buildenv.load_metamodel().predict(theta, settings, occupancy, weather)` of "
+                  f"the shipped default (`{json.dumps(d['config'])}`), {args.weeks} weeks from catalogue arrays, "
+                  f"encoding included, traced model: **{d['weeks_per_second']} weeks/s, "
+                  f"{d['speedup_vs_energyplus']}x EnergyPlus**."]
     (RESULTS / "metamodel_speed.md").write_text("\n".join(lines) + "\n")
 
 

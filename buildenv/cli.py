@@ -6,6 +6,10 @@ Subcommands:
     week        simulate one week of a building with EnergyPlus, print a summary and plot it
     simulate    run a simulation campaign into a dataset directory (parallel, resumable, Dask-capable)
     demo        what `make demo` runs: the default building's week, summary and plot
+    train       train a metamodel on a campaign's dataset
+    evaluate    score a metamodel checkpoint on a dataset
+    site        make a site from a reference building (`site reference`) or inspect one (`site show`)
+    calibrate   calibrate the metamodel's building and occupancy to a site's measurements
 """
 
 from __future__ import annotations
@@ -144,8 +148,10 @@ def _cmd_train(args: argparse.Namespace) -> int:
 
     config = json.loads(args.model_config) if args.model_config else None
     result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
-                             model_config=config, seed=args.seed, progress=not args.quiet, epochs=args.epochs,
-                             batch_size=args.batch_size, lr=args.lr, patience=args.patience, device=args.device)
+                             model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
+                             progress=not args.quiet, epochs=args.epochs,
+                             batch_size=args.batch_size, lr=args.lr, schedule=args.schedule, patience=args.patience,
+                             device=args.device)
     print(json.dumps(result, indent=None if args.json else 2))
     return 0
 
@@ -206,10 +212,14 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--out", required=True, help="checkpoint path (rerun to resume from CKPT.last)")
     p.add_argument("--split", default="weather_weeks", choices=["random", "weather_weeks", "climate"])
     p.add_argument("--max-weeks", type=int, default=None, help="at most this many training weeks")
+    p.add_argument("--holdout-climate", action="append", default=None, metavar="WEATHER",
+                   help="keep this climate's weeks out of training and score them apart (repeatable)")
     p.add_argument("--model-config", default=None, help='JSON keyword arguments of the model, e.g. \'{"layers": 2}\'')
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--batch-size", type=int, default=64)
-    p.add_argument("--lr", type=float, default=1e-3)
+    p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate of Adam")
+    p.add_argument("--schedule", default="cosine", choices=["cosine", "constant"],
+                   help="learning rate: cosine decay to 0 over --epochs, or constant")
     p.add_argument("--patience", type=int, default=10, help="early stopping: epochs without improvement")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="auto", help="auto (CUDA when present), cpu, cuda")
@@ -220,10 +230,15 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="score a metamodel checkpoint on a dataset")
     p.add_argument("--checkpoint", default="default", help="checkpoint path or 'default'")
     p.add_argument("--data", required=True, help="dataset directory")
-    p.add_argument("--subset", default="test", choices=["test", "all"],
-                   help="test: the checkpoint's held-out weeks when DATA is its training dataset")
+    p.add_argument("--subset", default="test", choices=["test", "holdout_climate", "all"],
+                   help="test: the checkpoint's held-out weeks when DATA is its training dataset; "
+                        "holdout_climate: the climates kept out of its training")
     p.add_argument("--json", action="store_true", help="one-line JSON")
     p.set_defaults(func=_cmd_evaluate)
+
+    from buildenv.cli_sites import register
+
+    register(sub)
     return parser
 
 

@@ -72,8 +72,15 @@ class Dataset:
                 index[i] = key.get((int(r), int(w) - 1), -1)
         return index
 
+    def _climate_ids(self, names: list[str]) -> list[int]:
+        unknown = [c for c in names if c not in self.weather_names]
+        if unknown:
+            raise DatasetError(f"climate(s) {unknown} not in {self.path} ({', '.join(self.weather_names)})")
+        return [self.weather_names.index(c) for c in names]
+
     def split(self, kind: str = "random", fractions: tuple[float, float, float] = (0.8, 0.1, 0.1),
-              seed: int = 0, test_climates: list[str] | None = None) -> dict[str, np.ndarray]:
+              seed: int = 0, test_climates: list[str] | None = None,
+              holdout_climates: list[str] | None = None) -> dict[str, np.ndarray]:
         """Indices of train / validation / test weeks.
 
         Args:
@@ -83,9 +90,20 @@ class Dataset:
             fractions: train, validation, test shares (by weeks for ``random``, by groups otherwise).
             seed: shuffling seed.
             test_climates: weather names held out as test set (``climate`` split only).
+            holdout_climates: weather names whose weeks are taken out of train, validation and test and
+                returned apart as ``"holdout_climate"`` (with ``random`` or ``weather_weeks``: a model is
+                then scored on its held-out weather weeks and, separately, on climates it never saw).
         Returns:
-            ``{"train": idx, "val": idx, "test": idx}``, sorted int arrays.
+            ``{"train": idx, "val": idx, "test": idx}`` (plus ``"holdout_climate"``), sorted int arrays.
         """
+        if holdout_climates:
+            if kind == "climate":
+                raise DatasetError("holdout_climates goes with the random or weather_weeks split, not climate")
+            ids = self._climate_ids(holdout_climates)
+            apart = np.isin(self._h5["weather_index"][:], ids)
+            parts = self.split(kind, fractions, seed)
+            parts = {name: idx[~apart[idx]] for name, idx in parts.items()}
+            return {**parts, "holdout_climate": np.flatnonzero(apart)}
         if kind not in SPLITS:
             raise DatasetError(f"unknown split {kind!r}; choose one of {', '.join(SPLITS)}")
         if not np.isclose(sum(fractions), 1.0) or min(fractions) < 0:
@@ -100,11 +118,7 @@ class Dataset:
         else:
             groups = climate
             if test_climates:
-                unknown = [c for c in test_climates if c not in self.weather_names]
-                if unknown:
-                    raise DatasetError(f"test climate(s) {unknown} not in {self.path} ({self.weather_names})")
-                test_ids = {self.weather_names.index(c) for c in test_climates}
-                is_test = np.isin(climate, list(test_ids))
+                is_test = np.isin(climate, self._climate_ids(test_climates))
                 rest = np.unique(climate[~is_test])
                 rest = rest[rng.permutation(len(rest))]
                 n_val = max(1, int(round(fractions[1] / max(fractions[0] + fractions[1], 1e-9) * len(rest))))

@@ -28,3 +28,7 @@ class SimulationError(BuildenvError):
 
 class DatasetError(BuildenvError):
     """A dataset directory is missing, incomplete or made for another catalogue."""
+
+
+class SiteError(BuildenvError):
+    """A site folder (site.toml, measurements.csv, settings.csv, ...) is missing or invalid."""

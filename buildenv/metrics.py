@@ -14,6 +14,15 @@ Conventions (the paper's Table 1, stated once):
 - ``cv_rmse_q_percent``: RMSE of the hourly total consumption (sum of the 7 Q outputs, Wh/m2) divided by
   its mean over the week, in percent (the ASHRAE Guideline 14 statistic without the degrees-of-freedom
   correction, which belongs to calibration).
+
+Two pooled scores complement the per-week ones (:func:`pooled_scores`): ``r2_t_pooled`` and ``r2_q_pooled``
+are ``r2_score`` over every test hour of every week taken as one series (what ``r2_score(y.ravel(),
+p.ravel())`` gives on the test set). A week whose indoor temperature barely moves (tight setpoints) has a
+tiny per-week variance, so a 0.2 K error costs it a large per-week R2; the pooled score measures the same
+errors against the spread of temperatures across weeks. Both are reported; neither is hidden.
+
+:func:`daily_errors` splits the errors by day of the week (day 1 starts from the previous week's state,
+which the model sees only through its context hours).
 """
 
 from __future__ import annotations
@@ -68,6 +77,29 @@ def week_metrics(y_true: np.ndarray, y_pred: np.ndarray, occupied: np.ndarray, m
         "rmse_t_celsius": np.sqrt(((y_pred[..., t] - y_true[..., t]) ** 2).mean(1)),
         "cv_rmse_q_percent": 100.0 * rmse_total / np.maximum(total_true.mean(1), 1e-9),
     }
+
+
+def pooled_scores(y_true: np.ndarray, y_pred: np.ndarray, mean: np.ndarray, std: np.ndarray) -> dict[str, float]:
+    """``r2_t_pooled`` (degC) and ``r2_q_pooled`` (standardised Q channels) over all weeks and hours at once."""
+    t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
+    q = [i for i in range(len(cat.OUTPUT_NAMES)) if i != t]
+    zt, zp = (y_true[..., q] - mean[q]) / std[q], (y_pred[..., q] - mean[q]) / std[q]
+    return {"r2_t_pooled": float(r2_score(y_true[..., t].ravel(), y_pred[..., t].ravel())),
+            "r2_q_pooled": float(r2_score(zt.ravel(), zp.ravel()))}
+
+
+def daily_errors(y_true: np.ndarray, y_pred: np.ndarray, mean: np.ndarray, std: np.ndarray) -> dict[str, list[float]]:
+    """Errors by day of the week (7 values each, day 1 first), pooled over weeks.
+
+    ``rmse_t_celsius_by_day``: temperature RMSE (degC); ``mse_q_by_day``: standardised consumption MSE.
+    """
+    t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
+    q = [i for i in range(len(cat.OUTPUT_NAMES)) if i != t]
+    days = (len(y_true), cat.HOURS_PER_WEEK // 24, 24)
+    err_t = (y_pred[..., t] - y_true[..., t]).reshape(days)
+    err_q = (((y_pred[..., q] - y_true[..., q]) / std[q]) ** 2).mean(-1).reshape(days)
+    return {"rmse_t_celsius_by_day": np.sqrt((err_t ** 2).mean((0, 2))).round(4).tolist(),
+            "mse_q_by_day": err_q.mean((0, 2)).round(5).tolist()}
 
 
 def summarise(per_week: dict[str, np.ndarray]) -> dict[str, float]:

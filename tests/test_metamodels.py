@@ -116,3 +116,32 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
     monkeypatch.setattr(cat, "catalogue_hash", lambda: "0000000000000000")
     with pytest.raises(sg.CheckpointError, match="catalogue"):
         sg.load_metamodel(ckpt)
+
+
+@pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
+                                         ("lstm", {"layers": 1}), ("ffn", {"layers": 1})])
+def test_traced_inference_matches_eager(name, config):
+    torch.manual_seed(0)
+    channels = len(sg.INPUT_CHANNELS)
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(300, sg.CONTEXT_HOURS + 168, channels)).astype(np.float32)
+    ck = Checkpoint(name, config, build(name, channels, 8, **config), Standardiser.fit(x.reshape(-1, channels)),
+                    Standardiser.fit(rng.normal(size=(50, 8))), sg.metadata())
+    eager = sg.Surrogate(ck, jit=False).predict_encoded(x, batch_size=128)
+    fast = sg.Surrogate(ck)
+    traced = fast.predict_encoded(x, batch_size=128)  # batches of 128, 128 and 44 weeks
+    assert isinstance(fast._inference_model(), torch.jit.ScriptModule)
+    np.testing.assert_allclose(traced, eager, rtol=1e-4, atol=1e-4)
+
+
+def test_hourly_head_sees_each_hour():
+    torch.manual_seed(0)
+    model = build("transformer", 3, 2, layers=1, patch_hours=6, hourly_head=8).eval()
+    x = torch.randn(1, 24, 3)
+    x2 = x.clone()
+    x2[0, 7] += 5.0  # hour 7 (second token) changes its own output, not only its token's
+    with torch.no_grad():
+        y, y2 = model(x), model(x2)
+    assert y.shape == (1, 24, 2)
+    changed = (y - y2).abs().amax(-1)[0]
+    assert changed[7] > 0 and changed[7] > 10 * changed[6]

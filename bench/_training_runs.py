@@ -1,0 +1,68 @@
+"""Shared by the metamodel accuracy benchmarks: train (or reuse) one run and read its result.
+
+A run is a checkpoint ``<runs>/<tag>.pt`` with its result ``<tag>.json`` beside it; a rerun of a benchmark
+reuses finished runs and resumes unfinished ones (``<tag>.pt.last``), so a long benchmark survives a kill.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import platform
+import time
+from pathlib import Path
+
+import torch
+
+from buildenv import surrogate as sg
+from buildenv.training import train_metamodel
+from metamodels.models import build
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+# The shipped default (README, "The default metamodel"): 8-hour tokens, 2+2 layers, hourly read-out.
+DEFAULT_TRANSFORMER = {"patch_hours": 8, "layers": 2, "d_ff": 128, "hourly_head": 64}
+
+
+def run_tag(config: dict) -> str:
+    """Short stable name of a model configuration (for run file names)."""
+    return hashlib.sha1(json.dumps(config, sort_keys=True).encode()).hexdigest()[:8]
+
+
+def trained(tag: str, runs: Path, data: str, model: str, config: dict, **options) -> dict:
+    """Result of :func:`buildenv.training.train_metamodel` for this run, training it unless already done."""
+    runs.mkdir(parents=True, exist_ok=True)
+    result_path = runs / f"{tag}.json"
+    if result_path.exists():
+        return json.loads(result_path.read_text())
+    result = train_metamodel(data, model, runs / f"{tag}.pt", model_config=config, **options)
+    result_path.write_text(json.dumps(result) + "\n")
+    return result
+
+
+def inference_speed(model: str, config: dict, batch: int = 256, weeks: int = 4096) -> float:
+    """Weeks per second of batched inference (all cores) for an architecture; weights do not matter."""
+    torch.manual_seed(0)
+    net = build(model, len(sg.INPUT_CHANNELS), 8, **config).eval()
+    x = torch.randn(weeks, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
+    best = float("inf")
+    with torch.inference_mode():
+        net(x[:batch])
+        for _ in range(3):
+            started = time.perf_counter()
+            for start in range(0, weeks, batch):
+                net(x[start:start + batch])
+            best = min(best, time.perf_counter() - started)
+    return weeks / best
+
+
+def machine() -> str:
+    """One line describing this machine and torch."""
+    return f"{platform.platform()}, {os.cpu_count()} cores, torch {torch.__version__}"
+
+
+def mean_std(result: dict, key: str, scale: float = 1.0, digits: int = 3) -> str:
+    """``"mean (std)"`` of a metric of a result's test block."""
+    test = result["test"]
+    return f"{test[key] * scale:.{digits}f} ({test[key + '_std'] * scale:.{digits}f})"

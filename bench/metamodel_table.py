@@ -1,0 +1,89 @@
+"""The paper's Table 1 for our five metamodels: same data, same split, same training budget.
+
+Each model is trained by ``buildenv train`` (through :func:`buildenv.training.train_metamodel`) on the same
+``--weeks`` training weeks of a campaign, with the ``weather_weeks`` split (test weeks' weather never seen
+in training), the paper's loss, Adam with a cosine learning rate and ``--epochs`` epochs; then scored on the
+test weeks. Runs are kept in ``--runs`` and reused by a rerun.
+
+    .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10]
+
+Writes ``bench/results/metamodels_table1.{md,json}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from _training_runs import DEFAULT_TRANSFORMER, RESULTS, inference_speed, machine, mean_std, run_tag, trained
+
+MODELS: dict[str, tuple[str, dict]] = {
+    "Transformer": ("transformer", DEFAULT_TRANSFORMER),
+    "BiGRU": ("bigru", {}),
+    "LSTM": ("lstm", {}),
+    "ConvGRU": ("convgru", {}),
+    "FFN": ("ffn", {}),
+    "Transformer (paper, hourly tokens)": ("transformer", {}),
+}
+ROWS = [("Loss (x1e-2)", "loss", 100.0), ("MSE_T (x1e-2)", "mse_t", 100.0), ("MSE_Q (x1e-2)", "mse_q", 100.0),
+        ("MSE_T occ (x1e-2)", "mse_t_occ", 100.0), ("MSE_Q occ (x1e-2)", "mse_q_occ", 100.0),
+        ("R2_T (x1e-3)", "r2_t", 1000.0), ("R2_Q (x1e-3)", "r2_q", 1000.0),
+        ("RMSE_T (degC)", "rmse_t_celsius", 1.0), ("CV(RMSE)_Q (%)", "cv_rmse_q_percent", 1.0)]
+
+
+def main() -> None:
+    """Train (or reuse) every model and write the table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--data", required=True, help="campaign directory (buildenv simulate --out)")
+    parser.add_argument("--weeks", type=int, default=10000, help="training weeks per model")
+    parser.add_argument("--epochs", type=int, default=10)
+    parser.add_argument("--runs", default="data/bench-runs/table1", help="where checkpoints are kept")
+    parser.add_argument("--models", default=",".join(MODELS), help="comma-separated subset of the columns")
+    args = parser.parse_args()
+    columns = [m.strip() for m in args.models.split(",")]
+    results = {}
+    for label in columns:
+        model, config = MODELS[label]
+        tag = f"{model}-{run_tag(config)}-{args.weeks}-{args.epochs}"
+        print(f"== {label}: {model} {json.dumps(config)}", flush=True)
+        result = trained(tag, Path(args.runs), args.data, model, config, max_weeks=args.weeks, epochs=args.epochs,
+                         patience=args.epochs, progress=False)
+        result["inference_weeks_per_second"] = round(inference_speed(model, config), 1)
+        results[label] = result
+    first = results[columns[0]]
+    header = ["| metric | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]
+    body = [f"| {name} | " + " | ".join(mean_std(results[c], key, scale, 3 if scale == 1000.0 else 2)
+                                         for c in columns) + " |" for name, key, scale in ROWS]
+    body += ["| R2_T pooled | " + " | ".join(f"{results[c]['test'].get('r2_t_pooled', float('nan')):.4f}"
+                                              for c in columns) + " |",
+             "| R2_Q pooled | " + " | ".join(f"{results[c]['test'].get('r2_q_pooled', float('nan')):.4f}"
+                                              for c in columns) + " |",
+             "| training time (s) | " + " | ".join(f"{results[c]['fit']['seconds']:.0f}" for c in columns) + " |",
+             "| epochs (best) | " + " | ".join(f"{results[c]['fit']['epochs_run']} ({results[c]['fit']['best_epoch']})"
+                                               for c in columns) + " |",
+             "| inference (weeks/s) | " + " | ".join(f"{results[c]['inference_weeks_per_second']:.0f}"
+                                                     for c in columns) + " |"]
+    date = time.strftime("%Y-%m-%d")
+    lines = [f"# Table 1: metamodels compared ({date})", "",
+             f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_table.py --data {args.data} "
+             f"--weeks {args.weeks} --epochs {args.epochs}`.", "",
+             f"Every model: {first['train_weeks']} training weeks, {first['val_weeks']} validation and "
+             f"{first['test_weeks']} test weeks (split `weather_weeks`, seed 0: the test weeks' climate and week "
+             f"of year never occur in training), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch 64) "
+             "on the paper's loss, best validation epoch kept. Mean (std) over test weeks; definitions in "
+             "`buildenv/metrics.py` (MSE in standardised units, per-week R2 as `sklearn.metrics.r2_score`, "
+             "pooled R2 over all test hours).", "", *header, *body, ""]
+    lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "metamodels_table1.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / "metamodels_table1.json").write_text(json.dumps(
+        {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": args.epochs,
+         "models": {c: {"model": MODELS[c][0], "config": MODELS[c][1], **results[c]} for c in columns}},
+        indent=2) + "\n")
+    print("\n".join(header + body))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,309 @@
+"""Calibrating the metamodel to a site: theta_build and occupancy estimated from two measured series.
+
+**What is estimated.** Every theta_build variable except the site's known geometry (floor area, storeys,
+fixed), and one weekly occupancy schedule O (start and end hour of each weekday) shared by all weeks (a
+held-out week's occupancy is unknown, so a per-week estimate could not be used on it). Bounds come from
+the catalogue; the search runs in ``[0, 1]`` per parameter and maps linearly onto ``[min, max]`` (values
+between catalogue steps are allowed: the metamodel is continuous in them).
+
+**Cost** (the paper's): ``w_T (1 - R2_T) + w_Q (1 - R2_Q)`` over the calibration weeks' measured hours,
+with ``w_T = w_Q = 1`` (:data:`WEIGHTS`); R2 is ``sklearn.metrics.r2_score`` of the measured series, pooled
+over the calibration weeks. Missing hours (gaps) are left out of every sum.
+
+**Consumption mapping.** The site's heat consumption (kWh per hour) divided by its floor area is compared
+with the metamodel's Q_HEAT_OFFICE + Q_AHU_H + Q_EQP + Q_LIGHT (Wh/m2 per hour), as the paper's appendix.
+
+**Methods.** ``cmaes``: CMA-ES (pycma), each generation's population evaluated in one batched metamodel call.
+``adam``: the metamodel is differentiable, so gradient descent (Adam) on a smooth version of the same cost
+from several random starts, the best kept; occupancy hours enter the hourly schedule through a sigmoid ramp
+of width :data:`RAMP_HOURS` instead of a step (exact again at the end, when the cost is re-scored).
+
+**Metrics** (:func:`site_metrics`; ASHRAE Guideline 14 for CV(RMSE) and NMBE with ``n - p`` degrees of
+freedom, ``p = 1`` as Guideline 14 uses for calibrated simulation): ``r2_t, r2_q, rmse_t_celsius, mse_t,
+mse_q, mse_t_occ, mse_q_occ, cv_rmse_q_percent, nmbe_q_percent`` where the MSEs are of the series
+standardised by the measured calibration weeks' mean and standard deviation, and ``*_occ`` counts the hours
+the calibrated occupancy marks as occupied.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv import surrogate as sg
+from buildenv.errors import BuildenvError
+from buildenv.schedules import hourly_schedules
+
+WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
+SITE_CONSUMPTION_OUTPUTS = ("Q_HEAT_OFFICE", "Q_AHU_H", "Q_EQP", "Q_LIGHT")
+GUIDELINE14_P = 1
+RAMP_HOURS = 0.5
+KNOWN_GEOMETRY = ("floor_area_m2", "number_of_floors")
+
+
+class CalibrationError(BuildenvError):
+    """A calibration cannot run on the given site or weeks."""
+
+
+@dataclass
+class Problem:
+    """What calibration fits: the site's weeks, encoded once, and the parameters' bounds."""
+
+    x_base: np.ndarray  # (weeks, 192, C) encoded inputs with placeholder theta/occupancy
+    temperature_c: np.ndarray  # (weeks, 168) measured, NaN where missing
+    consumption_wh_m2: np.ndarray  # (weeks, 168) measured, NaN where missing
+    has_previous: np.ndarray  # (weeks,) the site has the week before (context = its last day)
+    theta_known: dict[str, float]
+    names: list[str]  # free parameters: theta names then occupancy "occupancy_<day>_<start|end>"
+    lo: np.ndarray
+    hi: np.ndarray
+
+    @property
+    def dim(self) -> int:
+        """Number of free parameters."""
+        return len(self.names)
+
+
+def _free_theta() -> list[str]:
+    return [n for n in cat.THETA_NAMES if n not in KNOWN_GEOMETRY]
+
+
+def parameter_names() -> list[str]:
+    """Names of the calibrated parameters, in vector order."""
+    occ = [f"{name}_{day}" for day in cat.WEEKDAYS for name in (v.name for v in cat.GROUPS["occupancy"])]
+    return _free_theta() + occ
+
+
+def build_problem(site, weeks: list[int]) -> Problem:
+    """Encode a site's weeks (each with its preceding week as context where the site has it)."""
+    if not weeks:
+        raise CalibrationError("no weeks to calibrate on")
+    bad = [w for w in weeks if not 0 <= w < site.weeks]
+    if bad:
+        raise CalibrationError(f"week(s) {bad} not in {site.path} (it has weeks 0..{site.weeks - 1})")
+    weather = site.weather_hours()
+    idx = np.asarray(weeks)
+    prev = np.maximum(idx - 1, 0)
+    has_prev = idx > 0
+    n = len(idx)
+    lo_t, hi_t = cat.bounds("theta_build")
+    theta = (lo_t + hi_t) / 2.0
+    known = site.theta_known()
+    occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
+    x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather[idx],
+                        (site.settings[prev], occ, weather[prev]), has_prev)
+    free = _free_theta()
+    lo = np.array([cat.get(v).min for v in free] + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
+    hi = np.array([cat.get(v).max for v in free] + [v.max for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
+    return Problem(x, site.temperature_c[idx], site.consumption_wh_m2()[idx], has_prev, known, parameter_names(),
+                   lo, hi)
+
+
+def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Physical ``(pop, 19)`` theta and ``(pop, 5, 2)`` occupancy from ``(pop, dim)`` physical parameters."""
+    free = _free_theta()
+    theta = np.empty((len(params), len(cat.THETA_NAMES)))
+    for j, name in enumerate(cat.THETA_NAMES):
+        theta[:, j] = problem.theta_known[name] if name in KNOWN_GEOMETRY else params[:, free.index(name)]
+    occ = params[:, len(free):].reshape(len(params), len(cat.WEEKDAYS), 2)
+    return theta, occ
+
+
+def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
+    """Encoded inputs ``(pop * weeks, 192, C)`` of every candidate on every calibration week."""
+    theta, occ = _split(problem, params)
+    pop, weeks = len(params), len(problem.x_base)
+    x = np.repeat(problem.x_base[None], pop, axis=0)  # (pop, weeks, 192, C)
+    t0 = sg.INPUT_CHANNELS.index(cat.THETA_NAMES[0])
+    x[..., t0:t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
+    occ_fraction = hourly_schedules(np.zeros((pop, 7, len(cat.GROUPS["settings"]))), occ)["occupancy_fraction"]
+    c = sg.INPUT_CHANNELS.index("occupancy_fraction")
+    ctx = sg.CONTEXT_HOURS
+    x[:, :, ctx:, c] = occ_fraction[:, None, :]
+    # context day: the previous week's Sunday where there is one, else the week's own Monday (see surrogate)
+    context = np.where(problem.has_previous[None, :, None], occ_fraction[:, None, -ctx:], occ_fraction[:, None, :ctx])
+    x[:, :, :ctx, c] = context
+    return x.reshape(pop * weeks, *x.shape[2:])
+
+
+def model_series(problem: Problem, outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Temperature (degC) and site consumption (Wh/m2) ``(..., 168)`` from metamodel outputs ``(..., 168, 8)``."""
+    q = [cat.OUTPUT_NAMES.index(n) for n in SITE_CONSUMPTION_OUTPUTS]
+    return outputs[..., cat.OUTPUT_NAMES.index("T_INT_OFFICE")], outputs[..., q].sum(-1)
+
+
+def _r2(y: np.ndarray, p: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """R2 of each candidate's ``p (pop, weeks, 168)`` against ``y (weeks, 168)`` over ``mask`` hours."""
+    yv = y[mask]
+    ss_tot = ((yv - yv.mean()) ** 2).sum()
+    ss_res = ((p[:, mask] - yv) ** 2).sum(-1)
+    return 1.0 - ss_res / max(ss_tot, 1e-12)
+
+
+def costs(problem: Problem, outputs: np.ndarray) -> np.ndarray:
+    """The paper's cost of each candidate from its outputs ``(pop, weeks, 168, 8)``."""
+    t, q = model_series(problem, outputs)
+    mt, mq = np.isfinite(problem.temperature_c), np.isfinite(problem.consumption_wh_m2)
+    return (WEIGHTS["temperature"] * (1 - _r2(problem.temperature_c, t, mt))
+            + WEIGHTS["consumption"] * (1 - _r2(problem.consumption_wh_m2, q, mq)))
+
+
+def evaluate(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:
+    """Costs ``(pop,)`` of physical parameter vectors ``(pop, dim)`` in one batched metamodel call."""
+    x = encode_candidates(problem, params)
+    out = surrogate.predict_encoded(x).reshape(len(params), len(problem.x_base), cat.HOURS_PER_WEEK, -1)
+    return costs(problem, out)
+
+
+def predict(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:
+    """Outputs ``(weeks, 168, 8)`` of one parameter vector."""
+    x = encode_candidates(problem, params[None])
+    return surrogate.predict_encoded(x).reshape(len(problem.x_base), cat.HOURS_PER_WEEK, -1)
+
+
+def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, max_evaluations: int = 6000,
+                    sigma0: float = 0.3, progress: bool = False) -> tuple[np.ndarray, dict]:
+    """CMA-ES on the unit box. Returns the best physical parameters and ``{"evaluations", "cost"}``."""
+    import cma
+
+    es = cma.CMAEvolutionStrategy(np.full(problem.dim, 0.5), sigma0,
+                                  {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9,
+                                   "maxfevals": max_evaluations, "tolfun": 1e-6})
+    scale = problem.hi - problem.lo
+    bar = _bar(progress, max_evaluations, "CMA-ES")
+    while not es.stop():
+        z = np.asarray(es.ask())
+        f = evaluate(problem, surrogate, problem.lo + z * scale)
+        es.tell(list(z), f.tolist())
+        bar.update(len(z))
+        bar.set_postfix(cost=f"{es.result.fbest:.4f}")
+    bar.close()
+    best = problem.lo + np.asarray(es.result.xbest) * scale
+    return best, {"evaluations": int(es.result.evaluations), "cost": float(es.result.fbest)}
+
+
+def _bar(enabled: bool, total: int, desc: str):
+    from tqdm import tqdm
+
+    return tqdm(total=total, desc=desc, disable=not enabled, leave=False)
+
+
+def guideline14(measured: np.ndarray, predicted: np.ndarray, p: int = GUIDELINE14_P) -> tuple[float, float]:
+    """ASHRAE Guideline 14 CV(RMSE) and NMBE in percent over the finite measured hours."""
+    ok = np.isfinite(measured)
+    y, yhat = measured[ok], predicted[ok]
+    dof = max(len(y) - p, 1)
+    mean = y.mean()
+    return (float(100.0 * np.sqrt(((y - yhat) ** 2).sum() / dof) / mean),
+            float(100.0 * (y - yhat).sum() / (dof * mean)))
+
+
+def site_metrics(temperature: np.ndarray, consumption: np.ndarray, pred_t: np.ndarray, pred_q: np.ndarray,
+                 occupied: np.ndarray, scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+    """Metrics of predictions against measurements (see the module docstring); arrays ``(weeks, 168)``."""
+    out: dict[str, float] = {}
+    for key, y, p in (("t", temperature, pred_t), ("q", consumption, pred_q)):
+        ok = np.isfinite(y)
+        mean, std = scale[key]
+        z = ((p - y) / std) ** 2
+        out[f"r2_{key}"] = float(_r2(y, p[None], ok)[0])
+        out[f"mse_{key}"] = float(z[ok].mean())
+        occ = ok & occupied
+        out[f"mse_{key}_occ"] = float(z[occ].mean()) if occ.any() else float("nan")
+    ok = np.isfinite(temperature)
+    out["rmse_t_celsius"] = float(np.sqrt(((pred_t - temperature)[ok] ** 2).mean()))
+    out["cv_rmse_q_percent"], out["nmbe_q_percent"] = guideline14(consumption, pred_q)
+    out["hours"] = int(np.isfinite(consumption).sum())
+    return out
+
+
+def default_weeks(n_weeks: int) -> tuple[list[int], list[int]]:
+    """Calibration and held-out weeks when none are given: the first half (rounded up) fits, the rest checks."""
+    n_fit = max(1, (n_weeks + 1) // 2)
+    return list(range(n_fit)), list(range(n_fit, n_weeks))
+
+
+def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None, method: str = "cmaes",
+                   seed: int = 0, max_evaluations: int = 6000, progress: bool = False, save: bool = True) -> dict:
+    """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
+
+    Args:
+        site: a :class:`buildenv.site.Site`.
+        surrogate: the metamodel.
+        weeks: calibration weeks (0-based); the site's other weeks are held out. Default :func:`default_weeks`.
+        method: ``cmaes`` or ``adam``.
+        seed: seed of the optimiser.
+        max_evaluations: budget of cost evaluations (one evaluation = one candidate on every calibration week).
+        progress: progress bar.
+        save: write ``calibration.json`` into the site folder.
+    Returns:
+        ``{"fit": metrics, "heldout": metrics, "parameters": {...}, "occupancy": [[start, end] x 5], "method",
+        "seconds", "evaluations", "cost", "fit_weeks", "heldout_weeks", "guideline14_p"}``.
+    """
+    started = time.perf_counter()
+    fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
+        sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
+    problem = build_problem(site, fit_weeks)
+    if method == "cmaes":
+        best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress)
+    elif method == "adam":
+        from buildenv.calibration_gradient import calibrate_adam
+
+        best, info = calibrate_adam(problem, surrogate, seed, progress=progress)
+    else:
+        raise CalibrationError(f"unknown calibration method {method!r}; choose cmaes or adam")
+    seconds = time.perf_counter() - started
+    theta, occ = _split(problem, best[None])
+    result = {"method": method, "seconds": round(seconds, 2), **info, "fit_weeks": fit_weeks,
+              "heldout_weeks": heldout, "guideline14_p": GUIDELINE14_P,
+              "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
+              "occupancy": np.round(occ[0], 3).tolist(),
+              "metamodel": str(surrogate.path) if surrogate.path else None,
+              "catalogue_hash": cat.catalogue_hash()}
+    scale = _scale(problem)
+    for key, ws in (("fit", fit_weeks), ("heldout", heldout)):
+        if ws:
+            result[key] = score_weeks(site, surrogate, ws, best, scale)
+            result[key]["seconds"], result[key]["evaluations"] = result["seconds"], result["evaluations"]
+    if save:
+        from buildenv.site import save_calibration
+
+        save_calibration(site.path, result)
+    return result
+
+
+def _scale(problem: Problem) -> dict[str, tuple[float, float]]:
+    t, q = problem.temperature_c, problem.consumption_wh_m2
+    return {"t": (float(np.nanmean(t)), float(np.nanstd(t)) or 1.0),
+            "q": (float(np.nanmean(q)), float(np.nanstd(q)) or 1.0)}
+
+
+def score_weeks(site, surrogate: sg.Surrogate, weeks: list[int], params: np.ndarray,
+                scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+    """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks."""
+    problem = build_problem(site, weeks)
+    out = predict(problem, surrogate, params)
+    t, q = model_series(problem, out)
+    occupied = problem_occupancy(problem, params)
+    return {**site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale),
+            "weeks": len(weeks)}
+
+
+def problem_occupancy(problem: Problem, params: np.ndarray) -> np.ndarray:
+    """``(weeks, 168)`` booleans: hours the parameters' occupancy marks as occupied."""
+    _, occ = _split(problem, params[None])
+    frac = hourly_schedules(np.zeros((1, 7, len(cat.GROUPS["settings"]))), occ)["occupancy_fraction"][0]
+    return np.broadcast_to(frac > 0, problem.temperature_c.shape)
+
+
+def load_calibration(site_path: str | Path) -> dict:
+    """The ``calibration.json`` of a site folder."""
+    path = Path(site_path) / "calibration.json"
+    if not path.is_file():
+        raise CalibrationError(f"{site_path} is not calibrated yet: run `buildenv calibrate --site {site_path}`")
+    return json.loads(path.read_text())

@@ -1,0 +1,329 @@
+"""The "real building" stand-in: a DOE reference office run under given BMS settings, read like sensors.
+
+We have no measured data, so a real building is stood in for by an EnergyPlus model none of us wrote: one
+of the reference offices shipped with pyenergyplus-lbnl (multi-zone, VAV or packaged single-zone systems,
+gas and electric heating coils, its own occupancy, lighting and plug-load schedules), or a user's own IDF.
+
+**How the site's settings (I_k) are mapped onto the model** (hour by hour, through one Schedule:File):
+
+- ``heating_setpoint``: the heating setpoint in force (comfort during the heating period, setback outside)
+  replaces the schedule every ``ThermostatSetpoint:DualSetpoint`` uses for heating;
+- ``cooling_setpoint``: likewise for cooling (with the 0.5 K interlock of :mod:`buildenv.schedules`);
+- ``hvac_availability``: 1 during the union of the heating, cooling and ventilation periods, else 0,
+  replaces the HVAC operation schedule (fans, night-cycle managers: outside it the systems only cycle on
+  to hold the setback setpoints, as the reference's night-cycle managers do);
+- ``outdoor_air``: the minimum outdoor-air schedule of every ``Controller:OutdoorAir`` becomes
+  ``ventilation_on * min(1, ventilation_ach / 1.0)``: the reference's design minimum outdoor air stands for
+  the historical 1.0 air change per hour; less ventilation closes the dampers proportionally.
+- ``supply_air_c`` is not mapped: the reference's supply air is the cooling supply of a VAV or packaged
+  unit, not the tempered fresh air of our model's air handling unit.
+
+Schedules are re-pointed, not rewritten: every field that named the reference's schedule names ours
+instead (EMS programs of the ASHRAE 90.1 models that actuate the old schedules then act on nothing). The
+reference's occupancy, lighting and equipment schedules, constructions and systems are untouched. Public
+holidays and daylight-saving time are removed (sensor clocks run in standard time; holidays are an effect
+of their own, see the gap diagnosis). The run starts ``warmup_weeks`` before the first measured week so that
+the measured weeks start from a lived-in thermal state.
+
+**How it is read** (the paper's two sensors): the occupied-zone mean air temperature (floor-area weighted
+over zones with people, zone multipliers counted) and the heat consumption = heat delivered by all heating
+coils (meter ``HeatingCoils:EnergyTransfer``: furnace/boiler coils and terminal reheat) + interior lighting
++ interior equipment electricity, in kWh per hour. It is compared with the model's Q_HEAT_OFFICE + Q_AHU_H +
+Q_EQP + Q_LIGHT (see :mod:`buildenv.calibration`).
+
+**Sensor noise** (seeded): temperature ``N(0, 0.1 K)`` plus a 0.1 K display resolution (a class-B Pt1000
+read by a BMS); consumption ``N(0, 1 %)`` multiplicative and a 0.1 kWh meter resolution.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
+from buildenv.energyplus.runner import clean_outputs, run_energyplus
+from buildenv.errors import BuildenvError
+from buildenv.schedules import hourly_schedules
+from buildenv.weather import resolve_epw
+
+#: Reference offices shipped with pyenergyplus-lbnl: name -> (IDF file name, storeys).
+REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
+    "small_office": ("RefBldgSmallOfficeNew2004_Chicago.idf", 1),
+    "medium_office": ("RefBldgMediumOfficeNew2004_Chicago.idf", 3),
+    "large_office": ("RefBldgLargeOfficeNew2004_Chicago.idf", 12),
+    "small_office_2019": ("ASHRAE901_OfficeSmall_STD2019_Denver.idf", 1),
+    "medium_office_2019": ("ASHRAE901_OfficeMedium_STD2019_Denver.idf", 3),
+    "large_office_2019": ("ASHRAE901_OfficeLarge_STD2019_Denver.idf", 12),
+}
+HISTORICAL_ACH = 1.0  # air changes per hour the reference's design minimum outdoor air stands for
+SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
+TEMPERATURE_NOISE_K, TEMPERATURE_RESOLUTION_K = 0.1, 0.1
+CONSUMPTION_NOISE_FRACTION, CONSUMPTION_RESOLUTION_KWH = 0.01, 0.1
+HOURS_PER_YEAR = 8760
+
+
+class ReferenceError_(BuildenvError):
+    """A reference building cannot be found, mapped or run."""
+
+
+@dataclass
+class ScheduleMap:
+    """Names of the model's schedules each role replaces (see the module docstring)."""
+
+    heating_setpoint: list[str] = field(default_factory=list)
+    cooling_setpoint: list[str] = field(default_factory=list)
+    hvac_availability: list[str] = field(default_factory=list)
+    outdoor_air: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ReferenceRun:
+    """Hourly sensor readings of a reference run (before noise), one row per measured week."""
+
+    temperature_c: np.ndarray  # (weeks, 168) occupied-zone mean air temperature
+    consumption_kwh: np.ndarray  # (weeks, 168) heat consumption per hour
+    floor_area_m2: float  # occupied (people-bearing) floor area, multipliers counted
+    zones: list[str]  # zones averaged into the temperature
+
+
+def reference_idf(building: str | Path) -> Path:
+    """Path of a shipped reference office (a name of :data:`REFERENCE_BUILDINGS`) or of a user's IDF."""
+    if str(building) in REFERENCE_BUILDINGS:
+        import pyenergyplus
+
+        path = Path(pyenergyplus.__file__).parent / "data" / "model" / REFERENCE_BUILDINGS[str(building)][0]
+    else:
+        path = Path(building)
+    if not path.is_file():
+        known = ", ".join(REFERENCE_BUILDINGS)
+        raise ReferenceError_(f"reference building not found: {building} (shipped: {known}; or an IDF path)")
+    return path
+
+
+def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
+    """Find the schedules each role replaces, from the objects that use them."""
+    dual = of_type(objects, "ThermostatSetpoint:DualSetpoint")
+    found = ScheduleMap(heating_setpoint=sorted({o[2] for o in dual}), cooling_setpoint=sorted({o[3] for o in dual}),
+                        outdoor_air=sorted({o[17] for o in of_type(objects, "Controller:OutdoorAir")
+                                            if len(o) > 17 and o[17]}))
+    hvac = {o[3] for o in of_type(objects, "AvailabilityManager:NightCycle") if len(o) > 3 and o[3]}
+    for kind in ("Fan:VariableVolume", "Fan:ConstantVolume", "Fan:OnOff", "Fan:SystemModel"):
+        hvac |= {o[2] for o in of_type(objects, kind) if len(o) > 2 and o[2]}
+    found.hvac_availability = sorted(hvac - {"ALWAYS_ON", "Always_On", "Always On"})
+    return found
+
+
+def _schedule_columns(settings: np.ndarray) -> dict[str, np.ndarray]:
+    """Hourly values of the four roles for ``settings`` ``(weeks, 7, 12)`` -> ``{role: (weeks*168,)}``."""
+    occupancy = np.zeros((len(settings), len(cat.WEEKDAYS), len(cat.GROUPS["occupancy"])))
+    occupancy[..., 0], occupancy[..., 1] = cat.get("occupancy_start_hour").min, cat.get("occupancy_end_hour").max
+    s = {k: v.reshape(-1) for k, v in hourly_schedules(settings, occupancy).items()}
+    hvac = np.maximum.reduce([s["heating_comfort_on"], s["cooling_comfort_on"], s["ventilation_on"]])
+    return {"heating_setpoint": s["heating_setpoint_c"], "cooling_setpoint": s["cooling_setpoint_c"],
+            "hvac_availability": hvac, "outdoor_air": s["ventilation_on"] * np.minimum(
+                1.0, s["ventilation_ach"] / HISTORICAL_ACH)}
+
+
+def hour_of_year(day: dt.date) -> int:
+    """Hours from January 1st 00:00 to ``day`` 00:00 on a 365-day EPW calendar (Feb 29 shares Feb 28's row)."""
+    doy = (day - dt.date(day.year, 1, 1)).days
+    leap = day.year % 4 == 0 and (day.year % 100 != 0 or day.year % 400 == 0)
+    if leap and day >= dt.date(day.year, 3, 1):
+        doy -= 1
+    return doy * 24
+
+
+def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdir: Path,
+                  schedule_map: ScheduleMap | None = None) -> tuple[Path, ScheduleMap]:
+    """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
+
+    Returns the IDF path and the schedule map used. Raises :class:`ReferenceError_` if a role has no schedule.
+    """
+    objects = read_idf(source)
+    mapping = schedule_map or detect_schedule_map(objects)
+    missing = [r for r in SCHEDULE_ROLES if not getattr(mapping, r)]
+    if missing:
+        raise ReferenceError_(f"{source}: no schedule found for {', '.join(missing)}; "
+                              "name them with --map ROLE=SCHEDULE")
+    last_day = first_day + dt.timedelta(days=7 * len(settings) - 1)
+    if last_day.year != first_day.year:
+        raise ReferenceError_(f"the run {first_day}..{last_day} crosses a new year; start it earlier or shorten it")
+    # the Schedule:File: a year of hourly values, the run's hours filled from the settings
+    columns = _schedule_columns(settings)
+    start = hour_of_year(first_day)
+    table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
+    for j, role in enumerate(SCHEDULE_ROLES):
+        values = columns[role]
+        table[:, j] = values[:cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
+        stop = min(start + len(values), HOURS_PER_YEAR)
+        table[start:stop, j] = values[:stop - start]
+    csv = (workdir / "buildenv_schedules.csv").resolve()
+    workdir.mkdir(parents=True, exist_ok=True)
+    np.savetxt(csv, table, fmt="%.4f", delimiter=",", header=",".join(SCHEDULE_ROLES), comments="")
+    # re-point every reference to a replaced schedule (definitions and EMS objects keep the old names)
+    rename = {old.lower(): f"buildenv_{role}" for role in SCHEDULE_ROLES for old in getattr(mapping, role)}
+    kept_kinds = ("schedule:", "energymanagementsystem:", "output:")
+    edited = []
+    for o in without(objects, kinds={"RunPeriod", "RunPeriodControl:SpecialDays",
+                                     "RunPeriodControl:DaylightSavingTime", "OutputControl:Files",
+                                     "Output:SQLite", "OutputControl:Table:Style", "Output:Variable",
+                                     "Output:Meter", "Output:Meter:MeterFileOnly", "Output:Table:Monthly",
+                                     "Output:Table:SummaryReports", "Output:Table:TimeBins"}):
+        if not o[0].lower().startswith(kept_kinds):
+            o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
+        edited.append(o)
+    sim = of_type(edited, "SimulationControl")
+    if sim:
+        sim[0][1:6] = ["Yes", "Yes", "Yes", "No", "Yes"]  # autosize on design days, simulate the run period only
+    edited += [["Schedule:File", f"buildenv_{role}", "", str(csv), str(j + 1), "1", str(HOURS_PER_YEAR), "Comma",
+                "No", "60"] for j, role in enumerate(SCHEDULE_ROLES)]
+    edited.append(["RunPeriod", "buildenv", str(first_day.month), str(first_day.day), str(first_day.year),
+                   str(last_day.month), str(last_day.day), str(last_day.year), "", "No", "No", "No", "No", "No",
+                   "No"])
+    edited += [["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
+               ["Output:Meter", "HeatingCoils:EnergyTransfer", "Hourly"],
+               ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
+               ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
+               ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29]
+    idf = workdir / f"{source.stem}_buildenv.idf"
+    idf.write_text(format_idf(edited))
+    return idf, mapping
+
+
+def zone_areas(eio: Path) -> dict[str, float]:
+    """``{zone name (upper case): floor area x multipliers (m2)}`` from EnergyPlus's ``eplusout.eio``."""
+    header: list[str] | None = None
+    areas: dict[str, float] = {}
+    for line in eio.read_text(errors="replace").splitlines():
+        fields = [f.strip() for f in line.split(",")]
+        if fields[0] == "! <Zone Information>":
+            header = fields
+        elif fields[0] == "Zone Information" and header:
+            col = {name.split("{")[0].strip().lower(): i for i, name in enumerate(header)}
+            area = float(fields[col["floor area"]])
+            mult = float(fields[col["zone multiplier"]]) * float(fields[col["zone list multiplier"]])
+            areas[fields[1].upper()] = area * mult
+    if not areas:
+        raise ReferenceError_(f"{eio}: no Zone Information lines")
+    return areas
+
+
+def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int) -> ReferenceRun:
+    """Aggregate a finished reference run as the two sensors (see the module docstring)."""
+    import pandas as pd
+
+    frame = pd.read_csv(out / "eplusout.csv")
+    areas = zone_areas(out / "eplusout.eio")
+    zones = [z for z in occupied if z.upper() in areas]
+    temps, weights = [], []
+    for zone in zones:
+        col = [c for c in frame.columns if c.upper().startswith(f"{zone.upper()}:ZONE MEAN AIR TEMPERATURE [")]
+        if col:
+            temps.append(frame[col[0]].to_numpy(float))
+            weights.append(areas[zone.upper()])
+    if not temps:
+        raise ReferenceError_(f"{out}: no zone temperatures of the occupied zones {zones}")
+    temperature = np.average(np.stack(temps), axis=0, weights=weights)
+    consumption = np.zeros(len(frame))
+    for meter in ("HeatingCoils:EnergyTransfer", "InteriorLights:Electricity", "InteriorEquipment:Electricity"):
+        col = [c for c in frame.columns if c.upper().startswith(meter.upper() + " [")]
+        if col:  # a building without heating coils (or lights) simply adds nothing
+            consumption += frame[col[0]].to_numpy(float) / 3.6e6  # J -> kWh
+    hours = (weeks + warmup_weeks) * cat.HOURS_PER_WEEK
+    if len(frame) != hours:
+        raise ReferenceError_(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
+    skip = warmup_weeks * cat.HOURS_PER_WEEK
+    shape = (weeks, cat.HOURS_PER_WEEK)
+    return ReferenceRun(temperature[skip:].reshape(shape), consumption[skip:].reshape(shape),
+                        float(sum(areas[z.upper()] for z in zones)), zones)
+
+
+def run_reference(building: str | Path, epw: str | Path, start: dt.date, settings: np.ndarray,
+                  warmup_weeks: int = 1, workdir: Path | None = None,
+                  schedule_map: ScheduleMap | None = None) -> ReferenceRun:
+    """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
+
+    Args:
+        building: a name of :data:`REFERENCE_BUILDINGS` or an IDF path.
+        epw: weather short name or EPW path.
+        start: Monday of the first measured week.
+        settings: I_k per measured week ``(weeks, 7, 12)``; the warm-up weeks repeat the first week's.
+        warmup_weeks: weeks simulated before ``start`` and discarded.
+        workdir: where EnergyPlus runs (temporary if ``None``); its outputs are deleted afterwards.
+        schedule_map: schedules to replace (detected from the model if ``None``).
+    """
+    if start.weekday() != 0:
+        raise ReferenceError_(f"start {start} is a {start.strftime('%A')}; measured weeks start on a Monday")
+    settings = np.asarray(settings, float)
+    cat.check_values("settings", settings, "settings")
+    source = reference_idf(building)
+    full = np.concatenate([np.repeat(settings[:1], warmup_weeks, axis=0), settings])
+    first_day = start - dt.timedelta(weeks=warmup_weeks)
+    with tempfile.TemporaryDirectory(prefix="buildenv-ref-") as tmp:
+        work = Path(workdir) if workdir else Path(tmp)
+        idf, _ = prepare_model(source, full, first_day, work, schedule_map)
+        occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
+        run_energyplus(idf, resolve_epw(epw), work, label=source.stem)
+        result = read_sensors(work, occupied, len(settings), warmup_weeks)
+        clean_outputs(work, keep=("eplusout.err",))
+    return result
+
+
+def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Measured series: ``(temperature_c, consumption_kwh)`` with seeded noise and meter resolution."""
+    rng = np.random.default_rng(seed)
+    t = run.temperature_c + rng.normal(0.0, TEMPERATURE_NOISE_K, run.temperature_c.shape)
+    q = run.consumption_kwh * (1.0 + rng.normal(0.0, CONSUMPTION_NOISE_FRACTION, run.consumption_kwh.shape))
+    t = np.round(t / TEMPERATURE_RESOLUTION_K) * TEMPERATURE_RESOLUTION_K
+    q = np.round(np.maximum(q, 0.0) / CONSUMPTION_RESOLUTION_KWH) * CONSUMPTION_RESOLUTION_KWH
+    return t, q
+
+
+def historical_settings(weeks: int) -> np.ndarray:
+    """The default building's typical historical settings on every day, ``(weeks, 7, 12)``."""
+    from buildenv.defaults import DEFAULT_DAY_SETTINGS
+
+    day = cat.from_mapping("settings", DEFAULT_DAY_SETTINGS, where="historical settings")
+    return np.broadcast_to(day, (weeks, 7, len(day))).copy()
+
+
+def make_reference_site(out: str | Path, building: str | Path = "medium_office", epw: str | Path = "usa_il_chicago",
+                        start: dt.date = dt.date(2019, 11, 4), weeks: int = 4, settings: np.ndarray | None = None,
+                        seed: int = 0, floors: int | None = None, schedule_map: ScheduleMap | None = None) -> Path:
+    """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.site`).
+
+    Args:
+        out: site folder to write.
+        building: a name of :data:`REFERENCE_BUILDINGS` or an IDF path (then ``floors`` is required).
+        epw: weather short name or EPW path.
+        start: Monday of the first measured week.
+        weeks: measured weeks.
+        settings: I_k per week ``(weeks, 7, 12)``; default :func:`historical_settings`.
+        seed: seed of the sensor noise.
+        floors: storeys (known geometry); taken from :data:`REFERENCE_BUILDINGS` for shipped buildings.
+        schedule_map: schedules to replace (detected if ``None``).
+    """
+    from buildenv.site import write_site
+
+    if floors is None:
+        if str(building) not in REFERENCE_BUILDINGS:
+            raise ReferenceError_(f"{building}: give the number of floors of a user IDF (--floors)")
+        floors = REFERENCE_BUILDINGS[str(building)][1]
+    settings = historical_settings(weeks) if settings is None else np.asarray(settings, float)
+    run = run_reference(building, epw, start, settings, schedule_map=schedule_map)
+    temperature, consumption = add_sensor_noise(run, seed)
+    source = {"kind": "reference building stand-in", "building": str(building),
+              "idf": reference_idf(building).name, "weather": str(epw), "seed": seed,
+              "temperature_sensor": f"occupied-zone mean of {len(run.zones)} zones, noise {TEMPERATURE_NOISE_K} K, "
+                                    f"resolution {TEMPERATURE_RESOLUTION_K} K",
+              "consumption_meter": "heating coils + interior lights + interior equipment, noise "
+                                   f"{CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh"}
+    return write_site(out, name=f"{building} in {epw} (reference-building stand-in)", weather=str(epw), start=start,
+                      floor_area_m2=round(run.floor_area_m2, 1), number_of_floors=int(floors), settings=settings,
+                      temperature_c=temperature, consumption_kwh=consumption, source=source,
+                      truth={"building": str(building), "effects": []})

@@ -1,0 +1,824 @@
+"""A site: one real building's hourly measurements, as a folder, loaded with strict validation.
+
+A site folder holds (format for users: ``docs/site-format.md``)::
+
+    site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional [source]
+    measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
+    settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
+    calibration.json   optional, written by calibration (:func:`save_calibration`); not interpreted here
+    truth.json         optional, true parameters of a synthetic stand-in site; not interpreted here
+
+Conventions:
+
+- Timestamps are local *standard* time (no daylight-saving shift, like the EPW file) of the START of the
+  hour; weeks start Monday 00:00.
+- ``indoor_temperature_c`` is the occupied zone's mean air temperature over the hour, degC; it is compared
+  with the catalogue output ``T_INT_OFFICE``.
+- ``heat_consumption_kwh`` is the energy used during the hour, kWh, for heating + equipment + lighting; it is
+  compared with ``Q_HEAT_OFFICE + Q_AHU_H + Q_EQP + Q_LIGHT`` (:data:`buildenv.catalogue.HEAT_CONSUMPTION_OUTPUTS`,
+  Wh/m2 in the hour) times floor area / 1000.
+- Missing rows and empty / ``NaN`` cells are gaps: the hour is NaN and masked, never interpolated.
+  Temperature and consumption have separate masks.
+
+Every problem raises :class:`~buildenv.errors.SiteError` with a one-line ``"<file>:<line>: <what is wrong>"``
+message (line 1 is the CSV header).
+"""
+
+from __future__ import annotations
+
+import calendar
+import csv
+import datetime as dt
+import difflib
+import json
+import logging
+import math
+import os
+import re
+import tempfile
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.errors import CatalogueError, SiteError
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+log = logging.getLogger(__name__)
+
+DESCRIPTOR = "site.toml"
+CALIBRATION_FILE = "calibration.json"
+TRUTH_FILE = "truth.json"
+DEFAULT_MEASUREMENTS = "measurements.csv"
+DEFAULT_SETTINGS = "settings.csv"
+MEASUREMENT_COLUMNS: tuple[str, ...] = ("timestamp", "indoor_temperature_c", "heat_consumption_kwh")
+SETTINGS_COLUMNS: tuple[str, ...] = ("date", *cat.SETTING_NAMES)
+TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "geometry", "source")
+GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
+
+#: Plausible indoor air temperature, degC; a value outside is a unit or sensor error.
+TEMPERATURE_RANGE_C: tuple[float, float] = (-20.0, 50.0)
+#: Largest plausible consumption in one hour, kWh per m2 of floor area.
+MAX_KWH_PER_M2_PER_HOUR = 1.0
+
+_TEMPERATURE_UNITS = {"f": "degF", "degf": "degF", "fahrenheit": "degF", "k": "K", "kelvin": "K",
+                      "degk": "K"}
+_ENERGY_UNITS = {"wh": "Wh", "mwh": "MWh", "gwh": "GWh", "j": "J", "kj": "kJ", "mj": "MJ", "gj": "GJ",
+                 "btu": "Btu", "kbtu": "kBtu", "mmbtu": "MMBtu", "therm": "therm", "therms": "therm",
+                 "w": "W", "kw": "kW", "mw": "MW"}
+_TIMESTAMP = re.compile(r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2})(?::(\d{2}))?")
+_TIMESTAMP_WITH_ZONE = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2})?(?:\.\d+)?\s*(?:Z|[+-]\d{2}:?\d{2})")
+_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
+_BARE_KEY = re.compile(r"[A-Za-z0-9_-]+")
+
+
+# --------------------------------------------------------------------------- the Site
+@dataclass(eq=False)
+class Site:
+    """A loaded, validated site (build one with :func:`load_site`).
+
+    Attributes:
+        path: the site folder.
+        name: free text from ``site.toml``.
+        weather: an EPW short name (see :func:`buildenv.weather.shipped_weather`) or an absolute EPW path.
+        start: Monday of the first measured week (local standard time).
+        floor_area_m2: conditioned floor area, m2 (known, fixed during calibration).
+        number_of_floors: number of storeys (known, fixed during calibration).
+        settings: BMS settings in force, ``(weeks, 7, 12)``, Monday..Sunday, catalogue order of the
+            ``settings`` group (units of :data:`buildenv.catalogue.SETTINGS`: h, degC, 1/h).
+        temperature_c: occupied-zone mean air temperature of each hour, degC, ``(weeks, 168)``, NaN where missing.
+        consumption_kwh: heat consumption (heating + equipment + lighting) in each hour, kWh,
+            ``(weeks, 168)``, NaN where missing.
+        source: the free ``[source]`` table of ``site.toml`` (what produced the data), not interpreted.
+        calibration: parsed ``calibration.json`` or None.
+        truth: parsed ``truth.json`` (true parameters of a synthetic site) or None.
+    """
+
+    path: Path
+    name: str
+    weather: str
+    start: dt.date
+    floor_area_m2: float
+    number_of_floors: int
+    settings: np.ndarray
+    temperature_c: np.ndarray
+    consumption_kwh: np.ndarray
+    source: dict = field(default_factory=dict)
+    calibration: dict | None = None
+    truth: dict | None = None
+
+    @property
+    def weeks(self) -> int:
+        """Number of measured weeks."""
+        return int(self.temperature_c.shape[0])
+
+    @property
+    def temperature_mask(self) -> np.ndarray:
+        """``(weeks, 168)`` bool, True where the indoor temperature was measured."""
+        return np.isfinite(self.temperature_c)
+
+    @property
+    def consumption_mask(self) -> np.ndarray:
+        """``(weeks, 168)`` bool, True where the heat consumption was measured."""
+        return np.isfinite(self.consumption_kwh)
+
+    def consumption_wh_m2(self) -> np.ndarray:
+        """Heat consumption per m2 of floor area, Wh/m2 in each hour, ``(weeks, 168)``, NaN where missing.
+
+        The unit of the catalogue outputs: compare with the sum of
+        :data:`buildenv.catalogue.HEAT_CONSUMPTION_OUTPUTS`.
+        """
+        return self.consumption_kwh * 1000.0 / self.floor_area_m2
+
+    def week_starts(self) -> list[dt.date]:
+        """The Monday of each measured week (``weeks`` dates)."""
+        return [self.start + dt.timedelta(days=7 * k) for k in range(self.weeks)]
+
+    def start_hour_of_year(self, week: int) -> int:
+        """Row of an EPW year (8760 hourly rows) where week ``week`` (0-based) starts.
+
+        Hours since Jan 1 00:00 of the year the week's Monday falls in, counted on a 365-day year: in a
+        leap year, days after Feb 28 are shifted back one day (EPW TMY files have no Feb 29; Feb 29 itself
+        gets Feb 28's row). Range ``0 .. 8736``.
+        """
+        if not 0 <= week < self.weeks:
+            raise SiteError(f"{self.path}: week {week} out of range 0..{self.weeks - 1}")
+        return _epw_day(self.start + dt.timedelta(days=7 * week)) * cat.HOURS_PER_DAY
+
+    def epw_hours(self) -> np.ndarray:
+        """Row of the EPW year for every measured hour, ``(weeks, 168)`` int in ``0 .. 8759``.
+
+        Each day is matched to the same calendar day of the EPW year (Feb 29 to Feb 28); a week that runs
+        past Dec 31 continues at the start of the EPW year.
+        """
+        days = np.array([[_epw_day(self.start + dt.timedelta(days=7 * k + d)) for d in range(7)]
+                         for k in range(self.weeks)], dtype=int)
+        hours = days[:, :, None] * cat.HOURS_PER_DAY + np.arange(cat.HOURS_PER_DAY)
+        return hours.reshape(self.weeks, cat.HOURS_PER_WEEK)
+
+    def weather_hours(self) -> np.ndarray:
+        """The site's weather over the measured weeks, ``(weeks, 168, len(catalogue.WEATHER_NAMES))``.
+
+        Taken from ``buildenv.weather.load_weather(self.weather).hourly`` (catalogue channels and units) at
+        :meth:`epw_hours`: week ``k`` starts at :meth:`start_hour_of_year` and wraps to the start of the EPW
+        year past Dec 31.
+
+        Raises:
+            WeatherError: the EPW file is missing or unreadable.
+        """
+        from buildenv.weather import load_weather
+
+        return np.asarray(load_weather(self.weather).hourly)[self.epw_hours()]
+
+    def theta_known(self) -> dict[str, float]:
+        """The building parameters the site fixes: ``{"floor_area_m2": m2, "number_of_floors": count}``."""
+        return {"floor_area_m2": float(self.floor_area_m2), "number_of_floors": float(self.number_of_floors)}
+
+
+def _epw_day(day: dt.date) -> int:
+    """Day index 0..364 of ``day`` in a 365-day (EPW) year: Feb 29 -> Feb 28, later leap-year days shift back."""
+    index = (day - dt.date(day.year, 1, 1)).days
+    if calendar.isleap(day.year) and index >= 59:  # 59 = Feb 29
+        index -= 1
+    return index
+
+
+# --------------------------------------------------------------------------- loading
+def load_site(path: str | os.PathLike) -> Site:
+    """Read and validate a site folder (or its ``site.toml``).
+
+    Checks the descriptor, every row of ``measurements.csv`` and ``settings.csv`` (see the module docstring
+    and ``docs/site-format.md``) and that the weather exists (the EPW itself is read only by
+    :meth:`Site.weather_hours`).
+
+    Args:
+        path: the site folder, or the path of its ``site.toml``.
+
+    Returns:
+        the :class:`Site`.
+
+    Raises:
+        SiteError: on the first problem, as ``"<file>:<line>: <what is wrong>"``.
+    """
+    folder = Path(path).expanduser()
+    if folder.is_file() and folder.suffix == ".toml":
+        descriptor, folder = folder, folder.parent
+    else:
+        descriptor = folder / DESCRIPTOR
+    if not folder.is_dir():
+        raise SiteError(f"site folder not found: {folder}")
+    if not descriptor.is_file():
+        raise SiteError(f"{folder}: not a site folder: {DESCRIPTOR} is missing (see docs/site-format.md)")
+    folder = folder.resolve()
+    descriptor = descriptor.resolve()
+
+    desc = _read_descriptor(descriptor)
+    measurements_path = _data_file(descriptor, desc, "measurements", DEFAULT_MEASUREMENTS)
+    settings_path = _data_file(descriptor, desc, "settings", DEFAULT_SETTINGS)
+    start, temperature, consumption = _read_measurements(measurements_path, desc["floor_area_m2"])
+    settings = _read_settings(settings_path, start, temperature.shape[0])
+    for values, column in ((temperature, MEASUREMENT_COLUMNS[1]), (consumption, MEASUREMENT_COLUMNS[2])):
+        if not np.isfinite(values).any():
+            log.warning("%s: column %s has no measured value", measurements_path, column)
+    return Site(
+        path=folder,
+        name=desc["name"],
+        weather=desc["weather"],
+        start=start,
+        floor_area_m2=desc["floor_area_m2"],
+        number_of_floors=desc["number_of_floors"],
+        settings=settings,
+        temperature_c=temperature,
+        consumption_kwh=consumption,
+        source=desc["source"],
+        calibration=_read_json(folder / CALIBRATION_FILE),
+        truth=_read_json(folder / TRUTH_FILE),
+    )
+
+
+def _toml_line(text: str, key: str, table: str | None = None) -> int | None:
+    """1-based line where ``key = ...`` is set (inside ``[table]`` when given), or None."""
+    current: str | None = None
+    assign = re.compile(rf"\s*(?:{re.escape(key)}|\"{re.escape(key)}\"|'{re.escape(key)}')\s*=")
+    header = re.compile(r"\s*\[\s*([^\]]+?)\s*\]")
+    for number, line in enumerate(text.splitlines(), start=1):
+        m = header.match(line)
+        if m:
+            current = m.group(1).strip("\"'")
+            if table is None and current == key:
+                return number
+            continue
+        if current == table and assign.match(line):
+            return number
+    return None
+
+
+def _where(descriptor: Path, text: str, key: str, table: str | None = None) -> str:
+    line = _toml_line(text, key, table)
+    return f"{descriptor}:{line}" if line else str(descriptor)
+
+
+def _allowed(keys: tuple[str, ...]) -> str:
+    return ", ".join(keys)
+
+
+def _read_descriptor(descriptor: Path) -> dict[str, Any]:
+    """Parse and validate ``site.toml`` into plain values (weather resolved)."""
+    try:
+        text = descriptor.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SiteError(f"{descriptor}: cannot read: {exc}") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"at line (\d+)", str(exc))
+        raise SiteError(f"{descriptor}:{m.group(1) if m else '?'}: invalid TOML: {exc}") from exc
+
+    for key in data:
+        if key not in TOP_LEVEL_KEYS:
+            close = difflib.get_close_matches(key, TOP_LEVEL_KEYS, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise SiteError(f"{_where(descriptor, text, key)}: unknown key {key!r}{hint}; "
+                            f"allowed: {_allowed(TOP_LEVEL_KEYS)}")
+    for key in ("name", "weather", "geometry"):
+        if key not in data:
+            what = {"name": "free text", "weather": "an EPW short name such as 'usa_il_chicago' or a path",
+                    "geometry": f"a table with {_allowed(GEOMETRY_KEYS)}"}[key]
+            raise SiteError(f"{descriptor}: missing {key!r} ({what})")
+    for key in ("name", "weather", "measurements", "settings"):
+        if key in data and (not isinstance(data[key], str) or not data[key].strip()):
+            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, "
+                            f"got {data[key]!r}")
+    for key in ("geometry", "source"):
+        if key in data and not isinstance(data[key], dict):
+            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a table ([{key}]), "
+                            f"got {data[key]!r}")
+
+    geometry = data["geometry"]
+    for key in geometry:
+        if key not in GEOMETRY_KEYS:
+            close = difflib.get_close_matches(key, GEOMETRY_KEYS, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise SiteError(f"{_where(descriptor, text, key, 'geometry')}: unknown key {key!r} in [geometry]{hint}; "
+                            f"allowed: {_allowed(GEOMETRY_KEYS)}")
+    for key in GEOMETRY_KEYS:
+        if key not in geometry:
+            raise SiteError(f"{descriptor}: [geometry] is missing {key!r} ({cat.get(key).description})")
+    area = geometry["floor_area_m2"]
+    where = _where(descriptor, text, "floor_area_m2", "geometry")
+    if isinstance(area, bool) or not isinstance(area, (int, float)) or not math.isfinite(area):
+        raise SiteError(f"{where}: floor_area_m2 must be a number (m2), got {area!r}")
+    floors = geometry["number_of_floors"]
+    where_floors = _where(descriptor, text, "number_of_floors", "geometry")
+    if isinstance(floors, float) and floors.is_integer():
+        floors = int(floors)
+    if isinstance(floors, bool) or not isinstance(floors, int):
+        raise SiteError(f"{where_floors}: number_of_floors must be a whole number, got {floors!r}")
+    for key, value, loc in (("floor_area_m2", float(area), where), ("number_of_floors", floors, where_floors)):
+        try:
+            cat.get(key).check(value)  # the catalogue range, not its sampling step
+        except CatalogueError as exc:
+            raise SiteError(f"{loc}: {exc}") from exc
+
+    return {
+        "name": data["name"].strip(),
+        "weather": _resolve_weather(descriptor, text, data["weather"]),
+        "floor_area_m2": float(area),
+        "number_of_floors": int(floors),
+        "measurements": data.get("measurements", DEFAULT_MEASUREMENTS),
+        "settings": data.get("settings", DEFAULT_SETTINGS),
+        "source": dict(data.get("source", {})),
+        "text": text,
+    }
+
+
+def _resolve_weather(descriptor: Path, text: str, weather: str) -> str:
+    """A shipped short name stays as is; a path (relative to the site folder) becomes absolute."""
+    from buildenv.weather import shipped_weather
+
+    try:
+        shipped = shipped_weather()
+    except Exception:  # pragma: no cover - pyenergyplus is a dependency, but do not fail on its absence
+        shipped = {}
+    if weather in shipped:
+        return weather
+    path = Path(weather).expanduser()
+    if not path.is_absolute():
+        path = descriptor.parent / path
+    if path.is_file():
+        return str(path.resolve())
+    where = _where(descriptor, text, "weather")
+    names = ", ".join(shipped) if shipped else "(none installed)"
+    raise SiteError(f"{where}: weather {weather!r} is neither a shipped EPW short name nor a file "
+                    f"(looked for {path}); short names: {names}")
+
+
+def _data_file(descriptor: Path, desc: dict[str, Any], key: str, default: str) -> Path:
+    path = Path(desc[key]).expanduser()
+    if not path.is_absolute():
+        path = descriptor.parent / path
+    if not path.is_file():
+        raise SiteError(f"{_where(descriptor, desc['text'], key)}: {key} file not found: {path}")
+    return path
+
+
+def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """``(line number, cells)`` of a CSV file, header included, blank lines skipped; cells stripped."""
+    try:
+        with path.open(encoding="utf-8-sig", newline="") as handle:
+            reader = csv.reader(handle)
+            try:
+                for cells in reader:
+                    if not cells or (len(cells) == 1 and not cells[0].strip()):
+                        continue  # blank line
+                    yield reader.line_num, [c.strip() for c in cells]
+            except csv.Error as exc:
+                raise SiteError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise SiteError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); "
+                        "save the export as UTF-8 CSV") from exc
+    except OSError as exc:
+        raise SiteError(f"{path}: cannot read: {exc}") from exc
+
+
+def _check_width(path: Path, line: int, cells: list[str], columns: tuple[str, ...]) -> None:
+    if len(cells) != len(columns):
+        many = "too many" if len(cells) > len(columns) else "too few"
+        raise SiteError(f"{path}:{line}: {many} columns: {len(cells)} instead of {len(columns)} "
+                        f"({','.join(columns)})")
+
+
+def _separator_hint(header: list[str]) -> str:
+    if len(header) == 1 and ";" in header[0]:
+        return " (columns must be separated by commas, this file uses ';')"
+    if len(header) == 1 and "\t" in header[0]:
+        return " (columns must be separated by commas, this file uses tabs)"
+    return ""
+
+
+def _check_measurement_header(path: Path, header: list[str]) -> None:
+    if tuple(header) == MEASUREMENT_COLUMNS:
+        return
+    for column in header:
+        low = column.lower()
+        for prefix, units, expected in (("indoor_temperature_", _TEMPERATURE_UNITS, "indoor_temperature_c (degC)"),
+                                        ("heat_consumption_", _ENERGY_UNITS, "heat_consumption_kwh (kWh)")):
+            if low.startswith(prefix) and low != expected.split()[0]:
+                unit = low[len(prefix):]
+                label = f" is in {units[unit]}" if unit in units else f" has unit {unit!r}"
+                raise SiteError(f"{path}:1: wrong unit: column {column!r}{label}; expected {expected}: "
+                                "convert the values and rename the column")
+    if header and _TIMESTAMP.fullmatch(header[0]):
+        raise SiteError(f"{path}:1: missing header: the first line must be {','.join(MEASUREMENT_COLUMNS)}")
+    raise SiteError(f"{path}:1: header is {','.join(header)!r}, expected the columns "
+                    f"{','.join(MEASUREMENT_COLUMNS)!r}{_separator_hint(header)}")
+
+
+def _parse_timestamp(path: Path, line: int, text: str) -> dt.datetime:
+    m = _TIMESTAMP.fullmatch(text)
+    if m is None:
+        if _TIMESTAMP_WITH_ZONE.fullmatch(text):
+            raise SiteError(f"{path}:{line}: timestamp {text!r} has a UTC offset: give local standard time "
+                            "without an offset, as 'YYYY-MM-DD HH:MM'")
+        raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM' "
+                        "(or with a 'T'), local standard time of the start of the hour")
+    year, month, day, hour, minute, second = (int(g) if g else 0 for g in m.groups())
+    try:
+        stamp = dt.datetime(year, month, day, hour, minute, second)
+    except ValueError as exc:
+        raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: {exc}") from exc
+    if minute or second:
+        raise SiteError(f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "
+                        "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)")
+    return stamp
+
+
+def _parse_value(path: Path, line: int, column: str, text: str, *, missing_ok: bool = True) -> float:
+    """A cell as float; empty or NaN -> NaN (when ``missing_ok``)."""
+    if text == "" or text.lower() == "nan":
+        if missing_ok:
+            return math.nan
+        raise SiteError(f"{path}:{line}: {column} is missing: every day needs the value in force")
+    try:
+        value = float(text)
+    except ValueError:
+        blank = ", leave the cell empty for a missing value" if missing_ok else ""
+        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a number (use '.' as decimal mark{blank})") \
+            from None
+    if not math.isfinite(value):
+        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a finite number")
+    return value
+
+
+def _check_temperature(path: Path, line: int, value: float) -> None:
+    lo, hi = TEMPERATURE_RANGE_C
+    if lo <= value <= hi:
+        return
+    hint = ""
+    if 50 < value < 130:
+        hint = f"; looks like degF ({value:g} degF = {(value - 32) / 1.8:.1f} degC)"
+    elif 240 < value < 340:
+        hint = f"; looks like K ({value:g} K = {value - 273.15:.1f} degC)"
+    raise SiteError(f"{path}:{line}: indoor_temperature_c={value:g} is outside [{lo:g}, {hi:g}] degC{hint}; "
+                    "fix the unit or leave the cell empty if the sensor failed")
+
+
+def _check_consumption(path: Path, line: int, value: float, floor_area_m2: float) -> None:
+    if value < 0:
+        raise SiteError(f"{path}:{line}: heat_consumption_kwh={value:g} is negative: give the energy used "
+                        "during the hour (not a meter difference across a reset); leave it empty if unknown")
+    limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
+    if value > limit:
+        hint = "; looks like Wh (divide by 1000)" if value / 1000.0 <= limit else ""
+        raise SiteError(f"{path}:{line}: heat_consumption_kwh={value:g} is above "
+                        f"{MAX_KWH_PER_M2_PER_HOUR:g} kWh/m2 in one hour ({limit:g} kWh for "
+                        f"{floor_area_m2:g} m2){hint}")
+
+
+def _fmt(stamp: dt.datetime) -> str:
+    return stamp.strftime("%Y-%m-%d %H:%M")
+
+
+def _read_measurements(path: Path, floor_area_m2: float) -> tuple[dt.date, np.ndarray, np.ndarray]:
+    """Parse ``measurements.csv`` into ``(start Monday, temperature (weeks, 168), consumption (weeks, 168))``."""
+    rows = _rows(path)
+    first = next(rows, None)
+    if first is None:
+        raise SiteError(f"{path}:1: empty file: expected the header {','.join(MEASUREMENT_COLUMNS)}")
+    _check_measurement_header(path, first[1])
+
+    start: dt.datetime | None = None
+    previous: tuple[int, dt.datetime] | None = None
+    hours: list[int] = []
+    temperature: list[float] = []
+    consumption: list[float] = []
+    for line, cells in rows:
+        _check_width(path, line, cells, MEASUREMENT_COLUMNS)
+        stamp = _parse_timestamp(path, line, cells[0])
+        if start is None:
+            if stamp.weekday() != 0 or stamp.hour != 0:
+                raise SiteError(f"{path}:{line}: the first timestamp {_fmt(stamp)} is a "
+                                f"{calendar.day_name[stamp.weekday()]} at {stamp:%H:%M}: data must start on a "
+                                "Monday at 00:00 (drop the rows before the next Monday, or add empty rows "
+                                "from the previous Monday 00:00)")
+            start = stamp
+        elif previous is not None:
+            if stamp == previous[1]:
+                raise SiteError(f"{path}:{line}: duplicate timestamp {_fmt(stamp)} (also on line {previous[0]}); "
+                                "if the BMS exports daylight-saving time, export in local standard time")
+            if stamp < previous[1]:
+                raise SiteError(f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
+                                f"{_fmt(previous[1])} (line {previous[0]}): sort the rows by time")
+        t = _parse_value(path, line, MEASUREMENT_COLUMNS[1], cells[1])
+        q = _parse_value(path, line, MEASUREMENT_COLUMNS[2], cells[2])
+        if not math.isnan(t):
+            _check_temperature(path, line, t)
+        if not math.isnan(q):
+            _check_consumption(path, line, q, floor_area_m2)
+        hours.append(int((stamp - start).total_seconds()) // 3600)
+        temperature.append(t)
+        consumption.append(q)
+        previous = (line, stamp)
+
+    if start is None or previous is None:
+        raise SiteError(f"{path}:2: no data rows after the header")
+    last_line, last = previous
+    if hours[-1] % cat.HOURS_PER_WEEK != cat.HOURS_PER_WEEK - 1:
+        week_end = start + dt.timedelta(hours=(hours[-1] // cat.HOURS_PER_WEEK + 1) * cat.HOURS_PER_WEEK - 1)
+        raise SiteError(f"{path}:{last_line}: the data end at {calendar.day_name[last.weekday()]} {_fmt(last)}: "
+                        f"they must cover whole weeks, ending on a Sunday at 23:00; add rows up to "
+                        f"{_fmt(week_end)} with empty cells for the hours not measured")
+    weeks = hours[-1] // cat.HOURS_PER_WEEK + 1
+    t_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
+    q_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
+    index = np.asarray(hours)
+    t_out[index] = temperature
+    q_out[index] = consumption
+    shape = (weeks, cat.HOURS_PER_WEEK)
+    return start.date(), t_out.reshape(shape), q_out.reshape(shape)
+
+
+def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
+    """Parse ``settings.csv`` into ``(weeks, 7, 12)``: one row per day from ``start``, catalogue ranges checked."""
+    rows = _rows(path)
+    first = next(rows, None)
+    expected = ",".join(SETTINGS_COLUMNS)
+    if first is None:
+        raise SiteError(f"{path}:1: empty file: expected the header {expected}")
+    header = first[1]
+    if tuple(header) != SETTINGS_COLUMNS:
+        missing = [c for c in SETTINGS_COLUMNS if c not in header]
+        unknown = [c for c in header if c not in SETTINGS_COLUMNS]
+        parts = []
+        if missing:
+            parts.append("missing " + ", ".join(missing))
+        for column in unknown:
+            close = difflib.get_close_matches(column, SETTINGS_COLUMNS, n=1)
+            parts.append(f"unknown {column!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+        if not parts:
+            parts.append("columns in the wrong order" if len(set(header)) == len(header) else "repeated columns")
+        raise SiteError(f"{path}:1: wrong header ({'; '.join(parts)}{_separator_hint(header)}); expected "
+                        f"{expected} (the catalogue's settings in order; see `buildenv catalogue --group settings`)")
+
+    days = weeks * 7
+    last_day = start + dt.timedelta(days=days - 1)
+    values = np.empty((days, len(cat.SETTINGS)))
+    count = 0
+    last_line = 1
+    for line, cells in rows:
+        if count == days:
+            raise SiteError(f"{path}:{line}: one row too many: the measurements end on Sunday {last_day} "
+                            f"({weeks} week(s) from {start}); settings need one row per day of those weeks")
+        _check_width(path, line, cells, SETTINGS_COLUMNS)
+        m = _DATE.fullmatch(cells[0])
+        try:
+            day = dt.date(*(int(g) for g in m.groups())) if m else None
+        except ValueError:
+            day = None
+        if day is None:
+            raise SiteError(f"{path}:{line}: cannot read date {cells[0]!r}: expected 'YYYY-MM-DD'")
+        wanted = start + dt.timedelta(days=count)
+        if day != wanted:
+            what = "the first measured Monday" if count == 0 else "the day after the previous row"
+            raise SiteError(f"{path}:{line}: date {day} should be {wanted} ({what}): one row per day, "
+                            f"consecutive, from {start} to {last_day}")
+        for i, var in enumerate(cat.SETTINGS):
+            value = _parse_value(path, line, var.name, cells[i + 1], missing_ok=False)
+            try:
+                var.check(value)  # range only: a BMS may use values between grid steps
+            except CatalogueError as exc:
+                raise SiteError(f"{path}:{line}: {exc}") from exc
+            values[count, i] = value
+        count += 1
+        last_line = line
+    if count < days:
+        seen = f"end on {start + dt.timedelta(days=count - 1)}" if count else "have no data rows"
+        raise SiteError(f"{path}:{last_line}: the settings {seen}, but the measurements run to Sunday {last_day}: "
+                        f"expected {days} rows (one per day), found {count}")
+    return values.reshape(weeks, 7, len(cat.SETTINGS))
+
+
+def _read_json(path: Path) -> dict | None:
+    """A JSON object file as a dict, or None when the file does not exist."""
+    if not path.exists():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise SiteError(f"{path}:{exc.lineno}: invalid JSON: {exc.msg}") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SiteError(f"{path}: cannot read: {exc}") from exc
+    if not isinstance(data, dict):
+        raise SiteError(f"{path}:1: expected a JSON object, got {type(data).__name__}")
+    return data
+
+
+# --------------------------------------------------------------------------- writing
+def _toml_key(key: str) -> str:
+    return key if _BARE_KEY.fullmatch(key) else _toml_string(key)
+
+
+def _toml_string(text: str) -> str:
+    out = []
+    for ch in text:
+        if ch in ('"', "\\"):
+            out.append("\\" + ch)
+        elif ch in "\b\t\n\f\r":
+            out.append({"\b": "\\b", "\t": "\\t", "\n": "\\n", "\f": "\\f", "\r": "\\r"}[ch])
+        elif ord(ch) < 0x20 or ord(ch) == 0x7F:
+            out.append(f"\\u{ord(ch):04X}")
+        else:
+            out.append(ch)
+    return '"' + "".join(out) + '"'
+
+
+def _toml_value(value: Any, where: str) -> str:
+    if isinstance(value, (bool, np.bool_)):
+        return "true" if value else "false"
+    if isinstance(value, (int, np.integer)):
+        return str(int(value))
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        if math.isnan(value):
+            return "nan"
+        if math.isinf(value):
+            return "inf" if value > 0 else "-inf"
+        return repr(value)
+    if isinstance(value, (str, Path)):
+        return _toml_string(str(value))
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_toml_value(v, where) for v in list(value)) + "]"
+    if isinstance(value, (dt.date, dt.datetime)):
+        return value.isoformat()
+    raise SiteError(f"{where}: cannot write a {type(value).__name__} to TOML ({value!r})")
+
+
+def _toml_number(value: float) -> str:
+    value = float(value)
+    return str(int(value)) if value.is_integer() and abs(value) < 2**53 else _toml_value(value, "number")
+
+
+def _toml_table(name: str, table: Mapping[str, Any]) -> list[str]:
+    """Lines of ``[name]`` with its scalar keys, then its sub-tables."""
+    lines = [f"[{name}]"]
+    subtables = []
+    for key, value in table.items():
+        if isinstance(value, Mapping):
+            subtables.append((f"{name}.{_toml_key(str(key))}", value))
+        else:
+            lines.append(f"{_toml_key(str(key))} = {_toml_value(value, name + '.' + str(key))}")
+    for sub_name, sub in subtables:
+        lines += ["", *_toml_table(sub_name, sub)]
+    return lines
+
+
+def _cell(value: float, decimals: int) -> str:
+    return "" if not math.isfinite(value) else f"{value:.{decimals}f}"
+
+
+def _setting_cell(value: float) -> str:
+    return np.format_float_positional(round(float(value), 6), trim="-")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    with tempfile.NamedTemporaryFile("w", encoding="utf-8", dir=path.parent, prefix=f".{path.name}.",
+                                     suffix=".tmp", delete=False, newline="") as handle:
+        handle.write(text)
+        tmp = Path(handle.name)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (Path, dt.date)):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def write_site(
+    path: str | os.PathLike,
+    *,
+    name: str,
+    weather: str | os.PathLike,
+    start: dt.date,
+    floor_area_m2: float,
+    number_of_floors: int,
+    settings: np.ndarray,
+    temperature_c: np.ndarray,
+    consumption_kwh: np.ndarray,
+    source: Mapping[str, Any] | None = None,
+    truth: Mapping[str, Any] | None = None,
+) -> Path:
+    """Write a site folder that :func:`load_site` reads back, then validate it by loading it.
+
+    Writes ``site.toml``, ``measurements.csv`` (NaN -> empty cell; temperature with 3 decimals, kWh with 4;
+    every hour of every week gets a row), ``settings.csv`` (6 decimals at most) and ``truth.json`` when
+    ``truth`` is given. A ``calibration.json`` or ``truth.json`` left from an earlier site in the folder is
+    removed (it described other data).
+
+    Args:
+        path: the site folder (created if needed).
+        name: free text.
+        weather: an EPW short name or path (a relative path is read relative to the site folder).
+        start: Monday of the first week (a ``datetime`` is reduced to its date).
+        floor_area_m2: floor area, m2, within the catalogue range.
+        number_of_floors: storeys, within the catalogue range.
+        settings: ``(weeks, 7, 12)`` BMS settings, catalogue order, in catalogue units.
+        temperature_c: ``(weeks, 168)`` hourly indoor temperature, degC, NaN where missing.
+        consumption_kwh: ``(weeks, 168)`` hourly heat consumption, kWh, NaN where missing.
+        source: free ``[source]`` table (strings, numbers, booleans, lists, nested tables).
+        truth: true parameters of a synthetic site, written as ``truth.json``.
+
+    Returns:
+        the site folder.
+
+    Raises:
+        SiteError: wrong shapes, a start that is not a Monday, or values :func:`load_site` rejects.
+    """
+    folder = Path(path).expanduser()
+    if isinstance(start, dt.datetime):
+        start = start.date()
+    if start.weekday() != 0:
+        raise SiteError(f"write_site: start {start} is a {calendar.day_name[start.weekday()]}, not a Monday")
+    temperature = np.asarray(temperature_c, dtype=float)
+    consumption = np.asarray(consumption_kwh, dtype=float)
+    setting_values = np.asarray(settings, dtype=float)
+    if temperature.ndim != 2 or temperature.shape[1] != cat.HOURS_PER_WEEK or temperature.shape[0] < 1:
+        raise SiteError(f"write_site: temperature_c has shape {temperature.shape}, expected (weeks, 168)")
+    weeks = temperature.shape[0]
+    if consumption.shape != temperature.shape:
+        raise SiteError(f"write_site: consumption_kwh has shape {consumption.shape}, expected {temperature.shape}")
+    if setting_values.shape != (weeks, 7, len(cat.SETTINGS)):
+        raise SiteError(f"write_site: settings has shape {setting_values.shape}, "
+                        f"expected ({weeks}, 7, {len(cat.SETTINGS)})")
+
+    folder.mkdir(parents=True, exist_ok=True)
+    lines = [f"name = {_toml_string(str(name))}", f"weather = {_toml_string(str(weather))}", "",
+             "[geometry]", f"floor_area_m2 = {_toml_number(floor_area_m2)}",
+             f"number_of_floors = {int(number_of_floors)}"]
+    if source:
+        lines += ["", *_toml_table("source", source)]
+    (folder / DESCRIPTOR).write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+    out = [",".join(MEASUREMENT_COLUMNS)]
+    t_flat, q_flat = temperature.ravel(), consumption.ravel()
+    first = dt.datetime.combine(start, dt.time())
+    for h in range(weeks * cat.HOURS_PER_WEEK):
+        stamp = first + dt.timedelta(hours=h)
+        out.append(f"{_fmt(stamp)},{_cell(t_flat[h], 3)},{_cell(q_flat[h], 4)}")
+    (folder / DEFAULT_MEASUREMENTS).write_text("\n".join(out) + "\n", encoding="utf-8")
+
+    out = [",".join(SETTINGS_COLUMNS)]
+    for d, row in enumerate(setting_values.reshape(weeks * 7, -1)):
+        out.append(",".join([(start + dt.timedelta(days=d)).isoformat(), *(_setting_cell(v) for v in row)]))
+    (folder / DEFAULT_SETTINGS).write_text("\n".join(out) + "\n", encoding="utf-8")
+
+    (folder / CALIBRATION_FILE).unlink(missing_ok=True)
+    (folder / TRUTH_FILE).unlink(missing_ok=True)
+    if truth is not None:
+        _atomic_write(folder / TRUTH_FILE, json.dumps(dict(truth), indent=2, default=_json_default) + "\n")
+    load_site(folder)  # what is written must load: raises SiteError with file:line otherwise
+    return folder
+
+
+def save_calibration(site_path: str | os.PathLike, result: Mapping[str, Any]) -> Path:
+    """Write ``result`` as the site's ``calibration.json``, atomically (temporary file + ``os.replace``).
+
+    Args:
+        site_path: the site folder.
+        result: a JSON-serialisable mapping (numpy arrays and scalars are converted to lists and numbers).
+
+    Returns:
+        the path of ``calibration.json``.
+
+    Raises:
+        SiteError: the folder is not a site folder or ``result`` cannot be written as JSON.
+    """
+    folder = Path(site_path).expanduser()
+    if not (folder / DESCRIPTOR).is_file():
+        raise SiteError(f"{folder}: not a site folder ({DESCRIPTOR} is missing)")
+    try:
+        text = json.dumps(dict(result), indent=2, default=_json_default) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise SiteError(f"{folder / CALIBRATION_FILE}: cannot write the calibration as JSON: {exc}") from exc
+    target = folder / CALIBRATION_FILE
+    _atomic_write(target, text)
+    return target
+
+
+__all__ = ["Site", "SiteError", "load_site", "write_site", "save_calibration",
+           "MEASUREMENT_COLUMNS", "SETTINGS_COLUMNS"]

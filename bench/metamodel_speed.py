@@ -78,7 +78,7 @@ def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int) -> float:
     """Best-of-``repeats`` speed of ``load_metamodel().predict`` on dataset-like catalogue arrays."""
     rng = np.random.default_rng(0)
     surrogate = sg.load_metamodel()
-    theta = sample_group("theta", weeks, rng)
+    theta = sample_group("theta_build", weeks, rng)
     settings, occupancy = sample_weeks(weeks, rng)
     year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
     weather = year[np.arange(weeks) % cat.WEEKS_PER_YEAR]

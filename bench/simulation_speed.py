@@ -28,6 +28,7 @@ import numpy as np
 
 import buildenv.energyplus.simulate as sim
 from buildenv.defaults import default_theta
+from buildenv.energyplus.idf import format_idf, read_idf
 from buildenv.energyplus.runner import energyplus_version, run_energyplus
 from buildenv.sampling import sample_weeks
 from buildenv.weather import resolve_epw
@@ -70,18 +71,12 @@ def time_shoebox(repeats: int, seed: int = 0) -> dict:
             "overhead_median_s": statistics.median(t - e for t, e in zip(total, eplus))}
 
 
-def idf_objects(text: str) -> list[list[str]]:
-    """Split IDF text into objects, each a list ``[type, field1, ...]`` (comments dropped)."""
-    body = "\n".join(line.split("!", 1)[0] for line in text.splitlines())
-    return [[f.strip() for f in chunk.split(",")] for chunk in body.split(";") if chunk.strip()]
-
-
 def prepare_reference(workdir: Path, run_period: bool = True) -> tuple[Path, dict]:
     """Write the medium office IDF set up for one weather-file year (or sizing only) with all output files off."""
     from pyenergyplus.dataset import ref_models
 
     source = Path(ref_models["medium_office"])
-    objects = idf_objects(source.read_text(errors="replace"))
+    objects = read_idf(source)
     drop = re.compile(r"^(OutputControl:Files|Output:SQLite|Output:Table:.*|OutputControl:Table:Style)$", re.I)
     objects = [o for o in objects if not drop.match(o[0])]
     kinds = {o[0].lower(): o for o in objects}
@@ -93,7 +88,7 @@ def prepare_reference(workdir: Path, run_period: bool = True) -> tuple[Path, dic
     kinds["simulationcontrol"][1:6] = ["Yes", "Yes", "Yes", "No", "Yes" if run_period else "No"]
     objects.append(["OutputControl:Files"] + ["No"] * len(OUTPUT_FILES))
     idf = workdir / (source.name if run_period else "sizing_only.idf")
-    idf.write_text("\n".join(",\n    ".join(o) + ";\n" for o in objects))
+    idf.write_text(format_idf(objects))
     n_design, building = sum(o[0].lower() == "sizingperiod:designday" for o in objects), kinds["building"]
     info = {"name": f"DOE reference medium office ({source.name}, "
                     f"{sum(o[0].lower() == 'zone' for o in objects)} zones, 3 VAV systems with DX cooling and reheat, "

@@ -693,6 +693,7 @@ def _atomic_write(path: Path, text: str) -> None:
         handle.write(text)
         tmp = Path(handle.name)
     try:
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the file private to its writer
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)

@@ -1,0 +1,120 @@
+"""Sites from the reference building, and calibration: known parameters recovered, gaps masked."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import pytest
+
+from buildenv import calibration as cal
+from buildenv import catalogue as cat
+from buildenv.energyplus.idf import read_idf
+from buildenv.reference import (
+    REFERENCE_BUILDINGS,
+    detect_schedule_map,
+    historical_settings,
+    make_reference_site,
+    reference_idf,
+)
+from buildenv.site import load_site, write_site
+from buildenv.surrogate import load_metamodel
+
+START = dt.date(2019, 11, 4)
+
+
+@pytest.mark.parametrize("building", sorted(REFERENCE_BUILDINGS))
+def test_every_shipped_reference_office_maps_all_roles(building):
+    mapping = detect_schedule_map(read_idf(reference_idf(building)))
+    for role in ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air"):
+        assert getattr(mapping, role), (building, role)
+
+
+def test_reference_site_reads_like_sensors(tmp_path):
+    path = make_reference_site(tmp_path / "site", "medium_office", "usa_il_chicago", START, weeks=1, seed=3)
+    site = load_site(path)
+    assert site.weeks == 1 and site.number_of_floors == 3
+    assert site.floor_area_m2 == pytest.approx(4982, rel=0.01)  # the DOE medium office's occupied floor area
+    t, q = site.temperature_c[0], site.consumption_kwh[0]
+    assert np.isfinite(t).all() and 15 < t.min() and t.max() < 30
+    weekday_day = q[:120].reshape(5, 24)[:, 10:16].mean()
+    night = q[:120].reshape(5, 24)[:, 1:4].mean()
+    assert weekday_day > 2 * night > 0  # lights and plug loads of an occupied office
+    assert np.allclose(t * 10, np.round(t * 10), atol=1e-6)  # the sensor's 0.1 K resolution
+    assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
+
+
+def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None):
+    """A site whose 'measurements' are the metamodel's own prediction for known parameters."""
+    settings = historical_settings(weeks)
+    write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
+               number_of_floors=3, settings=settings, temperature_c=np.full((weeks, 168), 20.0),
+               consumption_kwh=np.full((weeks, 168), 10.0))
+    site = load_site(tmp_path)
+    problem = cal.build_problem(site, list(range(weeks)))
+    t, q = cal.model_series(problem, cal.predict(problem, surrogate, params))
+    q_kwh = q * site.floor_area_m2 / 1000.0
+    if gaps is not None:
+        t, q_kwh = t.copy(), q_kwh.copy()
+        t[gaps], q_kwh[gaps] = np.nan, np.nan
+    write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
+               number_of_floors=3, settings=settings, temperature_c=t, consumption_kwh=q_kwh)
+    return load_site(tmp_path)
+
+
+def _truth() -> np.ndarray:
+    theta = {"infiltration_ach": 0.5, "capacitance_kj_per_k_m3": 120, "heating_power_w_m2": 50,
+             "cooling_power_w_m2": 60, "occupant_density_per_m2": 0.05, "pc_density_per_m2": 0.06,
+             "light_night_percent": 20, "pc_night_percent": 25, "wall_insulation_north_m": 0.1,
+             "wall_insulation_east_m": 0.1, "wall_insulation_south_m": 0.1, "wall_insulation_west_m": 0.1,
+             "roof_insulation_m": 0.1, "window_to_wall_north_percent": 40, "window_to_wall_east_percent": 40,
+             "window_to_wall_south_percent": 40, "window_to_wall_west_percent": 40}
+    occupancy = [8, 18] * len(cat.WEEKDAYS)
+    return np.array([theta[n] for n in cal._free_theta()] + occupancy, float)
+
+
+@pytest.fixture(scope="module")
+def surrogate():
+    return load_metamodel()
+
+
+def test_calibration_recovers_known_parameters(tmp_path, surrogate):
+    truth = _truth()
+    site = _synthetic_site(tmp_path, surrogate, truth)
+    result = cal.calibrate_site(site, surrogate, weeks=[0], method="cmaes", seed=0, max_evaluations=2500)
+    assert result["fit"]["r2_t"] > 0.97 and result["fit"]["r2_q"] > 0.97
+    assert result["heldout"]["cv_rmse_q_percent"] < 10.0
+    # the parameters that drive the two series: occupied hours (a period covers the whole hours h with
+    # start <= h < end, so 7.2 and 8 mean the same), plug loads, air leakage and thermal mass
+    occ = np.ceil(np.asarray(result["occupancy"]))
+    assert np.abs(occ - np.array([[8, 18]] * 5)).max() <= 1.0
+    got = result["theta"]
+    assert got["pc_density_per_m2"] == pytest.approx(0.06, abs=0.006)
+    assert got["infiltration_ach"] == pytest.approx(0.5, abs=0.1)
+    assert got["capacitance_kj_per_k_m3"] == pytest.approx(120, abs=30)
+    assert (tmp_path / "calibration.json").is_file() and load_site(tmp_path).calibration["method"] == "cmaes"
+
+
+def test_gradient_calibration_fits_too(tmp_path, surrogate):
+    site = _synthetic_site(tmp_path, surrogate, _truth())
+    result = cal.calibrate_site(site, surrogate, weeks=[0], method="adam", seed=0, save=False)
+    assert result["fit"]["r2_t"] > 0.95 and result["fit"]["r2_q"] > 0.95
+
+
+def test_masked_gaps_change_nothing_else(tmp_path, surrogate):
+    truth = _truth()
+    full = _synthetic_site(tmp_path / "full", surrogate, truth)
+    gaps = np.zeros((2, 168), bool)
+    gaps[0, 30:40] = gaps[1, 100:130] = True
+    gapped = _synthetic_site(tmp_path / "gapped", surrogate, truth, gaps=gaps)
+    assert not gapped.temperature_mask[gaps].any() and gapped.temperature_mask[~gaps].all()
+    rng = np.random.default_rng(0)
+    problem_full, problem_gap = cal.build_problem(full, [0, 1]), cal.build_problem(gapped, [0, 1])
+    params = problem_full.lo + rng.random((6, problem_full.dim)) * (problem_full.hi - problem_full.lo)
+    out = load_metamodel().predict_encoded(cal.encode_candidates(problem_full, params)).reshape(6, 2, 168, -1)
+    # the cost over the gapped site equals the cost over the full site restricted to the measured hours
+    masked = cal.Problem(**{**problem_full.__dict__,
+                            "temperature_c": np.where(gaps, np.nan, problem_full.temperature_c),
+                            "consumption_wh_m2": np.where(gaps, np.nan, problem_full.consumption_wh_m2)})
+    np.testing.assert_allclose(cal.costs(problem_gap, out), cal.costs(masked, out), rtol=1e-4)
+    assert np.isfinite(cal.costs(problem_gap, out)).all()

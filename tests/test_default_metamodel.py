@@ -1,0 +1,43 @@
+"""The shipped default metamodel loads and predicts weeks that EnergyPlus simulates fresh in this test."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from buildenv import catalogue as cat
+from buildenv.energyplus.simulate import simulate_weeks
+from buildenv.metrics import r2_score
+from buildenv.sampling import sample_group, sample_weeks
+from buildenv.surrogate import DEFAULT_CHECKPOINT, load_metamodel
+
+# Stated in README ("The default metamodel"): on fresh EnergyPlus weeks of random buildings.
+MIN_R2_T_POOLED, MIN_R2_Q_POOLED, MAX_RMSE_T_C = 0.90, 0.90, 0.8
+
+
+def test_default_checkpoint_ships_with_the_package():
+    assert DEFAULT_CHECKPOINT.is_file()
+    surrogate = load_metamodel("default")
+    meta = surrogate.checkpoint.metadata
+    assert meta["catalogue_hash"] == cat.catalogue_hash() and meta["train_weeks"] >= 10000
+    assert surrogate.checkpoint.name == "transformer"
+
+
+@pytest.mark.parametrize("epw,start_week,seed", [("usa_il_chicago", 2, 11), ("usa_fl_miami", 28, 12)])
+def test_default_metamodel_predicts_fresh_energyplus_weeks(epw, start_week, seed):
+    rng = np.random.default_rng(seed)
+    theta = sample_group("theta_build", 1, rng)[0]
+    settings, occupancy = sample_weeks(2, rng)
+    sim = simulate_weeks(theta, settings, occupancy, epw, start_week=start_week)
+    surrogate = load_metamodel()
+    # week 2 with week 1 as its context, as in a campaign; week 1 with its own first day
+    pred = surrogate.predict(np.repeat(theta[None], 2, 0), settings, occupancy, sim.weather,
+                             previous=(settings[[0, 0]], occupancy[[0, 0]], sim.weather[[0, 0]]),
+                             has_previous=np.array([False, True]))
+    t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
+    q = [i for i in range(len(cat.OUTPUT_NAMES)) if i != t]
+    std = surrogate.checkpoint.output_norm.std
+    r2_t = float(r2_score(sim.outputs[..., t].ravel(), pred[..., t].ravel()))
+    r2_q = float(r2_score((sim.outputs[..., q] / std[q]).ravel(), (pred[..., q] / std[q]).ravel()))
+    rmse_t = float(np.sqrt(((sim.outputs[..., t] - pred[..., t]) ** 2).mean()))
+    assert r2_t >= MIN_R2_T_POOLED and r2_q >= MIN_R2_Q_POOLED and rmse_t <= MAX_RMSE_T_C, (r2_t, r2_q, rmse_t)

@@ -26,6 +26,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
+from _training_runs import RESULTS, inference_speed
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
@@ -34,7 +35,6 @@ from buildenv.sampling import sample_group, sample_weeks
 from buildenv.weather import load_weather
 from metamodels.models import build
 
-RESULTS = Path(__file__).resolve().parent / "results"
 CONFIGS: list[tuple[str, dict]] = [
     ("transformer", {}),  # the paper's: hourly tokens, 4+4 layers
     ("transformer", {"patch_hours": 4}),
@@ -56,22 +56,6 @@ def energyplus_weeks_per_second(weeks: int) -> float:
         return weeks / (time.perf_counter() - started)
     finally:
         shutil.rmtree(out.parent, ignore_errors=True)
-
-
-def model_weeks_per_second(name: str, config: dict, weeks: int, batch: int, repeats: int) -> float:
-    """Best-of-``repeats`` batched inference speed of a model on random encoded weeks."""
-    torch.manual_seed(0)
-    model = build(name, len(sg.INPUT_CHANNELS), 8, **config).eval()
-    x = torch.randn(weeks, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
-    best = float("inf")
-    with torch.inference_mode():
-        model(x[:batch])
-        for _ in range(repeats):
-            started = time.perf_counter()
-            for start in range(0, weeks, batch):
-                model(x[start:start + batch])
-            best = min(best, time.perf_counter() - started)
-    return weeks / best
 
 
 def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int) -> float:
@@ -103,7 +87,7 @@ def main() -> None:
     eplus = energyplus_weeks_per_second(args.eplus_weeks)
     rows = []
     for name, config in CONFIGS:
-        speed = model_weeks_per_second(name, config, args.weeks, args.batch, args.repeats)
+        speed = inference_speed(name, config, args.batch, args.weeks, args.repeats)
         params = sum(p.numel() for p in build(name, len(sg.INPUT_CHANNELS), 8, **config).parameters())
         rows.append({"model": name, "config": config, "parameters": params, "weeks_per_second": round(speed, 1),
                      "speedup_vs_energyplus": round(speed / eplus, 1)})

@@ -13,7 +13,15 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
-from buildenv.calibration import KNOWN_GEOMETRY, RAMP_HOURS, WEIGHTS, Problem, _free_theta, evaluate
+from buildenv.calibration import (
+    KNOWN_GEOMETRY,
+    RAMP_HOURS,
+    SITE_CONSUMPTION_OUTPUTS,
+    WEIGHTS,
+    Problem,
+    _free_theta,
+    evaluate,
+)
 
 
 def _r2_torch(y, p, mask):
@@ -55,7 +63,7 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
     m_q = torch.tensor(np.isfinite(problem.consumption_wh_m2))
     has_prev = torch.tensor(problem.has_previous)
     t_idx = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
-    q_idx = [cat.OUTPUT_NAMES.index(n) for n in ("Q_HEAT_OFFICE", "Q_AHU_H", "Q_EQP", "Q_LIGHT")]
+    q_idx = [cat.OUTPUT_NAMES.index(n) for n in SITE_CONSUMPTION_OUTPUTS]
     optimiser = torch.optim.Adam([z], lr=lr)
 
     def forward(params: torch.Tensor) -> torch.Tensor:

@@ -6,16 +6,14 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv import catalogue as cat
 from buildenv import surrogate as sg
-from buildenv.calibration import build_problem, model_series, predict, problem_occupancy
+from buildenv.calibration import KNOWN_GEOMETRY, build_problem, model_series, predict, problem_occupancy
 from buildenv.plotting import shade_occupancy
 
 
 def calibrated_vector(result: dict, problem) -> np.ndarray:
     """The physical parameter vector (problem order) of a calibration result."""
-    from buildenv import catalogue as cat
-    from buildenv.calibration import KNOWN_GEOMETRY
-
     theta = [result["theta"][n] for n in cat.THETA_NAMES if n not in KNOWN_GEOMETRY]
     return np.concatenate([theta, np.asarray(result["occupancy"], float).ravel()])
 

@@ -26,6 +26,10 @@ class SimulationError(BuildenvError):
     """EnergyPlus stopped with a severe or fatal error."""
 
 
+class ReferenceBuildingError(BuildenvError):
+    """A reference building cannot be found, mapped or run."""
+
+
 class DatasetError(BuildenvError):
     """A dataset directory is missing, incomplete or made for another catalogue."""
 

@@ -14,7 +14,7 @@ gas and electric heating coils, its own occupancy, lighting and plug-load schedu
   to hold the setback setpoints, as the reference's night-cycle managers do);
 - ``outdoor_air``: the minimum outdoor-air schedule of every ``Controller:OutdoorAir`` becomes
   ``ventilation_on * min(1, ventilation_ach / 1.0)``: the reference's design minimum outdoor air stands for
-  the historical 1.0 air change per hour; less ventilation closes the dampers proportionally.
+  the historical setting (1.0 air change per hour); less ventilation closes the dampers proportionally.
 - ``supply_air_c`` is not mapped: the reference's supply air is the cooling supply of a VAV or packaged
   unit, not the tempered fresh air of our model's air handling unit.
 
@@ -45,11 +45,12 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.defaults import DEFAULT_DAY_SETTINGS, default_week
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.runner import clean_outputs, run_energyplus
-from buildenv.errors import BuildenvError
+from buildenv.errors import ReferenceBuildingError
 from buildenv.schedules import hourly_schedules
-from buildenv.weather import resolve_epw
+from buildenv.weather import epw_day_of_year, resolve_epw
 
 #: Reference offices shipped with pyenergyplus-lbnl: name -> (IDF file name, storeys).
 REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
@@ -60,15 +61,12 @@ REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
     "medium_office_2019": ("ASHRAE901_OfficeMedium_STD2019_Denver.idf", 3),
     "large_office_2019": ("ASHRAE901_OfficeLarge_STD2019_Denver.idf", 12),
 }
-HISTORICAL_ACH = 1.0  # air changes per hour the reference's design minimum outdoor air stands for
+# air changes per hour the reference's design minimum outdoor air stands for: the historical setting
+HISTORICAL_ACH = DEFAULT_DAY_SETTINGS["ventilation_ach"]
 SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
 TEMPERATURE_NOISE_K, TEMPERATURE_RESOLUTION_K = 0.1, 0.1
 CONSUMPTION_NOISE_FRACTION, CONSUMPTION_RESOLUTION_KWH = 0.01, 0.1
 HOURS_PER_YEAR = 8760
-
-
-class ReferenceError_(BuildenvError):
-    """A reference building cannot be found, mapped or run."""
 
 
 @dataclass
@@ -101,7 +99,7 @@ def reference_idf(building: str | Path) -> Path:
         path = Path(building)
     if not path.is_file():
         known = ", ".join(REFERENCE_BUILDINGS)
-        raise ReferenceError_(f"reference building not found: {building} (shipped: {known}; or an IDF path)")
+        raise ReferenceBuildingError(f"reference building not found: {building} (shipped: {known}; or an IDF path)")
     return path
 
 
@@ -129,33 +127,25 @@ def _schedule_columns(settings: np.ndarray) -> dict[str, np.ndarray]:
                 1.0, s["ventilation_ach"] / HISTORICAL_ACH)}
 
 
-def hour_of_year(day: dt.date) -> int:
-    """Hours from January 1st 00:00 to ``day`` 00:00 on a 365-day EPW calendar (Feb 29 shares Feb 28's row)."""
-    doy = (day - dt.date(day.year, 1, 1)).days
-    leap = day.year % 4 == 0 and (day.year % 100 != 0 or day.year % 400 == 0)
-    if leap and day >= dt.date(day.year, 3, 1):
-        doy -= 1
-    return doy * 24
-
-
 def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdir: Path,
                   schedule_map: ScheduleMap | None = None) -> tuple[Path, ScheduleMap]:
     """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
 
-    Returns the IDF path and the schedule map used. Raises :class:`ReferenceError_` if a role has no schedule.
+    Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule.
     """
     objects = read_idf(source)
     mapping = schedule_map or detect_schedule_map(objects)
     missing = [r for r in SCHEDULE_ROLES if not getattr(mapping, r)]
     if missing:
-        raise ReferenceError_(f"{source}: no schedule found for {', '.join(missing)}; "
+        raise ReferenceBuildingError(f"{source}: no schedule found for {', '.join(missing)}; "
                               "name them with --map ROLE=SCHEDULE")
     last_day = first_day + dt.timedelta(days=7 * len(settings) - 1)
     if last_day.year != first_day.year:
-        raise ReferenceError_(f"the run {first_day}..{last_day} crosses a new year; start it earlier or shorten it")
+        raise ReferenceBuildingError(f"the run {first_day}..{last_day} crosses a new year; "
+                                     "start it earlier or shorten it")
     # the Schedule:File: a year of hourly values, the run's hours filled from the settings
     columns = _schedule_columns(settings)
-    start = hour_of_year(first_day)
+    start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
     table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
     for j, role in enumerate(SCHEDULE_ROLES):
         values = columns[role]
@@ -209,7 +199,7 @@ def zone_areas(eio: Path) -> dict[str, float]:
             mult = float(fields[col["zone multiplier"]]) * float(fields[col["zone list multiplier"]])
             areas[fields[1].upper()] = area * mult
     if not areas:
-        raise ReferenceError_(f"{eio}: no Zone Information lines")
+        raise ReferenceBuildingError(f"{eio}: no Zone Information lines")
     return areas
 
 
@@ -227,7 +217,7 @@ def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int) 
             temps.append(frame[col[0]].to_numpy(float))
             weights.append(areas[zone.upper()])
     if not temps:
-        raise ReferenceError_(f"{out}: no zone temperatures of the occupied zones {zones}")
+        raise ReferenceBuildingError(f"{out}: no zone temperatures of the occupied zones {zones}")
     temperature = np.average(np.stack(temps), axis=0, weights=weights)
     consumption = np.zeros(len(frame))
     for meter in ("HeatingCoils:EnergyTransfer", "InteriorLights:Electricity", "InteriorEquipment:Electricity"):
@@ -236,7 +226,7 @@ def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int) 
             consumption += frame[col[0]].to_numpy(float) / 3.6e6  # J -> kWh
     hours = (weeks + warmup_weeks) * cat.HOURS_PER_WEEK
     if len(frame) != hours:
-        raise ReferenceError_(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
+        raise ReferenceBuildingError(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
     skip = warmup_weeks * cat.HOURS_PER_WEEK
     shape = (weeks, cat.HOURS_PER_WEEK)
     return ReferenceRun(temperature[skip:].reshape(shape), consumption[skip:].reshape(shape),
@@ -258,7 +248,7 @@ def run_reference(building: str | Path, epw: str | Path, start: dt.date, setting
         schedule_map: schedules to replace (detected from the model if ``None``).
     """
     if start.weekday() != 0:
-        raise ReferenceError_(f"start {start} is a {start.strftime('%A')}; measured weeks start on a Monday")
+        raise ReferenceBuildingError(f"start {start} is a {start.strftime('%A')}; measured weeks start on a Monday")
     settings = np.asarray(settings, float)
     cat.check_values("settings", settings, "settings")
     source = reference_idf(building)
@@ -286,10 +276,7 @@ def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, np.ndarr
 
 def historical_settings(weeks: int) -> np.ndarray:
     """The default building's typical historical settings on every day, ``(weeks, 7, 12)``."""
-    from buildenv.defaults import DEFAULT_DAY_SETTINGS
-
-    day = cat.from_mapping("settings", DEFAULT_DAY_SETTINGS, where="historical settings")
-    return np.broadcast_to(day, (weeks, 7, len(day))).copy()
+    return default_week(weeks)[0]
 
 
 def make_reference_site(out: str | Path, building: str | Path = "medium_office", epw: str | Path = "usa_il_chicago",
@@ -312,7 +299,7 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
 
     if floors is None:
         if str(building) not in REFERENCE_BUILDINGS:
-            raise ReferenceError_(f"{building}: give the number of floors of a user IDF (--floors)")
+            raise ReferenceBuildingError(f"{building}: give the number of floors of a user IDF (--floors)")
         floors = REFERENCE_BUILDINGS[str(building)][1]
     settings = historical_settings(weeks) if settings is None else np.asarray(settings, float)
     run = run_reference(building, epw, start, settings, schedule_map=schedule_map)

@@ -45,6 +45,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.errors import CatalogueError, SiteError
+from buildenv.weather import epw_day_of_year
 
 try:  # Python >= 3.11
     import tomllib
@@ -150,7 +151,7 @@ class Site:
         """
         if not 0 <= week < self.weeks:
             raise SiteError(f"{self.path}: week {week} out of range 0..{self.weeks - 1}")
-        return _epw_day(self.start + dt.timedelta(days=7 * week)) * cat.HOURS_PER_DAY
+        return epw_day_of_year(self.start + dt.timedelta(days=7 * week)) * cat.HOURS_PER_DAY
 
     def epw_hours(self) -> np.ndarray:
         """Row of the EPW year for every measured hour, ``(weeks, 168)`` int in ``0 .. 8759``.
@@ -158,7 +159,7 @@ class Site:
         Each day is matched to the same calendar day of the EPW year (Feb 29 to Feb 28); a week that runs
         past Dec 31 continues at the start of the EPW year.
         """
-        days = np.array([[_epw_day(self.start + dt.timedelta(days=7 * k + d)) for d in range(7)]
+        days = np.array([[epw_day_of_year(self.start + dt.timedelta(days=7 * k + d)) for d in range(7)]
                          for k in range(self.weeks)], dtype=int)
         hours = days[:, :, None] * cat.HOURS_PER_DAY + np.arange(cat.HOURS_PER_DAY)
         return hours.reshape(self.weeks, cat.HOURS_PER_WEEK)
@@ -180,14 +181,6 @@ class Site:
     def theta_known(self) -> dict[str, float]:
         """The building parameters the site fixes: ``{"floor_area_m2": m2, "number_of_floors": count}``."""
         return {"floor_area_m2": float(self.floor_area_m2), "number_of_floors": float(self.number_of_floors)}
-
-
-def _epw_day(day: dt.date) -> int:
-    """Day index 0..364 of ``day`` in a 365-day (EPW) year: Feb 29 -> Feb 28, later leap-year days shift back."""
-    index = (day - dt.date(day.year, 1, 1)).days
-    if calendar.isleap(day.year) and index >= 59:  # 59 = Feb 29
-        index -= 1
-    return index
 
 
 # --------------------------------------------------------------------------- loading
@@ -269,6 +262,18 @@ def _allowed(keys: tuple[str, ...]) -> str:
     return ", ".join(keys)
 
 
+def _reject_unknown_keys(descriptor: Path, text: str, table: Mapping[str, Any], allowed: tuple[str, ...],
+                         name: str | None = None) -> None:
+    """SiteError naming the first key of ``table`` (the top level, or ``[name]``) not in ``allowed``."""
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, allowed, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            where = f" in [{name}]" if name else ""
+            raise SiteError(f"{_where(descriptor, text, key, name)}: unknown key {key!r}{where}{hint}; "
+                            f"allowed: {_allowed(allowed)}")
+
+
 def _read_descriptor(descriptor: Path) -> dict[str, Any]:
     """Parse and validate ``site.toml`` into plain values (weather resolved)."""
     try:
@@ -281,12 +286,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         m = re.search(r"at line (\d+)", str(exc))
         raise SiteError(f"{descriptor}:{m.group(1) if m else '?'}: invalid TOML: {exc}") from exc
 
-    for key in data:
-        if key not in TOP_LEVEL_KEYS:
-            close = difflib.get_close_matches(key, TOP_LEVEL_KEYS, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise SiteError(f"{_where(descriptor, text, key)}: unknown key {key!r}{hint}; "
-                            f"allowed: {_allowed(TOP_LEVEL_KEYS)}")
+    _reject_unknown_keys(descriptor, text, data, TOP_LEVEL_KEYS)
     for key in ("name", "weather", "geometry"):
         if key not in data:
             what = {"name": "free text", "weather": "an EPW short name such as 'usa_il_chicago' or a path",
@@ -302,12 +302,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
                             f"got {data[key]!r}")
 
     geometry = data["geometry"]
-    for key in geometry:
-        if key not in GEOMETRY_KEYS:
-            close = difflib.get_close_matches(key, GEOMETRY_KEYS, n=1)
-            hint = f" (did you mean {close[0]!r}?)" if close else ""
-            raise SiteError(f"{_where(descriptor, text, key, 'geometry')}: unknown key {key!r} in [geometry]{hint}; "
-                            f"allowed: {_allowed(GEOMETRY_KEYS)}")
+    _reject_unknown_keys(descriptor, text, geometry, GEOMETRY_KEYS, "geometry")
     for key in GEOMETRY_KEYS:
         if key not in geometry:
             raise SiteError(f"{descriptor}: [geometry] is missing {key!r} ({cat.get(key).description})")

@@ -11,6 +11,8 @@ vertical north-facing surface))``, with the sun position of the middle of the ho
 
 from __future__ import annotations
 
+import calendar
+import datetime as dt
 import functools
 import os
 from dataclasses import dataclass
@@ -22,6 +24,14 @@ from buildenv import catalogue as cat
 from buildenv.errors import WeatherError
 
 HOURS_PER_YEAR = 8760
+
+
+def epw_day_of_year(day: dt.date) -> int:
+    """Day index 0..364 of ``day`` in a 365-day EPW year: Feb 29 -> Feb 28, later leap-year days shift back."""
+    index = (day - dt.date(day.year, 1, 1)).days
+    if calendar.isleap(day.year) and index >= 59:  # 59 = Feb 29
+        index -= 1
+    return index
 
 
 def shipped_weather() -> dict[str, str]:

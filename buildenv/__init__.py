@@ -5,7 +5,8 @@ The pipeline, one module per box: :mod:`buildenv.catalogue` (every variable, def
 :mod:`buildenv.campaign` (sampled, parallel, resumable simulation campaigns), :mod:`buildenv.dataset`
 (reading and splitting them), :mod:`buildenv.surrogate` (the trained metamodel as a fast week simulator),
 :mod:`buildenv.site` and :mod:`buildenv.reference` (measured buildings and the reference-building stand-in)
-and :mod:`buildenv.calibration`.
+and :mod:`buildenv.calibration`; :mod:`buildenv.env` is the Gymnasium environment ``BuildingWeek-v0``,
+registered on import: ``gymnasium.make("BuildingWeek-v0")``.
 
 ``buildenv.load_metamodel()`` loads the shipped default metamodel (torch is imported on first use only).
 """
@@ -18,3 +19,12 @@ def load_metamodel(path=None):
     from buildenv.surrogate import load_metamodel as _load
 
     return _load(path)
+
+
+def _register() -> None:
+    from buildenv.registration import register_envs
+
+    register_envs()
+
+
+_register()

@@ -40,10 +40,12 @@ from buildenv.errors import BuildenvError
 from buildenv.schedules import hourly_schedules
 
 WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
-SITE_CONSUMPTION_OUTPUTS = ("Q_HEAT_OFFICE", "Q_AHU_H", "Q_EQP", "Q_LIGHT")
+SITE_CONSUMPTION_OUTPUTS = cat.HEAT_CONSUMPTION_OUTPUTS
 GUIDELINE14_P = 1
 RAMP_HOURS = 0.5
 KNOWN_GEOMETRY = ("floor_area_m2", "number_of_floors")
+SIGMA0 = 0.3  # CMA-ES initial step, in units of the unit box's side
+CMAES_TOLFUN = 1e-6
 
 
 class CalibrationError(BuildenvError):
@@ -166,14 +168,26 @@ def predict(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np
     return surrogate.predict_encoded(x).reshape(len(problem.x_base), cat.HOURS_PER_WEEK, -1)
 
 
-def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, max_evaluations: int = 6000,
-                    sigma0: float = 0.3, progress: bool = False) -> tuple[np.ndarray, dict]:
-    """CMA-ES on the unit box. Returns the best physical parameters and ``{"evaluations", "cost"}``."""
+def cmaes_strategy(dim: int, seed: int = 0, max_evaluations: float = np.inf, sigma0: float = SIGMA0):
+    """The CMA-ES (pycma) of every calibration: ``dim`` parameters in the unit box, started at its centre.
+
+    Args:
+        dim: number of parameters.
+        seed: seed of the optimiser (pycma gets ``seed + 1``: pycma reads 0 as "seed from the clock").
+        max_evaluations: budget of cost evaluations (``inf``: none, stop on ``tolfun`` only).
+        sigma0: initial step size, in units of the box side.
+    """
     import cma
 
-    es = cma.CMAEvolutionStrategy(np.full(problem.dim, 0.5), sigma0,
-                                  {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9,
-                                   "maxfevals": max_evaluations, "tolfun": 1e-6})
+    return cma.CMAEvolutionStrategy(np.full(dim, 0.5), sigma0,
+                                    {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9,
+                                     "maxfevals": max_evaluations, "tolfun": CMAES_TOLFUN})
+
+
+def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, max_evaluations: int = 6000,
+                    sigma0: float = SIGMA0, progress: bool = False) -> tuple[np.ndarray, dict]:
+    """CMA-ES on the unit box. Returns the best physical parameters and ``{"evaluations", "cost"}``."""
+    es = cmaes_strategy(problem.dim, seed, max_evaluations, sigma0)
     scale = problem.hi - problem.lo
     bar = _bar(progress, max_evaluations, "CMA-ES")
     while not es.stop():
@@ -263,7 +277,7 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
               "heldout_weeks": heldout, "guideline14_p": GUIDELINE14_P,
               "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
               "occupancy": np.round(occ[0], 3).tolist(),
-              "metamodel": str(surrogate.path) if surrogate.path else None,
+              "metamodel": _metamodel_name(surrogate),
               "catalogue_hash": cat.catalogue_hash()}
     scale = _scale(problem)
     for key, ws in (("fit", fit_weeks), ("heldout", heldout)):
@@ -287,11 +301,16 @@ def score_weeks(site, surrogate: sg.Surrogate, weeks: list[int], params: np.ndar
                 scale: dict[str, tuple[float, float]]) -> dict[str, float]:
     """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks."""
     problem = build_problem(site, weeks)
-    out = predict(problem, surrogate, params)
-    t, q = model_series(problem, out)
+    return score_outputs(problem, predict(problem, surrogate, params), params, scale)
+
+
+def score_outputs(problem: Problem, outputs: np.ndarray, params: np.ndarray,
+                  scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+    """Metrics (:func:`site_metrics`) of simulated outputs ``(weeks, 168, 8)`` of ``params`` on the problem's weeks."""
+    t, q = model_series(problem, outputs)
     occupied = problem_occupancy(problem, params)
     return {**site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale),
-            "weeks": len(weeks)}
+            "weeks": len(problem.x_base)}
 
 
 def problem_occupancy(problem: Problem, params: np.ndarray) -> np.ndarray:
@@ -307,3 +326,10 @@ def load_calibration(site_path: str | Path) -> dict:
     if not path.is_file():
         raise CalibrationError(f"{site_path} is not calibrated yet: run `buildenv calibrate --site {site_path}`")
     return json.loads(path.read_text())
+
+
+def _metamodel_name(surrogate: sg.Surrogate) -> str | None:
+    """How a calibration records its metamodel: ``"default"`` for the shipped one, else its path."""
+    if surrogate.path is None:
+        return None
+    return "default" if Path(surrogate.path).resolve() == sg.DEFAULT_CHECKPOINT else str(surrogate.path)

@@ -258,6 +258,9 @@ OUTPUT_NAMES: tuple[str, ...] = tuple(v.name for v in OUTPUTS)
 TEMPERATURE_OUTPUTS: tuple[str, ...] = ("T_INT_OFFICE",)
 #: Outputs summed into the measured "heat consumption" of the paper's calibration appendix.
 HEAT_CONSUMPTION_OUTPUTS: tuple[str, ...] = ("Q_HEAT_OFFICE", "Q_AHU_H", "Q_EQP", "Q_LIGHT")
+#: Outputs summed into the HVAC energy the optimisation minimises (the paper's Delta_Q^opt): heating and
+#: cooling delivered by the zone units and the air handling unit.
+HVAC_OUTPUTS: tuple[str, ...] = ("Q_AC_OFFICE", "Q_HEAT_OFFICE", "Q_AHU_C", "Q_AHU_H")
 
 
 def get(name: str) -> Variable:

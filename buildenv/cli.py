@@ -5,11 +5,12 @@ Subcommands:
     weather     list the shipped weather files, or summarise one
     week        simulate one week of a building with EnergyPlus, print a summary and plot it
     simulate    run a simulation campaign into a dataset directory (parallel, resumable, Dask-capable)
-    demo        what `make demo` runs: the default building's week, summary and plot
     train       train a metamodel on a campaign's dataset
     evaluate    score a metamodel checkpoint on a dataset
     site        make a site from a reference building (`site reference`) or inspect one (`site show`)
     calibrate   calibrate the metamodel's building and occupancy to a site's measurements
+    optimize    (from the agents package) optimise a week's settings with NSGA-II, CMA-ES, PPO or rules
+    demo        (from the agents package) what `make demo` runs: calibrate, optimise, verify, report
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import json
 import logging
 import os
 import sys
+from importlib.metadata import entry_points
 from pathlib import Path
 
 import numpy as np
@@ -124,12 +126,6 @@ def _cmd_week(args: argparse.Namespace) -> int:
     return _simulate_one_week(args.epw, args.week, _parse_assignments(args.set), Path(args.out), args.json)
 
 
-def _cmd_demo(args: argparse.Namespace) -> int:
-    from buildenv.defaults import DEFAULT_EPW
-
-    return _simulate_one_week(DEFAULT_EPW, args.week, {}, Path(args.out), False)
-
-
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from buildenv.campaign import DEFAULT_CLIMATES, CampaignConfig, run_campaign
 
@@ -188,11 +184,6 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=_cmd_week)
 
-    p = sub.add_parser("demo", help="the end-to-end demo (for now: one simulated week of the default building)")
-    p.add_argument("--out", default="out/demo")
-    p.add_argument("--week", type=int, default=2, help="week of the year, 0-51")
-    p.set_defaults(func=_cmd_demo)
-
     p = sub.add_parser("simulate", help="run a simulation campaign into a dataset directory")
     p.add_argument("--weeks", type=int, required=True, help="number of one-week samples")
     p.add_argument("--seed", type=int, default=0)
@@ -239,6 +230,8 @@ def build_parser() -> argparse.ArgumentParser:
     from buildenv.cli_sites import register
 
     register(sub)
+    for plugin in sorted(entry_points(group="buildenv.commands"), key=lambda e: e.name):
+        plugin.load()(sub)  # e.g. `optimize` and `demo` from the agents package
     return parser
 
 

@@ -36,3 +36,7 @@ class DatasetError(BuildenvError):
 
 class SiteError(BuildenvError):
     """A site folder (site.toml, measurements.csv, settings.csv, ...) is missing or invalid."""
+
+
+class BuildingEnvError(BuildenvError, ValueError):
+    """BuildingWeek-v0 was given an unknown argument, a bad action or a site it cannot run."""

@@ -15,6 +15,8 @@ gas and electric heating coils, its own occupancy, lighting and plug-load schedu
 - ``outdoor_air``: the minimum outdoor-air schedule of every ``Controller:OutdoorAir`` becomes
   ``ventilation_on * min(1, ventilation_ach / 1.0)``: the reference's design minimum outdoor air stands for
   the historical setting (1.0 air change per hour); less ventilation closes the dampers proportionally.
+  More than the design cannot be expressed: EnergyPlus caps the schedule at 1 (measured: 1.3 and 1.6 air
+  changes per hour give the same run as 1.0).
 - ``supply_air_c`` is not mapped: the reference's supply air is the cooling supply of a VAV or packaged
   unit, not the tempered fresh air of our model's air handling unit.
 
@@ -29,7 +31,10 @@ the measured weeks start from a lived-in thermal state.
 over zones with people, zone multipliers counted) and the heat consumption = heat delivered by all heating
 coils (meter ``HeatingCoils:EnergyTransfer``: furnace/boiler coils and terminal reheat) + interior lighting
 + interior equipment electricity, in kWh per hour. It is compared with the model's Q_HEAT_OFFICE + Q_AHU_H +
-Q_EQP + Q_LIGHT (see :mod:`buildenv.calibration`).
+Q_EQP + Q_LIGHT (see :mod:`buildenv.calibration`). For verifying optimised settings the run also gives the
+HVAC energy (no sensor of the site, no noise): heat delivered by heating coils + cooling coils
+(``HeatingCoils:EnergyTransfer`` + ``CoolingCoils:EnergyTransfer``), the counterpart of the model's
+:data:`buildenv.catalogue.HVAC_OUTPUTS`.
 
 **Sensor noise** (seeded): temperature ``N(0, 0.1 K)`` plus a 0.1 K display resolution (a class-B Pt1000
 read by a BMS); consumption ``N(0, 1 %)`` multiplicative and a 0.1 kWh meter resolution.
@@ -87,6 +92,7 @@ class ReferenceRun:
     consumption_kwh: np.ndarray  # (weeks, 168) heat consumption per hour
     floor_area_m2: float  # occupied (people-bearing) floor area, multipliers counted
     zones: list[str]  # zones averaged into the temperature
+    hvac_kwh: np.ndarray | None = None  # (weeks, 168) heat delivered by heating coils + cooling coils per hour
 
 
 def reference_idf(building: str | Path) -> Path:
@@ -177,6 +183,7 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
                    "No"])
     edited += [["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
                ["Output:Meter", "HeatingCoils:EnergyTransfer", "Hourly"],
+               ["Output:Meter", "CoolingCoils:EnergyTransfer", "Hourly"],
                ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
                ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
                ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29]
@@ -219,18 +226,21 @@ def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int) 
     if not temps:
         raise ReferenceBuildingError(f"{out}: no zone temperatures of the occupied zones {zones}")
     temperature = np.average(np.stack(temps), axis=0, weights=weights)
-    consumption = np.zeros(len(frame))
-    for meter in ("HeatingCoils:EnergyTransfer", "InteriorLights:Electricity", "InteriorEquipment:Electricity"):
+
+    def meter_kwh(meter: str) -> np.ndarray:  # a building without heating coils (or lights) simply adds nothing
         col = [c for c in frame.columns if c.upper().startswith(meter.upper() + " [")]
-        if col:  # a building without heating coils (or lights) simply adds nothing
-            consumption += frame[col[0]].to_numpy(float) / 3.6e6  # J -> kWh
+        return frame[col[0]].to_numpy(float) / 3.6e6 if col else np.zeros(len(frame))  # J -> kWh
+
+    heating = meter_kwh("HeatingCoils:EnergyTransfer")
+    consumption = heating + meter_kwh("InteriorLights:Electricity") + meter_kwh("InteriorEquipment:Electricity")
+    hvac = heating + meter_kwh("CoolingCoils:EnergyTransfer")
     hours = (weeks + warmup_weeks) * cat.HOURS_PER_WEEK
     if len(frame) != hours:
         raise ReferenceBuildingError(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
     skip = warmup_weeks * cat.HOURS_PER_WEEK
     shape = (weeks, cat.HOURS_PER_WEEK)
     return ReferenceRun(temperature[skip:].reshape(shape), consumption[skip:].reshape(shape),
-                        float(sum(areas[z.upper()] for z in zones)), zones)
+                        float(sum(areas[z.upper()] for z in zones)), zones, hvac[skip:].reshape(shape))
 
 
 def run_reference(building: str | Path, epw: str | Path, start: dt.date, settings: np.ndarray,

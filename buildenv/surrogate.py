@@ -52,16 +52,19 @@ def _calendar(hours: int) -> np.ndarray:
     return np.stack([np.sin(angle), np.cos(angle)], axis=-1)
 
 
-def _week_rows(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray) -> np.ndarray:
-    """(N, 168, channels-1) rows without the context flag."""
-    n = len(theta)
-    w_idx = [cat.WEATHER_NAMES.index(c) for c in WEATHER_INPUTS]
-    parts = [np.asarray(weather, dtype=np.float32)[..., w_idx],
-             hourly_encoding(settings, occupancy).astype(np.float32),
-             np.broadcast_to(_calendar(cat.HOURS_PER_WEEK), (n, cat.HOURS_PER_WEEK, 2)).astype(np.float32),
-             np.broadcast_to(np.asarray(theta, dtype=np.float32)[:, None, :],
-                             (n, cat.HOURS_PER_WEEK, len(cat.THETA_NAMES)))]
-    return np.concatenate(parts, axis=-1)
+_W_IDX: list[int] | slice = [cat.WEATHER_NAMES.index(c) for c in WEATHER_INPUTS]
+if _W_IDX == list(range(_W_IDX[0], _W_IDX[0] + len(_W_IDX))):  # a view instead of a copy
+    _W_IDX = slice(_W_IDX[0], _W_IDX[0] + len(_W_IDX))
+_SCHEDULES = slice(len(WEATHER_INPUTS), len(WEATHER_INPUTS) + len(HOURLY_CHANNELS))
+_CALENDAR = slice(_SCHEDULES.stop, _SCHEDULES.stop + len(CALENDAR_INPUTS))
+_THETA = slice(_CALENDAR.stop, _CALENDAR.stop + len(cat.THETA_NAMES))
+
+
+def _fill_rows(out: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
+               hours: slice) -> None:
+    """Write the weather and schedule channels of the week's ``hours`` into ``out`` ``(N, len(hours), C)``."""
+    out[..., :len(WEATHER_INPUTS)] = np.asarray(weather)[:, hours][..., _W_IDX]
+    out[..., _SCHEDULES] = hourly_encoding(settings, occupancy)[:, hours]
 
 
 def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
@@ -76,15 +79,22 @@ def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray,
     Returns:
         ``(N, CONTEXT_HOURS + 168, len(INPUT_CHANNELS))`` float32.
     """
-    rows = _week_rows(theta, settings, occupancy, weather)
-    context = rows[:, :CONTEXT_HOURS].copy()  # the week's first day, as EnergyPlus's warm-up repeats it
+    n, ctx = len(theta), CONTEXT_HOURS
+    x = np.empty((n, ctx + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS)), dtype=np.float32)
+    _fill_rows(x[:, ctx:], settings, occupancy, weather, slice(None))
+    x[:, ctx:, _CALENDAR] = _calendar(cat.HOURS_PER_WEEK)
+    x[:, :, _THETA] = np.asarray(theta, dtype=np.float32)[:, None, :]
+    x[:, :ctx, :_CALENDAR.stop] = x[:, ctx:2 * ctx, :_CALENDAR.stop]  # the week's first day, as EnergyPlus's warm-up
     if previous is not None:
-        prev_rows = _week_rows(theta, *previous)[:, -CONTEXT_HOURS:]
-        use = np.ones(len(rows), bool) if has_previous is None else np.asarray(has_previous, bool)
-        context[use] = prev_rows[use]
-    flag = np.concatenate([np.ones(CONTEXT_HOURS), np.zeros(cat.HOURS_PER_WEEK)]).astype(np.float32)
-    x = np.concatenate([context, rows], axis=1)
-    return np.concatenate([x, np.broadcast_to(flag[None, :, None], (len(x), len(flag), 1))], axis=-1)
+        use = np.ones(n, bool) if has_previous is None else np.asarray(has_previous, bool)
+        if use.any():
+            prev_settings, prev_occ, prev_weather = (np.asarray(a)[use] for a in previous)
+            rows = np.empty((int(use.sum()), ctx, len(INPUT_CHANNELS)), dtype=np.float32)
+            _fill_rows(rows, prev_settings, prev_occ, prev_weather, slice(cat.HOURS_PER_WEEK - ctx, None))
+            x[use, :ctx, :_SCHEDULES.stop] = rows[..., :_SCHEDULES.stop]
+    x[:, :, -1] = 0.0
+    x[:, :ctx, -1] = 1.0  # is_context
+    return x
 
 
 def _read(ds, name: str, ids: np.ndarray) -> np.ndarray:
@@ -155,8 +165,15 @@ class Surrogate:
 
         Arguments as :func:`encode_weeks`.
         """
-        x = encode_weeks(theta, settings, occupancy, weather, previous, has_previous)
-        return self.predict_encoded(x, batch_size)
+        n = len(theta)
+        out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
+        for start in range(0, n, batch_size):  # encode batch by batch: the inputs of many weeks never all exist
+            part = slice(start, start + batch_size)
+            prev = None if previous is None else tuple(a[part] for a in previous)
+            has = None if has_previous is None else np.asarray(has_previous)[part]
+            x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has)
+            out[part] = self.predict_encoded(x, batch_size)
+        return out
 
     def predict_encoded(self, x: np.ndarray, batch_size: int = 256) -> np.ndarray:
         """Outputs ``(N, 168, 8)`` in physical units from already encoded inputs ``(N, 192, C)``.

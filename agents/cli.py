@@ -1,0 +1,145 @@
+"""``buildenv optimize`` and ``buildenv demo``: subcommands that the agents package adds to the ``buildenv``
+command (declared under the ``buildenv.commands`` entry point, so :mod:`buildenv` never imports agents)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+import numpy as np
+
+METHODS = ("nsga2", "cmaes", "ppo", "rules")
+
+
+def make_env(site: str, metamodel: str = "default", comfort_weight: float = 1.0, **kwargs):
+    """``BuildingWeek-v0`` on every week of a site (``"default"`` or a folder)."""
+    import gymnasium as gym
+
+    import buildenv  # noqa: F401  (registers BuildingWeek-v0)
+
+    return gym.make("BuildingWeek-v0", site=site, metamodel=metamodel, comfort_weight=comfort_weight,
+                    weeks="all", **kwargs)
+
+
+def default_week(env) -> int:
+    """The week to optimise when none is given: the site's first held-out (not calibrated-on) measured week,
+    else its last measured week."""
+    import datetime as dt
+
+    base = env.unwrapped
+    site = base.site
+    held = (site.calibration or {}).get("heldout_weeks") or [site.weeks - 1]
+    return base.site_model.week_of(site.start + dt.timedelta(days=7 * int(held[0])))
+
+
+def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000, generations: int = 150,
+             population: int = 100, policy: str | None = None, progress: bool = False) -> dict:
+    """Run one method on one week; returns the chosen action, its scores and the method's figures.
+
+    ``nsga2`` picks the front's point of equal comfort to the historical settings (the paper's choice);
+    ``cmaes`` maximises the scalarised reward; ``ppo`` applies a trained policy (``policy`` path);
+    ``rules`` is the rule-based schedule of :mod:`agents.rules`.
+    """
+    from agents.cmaes import scalar_scores
+
+    base = env.unwrapped
+    hist = scalar_scores(base.evaluate(base.historical_action[None], week=week), 0)
+    started = time.perf_counter()
+    extra: dict = {}
+    if method == "nsga2":
+        from agents.nsga2 import equal_comfort_choice, pareto_front
+
+        front = pareto_front(env, week, population=population, generations=generations, seed=seed,
+                             progress=progress)
+        action = front.actions[equal_comfort_choice(front, hist["comfort_k"])]
+        extra = {"hypervolume": front.hypervolume, "evaluations": front.evaluations, "front": front,
+                 "pareto": np.column_stack([front.energy_term, front.comfort_k]).round(4).tolist()}
+    elif method == "cmaes":
+        from agents.cmaes import optimise_week
+
+        result = optimise_week(env, week, evaluations=evaluations, seed=seed)
+        action, extra = result.action, {"evaluations": result.evaluations}
+    elif method == "ppo":
+        from agents.ppo import load_policy, policy_action
+
+        if not policy:
+            raise SystemExit("buildenv optimize --method ppo: give --policy PATH "
+                             "(train one with bench/ppo_vs_cmaes.py)")
+        obs, _ = env.reset(options={"week": week})
+        action, extra = policy_action(load_policy(policy), obs), {"evaluations": 1}
+    elif method == "rules":
+        from agents.rules import rule_based_action
+
+        action, extra = rule_based_action(env), {"evaluations": 1}
+    else:
+        raise SystemExit(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
+    seconds = time.perf_counter() - started
+    chosen = scalar_scores(base.evaluate(np.asarray(action)[None], week=week), 0)
+    return {"method": method, "week": int(week), "week_start": base.week_start(week).isoformat(),
+            "seconds": round(seconds, 2), "action": np.asarray(action, dtype=np.float32), "chosen": chosen,
+            "historical": hist, "predicted_savings_percent": chosen["savings_percent"],
+            "comfort_historical_predicted": hist["comfort_k"], "comfort_chosen_predicted": chosen["comfort_k"],
+            **extra}
+
+
+def _public(result: dict, env) -> dict:
+    """The JSON-able part of an :func:`optimise` result (settings by day and name)."""
+    from buildenv.actions import settings_table
+
+    out = {k: v for k, v in result.items() if k not in ("action", "front")}
+    out["settings"] = settings_table(env.unwrapped.decode(result["action"]))
+    return out
+
+
+def _cmd_optimize(args: argparse.Namespace) -> int:
+    env = make_env(args.site, args.metamodel, args.comfort_weight)
+    week = default_week(env) if args.week is None else args.week
+    result = optimise(env, args.method, week, seed=args.seed, evaluations=args.evaluations,
+                      generations=args.generations, population=args.population, policy=args.policy,
+                      progress=not args.json)
+    out = _public(result, env)
+    if args.verify:
+        from agents.verify import verify
+
+        out.update(verify(env, week, result["action"]).summary)
+    if args.out:
+        Path(args.out).mkdir(parents=True, exist_ok=True)
+        (Path(args.out) / f"optimize_{args.method}_week{week}.json").write_text(json.dumps(out, indent=2))
+    print(json.dumps(out, indent=None if args.json else 2))
+    return 0
+
+
+def _cmd_demo(args: argparse.Namespace) -> int:
+    from agents.demo import run_demo
+
+    report = run_demo(Path(args.out), seed=args.seed, progress=True)
+    print(f"report: {report}")
+    return 0
+
+
+def register(sub) -> None:
+    """Add ``optimize`` and ``demo`` to the ``buildenv`` subcommands."""
+    p = sub.add_parser("optimize", help="find the week's settings that save energy at equal comfort")
+    p.add_argument("--method", required=True, choices=METHODS)
+    p.add_argument("--site", default="default", help="calibrated site folder or 'default'")
+    p.add_argument("--week", type=int, default=None,
+                   help="week of the site's year (0-based Mondays); default: its first held-out measured week")
+    p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
+    p.add_argument("--comfort-weight", type=float, default=1.0, help="w of reward = -(energy + w * comfort)")
+    p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of scored weeks")
+    p.add_argument("--generations", type=int, default=150, help="NSGA-II generations")
+    p.add_argument("--population", type=int, default=100, help="NSGA-II population")
+    p.add_argument("--policy", default=None, help="trained PPO policy (for --method ppo)")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--verify", action="store_true",
+                   help="run the historical and chosen settings on the site's EnergyPlus model (about 10 s)")
+    p.add_argument("--out", default=None, help="also write the JSON into this folder")
+    p.add_argument("--json", action="store_true", help="one-line JSON, no progress bar")
+    p.set_defaults(func=_cmd_optimize)
+
+    p = sub.add_parser("demo", help="the end-to-end pipeline on the default site: calibrate, optimise, verify, report")
+    p.add_argument("--out", default="out/demo", help="folder of the report (report.md and PNGs)")
+    p.add_argument("--seed", type=int, default=0)
+    p.set_defaults(func=_cmd_demo)

@@ -1,0 +1,126 @@
+"""BuildingWeek-v0: gymnasium and SB3 checkers, determinism, actions, batching, arguments, backends."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import buildenv  # noqa: F401  (registers BuildingWeek-v0)
+from buildenv import actions as act
+from buildenv.env import BuildingWeekEnv, BuildingWeekVectorEnv, split_weeks
+from buildenv.errors import BuildingEnvError
+
+
+@pytest.fixture(scope="module")
+def env():
+    return gym.make("BuildingWeek-v0")
+
+
+def test_make_without_arguments_passes_both_checkers(env):
+    from gymnasium.utils.env_checker import check_env
+    from stable_baselines3.common.env_checker import check_env as sb3_check_env
+
+    assert isinstance(env.unwrapped, BuildingWeekEnv)
+    assert env.action_space.shape == (84,) and env.observation_space.shape == (73,)
+    check_env(env.unwrapped, skip_render_check=True)
+    sb3_check_env(env.unwrapped, warn=True)
+
+
+def test_reset_is_deterministic_under_a_seed(env):
+    obs1, info1 = env.reset(seed=123)
+    obs2, info2 = env.reset(seed=123)
+    assert info1 == info2 and np.array_equal(obs1, obs2)
+    r1 = env.step(env.action_space.sample())[1]
+    env.reset(seed=123)
+    assert env.unwrapped.evaluate(np.zeros((1, 84)))["reward"].shape == (1,)
+    assert np.isfinite(r1)
+
+
+def test_historical_settings_score_one_and_round_trip(env):
+    base = env.unwrapped
+    env.reset(seed=0, options={"week": 2})
+    hist = base.historical_action
+    assert np.array_equal(base.decode(hist), base.site_model.historical)
+    _, reward, terminated, truncated, info = env.step(hist)
+    assert info["energy_term"] == pytest.approx(1.0) and info["savings_percent"] == pytest.approx(0.0, abs=1e-6)
+    assert reward == pytest.approx(-(1.0 + info["comfort_k"]))
+    assert terminated and not truncated
+    assert info["reward_vector"].shape == (2,) and info["week"] == 2
+    assert 15.0 < info["mean_temperature_occupied_c"] < 30.0
+
+
+def test_actions_are_snapped_clipped_and_nan_is_an_error():
+    settings, clipped = act.decode(np.full(84, 3.0))
+    assert clipped == 84
+    assert np.allclose(settings[0, 0], 9.0)  # cooling_start_hour at its maximum
+    settings, _ = act.decode(np.full(84, 0.03))  # between grid points: snapped onto the catalogue step
+    assert set(np.unique(settings[:, 0])) <= {7.0, 8.0, 9.0}
+    bad = np.zeros(84)
+    bad[5] = np.nan
+    with pytest.raises(BuildingEnvError, match="heating_end_hour_monday"):
+        act.decode(bad)
+
+
+def test_out_of_range_actions_are_reported(env):
+    env.reset(seed=1)
+    info = env.step(np.full(84, 2.0, dtype=np.float32))[4]
+    assert info["clipped_components"] == 84
+
+
+def test_unknown_and_bad_arguments_are_rejected():
+    with pytest.raises(BuildingEnvError, match="allowed: site, metamodel"):
+        gym.make("BuildingWeek-v0", comfort_wieght=2.0)
+    with pytest.raises(BuildingEnvError, match="backend"):
+        gym.make("BuildingWeek-v0", backend="trnsys")
+
+
+def test_week_splits_are_disjoint():
+    train, test = split_weeks(52, "train"), split_weeks(52, "test")
+    assert not set(train) & set(test) and sorted(train + test) == list(range(52))
+    assert test[:4] == [12, 13, 14, 15]
+
+
+def test_evaluate_batch_equals_steps(env):
+    base = env.unwrapped
+    rng = np.random.default_rng(0)
+    actions = rng.uniform(-1, 1, (3, 84)).astype(np.float32)
+    env.reset(options={"week": 5})
+    batch = base.evaluate(actions)
+    for i in range(3):
+        env.reset(options={"week": 5})
+        assert env.step(actions[i])[1] == pytest.approx(batch["reward"][i], rel=1e-5)
+    assert batch["temperature_c"].shape == (3, 168) and batch["hvac_wh_m2"].shape == (3, 168)
+
+
+def test_native_vector_env_matches_single_env(env):
+    venv = gym.make_vec("BuildingWeek-v0", num_envs=4)
+    assert isinstance(venv.unwrapped if hasattr(venv, "unwrapped") else venv, BuildingWeekVectorEnv)
+    obs, info = venv.reset(seed=7)
+    assert obs.shape == (4, 73)
+    actions = np.tile(env.unwrapped.historical_action, (4, 1))
+    weeks = info["week"].copy()
+    _, rewards, terminated, _, step_info = venv.step(actions)
+    assert terminated.all() and "final_obs" in step_info
+    for i, week in enumerate(weeks):
+        expected = env.unwrapped.evaluate(actions[:1], week=int(week))["reward"][0]
+        assert rewards[i] == pytest.approx(expected, rel=1e-5)
+
+
+def test_several_weeks_per_episode_and_forecast_observation():
+    env = gym.make("BuildingWeek-v0", episode_weeks=2, observation="forecast", weeks="all")
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (73 + 168 * 8,)
+    action = env.unwrapped.historical_action
+    _, _, terminated, _, first = env.step(action)
+    assert not terminated
+    _, _, terminated, _, second = env.step(action)
+    assert terminated and second["week"] == first["week"] + 1
+
+
+def test_energyplus_backend_runs_the_reference_building():
+    env = gym.make("BuildingWeek-v0", backend="energyplus", weeks="all")
+    scores = env.unwrapped.evaluate(env.unwrapped.historical_action[None], week=46)
+    assert scores["savings_percent"][0] == pytest.approx(0.0, abs=1e-6)
+    assert 18.0 < scores["mean_temperature_occupied_c"][0] < 26.0
+    assert scores["energy_kwh"][0] > 0

@@ -25,9 +25,10 @@ ENERGY_FLOOR_WH_M2 = 0.5
 
 
 def hvac_energy_hourly(outputs: np.ndarray) -> np.ndarray:
-    """HVAC energy of each hour (Wh/m2) ``(..., 168)`` of outputs ``(..., 168, 8)``."""
+    """HVAC energy of each hour (Wh/m2) ``(..., 168)`` of outputs ``(..., 168, 8)``; each energy counts from 0
+    (a regression metamodel can predict slightly negative energies for idle hours)."""
     idx = [cat.OUTPUT_NAMES.index(n) for n in cat.HVAC_OUTPUTS]
-    return outputs[..., idx].sum(-1)
+    return np.maximum(outputs[..., idx], 0.0).sum(-1)
 
 
 def hvac_energy(outputs: np.ndarray) -> np.ndarray:

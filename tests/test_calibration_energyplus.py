@@ -1,0 +1,106 @@
+"""Calibrating the EnergyPlus shoebox directly: runs placed on the site's calendar, the same cost, a budget."""
+
+from __future__ import annotations
+
+import datetime as dt
+
+import numpy as np
+import pytest
+
+from buildenv import calibration as cal
+from buildenv import calibration_energyplus as ce
+from buildenv.energyplus.simulate import simulate_weeks
+from buildenv.reference import historical_settings
+from buildenv.site import load_site, write_site
+
+# 2018-01-01 is a Monday and the first row of the EPW year: 2018-01-08 is the shoebox's week of year 1
+START = dt.date(2018, 1, 8)
+WEATHER = "usa_il_chicago"
+AREA = 5000.0
+
+
+def _site(tmp_path, weeks: int, start: dt.date = START, temperature=None, consumption_wh_m2=None):
+    shape = (weeks, 168)
+    t = np.full(shape, 21.0) if temperature is None else temperature
+    q = np.full(shape, 10.0) if consumption_wh_m2 is None else consumption_wh_m2
+    write_site(tmp_path, name="synthetic", weather=WEATHER, start=start, floor_area_m2=AREA, number_of_floors=3,
+               settings=historical_settings(weeks), temperature_c=t, consumption_kwh=q * AREA / 1000.0)
+    return load_site(tmp_path)
+
+
+def _params(problem: cal.Problem) -> np.ndarray:
+    """A fixed candidate: the box centre with whole occupancy hours (8 to 18)."""
+    mid = (problem.lo + problem.hi) / 2.0
+    mid[-10:] = [8.0, 18.0] * 5
+    return mid
+
+
+def test_plan_adds_the_week_before_as_warm_up(tmp_path):
+    site = _site(tmp_path, 4)
+    first = ce.plan_site_run(site, [0, 1])
+    assert first.first_day == 7 and first.weeks == 2 and first.keep == (0, 1)  # no week before the site's first
+    later = ce.plan_site_run(site, [2, 3])
+    assert later.first_day == 14 and later.weeks == 3 and later.keep == (1, 2)  # week 1 warms up
+    np.testing.assert_array_equal(later.settings, site.settings[1:4])
+    with pytest.raises(cal.CalibrationError, match="not in"):
+        ce.plan_site_run(site, [4])
+
+
+def test_plan_refuses_a_run_across_new_year(tmp_path):
+    site = _site(tmp_path, 2, start=dt.date(2018, 12, 24))
+    with pytest.raises(cal.CalibrationError, match="Dec 31"):
+        ce.plan_site_run(site, [0, 1])
+
+
+def test_schedules_land_on_the_sites_day(tmp_path):
+    site = _site(tmp_path, 1, start=dt.date(2019, 11, 4))  # EPW day 307, not a week-of-year boundary
+    problem = cal.build_problem(site, [0])
+    theta, occ = cal._split(problem, _params(problem)[None])
+    from buildenv.energyplus.shoebox import SCHEDULE_COLUMNS, theta_dict
+
+    rows = ce.schedule_rows(theta_dict(theta[0]), ce.plan_site_run(site, [0]), occ[0])
+    occupied = rows[:, SCHEDULE_COLUMNS.index("occupancy_fraction")]
+    monday = 307 * 24
+    np.testing.assert_array_equal(occupied[monday:monday + 24], (np.arange(24) >= 8) & (np.arange(24) < 18))
+    assert occupied[monday + 5 * 24:monday + 7 * 24].sum() == 0  # the weekend
+
+
+def test_site_run_matches_the_shoebox_simulator_and_scores_its_own_output_perfectly(tmp_path):
+    site = _site(tmp_path / "a", 2)
+    problem = cal.build_problem(site, [1])
+    params = _params(problem)
+    theta, occ = cal._split(problem, params[None])
+    # week 1 of the site (with week 0 as warm-up) is the shoebox's weeks 1-2 of the year, second week
+    ours = ce.simulate_site_run(ce.plan_site_run(site, [1]), theta[0], occ[0])
+    reference = simulate_weeks(theta[0], site.settings, np.repeat(occ, 2, axis=0), WEATHER, 1).outputs[1:]
+    np.testing.assert_allclose(ours, reference, rtol=1e-6, atol=1e-6)
+    # a site measured by the shoebox itself: the cost of the true parameters is 0, of others not
+    t, q = cal.model_series(problem, reference)
+    measured = _site(tmp_path / "b", 2, temperature=np.concatenate([t, t]), consumption_wh_m2=np.concatenate([q, q]))
+    other = params.copy()
+    other[:-10] = problem.lo[:-10]  # the lightest, leakiest, least equipped building of the box
+    with ce.ShoeboxPool(1) as pool:
+        f = ce.evaluate_energyplus(cal.build_problem(measured, [1]), ce.plan_site_run(measured, [1]), pool,
+                                   np.stack([params, other]))
+    assert f[0] < 1e-4 and f[1] > 0.05
+
+
+def test_pool_replaces_retired_workers(tmp_path):
+    site = _site(tmp_path, 1)
+    problem = cal.build_problem(site, [0])
+    theta, occ = cal._split(problem, np.repeat(_params(problem)[None], 3, axis=0))
+    with ce.ShoeboxPool(2, tasks_per_worker=1) as pool:  # every run on a fresh worker
+        out = pool.simulate(ce.plan_site_run(site, [0]), theta, occ)
+    assert out.shape == (3, 1, 168, 8) and np.allclose(out[0], out[2])
+
+
+def test_budgeted_cmaes_runs_one_generation_and_scores_both_sets(tmp_path):
+    site = _site(tmp_path, 2)
+    result = ce.calibrate_energyplus_cmaes(site, weeks=[0], seed=0, wall_seconds=0.01, workers=2)
+    assert result["generations"] == 1 and result["evaluations"] == len(result["history"]) * 13  # pycma's popsize
+    assert result["fit_weeks"] == [0] and result["heldout_weeks"] == [1]
+    for key in ("fit", "heldout"):
+        assert np.isfinite([result[key][m] for m in ("r2_t", "r2_q", "cv_rmse_q_percent", "nmbe_q_percent")]).all()
+    np.testing.assert_allclose(ce.parameters_of(result)[-10:], np.ravel(result["occupancy"]))
+    with pytest.raises(cal.CalibrationError, match="positive"):
+        ce.calibrate_energyplus_cmaes(site, weeks=[0], wall_seconds=0)

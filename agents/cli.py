@@ -62,13 +62,13 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
         result = optimise_week(env, week, evaluations=evaluations, seed=seed)
         action, extra = result.action, {"evaluations": result.evaluations}
     elif method == "ppo":
-        from agents.ppo import load_policy, policy_action
+        from agents.ppo import load_policy, policy_actions
 
         if not policy:
             raise SystemExit("buildenv optimize --method ppo: give --policy PATH "
                              "(train one with bench/ppo_vs_cmaes.py)")
         obs, _ = env.reset(options={"week": week})
-        action, extra = policy_action(load_policy(policy), obs), {"evaluations": 1}
+        action, extra = policy_actions(load_policy(policy), obs[None])[0], {"evaluations": 1}
     elif method == "rules":
         from agents.rules import rule_based_action
 

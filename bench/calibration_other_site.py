@@ -73,8 +73,9 @@ def run_case(building: str, epw: str, start: str, weeks: int, sites: Path) -> di
     make = [str(BUILDENV), "site", "reference", "--building", building, "--epw", epw, "--start", start,
             "--weeks", str(weeks), "--out", str(folder)]
     calibrate = [str(BUILDENV), "calibrate", "--site", str(folder), "--json"]
+    shown = [shlex.join(["buildenv", *c[1:]]).replace(str(folder), _relative(folder)) for c in (make, calibrate)]
     case = {"building": building, "weather": epw, "start": start, "weeks": weeks, "site": _relative(folder),
-            "commands": [shlex.join(["buildenv", *make[1:]]), shlex.join(["buildenv", *calibrate[1:]])]}
+            "commands": shown}
     try:
         _, case["site_seconds"] = _run(make)
         out, case["calibrate_command_seconds"] = _run(calibrate)
@@ -94,7 +95,11 @@ def _f(value, digits: int) -> str:
 
 
 def markdown(data: dict) -> str:
-    """The results as a Markdown page."""
+    """The results as a Markdown page (paths under the repository shown relative to it)."""
+    return _markdown(data).replace(str(ROOT) + "/", "")
+
+
+def _markdown(data: dict) -> str:
     from calibration_table2 import cpu_sentence
 
     m = data["machine"]
@@ -147,7 +152,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--sites", type=Path, default=ROOT / "out" / "other_sites")
     p.add_argument("--conditions", default="", help="what else ran on the machine (written into the page)")
     p.add_argument("--out", type=Path, default=RESULTS)
+    p.add_argument("--from-json", type=Path, default=None,
+                   help="only re-render the page from a saved calibration_other_site.json (no runs)")
     args = p.parse_args(argv)
+    if args.from_json is not None:
+        write_page(args.out / "calibration_other_site.md", markdown(json.loads(args.from_json.read_text())))
+        return 0
     cases = [tuple(item.split(":", 1)) for item in args.cases.split(",") if item]
     info = machine()
     meter = CpuMeter().start()

@@ -6,13 +6,16 @@ and compared with CMA-ES run on that very week (:func:`agents.cmaes.optimise_wee
 scored weeks, the reference optimum) and with the site's historical settings. Reported per week and on
 average: reward, energy_term, comfort_k, the gap of PPO to CMA-ES in % of CMA-ES's reward, the time to
 choose a week's settings (PPO: one policy forward pass; CMA-ES: its whole optimisation), PPO's training time.
+PPO is trained once per seed of ``--ppo-seeds`` (its spread across seeds is part of the result).
 
-    .venv/bin/python bench/ppo_vs_cmaes.py [--variant default] [--timesteps 400000] [--num-envs 256]
-        [--seed 0] [--cmaes-evaluations 6000] [--model PATH] [--tag NAME]
+    PYTHONPATH=. .venv/bin/python bench/ppo_vs_cmaes.py [--variant default] [--timesteps 300000]
+        [--num-envs 64] [--ppo-seeds 0,1,2] [--seed 0] [--cmaes-evaluations 6000] [--model PATH] [--validation]
 
 ``--model`` scores a saved policy instead of training one (no training time then). ``--variant`` picks one
-of :data:`VARIANTS` (the settings tried while tuning; see the results file). Writes
-``bench/results/ppo_vs_cmaes{_TAG}.{md,json}`` and the trained policy to ``out/ppo/ppo_{variant}.zip``.
+of :data:`VARIANTS` (the settings tried while tuning). ``--validation`` is the tuning protocol, which never
+looks at the test weeks: PPO trains on the training weeks less :data:`VALIDATION_WEEKS` and is compared with
+CMA-ES on those; it prints its figures and writes no result file. Otherwise writes
+``bench/results/ppo_vs_cmaes.{md,json}``; trained policies go to ``out/ppo/ppo_{variant}_seed{S}.zip``.
 """
 
 from __future__ import annotations
@@ -39,10 +42,41 @@ RESULTS = Path(__file__).resolve().parent / "results"
 ROOT = Path(__file__).resolve().parent.parent
 TERMS = ("reward", "energy_term", "comfort_k")
 
+#: Training weeks held out for tuning (``--validation``): spread over the year, never a test week.
+VALIDATION_WEEKS = [2, 9, 20, 25, 37, 50]
+
 #: PPO settings tried (``train_ppo`` keyword arguments on top of :data:`agents.ppo.PPO_DEFAULTS`).
 VARIANTS: dict[str, dict] = {
     "default": {},
+    "lr3e-4": {"learning_rate": 3e-4},
+    "std0.2": {"policy_kwargs": {"log_std_init": -1.6}},
+    "obsnoise0.05": {"observation_noise": 0.05},
+    "obsnoise0.1": {"observation_noise": 0.1},
 }
+
+#: Tuning runs with the ``--validation`` protocol (PPO on the 39 training weeks less VALIDATION_WEEKS, 64
+#: environments, CMA-ES seed 0 on VALIDATION_WEEKS), measured during development on the shared 2-core
+#: machine (one torch thread, other jobs running: their times are not comparable). ``gap``: of the mean
+#: reward over VALIDATION_WEEKS, % of CMA-ES's (positive = PPO worse); ``weekly_gaps`` per validation week.
+
+TUNING: list[dict] = [
+    {"variant": "default", "timesteps": 250_000, "seed": 0, "gap": -0.33,
+     "weekly_gaps": [10.2, 19.0, -5.0, -6.9, -1.0, -11.8]},
+    {"variant": "obsnoise0.05", "timesteps": 250_000, "seed": 0, "gap": -0.81,
+     "weekly_gaps": [7.7, -2.6, -1.3, -3.4, 5.7, -13.2]},
+    {"variant": "obsnoise0.05", "timesteps": 300_000, "seed": 1, "gap": 2.78,
+     "weekly_gaps": [3.6, 10.8, -2.8, -5.1, 0.9, 16.0]},
+    {"variant": "obsnoise0.1", "timesteps": 300_000, "seed": 0, "gap": 1.45,
+     "weekly_gaps": [6.8, 7.5, 0.4, -0.5, 6.3, -12.4]},
+]
+#: In-sample runs (all 39 training weeks; deterministic reward on them, and on the same 6 weeks as
+#: VALIDATION_WEEKS, which were then training weeks, the gap to CMA-ES).
+TUNING_IN_SAMPLE: list[dict] = [
+    {"variant": "lr3e-4", "timesteps": 150_000, "train_reward": -0.983, "gap_on_validation_weeks": -2.8,
+     "note": "trained before HVAC energy was counted from 0 (commit 0fcbc7d)"},
+    {"variant": "default", "timesteps": 300_000, "train_reward": -0.945, "gap_on_validation_weeks": -6.83},
+    {"variant": "std0.2", "timesteps": 250_000, "train_reward": -0.977, "gap_on_validation_weeks": None},
+]
 
 
 class _Curve(BaseCallback):
@@ -56,7 +90,8 @@ class _Curve(BaseCallback):
         return True
 
     def _on_rollout_end(self) -> None:
-        std = float(torch.exp(self.model.policy.log_std).mean()) if hasattr(self.model.policy, "log_std") else 0.0
+        log_std = getattr(self.model.policy, "log_std", None)
+        std = float(torch.exp(log_std.detach()).mean()) if log_std is not None else 0.0
         self.points.append({"timesteps": int(self.num_timesteps),
                             "rollout_reward": float(self.model.rollout_buffer.rewards.mean()), "action_std": std})
 
@@ -74,136 +109,222 @@ def scores_of(result) -> dict:
     return {k: float(result.scores[k]) for k in TERMS}
 
 
+def train_or_load(args: argparse.Namespace, seed: int, train_weeks: list[int]) -> dict:
+    """One PPO run: the model, where it is saved, its training time (s) and learning curve."""
+    if args.model is not None:
+        return {"seed": None, "model": load_policy(args.model), "path": str(args.model), "train_seconds": None,
+                "curve": []}
+    curve = _Curve()
+    path = ROOT / "out" / "ppo" / f"ppo_{args.variant}{'_validation' if args.validation else ''}_seed{seed}.zip"
+    started = time.perf_counter()
+    model = train_ppo({"weeks": train_weeks}, timesteps=args.timesteps, num_envs=args.num_envs, seed=seed,
+                      save=path, callback=curve, **VARIANTS[args.variant])
+    seconds = time.perf_counter() - started
+    print(f"PPO seed {seed}: trained in {seconds:.0f} s", file=sys.stderr, flush=True)
+    return {"seed": seed, "model": model, "path": str(path), "train_seconds": seconds,
+            "curve": curve.points[:: max(1, len(curve.points) // 30)]}
+
+
+def gap_percent(reference: float, reward: float) -> float:
+    """How much lower ``reward`` is than ``reference``, in % of ``|reference|`` (negative: higher)."""
+    return 100.0 * (reference - reward) / abs(reference)
+
+
 def main() -> None:
     """Train (or load) PPO, run CMA-ES and the historical settings on every test week, write the results."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--variant", default="default", choices=sorted(VARIANTS))
-    parser.add_argument("--timesteps", type=int, default=400_000, help="PPO training weeks")
-    parser.add_argument("--num-envs", type=int, default=256, help="weeks stepped per PPO step (one model call)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--timesteps", type=int, default=300_000, help="PPO training weeks per seed")
+    parser.add_argument("--num-envs", type=int, default=64, help="weeks stepped per PPO step (one model call)")
+    parser.add_argument("--ppo-seeds", default="0", help="comma-separated PPO seeds, one training each")
+    parser.add_argument("--seed", type=int, default=0, help="CMA-ES seed")
     parser.add_argument("--cmaes-evaluations", type=int, default=6000)
     parser.add_argument("--model", type=Path, default=None, help="score this saved policy instead of training")
-    parser.add_argument("--skip-cmaes", action="store_true", help="PPO and historical only (for tuning)")
-    parser.add_argument("--tag", default="", help="suffix of the result files")
+    parser.add_argument("--validation", action="store_true",
+                        help="tuning protocol: hold out VALIDATION_WEEKS of the training weeks, print only")
     args = parser.parse_args()
+    load_at_start = os.getloadavg()
 
-    variant = VARIANTS[args.variant]
     env = gym.make("BuildingWeek-v0", weeks="all")
     base = env.unwrapped
-    test_weeks = gym.make("BuildingWeek-v0", weeks="test").unwrapped.weeks
-    train_weeks = [w for w in base.weeks if w not in test_weeks]
+    eval_weeks = gym.make("BuildingWeek-v0", weeks="test").unwrapped.weeks
+    train_weeks = [w for w in base.weeks if w not in eval_weeks]
+    if args.validation:
+        eval_weeks = VALIDATION_WEEKS
+        train_weeks = [w for w in train_weeks if w not in VALIDATION_WEEKS]
 
-    curve = _Curve()
-    if args.model is None:
-        import agents.ppo as ppo_module
+    runs = []
+    for seed in [int(x) for x in args.ppo_seeds.split(",")] if args.model is None else [None]:
+        run = train_or_load(args, seed, train_weeks)
+        model = run.pop("model")
+        run["weeks"] = {r.week: r for r in evaluate_policy_weeks(model, weeks=eval_weeks, env=env)}
+        run["train_weeks_reward"] = train_weeks_reward(model, env, train_weeks)
+        runs.append(run)
 
-        learn = ppo_module.PPO.learn
-
-        def learn_with_curve(self, total_timesteps, callback=None, **kwargs):
-            return learn(self, total_timesteps, callback=[curve] + ([callback] if callback else []), **kwargs)
-
-        ppo_module.PPO.learn = learn_with_curve  # record the learning curve without touching train_ppo
-        model_path = ROOT / "out" / "ppo" / f"ppo_{args.variant}.zip"
-        started = time.perf_counter()
-        model = train_ppo({}, timesteps=args.timesteps, num_envs=args.num_envs, seed=args.seed, save=model_path,
-                          **variant)
-        train_seconds = time.perf_counter() - started
-        ppo_module.PPO.learn = learn
-    else:
-        model_path, model, train_seconds = args.model, load_policy(args.model), None
-
-    ppo = {r.week: r for r in evaluate_policy_weeks(model, weeks=test_weeks, env=env)}
-    in_sample = train_weeks_reward(model, env, train_weeks)
     hist_action = base.historical_action
     rows = []
-    for week in test_weeks:
+    for week in eval_weeks:
         hist = base.evaluate(hist_action[None], week=week)
-        row = {"week": week, "week_start": base.week_start(week).isoformat(),
-               "historical": {k: float(hist[k][0]) for k in TERMS},
-               "ppo": {**scores_of(ppo[week]), "seconds": ppo[week].seconds}}
-        if not args.skip_cmaes:
-            cma = optimise_week(env, week, evaluations=args.cmaes_evaluations, seed=args.seed)
-            row["cmaes"] = {**scores_of(cma), "seconds": cma.seconds, "evaluations": cma.evaluations}
-            row["gap_percent"] = 100.0 * (cma.scores["reward"] - row["ppo"]["reward"]) / abs(cma.scores["reward"])
-        rows.append(row)
-        print(f"week {week}: " + ", ".join(f"{m} {row[m]['reward']:.4f}" for m in ("historical", "ppo", "cmaes")
-                                           if m in row), file=sys.stderr, flush=True)
+        cma = optimise_week(env, week, evaluations=args.cmaes_evaluations, seed=args.seed)
+        ppo = [{"seed": run["seed"], **scores_of(run["weeks"][week]), "seconds": run["weeks"][week].seconds}
+               for run in runs]
+        for p in ppo:
+            p["gap_percent"] = gap_percent(cma.scores["reward"], p["reward"])
+        rows.append({"week": week, "week_start": base.week_start(week).isoformat(),
+                     "historical": {k: float(hist[k][0]) for k in TERMS},
+                     "cmaes": {**scores_of(cma), "seconds": cma.seconds, "evaluations": cma.evaluations},
+                     "ppo": ppo})
+        print(f"week {week}: historical {rows[-1]['historical']['reward']:.4f}, CMA-ES {cma.scores['reward']:.4f} "
+              f"({cma.seconds:.0f} s), PPO " + ", ".join(f"{p['reward']:.4f}" for p in ppo), file=sys.stderr,
+              flush=True)
 
-    methods = ["historical", "ppo"] + ([] if args.skip_cmaes else ["cmaes"])
-    mean = {m: {k: float(np.mean([r[m][k] for r in rows])) for k in TERMS} for m in methods}
-    for m in ("ppo", "cmaes"):
-        if m in mean:
-            mean[m]["seconds"] = float(np.mean([r[m]["seconds"] for r in rows]))
-    summary = {"mean": mean, "train_weeks_deterministic_reward": in_sample}
-    if not args.skip_cmaes:
-        gaps = [r["gap_percent"] for r in rows]
-        summary.update({
-            "gap_percent_of_mean_reward": 100.0 * (mean["cmaes"]["reward"] - mean["ppo"]["reward"])
-            / abs(mean["cmaes"]["reward"]),
+    def mean_of(method: str, key: str, i: int | None = None) -> float:
+        return float(np.mean([(r[method][i] if i is not None else r[method])[key] for r in rows]))
+
+    cma_mean = {k: mean_of("cmaes", k) for k in (*TERMS, "seconds")}
+    per_seed = []
+    for i, run in enumerate(runs):
+        gaps = [r["ppo"][i]["gap_percent"] for r in rows]
+        m = {k: mean_of("ppo", k, i) for k in (*TERMS, "seconds")}
+        per_seed.append({
+            "seed": run["seed"], "model": run["path"], "train_seconds": run["train_seconds"], "mean": m,
+            "gap_percent_of_mean_reward": gap_percent(cma_mean["reward"], m["reward"]),
             "gap_percent_mean_of_weeks": float(np.mean(gaps)), "gap_percent_worst_week": float(np.max(gaps)),
             "weeks_within_5_percent": int(sum(g <= 5.0 for g in gaps)),
-            "inference_speedup": mean["cmaes"]["seconds"] / mean["ppo"]["seconds"],
-        })
-        summary["target_met"] = summary["gap_percent_of_mean_reward"] <= 5.0
+            "train_weeks_deterministic_reward": run["train_weeks_reward"], "learning_curve": run["curve"]})
+    gaps = [p["gap_percent_of_mean_reward"] for p in per_seed]
+    ppo_seconds = float(np.mean([p["mean"]["seconds"] for p in per_seed]))
+    summary = {
+        "historical": {k: mean_of("historical", k) for k in TERMS}, "cmaes": cma_mean,
+        "ppo_reward_mean_over_seeds": float(np.mean([p["mean"]["reward"] for p in per_seed])),
+        "gap_percent_of_mean_reward_per_seed": gaps,
+        "gap_percent_of_mean_reward_mean_over_seeds": float(np.mean(gaps)),
+        "ppo_inference_seconds": ppo_seconds, "cmaes_seconds": cma_mean["seconds"],
+        "inference_speedup": cma_mean["seconds"] / ppo_seconds,
+        "target_met_every_seed": bool(max(gaps) <= 5.0), "target_met_on_average": bool(np.mean(gaps) <= 5.0),
+    }
+    if len(runs) > 1:  # post hoc: per week, the best of the seeds' actions (one scored week per seed)
+        best = float(np.mean([max(p["reward"] for p in r["ppo"]) for r in rows]))
+        summary["best_of_seeds"] = {"reward": best, "gap_percent_of_mean_reward": gap_percent(cma_mean["reward"], best)}
     command = "PYTHONPATH=. .venv/bin/python bench/ppo_vs_cmaes.py " + " ".join(sys.argv[1:])
     result = {
         "date": dt.date.today().isoformat(), "command": command.strip(),
+        "protocol": "validation" if args.validation else "test",
         "machine": {"platform": platform.platform(), "cores": os.cpu_count(), "gpu": torch.cuda.is_available(),
-                    "torch": torch.__version__, "torch_threads": torch.get_num_threads()},
-        "variant": args.variant, "ppo_settings": {**PPO_DEFAULTS, **variant}, "timesteps": args.timesteps,
-        "num_envs": args.num_envs, "seed": args.seed, "model": str(model_path), "train_seconds": train_seconds,
-        "cmaes_evaluations": args.cmaes_evaluations, "test_weeks": test_weeks, "summary": summary,
-        "weeks": rows, "learning_curve": curve.points[:: max(1, len(curve.points) // 40)],
+                    "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
+                    "load_average_1min_at_start_and_end": [round(load_at_start[0], 2),
+                                                           round(os.getloadavg()[0], 2)]},
+        "variant": args.variant, "ppo_settings": {**PPO_DEFAULTS, **VARIANTS[args.variant]},
+        "timesteps": args.timesteps, "num_envs": args.num_envs, "cmaes_seed": args.seed,
+        "cmaes_evaluations": args.cmaes_evaluations, "train_weeks": train_weeks, "eval_weeks": eval_weeks,
+        "summary": summary, "ppo_runs": per_seed, "weeks": rows,
+        "tuning": {"validation_weeks": VALIDATION_WEEKS, "runs": TUNING, "in_sample": TUNING_IN_SAMPLE},
     }
-    suffix = f"_{args.tag}" if args.tag else ""
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"ppo_vs_cmaes{suffix}.json").write_text(json.dumps(result, indent=1, default=str) + "\n")
-    if not args.skip_cmaes:
-        (RESULTS / f"ppo_vs_cmaes{suffix}.md").write_text(markdown(result))
-    print(json.dumps(summary, indent=1), flush=True)
+    print(json.dumps({k: v for k, v in summary.items()}, indent=1), flush=True)
+    if not args.validation:
+        RESULTS.mkdir(exist_ok=True)
+        (RESULTS / "ppo_vs_cmaes.json").write_text(json.dumps(result, indent=1, default=str) + "\n")
+        (RESULTS / "ppo_vs_cmaes.md").write_text(markdown(result))
 
 
 def markdown(result: dict) -> str:
     """The results as a Markdown report."""
-    s = result["summary"]
-    m = s["mean"]
+    s, runs = result["summary"], result["ppo_runs"]
+    seeds = ", ".join(str(r["seed"]) for r in runs)
+    train = ", ".join(f"{r['train_seconds']:.0f} s" for r in runs if r["train_seconds"])
     lines = [
-        f"# PPO across weeks vs per-week CMA-ES ({result['date']})", "",
+        f"# PPO across weeks vs per-week CMA-ES on the held-out weeks ({result['date']})", "",
         f"Machine: {result['machine']['platform']}, {result['machine']['cores']} cores, no GPU; torch "
-        f"{result['machine']['torch']} ({result['machine']['torch_threads']} threads). "
+        f"{result['machine']['torch']} (threads: {result['machine']['torch_threads']}); 1-minute load average "
+        f"before / at the end of the run {result['machine']['load_average_1min_at_start_and_end']} (the run itself "
+        "adds about 2; the machine is shared, its niced background jobs were paused). "
         f"Command: `{result['command']}`.", "",
-        f"PPO (variant `{result['variant']}`): {result['timesteps']} training weeks drawn from the default site's "
-        f"training weeks, {result['num_envs']} environments per step, "
-        + (f"trained in **{result['train_seconds']:.0f} s**" if result["train_seconds"] else "a saved policy")
-        + f". CMA-ES: per week, {result['cmaes_evaluations']} scored weeks, population 64, from the historical "
-        "settings. Reward = -(energy_term + comfort_k); energy_term = HVAC energy / the historical settings' "
-        "(1.0 = today's), comfort_k = RMS deviation from 22.5 degC over occupied hours (K). Gap = "
-        "(CMA-ES reward - PPO reward) / |CMA-ES reward|: positive when PPO is worse.", "",
-        "| week | start | historical reward | CMA-ES reward | PPO reward | gap % | CMA-ES energy / comfort K "
-        "| PPO energy / comfort K | CMA-ES s | PPO ms |",
-        "|---|---|---|---|---|---|---|---|---|---|",
+        f"PPO (`agents.ppo.train_ppo`, variant `{result['variant']}`): {result['timesteps']} training weeks "
+        f"drawn from the default site's {len(result['train_weeks'])} training weeks, {result['num_envs']} "
+        f"environments per step (one metamodel call), seeds {seeds}; training time " + (train or "n/a")
+        + f". CMA-ES (`agents.cmaes.optimise_week`): per test week, {result['cmaes_evaluations']} scored weeks, "
+        "population 64, from the historical settings, seed " + str(result["cmaes_seed"]) + ". Reward = "
+        "-(energy_term + comfort_k): energy_term = HVAC energy / the historical settings' (1.0 = today's), "
+        "comfort_k = RMS deviation from 22.5 degC over occupied hours (K). Gap = (CMA-ES reward - PPO reward) / "
+        "|CMA-ES reward|, positive when PPO is worse.", "",
+        "| week | start | historical reward | CMA-ES reward | CMA-ES energy / comfort K | "
+        + " | ".join(f"PPO s{r['seed']} reward (gap %)" for r in runs)
+        + f" | PPO s{runs[0]['seed']} energy / comfort K | CMA-ES s | PPO s{runs[0]['seed']} ms |",
+        "|---|---|---|---|---|" + "---|" * len(runs) + "---|---|---|",
     ]
     for r in result["weeks"]:
         h, c, p = r["historical"], r["cmaes"], r["ppo"]
-        lines.append(f"| {r['week']} | {r['week_start']} | {h['reward']:.3f} | {c['reward']:.3f} | {p['reward']:.3f} "
-                     f"| {r['gap_percent']:+.1f} | {c['energy_term']:.3f} / {c['comfort_k']:.3f} "
-                     f"| {p['energy_term']:.3f} / {p['comfort_k']:.3f} | {c['seconds']:.1f} "
-                     f"| {1000 * p['seconds']:.2f} |")
-    lines.append(f"| **mean** | | {m['historical']['reward']:.3f} | {m['cmaes']['reward']:.3f} "
-                 f"| {m['ppo']['reward']:.3f} | **{s['gap_percent_of_mean_reward']:+.1f}** "
-                 f"| {m['cmaes']['energy_term']:.3f} / {m['cmaes']['comfort_k']:.3f} "
-                 f"| {m['ppo']['energy_term']:.3f} / {m['ppo']['comfort_k']:.3f} | {m['cmaes']['seconds']:.1f} "
-                 f"| {1000 * m['ppo']['seconds']:.2f} |")
-    verdict = "met" if s["target_met"] else "NOT met"
+        lines.append(f"| {r['week']} | {r['week_start']} | {h['reward']:.3f} | {c['reward']:.3f} "
+                     f"| {c['energy_term']:.3f} / {c['comfort_k']:.3f} | "
+                     + " | ".join(f"{q['reward']:.3f} ({q['gap_percent']:+.1f})" for q in p)
+                     + f" | {p[0]['energy_term']:.3f} / {p[0]['comfort_k']:.3f} | {c['seconds']:.1f} "
+                     f"| {1000 * p[0]['seconds']:.2f} |")
+    h, c = s["historical"], s["cmaes"]
+    lines.append(f"| **mean** | | {h['reward']:.3f} | {c['reward']:.3f} | {c['energy_term']:.3f} / "
+                 f"{c['comfort_k']:.3f} | "
+                 + " | ".join(f"**{q['mean']['reward']:.3f} ({q['gap_percent_of_mean_reward']:+.1f})**" for q in runs)
+                 + f" | {runs[0]['mean']['energy_term']:.3f} / {runs[0]['mean']['comfort_k']:.3f} "
+                 f"| {c['seconds']:.1f} | {1000 * runs[0]['mean']['seconds']:.2f} |")
+    lines.append(f"| historical energy / comfort K | | {h['energy_term']:.3f} / {h['comfort_k']:.3f} | | | "
+                 + " | ".join("" for _ in runs) + " | | | |")
+    if s["target_met_every_seed"]:
+        verdict = "met for every seed"
+    elif s["target_met_on_average"]:
+        verdict = "met on average over the seeds, not for every seed"
+    else:
+        verdict = "NOT met"
     lines += [
-        "", f"Target (PPO on held-out weeks within 5 % of per-week CMA-ES reward): **{verdict}**: gap of the "
-        f"mean reward {s['gap_percent_of_mean_reward']:+.1f} % (mean of the weekly gaps "
-        f"{s['gap_percent_mean_of_weeks']:+.1f} %, worst week {s['gap_percent_worst_week']:+.1f} %, "
-        f"{s['weeks_within_5_percent']}/{len(result['weeks'])} weeks within 5 %). Choosing a week's settings: "
-        f"PPO {1000 * m['ppo']['seconds']:.2f} ms (one policy forward pass) vs CMA-ES {m['cmaes']['seconds']:.1f} s "
-        f"({result['cmaes_evaluations']} metamodel-scored weeks): **{s['inference_speedup']:.0f}x** less time. "
-        f"PPO's deterministic reward on its training weeks: {s['train_weeks_deterministic_reward']:.3f}.", "",
+        "", "Per PPO seed, over the test weeks:", "",
+        "| seed | training s | reward | energy_term | comfort_k | gap of the mean reward % | mean of weekly gaps % "
+        "| worst week gap % | weeks within 5 % | deterministic reward on the training weeks |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
+    for q in runs:
+        m = q["mean"]
+        lines.append(f"| {q['seed']} | {q['train_seconds'] or float('nan'):.0f} | {m['reward']:.3f} "
+                     f"| {m['energy_term']:.3f} | {m['comfort_k']:.3f} | {q['gap_percent_of_mean_reward']:+.1f} "
+                     f"| {q['gap_percent_mean_of_weeks']:+.1f} | {q['gap_percent_worst_week']:+.1f} "
+                     f"| {q['weeks_within_5_percent']}/{len(result['weeks'])} "
+                     f"| {q['train_weeks_deterministic_reward']:.3f} |")
+    lines += [
+        "", f"**Target** (PPO on held-out weeks within 5 % of per-week CMA-ES reward): **{verdict}**: gap of the "
+        "mean test-week reward " + ", ".join(f"{q['gap_percent_of_mean_reward']:+.1f} %" for q in runs)
+        + f" (seeds {seeds}), mean over seeds {s['gap_percent_of_mean_reward_mean_over_seeds']:+.1f} %.",
+    ]
+    if "best_of_seeds" in s:
+        lines[-1] += (f" Post hoc, not the target's method: scoring the {len(runs)} seeds' actions for each week "
+                      f"({len(runs)} metamodel-scored weeks) and keeping the best gives a mean reward of "
+                      f"{s['best_of_seeds']['reward']:.3f}, {s['best_of_seeds']['gap_percent_of_mean_reward']:+.1f} % "
+                      "from CMA-ES.")
+    lines += [
+        "", f"**Cost of choosing a week's settings**: PPO {1000 * s['ppo_inference_seconds']:.2f} ms (one policy "
+        f"forward pass, scoring not included) vs CMA-ES {s['cmaes_seconds']:.1f} s ({result['cmaes_evaluations']} "
+        f"metamodel-scored weeks): **{s['inference_speedup']:,.0f}x** less time, after a one-off training of "
+        + (train or "n/a") + ".", "",
+        "Per-week gaps vary much more than the mean: on a held-out week the policy's deterministic action can land "
+        "on poor settings that CMA-ES, optimising that very week, avoids (the worst week of each seed above); "
+        "on other weeks PPO beats CMA-ES's 6000-evaluation search, which is not a true optimum in 84 dimensions.",
+        "",
+        "## Tuning (training weeks only)", "",
+        "Hyper-parameters were chosen without the test weeks: PPO trained on the training weeks less "
+        f"{result['tuning']['validation_weeks']} and was compared with CMA-ES on those "
+        "(`bench/ppo_vs_cmaes.py --validation --variant V --timesteps N --ppo-seeds S`). Gap of the mean reward "
+        "over the validation weeks (positive = PPO worse):", "",
+        "| variant | settings | weeks | seed | gap % | weekly gaps % |", "|---|---|---|---|---|---|",
+    ]
+    for t in result["tuning"]["runs"]:
+        lines.append(f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} | {t['seed']} "
+                     f"| {t['gap']:+.2f} | {', '.join(f'{g:+.1f}' for g in t['weekly_gaps'])} |")
+    lines += ["", "The variants' differences are within the spread between seeds (`obsnoise0.05`: -0.81 % and "
+              "+2.78 % for seeds 0 and 1), so the simplest, `default` (no observation noise), was kept. These "
+              "development runs also printed their test-week rewards; the choice was made on the validation gaps "
+              "above only.", "",
+              "Earlier in-sample runs (all training weeks; deterministic reward on them):", "",
+              "| variant | settings | weeks | training-week reward |", "|---|---|---|---|"]
+    for t in result["tuning"]["in_sample"]:
+        note = f"; {t['note']}" if "note" in t else ""
+        lines.append(f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} "
+                     f"| {t['train_reward']:.3f}{note} |")
     return "\n".join(lines) + "\n"
 
 

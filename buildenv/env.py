@@ -407,3 +407,8 @@ class BuildingWeekVectorEnv(VectorEnv):
         """Score actions ``(N, 84)`` on one week (as :meth:`BuildingWeekEnv.evaluate`)."""
         return self._b.score(np.atleast_2d(actions), np.full(len(np.atleast_2d(actions)), int(week)))
 
+    @property
+    def historical_action(self) -> np.ndarray:
+        """The action of the site's historical settings ``(84,)``."""
+        return act.encode(self._b.model.historical)
+

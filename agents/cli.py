@@ -34,7 +34,7 @@ def default_week(env) -> int:
     return base.site_model.week_of(site.start + dt.timedelta(days=7 * int(held[0])))
 
 
-def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000, generations: int = 150,
+def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000, generations: int = 1000,
              population: int = 100, policy: str | None = None, progress: bool = False) -> dict:
     """Run one method on one week; returns the chosen action, its scores and the method's figures.
 
@@ -129,7 +129,8 @@ def register(sub) -> None:
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--comfort-weight", type=float, default=1.0, help="w of reward = -(energy + w * comfort)")
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of scored weeks")
-    p.add_argument("--generations", type=int, default=150, help="NSGA-II generations")
+    p.add_argument("--generations", type=int, default=1000,
+                   help="NSGA-II generations (1000 are within 1 %% of a 10x longer run: bench/results/nsga2_convergence.md)")
     p.add_argument("--population", type=int, default=100, help="NSGA-II population")
     p.add_argument("--policy", default=None, help="trained PPO policy (for --method ppo)")
     p.add_argument("--seed", type=int, default=0)

@@ -32,6 +32,7 @@ class ParetoResult:
         evaluations: weeks scored.
         seconds: wall time.
         history: hypervolume after each generation.
+        history_seconds: wall time since the start at the end of each generation, s.
     """
 
     week: int
@@ -42,6 +43,7 @@ class ParetoResult:
     evaluations: int
     seconds: float
     history: list[float]
+    history_seconds: list[float]
 
 
 def hypervolume(energy_term: np.ndarray, comfort_k: np.ndarray) -> float:
@@ -53,7 +55,7 @@ def hypervolume(energy_term: np.ndarray, comfort_k: np.ndarray) -> float:
     return float(HV(ref_point=np.array(HV_REFERENCE))(points[inside])) if inside.any() else 0.0
 
 
-def pareto_front(env, week: int, population: int = 100, generations: int = 150, seed: int = 0,
+def pareto_front(env, week: int, population: int = 100, generations: int = 1000, seed: int = 0,
                  progress: bool = False) -> ParetoResult:
     """Run NSGA-II on one week of a ``BuildingWeek-v0`` environment.
 
@@ -90,10 +92,12 @@ def pareto_front(env, week: int, population: int = 100, generations: int = 150, 
         def __init__(self) -> None:
             super().__init__()
             self.hv: list[float] = []
+            self.seconds: list[float] = []
 
         def notify(self, algorithm):
             f = algorithm.opt.get("F")
             self.hv.append(hypervolume(f[:, 0], f[:, 1]))
+            self.seconds.append(time.perf_counter() - started)
             bar.update(1)
 
     rng = np.random.default_rng(seed)
@@ -109,7 +113,7 @@ def pareto_front(env, week: int, population: int = 100, generations: int = 150, 
     order = np.argsort(result.F[:, 0])
     f, x = result.F[order], np.atleast_2d(result.X)[order]
     return ParetoResult(int(week), x.astype(np.float32), f[:, 0], f[:, 1], hypervolume(f[:, 0], f[:, 1]),
-                        int(result.algorithm.evaluator.n_eval), seconds, track.hv)
+                        int(result.algorithm.evaluator.n_eval), seconds, track.hv, track.seconds)
 
 
 def equal_comfort_choice(front: ParetoResult, comfort_reference_k: float) -> int:

@@ -19,8 +19,8 @@ from several random starts, the best kept; occupancy hours enter the hourly sche
 of width :data:`RAMP_HOURS` instead of a step (exact again at the end, when the cost is re-scored).
 
 **Metrics** (:func:`site_metrics`; ASHRAE Guideline 14 for CV(RMSE) and NMBE with ``n - p`` degrees of
-freedom, ``p = 1`` as Guideline 14 uses for calibrated simulation): ``r2_t, r2_q, rmse_t_celsius, mse_t,
-mse_q, mse_t_occ, mse_q_occ, cv_rmse_q_percent, nmbe_q_percent`` where the MSEs are of the series
+freedom, ``p = 1`` as Guideline 14 uses for calibrated simulation): ``r2_t, r2_q, rmse_t_celsius,
+rmse_q_wh_m2, mse_t, mse_q, mse_t_occ, mse_q_occ, cv_rmse_q_percent, nmbe_q_percent`` where the MSEs are of the series
 standardised by the measured calibration weeks' mean and standard deviation, and ``*_occ`` counts the hours
 the calibrated occupancy marks as occupied.
 """
@@ -35,6 +35,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv import effects_model as em
 from buildenv import surrogate as sg
 from buildenv.errors import BuildenvError
 from buildenv.schedules import hourly_schedules
@@ -61,9 +62,16 @@ class Problem:
     consumption_wh_m2: np.ndarray  # (weeks, 168) measured, NaN where missing
     has_previous: np.ndarray  # (weeks,) the site has the week before (context = its last day)
     theta_known: dict[str, float]
-    names: list[str]  # free parameters: theta names then occupancy "occupancy_<day>_<start|end>"
+    names: list[str]  # free parameters: theta names, occupancy "occupancy_<day>_<start|end>", then effects
     lo: np.ndarray
     hi: np.ndarray
+    effects: tuple[str, ...] = ()  # model-side effects (buildenv.effects_model) whose parameters follow
+    absent: np.ndarray | None = None  # (weeks, 7) days predicted unoccupied (the holidays effect)
+
+    @property
+    def n_base(self) -> int:
+        """Number of theta + occupancy parameters (the effects' follow)."""
+        return len(self.names) - len(em.parameter_names(self.effects))
 
     @property
     def dim(self) -> int:
@@ -81,8 +89,15 @@ def parameter_names() -> list[str]:
     return _free_theta() + occ
 
 
-def build_problem(site, weeks: list[int]) -> Problem:
-    """Encode a site's weeks (each with its preceding week as context where the site has it)."""
+def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None) -> Problem:
+    """Encode a site's weeks (each with its preceding week as context where the site has it).
+
+    Args:
+        site: a :class:`buildenv.site.Site`.
+        weeks: the site's weeks (0-based).
+        effects: model-side effects (:mod:`buildenv.effects_model`) whose parameters are calibrated too.
+        absent: ``(site weeks, 7)`` booleans, days predicted unoccupied (rows of ``weeks`` are used).
+    """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
     bad = [w for w in weeks if not 0 <= w < site.weeks]
@@ -102,8 +117,10 @@ def build_problem(site, weeks: list[int]) -> Problem:
     free = _free_theta()
     lo = np.array([cat.get(v).min for v in free] + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
     hi = np.array([cat.get(v).max for v in free] + [v.max for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
-    return Problem(x, site.temperature_c[idx], site.consumption_wh_m2()[idx], has_prev, known, parameter_names(),
-                   lo, hi)
+    e_lo, e_hi = em.bounds(effects)
+    return Problem(x, site.temperature_c[idx], site.consumption_wh_m2()[idx], has_prev, known,
+                   parameter_names() + em.parameter_names(effects), np.concatenate([lo, e_lo]),
+                   np.concatenate([hi, e_hi]), tuple(effects), None if absent is None else np.asarray(absent)[idx])
 
 
 def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +129,7 @@ def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray
     theta = np.empty((len(params), len(cat.THETA_NAMES)))
     for j, name in enumerate(cat.THETA_NAMES):
         theta[:, j] = problem.theta_known[name] if name in KNOWN_GEOMETRY else params[:, free.index(name)]
-    occ = params[:, len(free):].reshape(len(params), len(cat.WEEKDAYS), 2)
+    occ = params[:, len(free):problem.n_base].reshape(len(params), len(cat.WEEKDAYS), 2)
     return theta, occ
 
 
@@ -130,7 +147,37 @@ def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
     # context day: the previous week's Sunday where there is one, else the week's own Monday (see surrogate)
     context = np.where(problem.has_previous[None, :, None], occ_fraction[:, None, -ctx:], occ_fraction[:, None, :ctx])
     x[:, :, :ctx, c] = context
-    return x.reshape(pop * weeks, *x.shape[2:])
+    x = x.reshape(pop * weeks, *x.shape[2:])
+    if problem.effects or problem.absent is not None:
+        absent = None if problem.absent is None else np.tile(problem.absent, (pop, 1))
+        em.transform_inputs(x, _effect_values(problem, params, weeks), absent)
+    return x
+
+
+def _effect_values(problem: Problem, params: np.ndarray, repeat: int = 1) -> dict[str, np.ndarray]:
+    """``{effect: (pop * repeat, k)}`` of physical parameter vectors ``(pop, dim)``."""
+    return em.split_parameters(problem.effects, np.repeat(params[:, problem.n_base:], repeat, axis=0))
+
+
+def simulate(problem: Problem, surrogate: sg.Surrogate,
+             params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Simulate candidates on every problem week in one batched metamodel call, effects included.
+
+    Args:
+        params: ``(pop, dim)`` physical parameter vectors.
+    Returns:
+        building outputs ``(pop, weeks, 168, 8)``, the temperature the sensor reads (degC) and the site
+        consumption (Wh/m2), both ``(pop, weeks, 168)``.
+    """
+    pop, weeks = len(params), len(problem.x_base)
+    x = encode_candidates(problem, params)
+    out = surrogate.predict_encoded(x)
+    values = _effect_values(problem, params, weeks)
+    out = em.transform_outputs(out, x, values)
+    t, q = model_series(problem, out)
+    t = em.sensor_temperature(t, values)
+    shape = (pop, weeks, cat.HOURS_PER_WEEK)
+    return out.reshape(*shape, -1), t.reshape(shape), q.reshape(shape)
 
 
 def model_series(problem: Problem, outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -147,9 +194,8 @@ def _r2(y: np.ndarray, p: np.ndarray, mask: np.ndarray) -> np.ndarray:
     return 1.0 - ss_res / max(ss_tot, 1e-12)
 
 
-def costs(problem: Problem, outputs: np.ndarray) -> np.ndarray:
-    """The paper's cost of each candidate from its outputs ``(pop, weeks, 168, 8)``."""
-    t, q = model_series(problem, outputs)
+def costs(problem: Problem, t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The paper's cost of each candidate from its temperature and consumption ``(pop, weeks, 168)``."""
     mt, mq = np.isfinite(problem.temperature_c), np.isfinite(problem.consumption_wh_m2)
     return (WEIGHTS["temperature"] * (1 - _r2(problem.temperature_c, t, mt))
             + WEIGHTS["consumption"] * (1 - _r2(problem.consumption_wh_m2, q, mq)))
@@ -157,18 +203,18 @@ def costs(problem: Problem, outputs: np.ndarray) -> np.ndarray:
 
 def evaluate(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:
     """Costs ``(pop,)`` of physical parameter vectors ``(pop, dim)`` in one batched metamodel call."""
-    x = encode_candidates(problem, params)
-    out = surrogate.predict_encoded(x).reshape(len(params), len(problem.x_base), cat.HOURS_PER_WEEK, -1)
-    return costs(problem, out)
+    _, t, q = simulate(problem, surrogate, params)
+    return costs(problem, t, q)
 
 
-def predict(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:
-    """Outputs ``(weeks, 168, 8)`` of one parameter vector."""
-    x = encode_candidates(problem, params[None])
-    return surrogate.predict_encoded(x).reshape(len(problem.x_base), cat.HOURS_PER_WEEK, -1)
+def predict(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor temperature (degC) and consumption (Wh/m2) ``(weeks, 168)`` of one parameter vector."""
+    _, t, q = simulate(problem, surrogate, params[None])
+    return t[0], q[0]
 
 
-def cmaes_strategy(dim: int, seed: int = 0, max_evaluations: float = np.inf, sigma0: float = SIGMA0):
+def cmaes_strategy(dim: int, seed: int = 0, max_evaluations: float = np.inf, sigma0: float = SIGMA0,
+                   x0: np.ndarray | None = None, stds: np.ndarray | None = None):
     """The CMA-ES (pycma) of every calibration: ``dim`` parameters in the unit box, started at its centre.
 
     Args:
@@ -176,19 +222,29 @@ def cmaes_strategy(dim: int, seed: int = 0, max_evaluations: float = np.inf, sig
         seed: seed of the optimiser (pycma gets ``seed + 1``: pycma reads 0 as "seed from the clock").
         max_evaluations: budget of cost evaluations (``inf``: none, stop on ``tolfun`` only).
         sigma0: initial step size, in units of the box side.
+        x0: start point in the unit box (default: its centre).
+        stds: per-parameter multipliers of ``sigma0`` (default: all 1).
     """
     import cma
 
-    return cma.CMAEvolutionStrategy(np.full(dim, 0.5), sigma0,
-                                    {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9,
-                                     "maxfevals": max_evaluations, "tolfun": CMAES_TOLFUN})
+    options = {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9, "maxfevals": max_evaluations,
+               "tolfun": CMAES_TOLFUN}
+    if stds is not None:
+        options["CMA_stds"] = list(np.asarray(stds, float))
+    start = np.full(dim, 0.5) if x0 is None else np.clip(np.asarray(x0, float), 0.0, 1.0)
+    return cma.CMAEvolutionStrategy(start, sigma0, options)
 
 
 def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, max_evaluations: int = 6000,
-                    sigma0: float = SIGMA0, progress: bool = False) -> tuple[np.ndarray, dict]:
-    """CMA-ES on the unit box. Returns the best physical parameters and ``{"evaluations", "cost"}``."""
-    es = cmaes_strategy(problem.dim, seed, max_evaluations, sigma0)
+                    sigma0: float = SIGMA0, progress: bool = False, start: np.ndarray | None = None,
+                    stds: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+    """CMA-ES on the unit box. Returns the best physical parameters and ``{"evaluations", "cost"}``.
+
+    ``start`` (physical parameters) and ``stds`` (per-parameter step multipliers) warm-start a refit.
+    """
     scale = problem.hi - problem.lo
+    x0 = None if start is None else (np.asarray(start, float) - problem.lo) / scale
+    es = cmaes_strategy(problem.dim, seed, max_evaluations, sigma0, x0, stds)
     bar = _bar(progress, max_evaluations, "CMA-ES")
     while not es.stop():
         z = np.asarray(es.ask())
@@ -231,6 +287,8 @@ def site_metrics(temperature: np.ndarray, consumption: np.ndarray, pred_t: np.nd
         out[f"mse_{key}_occ"] = float(z[occ].mean()) if occ.any() else float("nan")
     ok = np.isfinite(temperature)
     out["rmse_t_celsius"] = float(np.sqrt(((pred_t - temperature)[ok] ** 2).mean()))
+    ok_q = np.isfinite(consumption)
+    out["rmse_q_wh_m2"] = float(np.sqrt(((pred_q - consumption)[ok_q] ** 2).mean()))
     out["cv_rmse_q_percent"], out["nmbe_q_percent"] = guideline14(consumption, pred_q)
     out["hours"] = int(np.isfinite(consumption).sum())
     return out
@@ -298,16 +356,23 @@ def _scale(problem: Problem) -> dict[str, tuple[float, float]]:
 
 
 def score_weeks(site, surrogate: sg.Surrogate, weeks: list[int], params: np.ndarray,
-                scale: dict[str, tuple[float, float]]) -> dict[str, float]:
-    """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks."""
-    problem = build_problem(site, weeks)
-    return score_outputs(problem, predict(problem, surrogate, params), params, scale)
+                scale: dict[str, tuple[float, float]], effects: tuple[str, ...] = (),
+                absent: np.ndarray | None = None) -> dict[str, float]:
+    """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks (with the
+    model-side ``effects`` whose parameters follow in ``params``, and the ``absent`` days of the site)."""
+    problem = build_problem(site, weeks, effects, absent)
+    return score_series(problem, *predict(problem, surrogate, params), params, scale)
 
 
 def score_outputs(problem: Problem, outputs: np.ndarray, params: np.ndarray,
                   scale: dict[str, tuple[float, float]]) -> dict[str, float]:
     """Metrics (:func:`site_metrics`) of simulated outputs ``(weeks, 168, 8)`` of ``params`` on the problem's weeks."""
-    t, q = model_series(problem, outputs)
+    return score_series(problem, *model_series(problem, outputs), params, scale)
+
+
+def score_series(problem: Problem, t: np.ndarray, q: np.ndarray, params: np.ndarray,
+                 scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+    """Metrics (:func:`site_metrics`) of a predicted temperature (degC) and consumption (Wh/m2) ``(weeks, 168)``."""
     occupied = problem_occupancy(problem, params)
     return {**site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale),
             "weeks": len(problem.x_base)}

@@ -49,6 +49,7 @@ from buildenv.calibration import (
     cmaes_strategy,
     costs,
     default_weeks,
+    model_series,
     score_outputs,
 )
 from buildenv.campaign import TASKS_PER_WORKER
@@ -225,7 +226,7 @@ class ShoeboxPool:
 def evaluate_energyplus(problem, run: SiteRun, pool: ShoeboxPool, params: np.ndarray) -> np.ndarray:
     """Costs ``(pop,)`` (:func:`buildenv.calibration.costs`) of physical parameters ``(pop, dim)`` by EnergyPlus."""
     theta, occ = _split(problem, np.atleast_2d(params))
-    return costs(problem, pool.simulate(run, theta, occ))
+    return costs(problem, *model_series(problem, pool.simulate(run, theta, occ)))
 
 
 def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int = 0, wall_seconds: float = 60.0,

@@ -8,7 +8,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
-from buildenv.calibration import KNOWN_GEOMETRY, build_problem, model_series, predict, problem_occupancy
+from buildenv.calibration import KNOWN_GEOMETRY, build_problem, predict, problem_occupancy
 from buildenv.plotting import shade_occupancy
 
 
@@ -31,7 +31,7 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
     weeks = list(range(site.weeks))
     problem = build_problem(site, weeks)
     params = calibrated_vector(result, problem)
-    t, q = model_series(problem, predict(problem, surrogate, params))
+    t, q = predict(problem, surrogate, params)
     occupied = problem_occupancy(problem, params).reshape(-1).astype(float)
     hours = np.arange(len(weeks) * 168)
     fig, (ax_t, ax_q) = plt.subplots(2, 1, figsize=(min(4 + 3 * len(weeks), 24), 6), sharex=True)

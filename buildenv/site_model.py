@@ -23,8 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv import effects_model as em
+from buildenv.effects import get_effect
 from buildenv.errors import BuildingEnvError
 from buildenv.schedules import hourly_schedules
+from buildenv.surrogate import encode_weeks
 from buildenv.weather import epw_day_of_year
 
 
@@ -52,6 +55,8 @@ class SiteModel:
         weather_days: weather of every day of the year plus the week before ``(days, 24, 9)`` (catalogue units).
         floor_area_m2: conditioned floor area.
         name: the site's name.
+        effects: building effects found by the gap diagnosis (:mod:`buildenv.effects_model`), ``{effect:
+            (1, k) parameters}``; sensor effects and absent days are measurement matters and not simulated.
     """
 
     surrogate: object
@@ -62,6 +67,7 @@ class SiteModel:
     weather_days: np.ndarray
     floor_area_m2: float
     name: str = ""
+    effects: dict = field(default_factory=dict)
     _day0: dt.date = field(default=dt.date(2000, 1, 1), repr=False)
 
     @classmethod
@@ -83,8 +89,11 @@ class SiteModel:
         days = [day0 + dt.timedelta(days=d) for d in range((starts[-1] - day0).days + 7)]
         hourly = np.asarray(load_weather(site.weather).hourly)
         rows = np.array([epw_day_of_year(d) for d in days])[:, None] * cat.HOURS_PER_DAY + np.arange(24)
+        effects = {name: np.array([[values[p.name] for p in get_effect(name).parameters]], dtype=float)
+                   for name, values in (calib.get("effects") or {}).items()
+                   if name in em.INPUT_EFFECTS + em.OUTPUT_EFFECTS and name != "holidays"}
         return cls(surrogate, theta, occupancy, np.asarray(site.settings[0], float), starts, hourly[rows],
-                   float(site.floor_area_m2), site.name, day0)
+                   float(site.floor_area_m2), site.name, effects, day0)
 
     @property
     def weeks(self) -> int:
@@ -128,7 +137,18 @@ class SiteModel:
         theta = np.broadcast_to(self.theta, (n, len(self.theta)))
         occ = np.broadcast_to(self.occupancy, (n, *self.occupancy.shape))
         prev_weather = self._weeks_of_days(self._days(weeks) - 7)
-        return self.surrogate.predict(theta, settings, occ, self.weather(weeks), (prev_settings, occ, prev_weather))
+        previous_week = (prev_settings, occ, prev_weather)
+        if not self.effects:
+            return self.surrogate.predict(theta, settings, occ, self.weather(weeks), previous_week)
+        out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
+        weather = self.weather(weeks)
+        for start in range(0, n, 256):  # the extended model: effects act on the inputs and on the outputs
+            part = slice(start, start + 256)
+            x = encode_weeks(theta[part], settings[part], occ[part], weather[part],
+                             tuple(a[part] for a in previous_week))
+            x = em.transform_inputs(x, self.effects)
+            out[part] = em.transform_outputs(self.surrogate.predict_encoded(x), x, self.effects)
+        return out
 
     def occupied_hours(self) -> np.ndarray:
         """``(168,)`` booleans: the hours the calibrated occupancy marks as occupied."""

@@ -1,0 +1,186 @@
+"""The effects catalogue: unmodelled effects real buildings have and our metamodel lacks.
+
+Each :class:`Effect` is defined once here and read by both sides of the gap diagnosis:
+
+- **injection** (:mod:`buildenv.effects_inject`): how the effect is put into the reference-building stand-in,
+  either by editing its EnergyPlus model (``kind="energyplus"``) or by post-processing what its sensors read
+  (``kind="sensor"``), with a ``magnitude`` in :attr:`Effect.magnitude_unit`; :attr:`Effect.magnitude_range`
+  is the range seen in practice that blind checks draw from;
+- **model side** (:mod:`buildenv.effects_model`): an addition to our model with :attr:`Effect.parameters` that
+  calibration estimates; each parameter's ``none`` value switches the addition off exactly (the model is then
+  unchanged).
+
+Magnitudes from practice: NREL's fault models for buildings (thermostat bias up to +-3 K, excess
+infiltration, HVAC start delays), field studies of plug loads left on out of hours, and typical ranges of
+air-to-air heat recovery effectiveness and interior blinds' shading coefficients.
+"""
+
+from __future__ import annotations
+
+import difflib
+from dataclasses import dataclass
+
+from buildenv.errors import BuildenvError
+
+
+class EffectError(BuildenvError, ValueError):
+    """An effect name or magnitude is unknown or out of range."""
+
+
+@dataclass(frozen=True)
+class ModelParameter:
+    """A parameter of an effect's model-side addition, estimated by calibration.
+
+    Attributes:
+        name: parameter name (unique within the effect).
+        unit: physical unit.
+        lo, hi: calibration bounds.
+        none: the value at which the addition changes nothing.
+        description: what it means.
+    """
+
+    name: str
+    unit: str
+    lo: float
+    hi: float
+    none: float
+    description: str
+
+
+@dataclass(frozen=True)
+class Effect:
+    """An unmodelled effect (see the module docstring).
+
+    Attributes:
+        name: identifier used on the command line (``--effect NAME=MAGNITUDE``).
+        title: short human title.
+        description: what it is in a real building, and how it shows in the two sensors.
+        kind: ``energyplus`` (model edit) or ``sensor`` (post-processing of what the sensors read).
+        magnitude_unit: unit of the injected magnitude.
+        magnitude_range: ``(low, high)`` magnitudes seen in practice (blind checks draw from it).
+        default_magnitude: magnitude used when none is given.
+        series: measured series it mainly shows in (``temperature``, ``consumption``).
+        parameters: the model-side addition's parameters.
+        model: one line on the model-side addition.
+    """
+
+    name: str
+    title: str
+    description: str
+    kind: str
+    magnitude_unit: str
+    magnitude_range: tuple[float, float]
+    default_magnitude: float
+    series: tuple[str, ...]
+    parameters: tuple[ModelParameter, ...]
+    model: str
+
+    def check_magnitude(self, magnitude: float) -> float:
+        """The magnitude as a float; raises :class:`EffectError` if it lies outside what the injection can do."""
+        lo, hi = INJECTION_LIMITS[self.name]
+        if not lo <= magnitude <= hi:
+            raise EffectError(f"effect {self.name}: magnitude {magnitude:g} {self.magnitude_unit} is outside "
+                              f"[{lo:g}, {hi:g}] (practice: {self.magnitude_range[0]:g}-{self.magnitude_range[1]:g})")
+        return float(magnitude)
+
+
+EFFECTS: dict[str, Effect] = {e.name: e for e in (
+    Effect("wind_infiltration", "wind-driven infiltration",
+           "Leaky envelope: air infiltration grows with wind speed (cracks, open doors, badly sealed windows). "
+           "Windy hours need more heat and cool the zones faster when the heating is off.",
+           "energyplus", "% of the design infiltration added per m/s of wind", (10.0, 40.0), 25.0,
+           ("consumption", "temperature"),
+           (ModelParameter("ach_per_m_s", "1/h per m/s", 0.0, 0.15, 0.0,
+                           "infiltration air changes added per m/s of wind speed"),),
+           "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x wind speed"),
+    Effect("temperature_sensor_bias", "temperature sensor bias",
+           "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "
+           "near a radiator or in the sun). The consumption is unaffected.",
+           "sensor", "K (reading - truth)", (-3.0, 3.0), 1.0, ("temperature",),
+           (ModelParameter("bias_k", "K", -3.0, 3.0, 0.0, "offset added to the predicted temperature"),),
+           "the predicted temperature reads bias_k higher"),
+    Effect("temperature_sensor_lag", "temperature sensor lag",
+           "The sensor responds slowly (a heavy housing, a sensor in a wall pocket): it reads a first-order "
+           "lagged air temperature, so morning start-ups and evening setbacks look slower than they are.",
+           "sensor", "h (time constant)", (0.5, 3.0), 1.5, ("temperature",),
+           (ModelParameter("tau_h", "h", 0.0, 4.0, 0.0, "first-order time constant of the sensor"),),
+           "the predicted temperature is passed through a first-order lag of time constant tau_h"),
+    Effect("holidays", "holidays and absent-occupancy days",
+           "Weekdays nobody comes in (public holidays, bridge days, closures) while the BMS keeps its weekday "
+           "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
+           "energyplus", "absent weekdays in the measured period", (1.0, 3.0), 2.0, ("consumption", "temperature"),
+           (),
+           "absent days: weekdays whose measurements fit an unoccupied day far better (the day's "
+           "standardised squared error falls by more than half) are predicted unoccupied; the flags are "
+           "estimated from the data like the occupancy hours"),
+
+    Effect("night_plug_loads", "plug loads left on at night",
+           "Equipment left on outside occupied hours beyond what the model's night share allows (servers, "
+           "printers, screens on standby): a higher night and weekend base load.",
+           "energyplus", "W/m2 added outside occupied hours", (1.0, 5.0), 3.0, ("consumption",),
+           (ModelParameter("night_w_m2", "W/m2", 0.0, 8.0, 0.0,
+                           "electric load added in every unoccupied hour"),),
+           "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied"),
+    Effect("solar_shading", "solar shading / blinds",
+           "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
+           "hours are colder and need more heat than the model says.",
+           "energyplus", "% of the solar gains blocked", (30.0, 70.0), 50.0, ("temperature", "consumption"),
+           (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
+           "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)"),
+    Effect("heating_capacity_limit", "heating capacity limit",
+           "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
+           "the setpoint, so consumption plateaus and the temperature sags.",
+           "energyplus", "% of the design heating capacity available", (30.0, 70.0), 50.0,
+           ("consumption", "temperature"),
+           (ModelParameter("capacity_w_m2", "W/m2", 5.0, 150.0, 150.0,
+                           "largest heating power (zone + air handling unit) the plant delivers"),
+            ModelParameter("sag_k_per_wh_m2", "K per Wh/m2", 0.0, 0.2, 0.0,
+                           "temperature lost per Wh/m2 of heat not delivered (decaying over ~3 h)")),
+           "the predicted heating is capped at capacity_w_m2; the heat not delivered lowers the temperature"),
+    Effect("heat_recovery", "heat recovery on the air handling unit",
+           "An air-to-air heat exchanger preheats the outdoor air with the exhaust air: the air handling unit's "
+           "heating falls, most in cold weather.",
+           "energyplus", "% sensible effectiveness", (50.0, 80.0), 70.0, ("consumption",),
+           (ModelParameter("effectiveness", "-", 0.0, 0.9, 0.0,
+                           "sensible effectiveness of the heat exchanger"),),
+           "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers"),
+)}
+
+#: Magnitudes the injections accept (wider than practice, for stress tests).
+INJECTION_LIMITS: dict[str, tuple[float, float]] = {
+    "wind_infiltration": (0.0, 200.0),
+    "temperature_sensor_bias": (-5.0, 5.0),
+    "temperature_sensor_lag": (0.0, 6.0),
+    "holidays": (0.0, 10.0),
+    "night_plug_loads": (0.0, 20.0),
+    "solar_shading": (0.0, 95.0),
+    "heating_capacity_limit": (10.0, 100.0),
+    "heat_recovery": (0.0, 90.0),
+}
+
+#: The magnitude at which each injection changes nothing.
+NO_EFFECT_MAGNITUDE: dict[str, float] = {name: (100.0 if name == "heating_capacity_limit" else 0.0)
+                                         for name in EFFECTS}
+
+
+def get_effect(name: str) -> Effect:
+    """The effect called ``name``; raises :class:`EffectError` naming the closest ones otherwise."""
+    if name in EFFECTS:
+        return EFFECTS[name]
+    close = difflib.get_close_matches(name, list(EFFECTS), n=3)
+    hint = f"; did you mean {', '.join(close)}?" if close else ""
+    raise EffectError(f"unknown effect {name!r}{hint} (known: {', '.join(EFFECTS)})")
+
+
+def parse_effect(text: str) -> tuple[Effect, float]:
+    """``NAME`` or ``NAME=MAGNITUDE`` (command-line form) -> (effect, magnitude)."""
+    name, sep, value = text.partition("=")
+    effect = get_effect(name.strip())
+    if not sep:
+        return effect, effect.default_magnitude
+    try:
+        magnitude = float(value)
+    except ValueError:
+        raise EffectError(f"--effect {text}: magnitude {value!r} is not a number "
+                          f"({effect.magnitude_unit})") from None
+    return effect, effect.check_magnitude(magnitude)

@@ -1,0 +1,171 @@
+"""The model side of the effects catalogue: additions to the metamodel that calibration can estimate.
+
+Every effect of :mod:`buildenv.effects` acts at one of three places of a simulated week, vectorised over
+candidates (``N`` weeks, each with its own parameter values):
+
+- **inputs** (:func:`transform_inputs`, physical encoded inputs ``(N, 192, C)`` before the metamodel):
+  ``wind_infiltration`` makes the infiltration input hourly, ``calibrated + ach_per_m_s x wind speed``;
+  ``solar_shading`` scales every irradiance input by ``1 - blocked_fraction``; ``holidays`` sets the
+  occupancy of absent days (a ``(N, 7)`` mask, see :func:`absent_day_candidates`) to zero.
+- **building outputs** (:func:`transform_outputs`, ``(N, 168, 8)`` after the metamodel; what BuildingWeek-v0
+  sees): ``night_plug_loads`` adds ``night_w_m2`` to Q_EQP in unoccupied hours; ``heating_capacity_limit``
+  caps Q_HEAT_OFFICE + Q_AHU_H at ``capacity_w_m2`` (both scaled down together) and lowers T_INT_OFFICE by a
+  sag that grows by ``sag_k_per_wh_m2`` per Wh/m2 not delivered and decays with a 3-hour time constant;
+  ``heat_recovery`` lowers Q_AHU_H by the share ``min(1, eff x (T_in - T_out) / (T_supply - T_out))`` an
+  exchanger of sensible effectiveness ``eff`` recovers (exhaust at the indoor temperature).
+- **sensor readings** (:func:`sensor_temperature`, the measured-temperature model; the building's own
+  temperature is untouched, so comfort is judged on the true air temperature): ``temperature_sensor_bias``
+  adds ``bias_k``; ``temperature_sensor_lag`` is a discrete first-order lag,
+  ``y_t = y_{t-1} + (1 - exp(-1 / tau_h)) (x_t - y_{t-1})``, started at the first hour's value.
+
+Parameters are passed as ``{effect name: array (N, number of its parameters)}``; an effect absent from the
+mapping, or at its parameters' ``none`` values, changes nothing (bit for bit).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv import surrogate as sg
+from buildenv.effects import EFFECTS, get_effect
+
+INPUT_EFFECTS = ("wind_infiltration", "solar_shading", "holidays")
+OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery")
+SENSOR_EFFECTS = ("temperature_sensor_bias", "temperature_sensor_lag")
+IRRADIANCE_INPUTS = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H")
+SAG_TIME_CONSTANT_H = 3.0
+
+_CH = {name: i for i, name in enumerate(sg.INPUT_CHANNELS)}
+_OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
+
+
+def none_parameters(name: str) -> np.ndarray:
+    """The parameter vector ``(k,)`` at which effect ``name`` changes nothing."""
+    return np.array([p.none for p in get_effect(name).parameters], dtype=float)
+
+
+def parameter_names(effects: tuple[str, ...] | list[str]) -> list[str]:
+    """Flat names ``effect.parameter`` of the effects' parameters, in vector order."""
+    return [f"{e}.{p.name}" for e in effects for p in get_effect(e).parameters]
+
+
+def bounds(effects: tuple[str, ...] | list[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Calibration bounds ``(lo, hi)`` of the effects' parameters, in vector order."""
+    ps = [p for e in effects for p in get_effect(e).parameters]
+    return np.array([p.lo for p in ps], dtype=float), np.array([p.hi for p in ps], dtype=float)
+
+
+def split_parameters(effects: tuple[str, ...] | list[str], values: np.ndarray) -> dict[str, np.ndarray]:
+    """``(N, total)`` flat parameter values -> ``{effect: (N, k)}``."""
+    values = np.atleast_2d(values)
+    out, j = {}, 0
+    for e in effects:
+        k = len(get_effect(e).parameters)
+        out[e] = values[:, j:j + k]
+        j += k
+    return out
+
+
+def _column(params: Mapping[str, np.ndarray], name: str, j: int, n: int) -> np.ndarray | None:
+    """Parameter ``j`` of effect ``name`` as ``(n, 1)``, or None when the effect is off for every week."""
+    if name not in params:
+        return None
+    v = np.broadcast_to(np.asarray(params[name], dtype=float)[:, j], (n,))
+    if np.all(v == EFFECTS[name].parameters[j].none):
+        return None
+    return v[:, None]
+
+
+def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray], absent: np.ndarray | None = None) -> np.ndarray:
+    """Apply the input effects to encoded inputs.
+
+    Args:
+        x: ``(N, CONTEXT_HOURS + 168, C)`` physical inputs of :func:`buildenv.surrogate.encode_weeks` (modified
+            in place and returned).
+        params: ``{effect: (N, k)}`` (or ``(1, k)``, broadcast).
+        absent: ``(N, 7)`` booleans, days of each week whose occupancy is set to zero (``holidays``).
+    """
+    n = len(x)
+    k = _column(params, "wind_infiltration", 0, n)
+    if k is not None:
+        inf = _CH["infiltration_ach"]
+        x[..., inf] = x[..., inf] + k * x[..., _CH["WIND_SPEED"]]
+    s = _column(params, "solar_shading", 0, n)
+    if s is not None:
+        for name in IRRADIANCE_INPUTS:
+            x[..., _CH[name]] *= (1.0 - s)
+    if absent is not None and np.any(absent):
+        ctx = sg.CONTEXT_HOURS
+        hourly = np.repeat(np.asarray(absent, bool), cat.HOURS_PER_DAY, axis=1)  # (N, 168)
+        occ = x[:, ctx:, _CH["occupancy_fraction"]]
+        x[:, ctx:, _CH["occupancy_fraction"]] = np.where(hourly, 0.0, occ)
+    return x
+
+
+def occupied_hours(x: np.ndarray) -> np.ndarray:
+    """``(N, 168)`` booleans: hours of the week the encoded inputs mark occupied."""
+    return x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]] > 0
+
+
+def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndarray:
+    """Apply the building-output effects.
+
+    Args:
+        outputs: ``(N, 168, 8)`` metamodel outputs (a modified copy is returned).
+        x: the encoded inputs the outputs were simulated from ``(N, 192, C)`` (occupancy, weather, supply air).
+        params: ``{effect: (N, k)}``.
+    """
+    n = len(outputs)
+    active = [e for e in OUTPUT_EFFECTS if _column(params, e, 0, n) is not None
+              or (e == "heating_capacity_limit" and _column(params, e, 1, n) is not None)]
+    if not active:
+        return outputs
+    out = np.array(outputs, dtype=np.float32, copy=True)
+    week = x[:, sg.CONTEXT_HOURS:]
+    p = _column(params, "night_plug_loads", 0, n)
+    if p is not None:
+        out[..., _OUT["Q_EQP"]] += (p * ~occupied_hours(x)).astype(np.float32)
+    eff = _column(params, "heat_recovery", 0, n)
+    if eff is not None:
+        t_in, t_out = out[..., _OUT["T_INT_OFFICE"]], week[..., _CH["TAMB"]]
+        lift = np.maximum(week[..., _CH["supply_air_c"]] - t_out, 0.5)
+        share = np.clip(eff * (t_in - t_out) / lift, 0.0, 1.0)
+        ahu = out[..., _OUT["Q_AHU_H"]]
+        out[..., _OUT["Q_AHU_H"]] = ahu - (share * np.maximum(ahu, 0.0)).astype(np.float32)
+    if "heating_capacity_limit" in active:
+        cap = _column(params, "heating_capacity_limit", 0, n)
+        sag = _column(params, "heating_capacity_limit", 1, n)
+        cap = np.full((n, 1), np.inf) if cap is None else cap
+        sag = np.zeros((n, 1)) if sag is None else sag
+        heat = out[..., _OUT["Q_HEAT_OFFICE"]] + out[..., _OUT["Q_AHU_H"]]
+        excess = np.maximum(heat - cap, 0.0)
+        keep = np.where(heat > 0, 1.0 - excess / np.maximum(heat, 1e-9), 1.0)
+        out[..., _OUT["Q_HEAT_OFFICE"]] *= keep.astype(np.float32)
+        out[..., _OUT["Q_AHU_H"]] *= keep.astype(np.float32)
+        decay = np.exp(-1.0 / SAG_TIME_CONSTANT_H)
+        drop = np.zeros(n)
+        for h in range(cat.HOURS_PER_WEEK):
+            drop = drop * decay + sag[:, 0] * excess[:, h]
+            out[:, h, _OUT["T_INT_OFFICE"]] -= drop.astype(np.float32)
+    return out
+
+
+def sensor_temperature(temperature_c: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndarray:
+    """What the temperature sensor reads of the building's temperature ``(N, 168)`` (degC) under the
+    sensor effects (a new array)."""
+    t = np.array(temperature_c, dtype=float, copy=True)
+    n = len(t)
+    tau = _column(params, "temperature_sensor_lag", 0, n)
+    if tau is not None:
+        alpha = np.where(tau[:, 0] > 0, 1.0 - np.exp(-1.0 / np.maximum(tau[:, 0], 1e-9)), 1.0)
+        y = t[:, 0].copy()
+        for h in range(1, t.shape[1]):
+            y = y + alpha * (t[:, h] - y)
+            t[:, h] = y
+    b = _column(params, "temperature_sensor_bias", 0, n)
+    if b is not None:
+        t = t + b
+    return t

@@ -1,0 +1,405 @@
+"""Sim-to-real gap diagnosis: which unmodelled effect makes the calibrated model miss, and what adding it buys.
+
+**Procedure** (forward selection, after grey-box modelling practice: add the extension with the most
+significant gain, stop when none is significant):
+
+1. The site's weeks are split into fit weeks (the first half, as calibration does) and held-out weeks.
+   The base model (theta_build + occupancy) is calibrated on the fit weeks (or the site's own calibration is
+   reused when it was made on the same weeks without effects).
+2. For every candidate effect of :mod:`buildenv.effects` the model is extended with the effect's model-side
+   addition (:mod:`buildenv.effects_model`) and recalibrated on the fit weeks: CMA-ES warm-started at the
+   current model with the new parameters at their "no effect" values (``evaluations`` cost evaluations).
+   The control is the current model recalibrated the same way with no new effect: every candidate is
+   compared with it, so that the extra calibration effort is not credited to the effect.
+   ``holidays`` is estimated differently: the absent-day flags of each week are found by simulating the week
+   with each weekday unoccupied (one batched call) and keeping the days whose standardised squared error
+   falls by more than :data:`ABSENCE_THRESHOLD`; the held-out weeks' flags are found the same way.
+3. Each candidate is judged on the **held-out weeks** only. The residuals of both series are standardised
+   by the base model's residual standard deviations on the fit weeks and pooled; ``SSE_before`` and
+   ``SSE_after`` are their sums of squares. The score is the held-out gain ``1 - SSE_after / SSE_before``.
+   Significance: an F-test ``F = (SSE_before - SSE_after) / k / (SSE_after / (n_eff - k))`` with ``k`` the
+   new parameters (the flagged held-out days for holidays) and ``n_eff = n (1 - r1) / (1 + r1)`` the number of
+   held-out values corrected for the lag-1 autocorrelation ``r1`` of the base residuals; p-values are
+   compared with ``alpha / m`` (Bonferroni over the ``m`` candidates of the step). A candidate is selected
+   when it is significant **and** its gain reaches ``min_gain`` (a practical threshold: a calibrated model
+   that only misses by structure, with no effect injected, gains less than this from any single effect).
+4. The best selected candidate joins the model and step 2 repeats with the others, until none qualifies or
+   ``max_effects`` are in.
+
+The result names the selected effects, their estimated parameters and the held-out metrics before and after
+(:func:`buildenv.calibration.site_metrics`); with ``save=True`` the extended model becomes the site's model
+(``calibration.json`` gains ``effects``; BuildingWeek-v0 and the optimisers then simulate with them).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as dt
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy import stats
+
+from buildenv import calibration as cal
+from buildenv import catalogue as cat
+from buildenv import effects_model as em
+from buildenv import surrogate as sg
+from buildenv.effects import EFFECTS, get_effect
+
+ABSENCE_THRESHOLD = 0.5
+HOLIDAYS = "holidays"
+
+
+@dataclass
+class DiagnosisSettings:
+    """Knobs of :func:`diagnose` (defaults are the ones the benchmarks use).
+
+    Attributes:
+        candidates: effects tried (default: the whole catalogue).
+        evaluations: CMA-ES cost evaluations per candidate refit.
+        base_evaluations: CMA-ES cost evaluations of the base calibration (when it is made here).
+        alpha: family-wise significance level of a step (Bonferroni over its candidates).
+        min_gain: smallest held-out gain (share of the standardised squared error removed) to select an effect.
+        max_effects: most effects selected.
+        seed: seed of every CMA-ES run.
+        base_effects: effects the building is already known to have: in the model from the start (calibrated
+            with it), not candidates.
+    """
+
+    candidates: tuple[str, ...] = tuple(EFFECTS)
+    evaluations: int = 1500
+    base_evaluations: int = 6000
+    alpha: float = 0.05
+    min_gain: float = 0.15
+    max_effects: int = 3
+    seed: int = 0
+    base_effects: tuple[str, ...] = ()
+
+
+@dataclass
+class ModelFit:
+    """A calibrated model, possibly extended with effects.
+
+    Attributes:
+        effects: effects in the model (``holidays`` included when absent days are modelled).
+        params: physical parameters in problem order (theta, occupancy, then the non-holiday effects').
+        absent: ``(site weeks, 7)`` booleans, days predicted unoccupied.
+        cost: calibration cost on the fit weeks.
+        evaluations: cost evaluations spent on it.
+    """
+
+    effects: tuple[str, ...]
+    params: np.ndarray
+    absent: np.ndarray
+    cost: float = float("nan")
+    evaluations: int = 0
+
+    @property
+    def model_effects(self) -> tuple[str, ...]:
+        """Effects with calibrated parameters (all but holidays)."""
+        return tuple(e for e in self.effects if e != HOLIDAYS)
+
+    def effect_parameters(self) -> dict[str, dict[str, float]]:
+        """``{effect: {parameter: value}}`` in physical units (holidays: the number of absent days)."""
+        n_base = len(cal.parameter_names())
+        values = em.split_parameters(self.model_effects, self.params[None, n_base:])
+        out = {e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])}
+               for e in self.model_effects}
+        if HOLIDAYS in self.effects:
+            out[HOLIDAYS] = {"absent_days": int(self.absent.sum())}
+        return out
+
+
+@dataclass
+class _Context:
+    site: object
+    surrogate: sg.Surrogate
+    fit_weeks: list[int]
+    heldout: list[int]
+    settings: DiagnosisSettings
+    sigma: tuple[float, float] = (1.0, 1.0)  # base residual std on the fit weeks: temperature K, consumption Wh/m2
+    scale: dict = field(default_factory=dict)
+
+
+def _problem(ctx: _Context, fit: ModelFit, weeks: list[int], absent: np.ndarray | None = None) -> cal.Problem:
+    mask = fit.absent if absent is None else absent
+    return cal.build_problem(ctx.site, weeks, fit.model_effects, mask if mask.any() else None)
+
+
+def predict(ctx: _Context, fit: ModelFit, weeks: list[int]) -> tuple[np.ndarray, np.ndarray]:
+    """Sensor temperature (degC) and consumption (Wh/m2) ``(weeks, 168)`` of a model on some site weeks."""
+    return cal.predict(_problem(ctx, fit, weeks), ctx.surrogate, fit.params)
+
+
+def _standardised_errors(ctx: _Context, weeks: list[int], t: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """``(weeks, 7)`` sums of squared standardised residuals per day (both series, measured hours only)."""
+    rt = (ctx.site.temperature_c[weeks] - t) / ctx.sigma[0]
+    rq = (ctx.site.consumption_wh_m2()[weeks] - q) / ctx.sigma[1]
+    sq = np.nan_to_num(rt ** 2) + np.nan_to_num(rq ** 2)
+    return sq.reshape(len(weeks), 7, cat.HOURS_PER_DAY).sum(-1)
+
+
+def detect_absent_days(ctx: _Context, fit: ModelFit, weeks: list[int]) -> np.ndarray:
+    """``(len(weeks), 7)`` booleans: weekdays better explained unoccupied (see the module docstring).
+
+    Each week is simulated as it is and with each weekday unoccupied in turn, all in one batched call.
+    """
+    problem = _problem(ctx, fit, weeks, np.zeros((ctx.site.weeks, 7), bool))
+    n, variants = len(weeks), 1 + len(cat.WEEKDAYS)
+    absent = np.zeros((n * variants, 7), bool)
+    for d in range(len(cat.WEEKDAYS)):
+        absent[np.arange(n) * variants + 1 + d, d] = True
+    rep = {k: np.repeat(getattr(problem, k), variants, axis=0)
+           for k in ("x_base", "temperature_c", "consumption_wh_m2", "has_previous")}
+    variant = dataclasses.replace(problem, **rep, absent=absent)
+    _, t, q = cal.simulate(variant, ctx.surrogate, fit.params[None])
+    err = _standardised_errors(ctx, list(np.repeat(weeks, variants)), t[0], q[0]).reshape(n, variants, 7)
+    present = err[:, 0, :len(cat.WEEKDAYS)]
+    alone = np.stack([err[:, 1 + d, d] for d in range(len(cat.WEEKDAYS))], axis=1)
+    flags = np.zeros((n, 7), bool)
+    flags[:, :len(cat.WEEKDAYS)] = alone < (1.0 - ABSENCE_THRESHOLD) * present
+    return flags
+
+
+def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
+    """``current`` extended with ``effect`` and recalibrated on the fit weeks (warm start); ``effect=None``
+    recalibrates ``current`` alone with the same budget (the control each candidate is compared with, so
+    that the extra calibration effort is not credited to the effect)."""
+    effects = current.effects if effect is None else (*current.effects, effect)
+    absent = current.absent.copy()
+    if effect is None:
+        new = np.zeros(0)
+    elif effect == HOLIDAYS:
+        absent[ctx.fit_weeks] = detect_absent_days(ctx, current, ctx.fit_weeks)
+        new = np.zeros(0)
+    else:
+        new = em.none_parameters(effect)
+    fit = ModelFit(effects, np.concatenate([current.params, new]), absent)
+    problem = _problem(ctx, fit, ctx.fit_weeks)
+    n_old = len(current.params)
+    stds = np.concatenate([np.full(len(cal.parameter_names()), 0.25), np.full(n_old - len(cal.parameter_names()), 0.5),
+                           np.full(len(new), 1.0)])
+    params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.evaluations,
+                                       start=fit.params, stds=stds)
+    return ModelFit(effects, params, absent, info["cost"], info["evaluations"])
+
+
+def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
+    """The base model: the site's calibration when made on the fit weeks without effects, else a new one;
+    then extended with the known ``base_effects`` one by one (:func:`refit`)."""
+    calib = ctx.site.calibration or {}
+    none = np.zeros((ctx.site.weeks, 7), bool)
+    if calib and calib.get("fit_weeks") == ctx.fit_weeks and not calib.get("effects") \
+            and calib.get("catalogue_hash") == cat.catalogue_hash():
+        params = np.array([calib["theta"][n] for n in cal._free_theta()]
+                          + list(np.asarray(calib["occupancy"], float).ravel()))
+        fit = ModelFit((), params, none, float(calib.get("cost", np.nan)), 0)
+    else:
+        problem = cal.build_problem(ctx.site, ctx.fit_weeks)
+        params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
+                                           progress=progress)
+        fit = ModelFit((), params, none, info["cost"], info["evaluations"])
+    for effect in ctx.settings.base_effects:
+        fit = refit(ctx, fit, effect)
+    return fit
+
+
+def _heldout_fit(ctx: _Context, fit: ModelFit) -> ModelFit:
+    """The model with its held-out weeks' absent days detected (when it models holidays)."""
+    if HOLIDAYS not in fit.effects or not ctx.heldout:
+        return fit
+    absent = fit.absent.copy()
+    absent[ctx.heldout] = detect_absent_days(ctx, fit, ctx.heldout)
+    return dataclasses.replace(fit, absent=absent)
+
+
+def heldout_score(ctx: _Context, before: ModelFit, after: ModelFit, k: int) -> dict:
+    """Held-out gain and F-test of ``after`` against ``before`` (see the module docstring)."""
+    b, a = _heldout_fit(ctx, before), _heldout_fit(ctx, after)
+    tb, qb = predict(ctx, b, ctx.heldout)
+    ta, qa = predict(ctx, a, ctx.heldout)
+    sse_b = float(_standardised_errors(ctx, ctx.heldout, tb, qb).sum())
+    sse_a = float(_standardised_errors(ctx, ctx.heldout, ta, qa).sum())
+    if after.effects and after.effects[-1] == HOLIDAYS:
+        k = max(1, int(a.absent[ctx.heldout].sum() - b.absent[ctx.heldout].sum()))
+    r1 = _lag1(ctx, ctx.heldout, tb, qb)
+    n = int(np.isfinite(ctx.site.temperature_c[ctx.heldout]).sum() + np.isfinite(
+        ctx.site.consumption_wh_m2()[ctx.heldout]).sum())
+    n_eff = max(n * (1.0 - r1) / (1.0 + r1), k + 2.0)
+    gain = 1.0 - sse_a / sse_b if sse_b > 0 else 0.0
+    f = (sse_b - sse_a) / k / max(sse_a / (n_eff - k), 1e-12)
+    p = float(stats.f.sf(f, k, n_eff - k)) if f > 0 else 1.0
+    return {"gain": gain, "f": float(f), "p_value": p, "k": k, "n": n, "n_eff": round(float(n_eff), 1),
+            "lag1_autocorrelation": round(float(r1), 3), "sse_before": sse_b, "sse_after": sse_a,
+            "metrics_before": _metrics(ctx, b, ctx.heldout, tb, qb),
+            "metrics_after": _metrics(ctx, a, ctx.heldout, ta, qa)}
+
+
+def _lag1(ctx: _Context, weeks: list[int], t: np.ndarray, q: np.ndarray) -> float:
+    """Mean lag-1 autocorrelation of the two standardised residual series (gaps skipped)."""
+    rs = []
+    for y, p in ((ctx.site.temperature_c[weeks], t), (ctx.site.consumption_wh_m2()[weeks], q)):
+        r = (y - p).ravel()
+        a, b = r[:-1], r[1:]
+        ok = np.isfinite(a) & np.isfinite(b)
+        if ok.sum() > 2:
+            rs.append(float(np.corrcoef(a[ok], b[ok])[0, 1]))
+    return float(np.clip(np.mean(rs), 0.0, 0.99)) if rs else 0.0
+
+
+def _metrics(ctx: _Context, fit: ModelFit, weeks: list[int], t: np.ndarray, q: np.ndarray) -> dict:
+    problem = _problem(ctx, fit, weeks)
+    out = cal.score_series(problem, t, q, fit.params, ctx.scale)
+    return {k: (round(v, 5) if isinstance(v, float) else v) for k, v in out.items()}
+
+
+def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None,
+             localisation: bool = True, progress: bool = False, plot: str | Path | None = None) -> dict:
+    """Diagnose the gap between a site's measurements and its calibrated metamodel.
+
+    Args:
+        site: a :class:`buildenv.site.Site` with at least 2 weeks.
+        surrogate: the metamodel.
+        settings: :class:`DiagnosisSettings`.
+        localisation: include the residual localisation (:mod:`buildenv.gap_localise`).
+        progress: progress bar over the candidates.
+        plot: PNG path of the localisation heatmaps (none if ``None``).
+    Returns:
+        ``{"localisation", "effects": [...] ranked best first, "selected", "verdict", "steps", "model",
+        "fit_weeks", "heldout_weeks", "seconds"}``; each effect entry has ``name, score, significance,
+        heldout_before, heldout_after, parameters, selected``.
+    """
+    from tqdm import tqdm
+
+    settings = settings or DiagnosisSettings()
+    for name in (*settings.candidates, *settings.base_effects):
+        get_effect(name)
+    started = time.perf_counter()
+    if site.weeks < 2:
+        raise cal.CalibrationError(f"{site.path}: the diagnosis needs at least 2 weeks (fit + held-out)")
+    fit_weeks, heldout = cal.default_weeks(site.weeks)
+    ctx = _Context(site, surrogate, fit_weeks, heldout, settings)
+    ctx.scale = cal._scale(cal.build_problem(site, fit_weeks))
+    current = base_fit(ctx, progress)
+    t, q = predict(ctx, current, fit_weeks)
+    ctx.sigma = (float(np.nanstd(site.temperature_c[fit_weeks] - t)) or 1.0,
+                 float(np.nanstd(site.consumption_wh_m2()[fit_weeks] - q)) or 1.0)
+    base = current
+    steps: list[dict] = []
+    remaining = [e for e in settings.candidates if e not in settings.base_effects]
+    first_step: list[dict] = []
+    bar = tqdm(total=len(remaining), desc="effects", disable=not progress, leave=False)
+    while remaining and len(current.effects) - len(base.effects) < settings.max_effects:
+        trials = []
+        control = refit(ctx, current, None)
+        for name in remaining:
+            trial = refit(ctx, current, name)
+            score = heldout_score(ctx, control, trial, len(em.none_parameters(name)))
+            trials.append((name, trial, score))
+            bar.update(1)
+        threshold = settings.alpha / len(trials)
+        trials.sort(key=lambda r: -r[2]["gain"])
+        entries = [_entry(name, trial, score, threshold, settings.min_gain) for name, trial, score in trials]
+        steps.append({"model": list(current.effects), "candidates": entries})
+        if not first_step:
+            first_step = entries
+        chosen = next(((n, tr) for (n, tr, _), e in zip(trials, entries) if e["qualifies"]), None)
+        if chosen is None:
+            break
+        current = chosen[1]
+        remaining.remove(chosen[0])
+        bar.reset(total=len(remaining))
+    bar.close()
+    selected = [e for e in current.effects if e not in base.effects]
+    for e in first_step:
+        e["selected"] = e["name"] in selected
+    result = {"site": str(site.path), "fit_weeks": fit_weeks, "heldout_weeks": heldout,
+              "base_effects": list(settings.base_effects),
+              "effects": first_step, "selected": selected, "steps": steps,
+              "verdict": _verdict(selected, first_step),
+              "model": {"effects": current.effect_parameters(), "absent_days": _absent_dates(site, current),
+                        "parameters": current.params.tolist()},
+              "settings": dataclasses.asdict(settings)}
+    if selected:
+        final = heldout_score(ctx, base, current, 1)  # the whole gain of the diagnosis, against the base model
+        result["heldout_before"], result["heldout_after"] = final["metrics_before"], final["metrics_after"]
+    if localisation:
+        result["localisation"] = localise_site(ctx, base, plot)
+    result["seconds"] = round(time.perf_counter() - started, 1)
+    result["_fit"] = current  # the extended model (dropped from JSON output)
+    return result
+
+
+def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: float) -> dict:
+    significant = score["p_value"] < threshold
+    return {"name": name, "title": get_effect(name).title, "score": round(score["gain"], 4),
+            "significance": {"p_value": score["p_value"], "threshold": threshold, "f": round(score["f"], 3),
+                             "k": score["k"], "n_eff": score["n_eff"], "significant": significant,
+                             "test": "F-test on held-out standardised SSE, n corrected for lag-1 autocorrelation, "
+                                     "Bonferroni over the step's candidates"},
+            "qualifies": bool(significant and score["gain"] >= min_gain),
+            "parameters": trial.effect_parameters().get(name, {}),
+            "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"]}
+
+
+def _verdict(selected: list[str], entries: list[dict]) -> str:
+    if not selected:
+        best = entries[0] if entries else None
+        tail = f" (best candidate: {best['name']}, held-out gain {100 * best['score']:.1f} %, p = " \
+               f"{best['significance']['p_value']:.2g})" if best else ""
+        return "no significant unmodelled effect" + tail
+    return "unmodelled effect(s) found: " + ", ".join(f"{n} ({get_effect(n).title})" for n in selected)
+
+
+def _absent_dates(site, fit: ModelFit) -> list[str]:
+    return [(site.start + dt.timedelta(days=7 * int(w) + int(d))).isoformat() for w, d in zip(*np.nonzero(fit.absent))]
+
+
+def localise_site(ctx: _Context, fit: ModelFit, plot: str | Path | None = None) -> dict:
+    """Residual localisation (:func:`buildenv.gap_localise.localise`) of a model over all the site's weeks,
+    plotted into ``plot`` (a PNG path) when given."""
+    from buildenv.gap_localise import localise, plot_localisation
+    from buildenv.schedules import hourly_schedules
+
+    weeks = list(range(ctx.site.weeks))
+    t, q = predict(ctx, fit, weeks)
+    problem = _problem(ctx, fit, weeks)
+    occupied = cal.problem_occupancy(problem, fit.params)
+    _, occ = cal._split(problem, fit.params[None])
+    heating = hourly_schedules(ctx.site.settings, np.broadcast_to(occ[0], (ctx.site.weeks, *occ.shape[1:])))
+    occupied = np.asarray(occupied)
+    result = localise(ctx.site.temperature_c, ctx.site.consumption_wh_m2(), t, q, ctx.site.weather_hours(),
+                      occupied, heating["heating_comfort_on"] > 0, ctx.site.week_starts())
+    if plot is not None:
+        result["plot"] = str(plot_localisation(result, plot, ctx.site.temperature_c, ctx.site.consumption_wh_m2(),
+                                               t, q, occupied))
+    return result
+
+
+def save_extended_model(site, result: dict) -> Path | None:
+    """Make the diagnosis' extended model the site's model: ``calibration.json`` gains the selected effects.
+
+    The theta and occupancy refitted with the effects replace the calibrated ones, ``effects`` holds
+    ``{effect: {parameter: value}}`` and ``absent_days`` the dates modelled unoccupied; the previous calibration
+    is kept under ``without_effects``. Nothing is written when no effect was selected (returns None).
+    """
+    from buildenv.site import save_calibration
+
+    fit: ModelFit = result["_fit"]
+    if not result["selected"]:
+        return None
+    previous = dict(site.calibration or {})
+    previous.pop("without_effects", None)
+    theta, occ = cal._split(cal.build_problem(site, result["fit_weeks"][:1], fit.model_effects), fit.params[None])
+    extended = {**previous, "method": "cmaes+effects",
+                "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
+                "occupancy": np.round(occ[0], 3).tolist(), "effects": fit.effect_parameters(),
+                "absent_days": result["model"]["absent_days"], "fit_weeks": result["fit_weeks"],
+                "heldout_weeks": result["heldout_weeks"],
+                "diagnosis": {"selected": result["selected"], "verdict": result["verdict"]},
+                "catalogue_hash": cat.catalogue_hash(), "without_effects": previous}
+    if "heldout_after" in result:
+        extended["heldout"] = result["heldout_after"]
+    return save_calibration(site.path, extended)

@@ -1,0 +1,119 @@
+"""The model side of the effects and the gap diagnosis (attribution, JSON shape, the extended site model)."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from buildenv import calibration as cal
+from buildenv import effects_model as em
+from buildenv.env import DEFAULT_SITE
+from buildenv.effects import EFFECTS, EffectError, get_effect, parse_effect
+from buildenv.gap import DiagnosisSettings, diagnose, save_extended_model
+from buildenv.site import load_site, write_site
+from buildenv.site_model import SiteModel
+from buildenv.surrogate import load_metamodel
+
+MODEL_EFFECTS = [e for e in EFFECTS if e != "holidays"]
+
+
+@pytest.fixture(scope="module")
+def surrogate():
+    return load_metamodel()
+
+
+@pytest.fixture(scope="module")
+def calibrated():
+    """The default site, its calibrated parameters and its 6 weeks."""
+    site = load_site(DEFAULT_SITE)
+    c = site.calibration
+    params = np.array([c["theta"][n] for n in cal._free_theta()] + list(np.ravel(c["occupancy"])))
+    return site, params
+
+
+def _predict(site, surrogate, params, effects=(), values=()):
+    problem = cal.build_problem(site, [0, 1], tuple(effects))
+    return cal.simulate(problem, surrogate, np.concatenate([params, *values])[None])
+
+
+def test_catalogue_lists_the_eight_effects_with_magnitudes_and_parameters():
+    assert set(EFFECTS) >= {"wind_infiltration", "temperature_sensor_bias", "temperature_sensor_lag", "holidays",
+                            "night_plug_loads", "solar_shading", "heating_capacity_limit", "heat_recovery"}
+    for e in EFFECTS.values():
+        lo, hi = e.magnitude_range
+        assert lo < hi and e.kind in ("energyplus", "sensor") and e.series
+        for p in e.parameters:
+            assert p.lo <= p.none <= p.hi
+    assert parse_effect("temperature_sensor_bias=2")[1] == 2.0
+    with pytest.raises(EffectError, match="did you mean temperature_sensor_bias"):
+        get_effect("temperature_sensor_bais")
+    with pytest.raises(EffectError, match="outside"):
+        parse_effect("heat_recovery=150")
+
+
+def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):
+    site, params = calibrated
+    base = _predict(site, surrogate, params)
+    extended = _predict(site, surrogate, params, MODEL_EFFECTS, [em.none_parameters(e) for e in MODEL_EFFECTS])
+    for a, b in zip(base, extended):
+        np.testing.assert_array_equal(a, b)
+
+
+@pytest.mark.parametrize("name, values, check", [
+    ("temperature_sensor_bias", [1.5], lambda d: np.allclose(d["t"], 1.5, atol=1e-5) and np.all(d["q"] == 0)),
+    ("temperature_sensor_lag", [2.0], lambda d: np.abs(d["t"]).max() > 0.2 and np.all(d["q"] == 0)),
+    ("night_plug_loads", [3.0], lambda d: np.isclose(d["q"].max(), 3.0, atol=1e-3) and d["q"].min() >= 0),
+    ("wind_infiltration", [0.05], lambda d: d["q"].sum() > 0 and d["t"].mean() < 0),
+    ("solar_shading", [0.6], lambda d: d["t"].mean() < 0),
+    ("heating_capacity_limit", [15.0, 0.05], lambda d: d["q"].max() <= 1e-4 and d["q"].min() < 0 and d["t"].min() < 0),
+    ("heat_recovery", [0.7], lambda d: d["q"].max() <= 1e-4 and d["q"].sum() < 0),
+])
+def test_each_effect_moves_the_prediction_the_expected_way(calibrated, surrogate, name, values, check):
+    site, params = calibrated
+    _, t0, q0 = _predict(site, surrogate, params)
+    _, t1, q1 = _predict(site, surrogate, params, [name], [np.array(values, float)])
+    assert check({"t": t1 - t0, "q": q1 - q0})
+
+
+def _biased_site(tmp_path, bias_k: float, weeks: int = 2):
+    """The default site's first weeks with a temperature sensor reading ``bias_k`` high."""
+    src = load_site(DEFAULT_SITE)
+    write_site(tmp_path, name="biased", weather=src.weather, start=src.start, floor_area_m2=src.floor_area_m2,
+               number_of_floors=src.number_of_floors, settings=src.settings[:weeks],
+               temperature_c=src.temperature_c[:weeks] + bias_k, consumption_kwh=src.consumption_kwh[:weeks])
+    return load_site(tmp_path)
+
+
+def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tmp_path, surrogate):
+    site = _biased_site(tmp_path, 2.0)
+    settings = DiagnosisSettings(candidates=("temperature_sensor_bias", "solar_shading"), evaluations=300,
+                                 base_evaluations=800, max_effects=1)
+    result = diagnose(site, surrogate, settings, plot=tmp_path / "diagnosis.png")
+    assert result["selected"] == ["temperature_sensor_bias"]
+    first = result["effects"][0]
+    assert first["name"] == "temperature_sensor_bias" and first["significance"]["significant"]
+    assert 1.0 < first["parameters"]["bias_k"] < 3.0
+    assert first["heldout_after"]["rmse_t_celsius"] < 0.8 * first["heldout_before"]["rmse_t_celsius"]
+    assert {"localisation", "effects", "selected", "verdict"} <= set(result)
+    assert (tmp_path / "diagnosis.png").stat().st_size > 0
+    saved = save_extended_model(site, result)
+    result.pop("_fit")
+    json.dumps(result, default=float)
+    calibration = json.loads(saved.read_text())
+    assert calibration["effects"]["temperature_sensor_bias"]["bias_k"] == first["parameters"]["bias_k"]
+
+
+def test_site_model_simulates_the_building_effects_found(calibrated, surrogate, tmp_path):
+    site, _ = calibrated
+    model = SiteModel.from_site(site, surrogate)
+    assert model.effects == {}
+    settings = np.repeat(model.historical[None], 2, axis=0)
+    plain = model.simulate(settings, np.array([45, 46]))
+    model.effects = {"heat_recovery": np.array([[0.7]]), "temperature_sensor_bias": np.array([[2.0]])}
+    extended = model.simulate(settings, np.array([45, 46]))
+    ahu = list(em.cat.OUTPUT_NAMES).index("Q_AHU_H")
+    assert extended[..., ahu].sum() < plain[..., ahu].sum()
+    t = list(em.cat.OUTPUT_NAMES).index("T_INT_OFFICE")
+    np.testing.assert_allclose(extended[..., t], plain[..., t], atol=1e-4)  # a sensor effect is not the building

@@ -233,6 +233,9 @@ def build_parser() -> argparse.ArgumentParser:
     from buildenv.cli_gap import register as register_gap
 
     register_gap(sub)
+    from buildenv.cli_effects import register as register_effects
+
+    register_effects(sub)
     for plugin in sorted(entry_points(group="buildenv.commands"), key=lambda e: e.name):
         plugin.load()(sub)  # e.g. `optimize` and `demo` from the agents package
     return parser

@@ -8,10 +8,11 @@ from pathlib import Path
 
 
 def _settings(args: argparse.Namespace):
-    from buildenv.effects import EFFECTS
+    from buildenv.effects import EFFECTS, get_effect
     from buildenv.gap import DiagnosisSettings
 
-    candidates = tuple(args.candidates.split(",")) if args.candidates else tuple(EFFECTS)
+    candidates = tuple(get_effect(e.strip()).name for e in args.candidates.split(",")) if args.candidates \
+        else tuple(EFFECTS)
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain,
                              max_effects=args.max_effects, seed=args.seed,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))

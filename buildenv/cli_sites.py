@@ -40,14 +40,32 @@ def _parse_map(items: list[str]):
     return ScheduleMap(**mapping)
 
 
+def parse_effects(items: list[str]) -> list[tuple[str, float]]:
+    """``--effect NAME[=MAGNITUDE]`` values -> ``[(name, magnitude)]``; raises :class:`~buildenv.effects.EffectError`
+    (one line) for an unknown effect, a bad magnitude or an effect given twice."""
+    from buildenv.effects import EffectError, parse_effect
+
+    effects = [(e.name, m) for e, m in (parse_effect(item) for item in items)]
+    names = [n for n, _ in effects]
+    twice = sorted({n for n in names if names.count(n) > 1})
+    if twice:
+        raise EffectError(f"--effect {', '.join(twice)} given more than once")
+    return effects
+
+
 def _cmd_site_reference(args: argparse.Namespace) -> int:
     from buildenv.reference import make_reference_site
 
     start = parse_start(args.start, args.year)
+    effects = parse_effects(args.effect)
     path = make_reference_site(args.out, args.building, args.epw, start, args.weeks, seed=args.seed,
-                               floors=args.floors, schedule_map=_parse_map(args.map))
-    print(json.dumps({"site": str(path), "building": args.building, "weather": args.epw, "start": str(start),
-                      "weeks": args.weeks}))
+                               floors=args.floors, schedule_map=_parse_map(args.map), effects=effects,
+                               effect_seed=args.effect_seed)
+    info = {"site": str(path), "building": args.building, "weather": args.epw, "start": str(start),
+            "weeks": args.weeks}
+    if effects:
+        info["effects"] = [{"name": n, "magnitude": m} for n, m in effects]
+    print(json.dumps(info))
     return 0
 
 
@@ -102,6 +120,10 @@ def register(sub) -> None:
     p.add_argument("--map", action="append", default=[], metavar="ROLE=SCHEDULE",
                    help="schedules of a user IDF to replace: heating_setpoint, cooling_setpoint, "
                         "hvac_availability, outdoor_air (all four)")
+    p.add_argument("--effect", action="append", default=[], metavar="NAME[=MAGNITUDE]",
+                   help="inject an unmodelled effect (repeatable; `buildenv effects` lists them; the truth goes "
+                        "to truth.json)")
+    p.add_argument("--effect-seed", type=int, default=0, help="seed of the effects' random choices (holiday dates)")
     p.add_argument("--out", required=True, help="site folder to write")
     p.set_defaults(func=_cmd_site_reference)
     p = site_sub.add_parser("show", help="summarise a site folder (validates it)")

@@ -13,6 +13,12 @@ Each :class:`Effect` is defined once here and read by both sides of the gap diag
 Magnitudes from practice: NREL's fault models for buildings (thermostat bias up to +-3 K, excess
 infiltration, HVAC start delays), field studies of plug loads left on out of hours, and typical ranges of
 air-to-air heat recovery effectiveness and interior blinds' shading coefficients.
+
+``heating_capacity_limit``'s range was (30, 70) % and is (25, 50) %, default 40 %: the stand-in's design
+capacity (design-day sizing with a 1.33 factor, VAV reheat coils sized by their minimum air flow) is about
+twice what a Chicago November needs. Measured on medium_office, Chicago, 4 weeks from 2019-11-04: at 70 % the
+cap binds in almost no hour (peak consumption -5 %, occupied temperature unchanged: below the sensor noise);
+at 50 % the peak falls 10 % and the coldest occupied hour 0.7 K; at 30 % 29 % and 3.3 K.
 """
 
 from __future__ import annotations
@@ -130,7 +136,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
     Effect("heating_capacity_limit", "heating capacity limit",
            "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
            "the setpoint, so consumption plateaus and the temperature sags.",
-           "energyplus", "% of the design heating capacity available", (30.0, 70.0), 50.0,
+           "energyplus", "% of the design heating capacity available", (25.0, 50.0), 40.0,
            ("consumption", "temperature"),
            (ModelParameter("capacity_w_m2", "W/m2", 5.0, 150.0, 150.0,
                            "largest heating power (zone + air handling unit) the plant delivers"),

@@ -55,10 +55,12 @@ def draw_magnitude(name: str, rng: np.random.Generator) -> float:
     return float(rng.uniform(lo, hi))
 
 
-def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = ()) -> list[dict]:
-    """The cases of a check: label, magnitude, first Monday and seeds, all from ``seed``."""
+def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tuple[str, ...] | None = None
+               ) -> list[dict]:
+    """The cases of a check: label, magnitude, first Monday and seeds, all from ``seed``; labels cycle through
+    "none" and ``effects`` (default: the whole catalogue) less ``exclude``."""
     rng = np.random.default_rng(seed)
-    labels = [NONE] + [e for e in EFFECTS if e not in exclude]
+    labels = [NONE] + [e for e in (effects or EFFECTS) if e not in exclude]
     order = list(rng.permutation(labels))
     mondays = (FIRST_MONDAYS[1] - FIRST_MONDAYS[0]).days // 7 + 1
     plan = []
@@ -167,7 +169,7 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
 
 def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: DiagnosisSettings | None = None,
               building: str = "medium_office", epw: str = "usa_il_chicago", base_effects: str | list[str] = "auto",
-              progress: bool = False) -> dict:
+              effects: tuple[str, ...] | None = None, progress: bool = False) -> dict:
     """Run (or resume) a blind check and summarise it.
 
     Args:
@@ -178,6 +180,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         settings: diagnosis settings (``base_effects`` is set from ``base_effects``).
         building, epw: the reference building and weather of every case.
         base_effects: ``"auto"`` (diagnose a clean reference site first), or a list of known effects.
+        effects: the effects injected (default: the whole catalogue).
         progress: progress bar over cases.
     Returns:
         ``{"summary": ..., "cases": [...], "base_effects": [...], "plan": {...}}``.
@@ -193,7 +196,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
     known = (known_effects(out, surrogate, settings, building, epw) if base_effects == "auto"
              else [get_effect(e).name for e in base_effects])
     settings = DiagnosisSettings(**{**settings.__dict__, "base_effects": tuple(known)})
-    plan = plan_cases(cases, seed, tuple(known))
+    plan = plan_cases(cases, seed, tuple(known), effects)
     rows = []
     for case in tqdm(plan, desc="blind cases", disable=not progress):
         path = out / f"case_{case['case']:03d}.json"
@@ -205,7 +208,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         row = run_case(out, case, surrogate, settings, building, epw)
         path.write_text(json.dumps(row, indent=1, default=float) + "\n")
         rows.append(row)
-    labels = [NONE] + [e for e in EFFECTS if e not in known]
+    labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]
     return {"summary": summarise(rows, labels), "cases": rows, "base_effects": known,
             "plan": {"cases": cases, "seed": seed, "building": building, "epw": epw, "weeks": WEEKS,
                      "settings": {k: v for k, v in settings.__dict__.items() if k != "candidates"}}}

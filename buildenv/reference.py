@@ -24,8 +24,12 @@ Schedules are re-pointed, not rewritten: every field that named the reference's 
 instead (EMS programs of the ASHRAE 90.1 models that actuate the old schedules then act on nothing). The
 reference's occupancy, lighting and equipment schedules, constructions and systems are untouched. Public
 holidays and daylight-saving time are removed (sensor clocks run in standard time; holidays are an effect
-of their own, see the gap diagnosis). The run starts ``warmup_weeks`` before the first measured week so that
+of their own, see below). The run starts ``warmup_weeks`` before the first measured week so that
 the measured weeks start from a lived-in thermal state.
+
+**Unmodelled effects** (``effects=[(name, magnitude), ...]``, the catalogue :mod:`buildenv.effects`) are put
+in by :mod:`buildenv.effects_inject`: model edits after the schedules are re-pointed, sensor effects on the
+true temperature before the noise. Without effects the model and the readings are exactly those above.
 
 **How it is read** (the paper's two sensors): the occupied-zone mean air temperature (floor-area weighted
 over zones with people, zone multipliers counted) and the heat consumption = heat delivered by all heating
@@ -44,13 +48,16 @@ from __future__ import annotations
 
 import datetime as dt
 import tempfile
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.defaults import DEFAULT_DAY_SETTINGS, default_week
+from buildenv.effects_inject import InjectedEffect, inject_energyplus, plan_effects, sensor_effect_series
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.runner import clean_outputs, run_energyplus
 from buildenv.errors import ReferenceBuildingError
@@ -93,6 +100,8 @@ class ReferenceRun:
     floor_area_m2: float  # occupied (people-bearing) floor area, multipliers counted
     zones: list[str]  # zones averaged into the temperature
     hvac_kwh: np.ndarray | None = None  # (weeks, 168) heat delivered by heating coils + cooling coils per hour
+    warmup_temperature_c: np.ndarray | None = None  # (warmup_weeks*168,) true temperature of the warm-up hours
+    effects: list[dict[str, Any]] = field(default_factory=list)  # injected effects, truth.json entries
 
 
 def reference_idf(building: str | Path) -> Path:
@@ -134,8 +143,14 @@ def _schedule_columns(settings: np.ndarray) -> dict[str, np.ndarray]:
 
 
 def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdir: Path,
-                  schedule_map: ScheduleMap | None = None) -> tuple[Path, ScheduleMap]:
+                  schedule_map: ScheduleMap | None = None, effects: Sequence[InjectedEffect] = (),
+                  epw: Path | None = None) -> tuple[Path, ScheduleMap]:
     """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
+
+    ``effects`` (planned with :func:`buildenv.effects_inject.plan_effects`): the ``kind="energyplus"`` ones
+    are injected into the model (:func:`buildenv.effects_inject.inject_energyplus`); none gives the model of
+    a run without effects, unchanged. ``epw`` (an EPW path) is needed by ``heating_capacity_limit``, whose
+    design capacities come from a sizing run in ``workdir/sizing``.
 
     Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule.
     """
@@ -187,9 +202,27 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
                ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
                ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
                ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29]
+    if any(e.active and e.effect.kind == "energyplus" for e in effects):
+        edited = inject_energyplus(edited, effects, source.stem, sizing=_sizing_run(source, workdir, epw))
     idf = workdir / f"{source.stem}_buildenv.idf"
     idf.write_text(format_idf(edited))
     return idf, mapping
+
+
+def _sizing_run(source: Path, workdir: Path, epw: Path | None):
+    """A callback running the sizing of a model in ``workdir/sizing``; returns its ``eplusout.eio``."""
+
+    def size(objects: list[IdfObject]) -> Path:
+        if epw is None:
+            raise ReferenceBuildingError(f"{source.stem}: a sizing run needs the weather file (prepare_model(epw=))")
+        folder = workdir / "sizing"
+        folder.mkdir(parents=True, exist_ok=True)
+        idf = folder / f"{source.stem}_sizing.idf"
+        idf.write_text(format_idf(objects))
+        run_energyplus(idf, epw, folder, label=f"{source.stem} sizing")
+        return folder / "eplusout.eio"
+
+    return size
 
 
 def zone_areas(eio: Path) -> dict[str, float]:
@@ -240,12 +273,14 @@ def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int) 
     skip = warmup_weeks * cat.HOURS_PER_WEEK
     shape = (weeks, cat.HOURS_PER_WEEK)
     return ReferenceRun(temperature[skip:].reshape(shape), consumption[skip:].reshape(shape),
-                        float(sum(areas[z.upper()] for z in zones)), zones, hvac[skip:].reshape(shape))
+                        float(sum(areas[z.upper()] for z in zones)), zones, hvac[skip:].reshape(shape),
+                        warmup_temperature_c=temperature[:skip].copy())
 
 
 def run_reference(building: str | Path, epw: str | Path, start: dt.date, settings: np.ndarray,
-                  warmup_weeks: int = 1, workdir: Path | None = None,
-                  schedule_map: ScheduleMap | None = None) -> ReferenceRun:
+                  warmup_weeks: int = 1, workdir: Path | None = None, schedule_map: ScheduleMap | None = None,
+                  effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
+                  effect_seed: int = 0) -> ReferenceRun:
     """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
 
     Args:
@@ -256,6 +291,10 @@ def run_reference(building: str | Path, epw: str | Path, start: dt.date, setting
         warmup_weeks: weeks simulated before ``start`` and discarded.
         workdir: where EnergyPlus runs (temporary if ``None``); its outputs are deleted afterwards.
         schedule_map: schedules to replace (detected from the model if ``None``).
+        effects: unmodelled effects to inject, ``(name, magnitude or None for the default)`` pairs (see
+            :mod:`buildenv.effects_inject`); the sensor effects act on the returned ``temperature_c`` (before
+            noise), ``hvac_kwh`` and ``warmup_temperature_c`` stay true. Recorded in ``ReferenceRun.effects``.
+        effect_seed: seed of the effects' random choices (holiday dates).
     """
     if start.weekday() != 0:
         raise ReferenceBuildingError(f"start {start} is a {start.strftime('%A')}; measured weeks start on a Monday")
@@ -264,13 +303,17 @@ def run_reference(building: str | Path, epw: str | Path, start: dt.date, setting
     source = reference_idf(building)
     full = np.concatenate([np.repeat(settings[:1], warmup_weeks, axis=0), settings])
     first_day = start - dt.timedelta(weeks=warmup_weeks)
+    planned = plan_effects(effects, start, len(settings), effect_seed)
     with tempfile.TemporaryDirectory(prefix="buildenv-ref-") as tmp:
         work = Path(workdir) if workdir else Path(tmp)
-        idf, _ = prepare_model(source, full, first_day, work, schedule_map)
+        weather = resolve_epw(epw)
+        idf, _ = prepare_model(source, full, first_day, work, schedule_map, effects=planned, epw=weather)
         occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
-        run_energyplus(idf, resolve_epw(epw), work, label=source.stem)
+        run_energyplus(idf, weather, work, label=source.stem)
         result = read_sensors(work, occupied, len(settings), warmup_weeks)
         clean_outputs(work, keep=("eplusout.err",))
+    result.temperature_c = sensor_effect_series(result.temperature_c, result.warmup_temperature_c, planned)
+    result.effects = [e.truth() for e in planned]
     return result
 
 
@@ -291,7 +334,9 @@ def historical_settings(weeks: int) -> np.ndarray:
 
 def make_reference_site(out: str | Path, building: str | Path = "medium_office", epw: str | Path = "usa_il_chicago",
                         start: dt.date = dt.date(2019, 11, 4), weeks: int = 4, settings: np.ndarray | None = None,
-                        seed: int = 0, floors: int | None = None, schedule_map: ScheduleMap | None = None) -> Path:
+                        seed: int = 0, floors: int | None = None, schedule_map: ScheduleMap | None = None,
+                        effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
+                        effect_seed: int = 0) -> Path:
     """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.site`).
 
     Args:
@@ -304,6 +349,10 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
         seed: seed of the sensor noise.
         floors: storeys (known geometry); taken from :data:`REFERENCE_BUILDINGS` for shipped buildings.
         schedule_map: schedules to replace (detected if ``None``).
+        effects: unmodelled effects to inject, ``(name, magnitude or None for the default)`` pairs (see
+            :mod:`buildenv.effects_inject`); written to ``truth.json`` as ``{"name", "magnitude", "unit",
+            "details"}`` entries, never to ``site.toml`` (the diagnosis must find them blind).
+        effect_seed: seed of the effects' random choices (holiday dates).
     """
     from buildenv.site import write_site
 
@@ -312,7 +361,8 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
             raise ReferenceBuildingError(f"{building}: give the number of floors of a user IDF (--floors)")
         floors = REFERENCE_BUILDINGS[str(building)][1]
     settings = historical_settings(weeks) if settings is None else np.asarray(settings, float)
-    run = run_reference(building, epw, start, settings, schedule_map=schedule_map)
+    run = run_reference(building, epw, start, settings, schedule_map=schedule_map, effects=effects,
+                        effect_seed=effect_seed)
     temperature, consumption = add_sensor_noise(run, seed)
     source = {"kind": "reference building stand-in", "building": str(building),
               "idf": reference_idf(building).name, "weather": str(epw), "seed": seed,
@@ -323,4 +373,4 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
     return write_site(out, name=f"{building} in {epw} (reference-building stand-in)", weather=str(epw), start=start,
                       floor_area_m2=round(run.floor_area_m2, 1), number_of_floors=int(floors), settings=settings,
                       temperature_c=temperature, consumption_kwh=consumption, source=source,
-                      truth={"building": str(building), "effects": []})
+                      truth={"building": str(building), "effects": run.effects})

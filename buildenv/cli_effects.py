@@ -1,0 +1,48 @@
+"""``buildenv effects``: list the catalogue of unmodelled effects (:mod:`buildenv.effects`).
+
+The ``--effect`` / ``--effect-seed`` options of ``buildenv site reference`` (which inject them into the
+reference-building stand-in, :mod:`buildenv.effects_inject`) are defined in :mod:`buildenv.cli_sites`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+from typing import Any
+
+
+def catalogue_rows() -> list[dict[str, Any]]:
+    """One JSON-ready row per effect: name, title, kind, magnitude unit, practice range, default, injection
+    limits, no-effect magnitude, series and the model-side parameters."""
+    from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
+
+    return [{"name": e.name, "title": e.title, "kind": e.kind, "magnitude_unit": e.magnitude_unit,
+             "magnitude_range": list(e.magnitude_range), "default_magnitude": e.default_magnitude,
+             "injection_limits": list(INJECTION_LIMITS[e.name]), "no_effect_magnitude": NO_EFFECT_MAGNITUDE[e.name],
+             "series": list(e.series), "model": e.model,
+             "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
+                             "description": p.description} for p in e.parameters]}
+            for e in EFFECTS.values()]
+
+
+def _cmd_effects(args: argparse.Namespace) -> int:
+    rows = catalogue_rows()
+    if args.json:
+        print(json.dumps(rows))
+        return 0
+    for r in rows:
+        lo, hi = r["magnitude_range"]
+        params = ", ".join(f"{p['name']} [{p['unit']}] {p['lo']:g}..{p['hi']:g}" for p in r["parameters"]) or "-"
+        print(f"{r['name']}  ({r['title']}; {r['kind']})\n"
+              f"    magnitude: {lo:g} to {hi:g} {r['magnitude_unit']} in practice, default {r['default_magnitude']:g}\n"
+              f"    shows in: {', '.join(r['series'])}\n"
+              f"    model side: {params}")
+    print("\ninject with: buildenv site reference --out SITE --effect NAME[=MAGNITUDE] [--effect-seed N]")
+    return 0
+
+
+def register(sub) -> None:
+    """Add the ``effects`` subcommand to the main parser's subparsers."""
+    p = sub.add_parser("effects", help="list the unmodelled effects (gap diagnosis catalogue)")
+    p.add_argument("--json", action="store_true", help="one-line JSON")
+    p.set_defaults(func=_cmd_effects)

@@ -1,0 +1,475 @@
+"""Injection side of the effects catalogue: put an unmodelled effect into the reference-building stand-in.
+
+The stand-in (:mod:`buildenv.reference`) is a DOE reference office run in EnergyPlus and read like two
+sensors. Each effect of :mod:`buildenv.effects` is put into it at a ``magnitude`` (in the effect's
+:attr:`~buildenv.effects.Effect.magnitude_unit`) in one of two ways:
+
+**EnergyPlus edits** (``kind="energyplus"``, :func:`inject_energyplus`, applied to the IDF objects after
+:func:`buildenv.reference.prepare_model` has re-pointed the BMS schedules):
+
+- ``wind_infiltration`` (% of the design infiltration added per m/s of wind): every
+  ``ZoneInfiltration:DesignFlowRate`` computes ``I = I_design x F_schedule x (A + B |T_zone - T_out| + C v +
+  D v^2)`` with ``v`` the local wind speed (m/s, at the zone's height); the injection adds ``magnitude / 100``
+  to the velocity coefficient ``C`` (field 11). The New2004 offices have ``A = 1, C = 0`` (no wind term), the
+  STD2019 ones ``A = 0, C = 0.224``; both gain the same share of design flow per m/s.
+- ``holidays`` (absent weekdays): ``RunPeriodControl:SpecialDays`` of type ``Holiday`` on ``magnitude`` weekdays
+  drawn (seeded) among the measured weekdays, at least one in the first ``ceil(weeks / 2)`` weeks (the
+  default calibration weeks) and one in the others when ``magnitude >= 2`` and ``weeks >= 2``. On a holiday
+  the occupants' schedules (those of ``People``, ``Lights`` and ``ElectricEquipment``) take their Sunday
+  values (nobody in: occupancy 0, the lights' and plug loads' night base), every other ``Schedule:Compact``
+  (infiltration, water use, ...) takes its Monday values, so only the occupants are absent; the BMS
+  schedules are ``Schedule:File`` and ignore day types (the BMS keeps its weekday programme). Schedules of
+  other types keep their own Holiday values (the shipped offices only use ``Schedule:Compact``).
+- ``night_plug_loads`` (W/m2 outside occupied hours): one extra ``ElectricEquipment`` per ``People`` object
+  (same zone or zone list, ``magnitude`` W/m2, radiant fraction 0.5 like the reference's plug loads, end-use
+  subcategory ``NightPlugLoads``, so it is metered in ``InteriorEquipment:Electricity`` that the sensor reads)
+  on the complement of the occupancy schedule, ``1 - occupancy fraction`` (a ``Schedule:Compact`` copy of
+  the People schedule with every value ``v`` replaced by ``1 - v``): the full load at night, on weekends and
+  holidays, a small share at peak occupancy.
+- ``solar_shading`` (% of the solar gains blocked): the solar heat gain coefficient of every
+  ``WindowMaterial:SimpleGlazingSystem`` is multiplied by ``1 - magnitude / 100`` (U-factor kept; a blind
+  drawn all the time, like the model side's scaling of every irradiance input). Models with layered glazing
+  raise :class:`~buildenv.errors.ReferenceBuildingError`. In the VAV-reheat offices the zones are colder in
+  sunny hours but the consumption can fall as well as rise: less solar gain also means less cooling air, so
+  less air for the terminals to reheat (medium office, first November week: -1.9 % at 90 %; four weeks: +2.9 %
+  at 50 %).
+- ``heating_capacity_limit`` (% of the design heating capacity available): every heating coil and boiler
+  (``Coil:Heating:Electric``, ``Coil:Heating:Fuel``, ``Coil:Heating:DX:SingleSpeed``, ``Boiler:HotWater``) is
+  hard-sized to ``magnitude / 100`` of its design capacity. The design capacities come from a sizing run of
+  the model (sizing calculations only, no simulated period, about a second; the ``sizing`` callback of
+  :func:`inject_energyplus`); capacities the model gives as numbers are scaled directly. Scaling the heating
+  sizing factor of ``Sizing:Parameters`` instead does not work for these offices: the VAV terminals' reheat
+  coils are sized from their minimum air flow and the 50 degC heating supply temperature, and the air
+  handling unit's furnace from its outdoor air, not from the zone heating loads (measured: the core and
+  furnace capacities did not change, the week's peak heating fell by 1 %). Air flows and every other size
+  are unchanged.
+- ``heat_recovery`` (% sensible effectiveness): a sensible ``HeatExchanger:AirToAir:SensibleAndLatent`` (plate,
+  latent effectiveness 0, same effectiveness in cooling, no frost control) is put on every air loop's outdoor-air
+  system, upstream of the ``OutdoorAir:Mixer``: supply side outdoor-air inlet -> new node -> the mixer's
+  outdoor-air stream; exhaust side the mixer's relief node -> new node. When the mixed-air node has a
+  setpoint, a ``SetpointManager:OutdoorAirPretreat`` on the exchanger's outlet keeps it from overheating the
+  mixed air (outlet temperature control with bypass, as in the DOE hospital) and the exchanger is not locked
+  out by the economizer: the offices' ``DifferentialDryBulb`` economizers count as active whenever the outdoor
+  air is colder than the return air, and a locked-out exchanger recovered nothing at all (measured); with the
+  outlet control it takes over the air handling unit's heating of the cold outdoor air. Without a mixed-air
+  setpoint the exchanger runs uncontrolled with economizer lockout. An outdoor-air system without a mixer or
+  with an exchanger already raises :class:`~buildenv.errors.ReferenceBuildingError`.
+
+**Sensor post-processing** (``kind="sensor"``, :func:`apply_sensor_effects`, on the noise-free hourly
+occupied-zone mean temperature, warm-up weeks included, before the sensor noise is added):
+
+- ``temperature_sensor_bias`` (K): the reading is the truth + ``magnitude``.
+- ``temperature_sensor_lag`` (h): a first-order lag of time constant ``tau = magnitude``, in the discrete
+  hourly form ``y_t = y_{t-1} + (1 - exp(-1 / tau)) (x_t - y_{t-1})`` (the model side's form, exact for a step
+  at the hour boundary and an end-of-hour reading), started at ``y_0 = x_0`` on the first warm-up hour so that
+  the measured weeks start from a settled sensor.
+
+An effect at its :data:`~buildenv.effects.NO_EFFECT_MAGNITUDE` changes nothing: it is recorded in the truth
+but not injected, so the run is bit-identical to one without it.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from buildenv.effects import NO_EFFECT_MAGNITUDE, Effect, EffectError, get_effect
+from buildenv.energyplus.idf import IdfObject, of_type, without
+from buildenv.errors import ReferenceBuildingError
+
+WEEKDAYS_PER_WEEK = 5
+HOURS_PER_WEEK = 168
+NIGHT_PLUG_SUBCATEGORY = "NightPlugLoads"
+_DAY_TOKENS = {"monday": ("monday", "weekdays", "alldays"), "sunday": ("sunday", "weekends", "alldays")}
+_HOLIDAY_TOKENS = ("holiday", "holidays")
+
+
+@dataclass(frozen=True)
+class InjectedEffect:
+    """An effect planned for injection: name, magnitude and the details fixed when planning.
+
+    Attributes:
+        name: effect name (a key of :data:`buildenv.effects.EFFECTS`).
+        magnitude: injected magnitude, in the effect's ``magnitude_unit``.
+        details: what the injection chose, JSON-ready: ``{"dates": [...]}`` for holidays (fixed when planning);
+            ``heating_capacity_limit`` adds ``design_capacity_kw`` and ``available_capacity_kw`` when injected.
+    """
+
+    name: str
+    magnitude: float
+    details: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def effect(self) -> Effect:
+        """The catalogue entry."""
+        return get_effect(self.name)
+
+    @property
+    def active(self) -> bool:
+        """False at the effect's no-effect magnitude (then nothing is injected)."""
+        return self.magnitude != NO_EFFECT_MAGNITUDE[self.name]
+
+    def truth(self) -> dict[str, Any]:
+        """The ``truth.json`` entry: ``{"name", "magnitude", "unit", "details"}``."""
+        return {"name": self.name, "magnitude": self.magnitude, "unit": self.effect.magnitude_unit,
+                "details": dict(self.details)}
+
+
+def plan_effects(effects: Sequence[tuple[str | Effect, float | None] | InjectedEffect] | None, start: dt.date,
+                 weeks: int, seed: int = 0) -> list[InjectedEffect]:
+    """Check the requested effects and fix their random choices.
+
+    Args:
+        effects: ``(name or Effect, magnitude or None for the default)`` pairs, or already planned effects
+            (passed through).
+        start: Monday of the first measured week.
+        weeks: number of measured weeks.
+        seed: seed of the random choices (the holiday dates).
+
+    Returns:
+        One :class:`InjectedEffect` per effect, in the order given. Raises :class:`EffectError` for an
+        unknown effect, a magnitude outside :data:`buildenv.effects.INJECTION_LIMITS`, a repeated effect or
+        more holidays than measured weekdays.
+    """
+    planned: list[InjectedEffect] = []
+    for item in effects or ():
+        if isinstance(item, InjectedEffect):
+            get_effect(item.name).check_magnitude(item.magnitude)
+            planned.append(item)
+            continue
+        name, magnitude = item
+        effect = name if isinstance(name, Effect) else get_effect(str(name))
+        value = effect.default_magnitude if magnitude is None else effect.check_magnitude(float(magnitude))
+        details: dict[str, Any] = {}
+        if effect.name == "holidays":
+            details["dates"] = [d.isoformat() for d in choose_holidays(int(_whole(value, effect)), start, weeks,
+                                                                        seed)]
+        planned.append(InjectedEffect(effect.name, float(value), details))
+    names = [p.name for p in planned]
+    repeated = sorted({n for n in names if names.count(n) > 1})
+    if repeated:
+        raise EffectError(f"effect {', '.join(repeated)} given more than once; give each effect once")
+    return planned
+
+
+def _whole(value: float, effect: Effect) -> float:
+    if value != round(value):
+        raise EffectError(f"effect {effect.name}: magnitude {value:g} is not a whole number of days")
+    return value
+
+
+def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0) -> list[dt.date]:
+    """``count`` distinct measured weekdays drawn with ``seed`` (sorted).
+
+    With ``count >= 2`` and ``weeks >= 2`` one lies in the first ``ceil(weeks / 2)`` weeks (the default
+    calibration weeks) and one in the later weeks. Raises :class:`EffectError` if ``count`` exceeds the
+    ``5 x weeks`` measured weekdays.
+    """
+    days = [start + dt.timedelta(days=7 * w + d) for w in range(weeks) for d in range(WEEKDAYS_PER_WEEK)]
+    if count > len(days):
+        raise EffectError(f"effect holidays: {count} absent weekdays but only {len(days)} measured weekdays "
+                          f"in {weeks} week(s); give at most {len(days)}")
+    if count <= 0:
+        return []
+    rng = np.random.default_rng(seed)
+    half = math.ceil(weeks / 2) * WEEKDAYS_PER_WEEK
+    chosen: list[int] = []
+    if count >= 2 and weeks >= 2:
+        chosen = [int(rng.integers(half)), int(half + rng.integers(len(days) - half))]
+    rest = [i for i in range(len(days)) if i not in chosen]
+    chosen += [int(i) for i in rng.choice(rest, size=count - len(chosen), replace=False)]
+    return sorted(days[i] for i in chosen)
+
+
+# --- EnergyPlus edits ------------------------------------------------------------------------------------------
+
+
+def inject_energyplus(objects: list[IdfObject], effects: Sequence[InjectedEffect], building: str = "model",
+                      sizing: Callable[[list[IdfObject]], Path] | None = None) -> list[IdfObject]:
+    """The IDF objects with every active ``kind="energyplus"`` effect injected (see the module docstring).
+
+    Args:
+        objects: IDF objects of a complete model (not modified; edited copies are returned).
+        effects: planned effects; sensor effects and inactive ones are skipped.
+        building: name used in error messages.
+        sizing: runs the sizing of a model and returns its ``eplusout.eio`` (needed by
+            ``heating_capacity_limit`` only; see :func:`sizing_objects`).
+
+    Raises :class:`~buildenv.errors.ReferenceBuildingError` when the model lacks what an effect needs.
+    """
+    edits = {"wind_infiltration": _wind_infiltration, "holidays": _holidays, "night_plug_loads": _night_plug_loads,
+             "solar_shading": _solar_shading, "heat_recovery": _heat_recovery}
+    out = [list(o) for o in objects]
+    active = [e for e in effects if e.active and e.effect.kind == "energyplus"]
+    for item in active:
+        if item.name in edits:
+            out = edits[item.name](out, item, building)
+    for item in active:  # last: the design capacities are those of the model with the other effects
+        if item.name == "heating_capacity_limit":
+            if sizing is None:
+                raise ReferenceBuildingError(f"{building}: effect heating_capacity_limit needs a sizing run "
+                                             "(pass sizing= to inject_energyplus)")
+            out = _heating_capacity_limit(out, item, building, sizing(sizing_objects(out)))
+    return out
+
+
+def sizing_objects(objects: list[IdfObject]) -> list[IdfObject]:
+    """A copy of a model that only sizes (zone, system and plant sizing; neither design days nor the run period
+    are simulated, components are still autosized) and writes nothing but ``eplusout.eio`` and ``eplusout.err``."""
+    out = [list(o) for o in without(objects, kinds={"Output:Variable", "Output:Meter", "OutputControl:Files"})]
+    sim = of_type(out, "SimulationControl")
+    if not sim:
+        out.insert(1, ["SimulationControl"])
+        sim = of_type(out, "SimulationControl")
+    sim[0][1:] = ["Yes", "Yes", "Yes", "No", "No"]
+    out.append(["OutputControl:Files", "No", "No", "No", "Yes"] + ["No"] * 29)  # the EIO only
+    return out
+
+
+def _field(o: IdfObject, i: int) -> str:
+    return o[i] if len(o) > i else ""
+
+
+def _pad(o: IdfObject, n: int) -> IdfObject:
+    return o + [""] * (n - len(o))
+
+
+def _number(text: str, default: float) -> float:
+    return float(text) if text.strip() else default
+
+
+def _wind_infiltration(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:
+    added = item.magnitude / 100.0
+    found = 0
+    for k, o in enumerate(objects):
+        if o[0].lower() == "zoneinfiltration:designflowrate":
+            o = _pad(o, 13)
+            o[11] = f"{_number(o[11], 0.0) + added:.6g}"  # Velocity Term Coefficient (1/(m/s))
+            objects[k] = o
+            found += 1
+    if not found:
+        raise ReferenceBuildingError(f"{building}: effect wind_infiltration needs ZoneInfiltration:DesignFlowRate "
+                                     "objects and the model has none")
+    return objects
+
+
+def _for_tokens(text: str) -> list[str]:
+    return text.split(":", 1)[1].split()
+
+
+def assign_holidays(schedule: IdfObject, like: str) -> IdfObject:
+    """A ``Schedule:Compact`` whose Holiday day type takes the values of ``like`` (``monday`` or ``sunday``).
+
+    In every ``Through:`` period, ``Holiday`` is removed from the ``For:`` clauses that name it (a clause left
+    with no day type is dropped with its values) and added to the clause that covers ``like`` (``Monday`` /
+    ``Weekdays`` / ``AllDays`` for monday, ``Sunday`` / ``Weekends`` / ``AllDays`` for sunday, else
+    ``AllOtherDays``).
+    """
+    fields = list(schedule)
+    bounds = [i for i, f in enumerate(fields) if f.lower().startswith("through:")] + [len(fields)]
+    out = fields[:bounds[0]]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        starts = [i for i in range(a, b) if fields[i].lower().startswith("for:")]
+        clauses = [(fields[i], fields[i + 1:j]) for i, j in zip(starts, starts[1:] + [b])]
+        tokens = [_for_tokens(head) for head, _ in clauses]
+        lower = [[t.lower() for t in ts] for ts in tokens]
+        target = next((k for k, ts in enumerate(lower) if any(t in _DAY_TOKENS[like] for t in ts)), None)
+        if target is None:
+            target = next((k for k, ts in enumerate(lower) if "allotherdays" in ts), None)
+        out += fields[a:(starts[0] if starts else b)]
+        for k, (_, body) in enumerate(clauses):
+            kept = [t for t in tokens[k] if t.lower() not in _HOLIDAY_TOKENS]
+            if k == target and "alldays" not in lower[k]:
+                kept.append("Holiday")
+            if kept:
+                out += ["For: " + " ".join(kept), *body]
+    return out
+
+
+def _schedule_names(objects: list[IdfObject], kinds: tuple[str, ...]) -> set[str]:
+    return {_field(o, 3).lower() for kind in kinds for o in of_type(objects, kind) if _field(o, 3)}
+
+
+def _holidays(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:
+    occupant = _schedule_names(objects, ("People", "Lights", "ElectricEquipment"))
+    out = []
+    for o in without(objects, kinds={"RunPeriodControl:SpecialDays"}):
+        if o[0].lower() == "schedule:compact":
+            o = assign_holidays(o, "sunday" if o[1].lower() in occupant else "monday")
+        out.append(o)
+    for text in item.details.get("dates", []):
+        day = dt.date.fromisoformat(text)
+        out.append(["RunPeriodControl:SpecialDays", f"buildenv absent {day.isoformat()}", f"{day.month}/{day.day}",
+                    "1", "Holiday"])
+    return out
+
+
+def complement_schedule(schedule: IdfObject, name: str) -> IdfObject:
+    """A ``Schedule:Compact`` copy named ``name`` with every value ``v`` replaced by ``1 - v`` (clipped to 0..1)."""
+    if schedule[0].lower() != "schedule:compact":
+        raise ReferenceBuildingError(f"schedule {schedule[1]} is a {schedule[0]}; only Schedule:Compact can be "
+                                     "complemented")
+    out = ["Schedule:Compact", name, schedule[2]]
+    for prev, f in zip(schedule[2:], schedule[3:]):
+        if prev.lower().startswith("until:"):
+            f = f"{min(1.0, max(0.0, 1.0 - float(f))):.6g}"
+        out.append(f)
+    return out
+
+
+def _night_plug_loads(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:
+    people = of_type(objects, "People")
+    if not people:
+        raise ReferenceBuildingError(f"{building}: effect night_plug_loads needs People objects (occupied zones)")
+    schedules = {o[1].lower(): o for o in objects if o[0].lower().startswith("schedule:")}
+    added: dict[str, str] = {}  # occupancy schedule (lower) -> its complement's name
+    new: list[IdfObject] = []
+    for p in people:
+        occupancy = p[3]
+        if occupancy.lower() not in added:
+            if occupancy.lower() not in schedules:
+                raise ReferenceBuildingError(f"{building}: People {p[1]} uses schedule {occupancy}, not defined")
+            added[occupancy.lower()] = f"buildenv night plug loads {len(added) + 1}"
+            try:
+                new.append(complement_schedule(schedules[occupancy.lower()], added[occupancy.lower()]))
+            except ReferenceBuildingError as exc:
+                raise ReferenceBuildingError(f"{building}: effect night_plug_loads: {exc}") from None
+        new.append(["ElectricEquipment", f"{p[1]} buildenv night plug loads", p[2], added[occupancy.lower()],
+                    "Watts/Area", "", f"{item.magnitude:.6g}", "", "0", "0.5", "0", NIGHT_PLUG_SUBCATEGORY])
+    return objects + new
+
+
+def _solar_shading(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:
+    keep = 1.0 - item.magnitude / 100.0
+    glazings = of_type(objects, "WindowMaterial:SimpleGlazingSystem")
+    if not glazings or of_type(objects, "WindowMaterial:Glazing"):
+        raise ReferenceBuildingError(f"{building}: effect solar_shading scales the SHGC of "
+                                     "WindowMaterial:SimpleGlazingSystem windows; this model has layered glazing")
+    for o in glazings:
+        o[3] = f"{float(o[3]) * keep:.6g}"  # Solar Heat Gain Coefficient (edited in place: copies made above)
+    return objects
+
+
+#: Heating components whose capacity the capacity limit scales: type (lower case) -> capacity field index.
+HEATING_CAPACITY_FIELDS: dict[str, int] = {"coil:heating:electric": 4, "coil:heating:fuel": 5,
+                                           "coil:heating:dx:singlespeed": 3, "boiler:hotwater": 3}
+
+
+def design_capacities(eio: Path) -> dict[tuple[str, str], float]:
+    """``{(component type lower, NAME upper): design capacity W}`` of the heating components of
+    :data:`HEATING_CAPACITY_FIELDS` from the ``Component Sizing Information`` lines of ``eplusout.eio``."""
+    found: dict[tuple[str, str], float] = {}
+    for line in Path(eio).read_text(errors="replace").splitlines():
+        f = [x.strip() for x in line.split(",")]
+        if (len(f) >= 5 and f[0] == "Component Sizing Information" and f[1].lower() in HEATING_CAPACITY_FIELDS
+                and f[3].startswith("Design Size") and "Capacity [W]" in f[3]):
+            found[(f[1].lower(), f[2].upper())] = float(f[4])
+    return found
+
+
+def _heating_capacity_limit(objects: list[IdfObject], item: InjectedEffect, building: str,
+                            eio: Path) -> list[IdfObject]:
+    share = item.magnitude / 100.0
+    sized = design_capacities(eio)
+    total = limited = 0.0
+    for o in objects:
+        i = HEATING_CAPACITY_FIELDS.get(o[0].lower())
+        if i is None:
+            continue
+        value = _field(o, i).strip()
+        if not value or value.lower() in ("autosize", "autocalculate"):
+            key = (o[0].lower(), o[1].upper())
+            if key not in sized:
+                raise ReferenceBuildingError(f"{building}: effect heating_capacity_limit: no design capacity of "
+                                             f"{o[0]} {o[1]} in the sizing run's {eio}")
+            design = sized[key]
+        else:
+            design = float(value)
+        o[i] = f"{design * share:.6g}"
+        total, limited = total + design, limited + design * share
+    if total <= 0.0:
+        raise ReferenceBuildingError(f"{building}: effect heating_capacity_limit: no heating coil or boiler of "
+                                     f"the types {', '.join(HEATING_CAPACITY_FIELDS)}")
+    item.details.update({"design_capacity_kw": round(total / 1000.0, 1),
+                         "available_capacity_kw": round(limited / 1000.0, 1)})
+    return objects
+
+
+def _heat_recovery(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:
+    systems = of_type(objects, "AirLoopHVAC:OutdoorAirSystem")
+    if not systems:
+        raise ReferenceBuildingError(f"{building}: effect heat_recovery needs an AirLoopHVAC:OutdoorAirSystem "
+                                     "(an air handling unit with outdoor air); the model has none")
+    lists = {o[1].lower(): o for o in of_type(objects, "AirLoopHVAC:OutdoorAirSystem:EquipmentList")}
+    mixers = {o[1].lower(): o for o in of_type(objects, "OutdoorAir:Mixer")}
+    setpoint_nodes = {o[-1].lower() for o in objects if o[0].lower().startswith("setpointmanager:")}
+    eff = f"{item.magnitude / 100.0:.6g}"
+    new: list[IdfObject] = []
+    for system in systems:
+        equipment = lists.get(_field(system, 3).lower())
+        kinds = [t.lower() for t in equipment[2::2]] if equipment else []
+        if not equipment or kinds.count("outdoorair:mixer") != 1 or any(k.startswith("heatexchanger:") for k in kinds):
+            raise ReferenceBuildingError(f"{building}: effect heat_recovery: outdoor-air system {system[1]} must "
+                                         "have one OutdoorAir:Mixer and no heat exchanger to add one")
+        mixer = mixers[equipment[2 + 2 * kinds.index("outdoorair:mixer") + 1].lower()]
+        mixed, outdoor, relief, ret = mixer[2:6]
+        hx, supply_out, exhaust_out = (f"{system[1]} buildenv heat recovery", f"{system[1]} buildenv HX supply outlet",
+                                       f"{system[1]} buildenv HX exhaust outlet")
+        control = "Yes" if mixed.lower() in setpoint_nodes else "No"
+        lockout = "No" if control == "Yes" else "Yes"  # the outlet control already stops it overheating
+        new.append(["HeatExchanger:AirToAir:SensibleAndLatent", hx, "", "Autosize", eff, "0", eff, "0", outdoor,
+                    supply_out, relief, exhaust_out, "0", control, "Plate", "None", "1.7", "0.083", "0.012", lockout])
+        if control == "Yes":
+            new.append(["SetpointManager:OutdoorAirPretreat", f"{hx} outlet temperature", "Temperature", "-99", "99",
+                        "0.00001", "1.0", mixed, mixed, outdoor, ret, supply_out])
+        equipment[2:2] = ["HeatExchanger:AirToAir:SensibleAndLatent", hx]
+        mixer[3] = supply_out  # the mixer now draws the preheated outdoor air
+    return objects + new
+
+
+# --- sensor post-processing -------------------------------------------------------------------------------------
+
+
+def first_order_lag(x: np.ndarray, tau_h: float) -> np.ndarray:
+    """Discrete first-order lag of hourly values ``x`` ``(hours,)``, time constant ``tau_h`` (h), from ``y_0 = x_0``.
+
+    ``y_t = y_{t-1} + (1 - exp(-1 / tau_h)) (x_t - y_{t-1})``; ``tau_h = 0`` returns ``x`` unchanged.
+    """
+    x = np.asarray(x, float)
+    if tau_h <= 0.0 or x.size == 0:
+        return x.copy()
+    alpha = 1.0 - math.exp(-1.0 / tau_h)
+    y = np.empty_like(x)
+    y[0] = x[0]
+    for t in range(1, len(x)):
+        y[t] = y[t - 1] + alpha * (x[t] - y[t - 1])
+    return y
+
+
+def apply_sensor_effects(temperature_c: np.ndarray, effects: Sequence[InjectedEffect]) -> np.ndarray:
+    """What the temperature sensor reads: the true hourly temperature ``(hours,)`` (degC, warm-up hours first)
+    with the active ``kind="sensor"`` effects applied (lag, then bias; see the module docstring)."""
+    reading = np.asarray(temperature_c, float)
+    by_name = {e.name: e for e in effects if e.active and e.effect.kind == "sensor"}
+    if "temperature_sensor_lag" in by_name:
+        reading = first_order_lag(reading, by_name["temperature_sensor_lag"].magnitude)
+    if "temperature_sensor_bias" in by_name:
+        reading = reading + by_name["temperature_sensor_bias"].magnitude
+    return reading
+
+
+def sensor_effect_series(temperature_c: np.ndarray, warmup_c: np.ndarray | None,
+                         effects: Sequence[InjectedEffect]) -> np.ndarray:
+    """:func:`apply_sensor_effects` over the warm-up hours ``(warmup_hours,)`` then the measured
+    ``(weeks, 168)`` temperatures; returns the measured part ``(weeks, 168)`` (a copy)."""
+    if not any(e.active and e.effect.kind == "sensor" for e in effects):
+        return temperature_c
+    warm = np.zeros(0) if warmup_c is None else np.asarray(warmup_c, float).reshape(-1)
+    full = apply_sensor_effects(np.concatenate([warm, np.asarray(temperature_c, float).reshape(-1)]), effects)
+    return full[len(warm):].reshape(np.shape(temperature_c))

@@ -1,0 +1,43 @@
+"""A small withheld-effect check: two reference sites (no effect, an injected sensor bias) diagnosed blind."""
+
+from __future__ import annotations
+
+import json
+
+from buildenv.cli import main
+from buildenv.env import DEFAULT_SITE
+from buildenv.gap import DiagnosisSettings
+from buildenv.gap_check import NONE, plan_cases, run_check
+
+
+def test_plan_is_seeded_and_cycles_through_the_labels():
+    a, b = plan_cases(9, 0), plan_cases(9, 0)
+    assert a == b and a != plan_cases(9, 1)
+    assert len({c["true"] for c in a}) == 9  # "none" and the 8 effects, each once
+    assert all(c["magnitude"] is None for c in a if c["true"] == NONE)
+
+
+def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site(tmp_path):
+    settings = DiagnosisSettings(candidates=("temperature_sensor_bias", "solar_shading"), evaluations=250,
+                                 base_evaluations=900, max_effects=1)
+    result = run_check(tmp_path, cases=2, seed=1, settings=settings, base_effects=["night_plug_loads"],
+                       effects=("temperature_sensor_bias",))
+    rows = {r["true"]: r for r in result["cases"]}
+    assert rows["temperature_sensor_bias"]["named"] == "temperature_sensor_bias"
+    assert rows[NONE]["named"] == NONE
+    summary = result["summary"]
+    assert summary["top1_accuracy"] == 1.0 and summary["false_alarm_rate"] == 0.0
+    assert summary["confusion"]["temperature_sensor_bias"]["temperature_sensor_bias"] == 1
+    shrink = rows["temperature_sensor_bias"]["shrinkage"]
+    assert shrink["series"] == "temperature" and shrink["mse_after"] < shrink["mse_before"]
+    json.dumps(result, default=float)
+    # a rerun resumes: finished cases are read back, not redone
+    again = run_check(tmp_path, cases=2, seed=1, settings=settings, base_effects=["night_plug_loads"],
+                      effects=("temperature_sensor_bias",))
+    assert [r["seconds"] for r in again["cases"]] == [r["seconds"] for r in result["cases"]]
+
+
+def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
+    assert main(["diagnose", "--site", str(DEFAULT_SITE), "--candidates", "wind", "--no-save", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unknown effect 'wind'" in err[0]

@@ -148,9 +148,8 @@ def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
     context = np.where(problem.has_previous[None, :, None], occ_fraction[:, None, -ctx:], occ_fraction[:, None, :ctx])
     x[:, :, :ctx, c] = context
     x = x.reshape(pop * weeks, *x.shape[2:])
-    if problem.effects or problem.absent is not None:
-        absent = None if problem.absent is None else np.tile(problem.absent, (pop, 1))
-        em.transform_inputs(x, _effect_values(problem, params, weeks), absent)
+    if problem.effects:
+        em.transform_inputs(x, _effect_values(problem, params, weeks))
     return x
 
 
@@ -173,7 +172,8 @@ def simulate(problem: Problem, surrogate: sg.Surrogate,
     x = encode_candidates(problem, params)
     out = surrogate.predict_encoded(x)
     values = _effect_values(problem, params, weeks)
-    out = em.transform_outputs(out, x, values)
+    absent = None if problem.absent is None else np.tile(problem.absent, (pop, 1))
+    out = em.transform_outputs(out, x, values, absent)
     t, q = model_series(problem, out)
     t = em.sensor_temperature(t, values)
     shape = (pop, weeks, cat.HOURS_PER_WEEK)

@@ -117,7 +117,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "absent weekdays in the measured period", (1.0, 3.0), 2.0, ("consumption", "temperature"),
            (),
            "absent days: weekdays whose measurements fit an unoccupied day far better (the day's "
-           "standardised squared error falls by more than half) are predicted unoccupied; the flags are "
+           "standardised squared error falls by more than 15 %) are predicted unoccupied; the flags are "
            "estimated from the data like the occupancy hours"),
 
     Effect("night_plug_loads", "plug loads left on at night",

@@ -5,14 +5,17 @@ candidates (``N`` weeks, each with its own parameter values):
 
 - **inputs** (:func:`transform_inputs`, physical encoded inputs ``(N, 192, C)`` before the metamodel):
   ``wind_infiltration`` makes the infiltration input hourly, ``calibrated + ach_per_m_s x wind speed``;
-  ``solar_shading`` scales every irradiance input by ``1 - blocked_fraction``; ``holidays`` sets the
-  occupancy of absent days (a ``(N, 7)`` mask, see :func:`absent_day_candidates`) to zero.
+  ``solar_shading`` scales every irradiance input by ``1 - blocked_fraction``.
 - **building outputs** (:func:`transform_outputs`, ``(N, 168, 8)`` after the metamodel; what BuildingWeek-v0
   sees): ``night_plug_loads`` adds ``night_w_m2`` to Q_EQP in unoccupied hours; ``heating_capacity_limit``
   caps Q_HEAT_OFFICE + Q_AHU_H at ``capacity_w_m2`` (both scaled down together) and lowers T_INT_OFFICE by a
   sag that grows by ``sag_k_per_wh_m2`` per Wh/m2 not delivered and decays with a 3-hour time constant;
   ``heat_recovery`` lowers Q_AHU_H by the share ``min(1, eff x (T_in - T_out) / (T_supply - T_out))`` an
-  exchanger of sensible effectiveness ``eff`` recovers (exhaust at the indoor temperature).
+  exchanger of sensible effectiveness ``eff`` recovers (exhaust at the indoor temperature); ``holidays``
+  (a ``(N, 7)`` mask of absent days) holds Q_EQP and Q_LIGHT at the day's night level (its 00:00-05:00 mean)
+  and Q_PEOPLE at 0 all day. Absent days are handled on the outputs, not by zeroing the occupancy input:
+  the metamodel never saw an unoccupied weekday in training (occupancy spans every weekday), and measured
+  on the default site it predicts such a day *higher* consumption, not lower.
 - **sensor readings** (:func:`sensor_temperature`, the measured-temperature model; the building's own
   temperature is untouched, so comfort is judged on the true air temperature): ``temperature_sensor_bias``
   adds ``bias_k``; ``temperature_sensor_lag`` is a discrete first-order lag,
@@ -79,14 +82,13 @@ def _column(params: Mapping[str, np.ndarray], name: str, j: int, n: int) -> np.n
     return v[:, None]
 
 
-def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray], absent: np.ndarray | None = None) -> np.ndarray:
+def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndarray:
     """Apply the input effects to encoded inputs.
 
     Args:
         x: ``(N, CONTEXT_HOURS + 168, C)`` physical inputs of :func:`buildenv.surrogate.encode_weeks` (modified
             in place and returned).
         params: ``{effect: (N, k)}`` (or ``(1, k)``, broadcast).
-        absent: ``(N, 7)`` booleans, days of each week whose occupancy is set to zero (``holidays``).
     """
     n = len(x)
     k = _column(params, "wind_infiltration", 0, n)
@@ -97,11 +99,6 @@ def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray], absent: np
     if s is not None:
         for name in IRRADIANCE_INPUTS:
             x[..., _CH[name]] *= (1.0 - s)
-    if absent is not None and np.any(absent):
-        ctx = sg.CONTEXT_HOURS
-        hourly = np.repeat(np.asarray(absent, bool), cat.HOURS_PER_DAY, axis=1)  # (N, 168)
-        occ = x[:, ctx:, _CH["occupancy_fraction"]]
-        x[:, ctx:, _CH["occupancy_fraction"]] = np.where(hourly, 0.0, occ)
     return x
 
 
@@ -110,20 +107,30 @@ def occupied_hours(x: np.ndarray) -> np.ndarray:
     return x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]] > 0
 
 
-def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndarray:
+def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, np.ndarray],
+                      absent: np.ndarray | None = None) -> np.ndarray:
     """Apply the building-output effects.
 
     Args:
         outputs: ``(N, 168, 8)`` metamodel outputs (a modified copy is returned).
         x: the encoded inputs the outputs were simulated from ``(N, 192, C)`` (occupancy, weather, supply air).
         params: ``{effect: (N, k)}``.
+        absent: ``(N, 7)`` booleans, days nobody came in (``holidays``), or None.
     """
     n = len(outputs)
     active = [e for e in OUTPUT_EFFECTS if _column(params, e, 0, n) is not None
               or (e == "heating_capacity_limit" and _column(params, e, 1, n) is not None)]
-    if not active:
+    has_absent = absent is not None and bool(np.any(absent))
+    if not active and not has_absent:
         return outputs
     out = np.array(outputs, dtype=np.float32, copy=True)
+    if has_absent:
+        days = out.reshape(n, 7, cat.HOURS_PER_DAY, -1)  # a view of out
+        mask = np.asarray(absent, bool)
+        for name in ("Q_EQP", "Q_LIGHT"):
+            night = days[:, :, :6, _OUT[name]].mean(-1, keepdims=True)
+            days[..., _OUT[name]] = np.where(mask[..., None], night, days[..., _OUT[name]])
+        days[..., _OUT["Q_PEOPLE"]] = np.where(mask[..., None], 0.0, days[..., _OUT["Q_PEOPLE"]])
     week = x[:, sg.CONTEXT_HOURS:]
     p = _column(params, "night_plug_loads", 0, n)
     if p is not None:

@@ -21,11 +21,24 @@ gas and electric heating coils, its own occupancy, lighting and plug-load schedu
   unit, not the tempered fresh air of our model's air handling unit.
 
 Schedules are re-pointed, not rewritten: every field that named the reference's schedule names ours
-instead (EMS programs of the ASHRAE 90.1 models that actuate the old schedules then act on nothing). The
+instead (EMS programs of the ASHRAE 90.1 models that actuate the old schedules then act on nothing).
+
+**Only the office systems follow the BMS; 24/7 spaces keep their own schedules** (:func:`serves_24h_space`):
+a ``ThermostatSetpoint:DualSetpoint`` whose ``ZoneControl:Thermostat`` zones all lack ``People`` (the ASHRAE
+90.1 large office's data centre, 18/27 degC all year), and every object named after a data centre or server
+room (its ``AirLoop DataCenter ...`` outdoor-air controllers, which share the offices' minimum outdoor-air
+schedule), are neither used to detect the schedules nor re-pointed. That model still fails in cold periods
+(EnergyPlus Severe ``FindRootSimpleController`` on ``DATACENTER_BAS_HEATC_CONTROLLER``): its EMS switches a
+zero-capacity "extra" water coil on whenever the data centre heats below 10 degC outdoors, with the coil's
+setpoint at its own inlet temperature, and the offices' setbacks make the data centre heat; the run then
+stops with a one-line :class:`ReferenceBuildingError` saying so (it works in mild periods, e.g. Chicago from
+November 4). The
 reference's occupancy, lighting and equipment schedules, constructions and systems are untouched. Public
 holidays and daylight-saving time are removed (sensor clocks run in standard time; holidays are an effect
 of their own, see below). The run starts ``warmup_weeks`` before the first measured week so that
-the measured weeks start from a lived-in thermal state.
+the measured weeks start from a lived-in thermal state. Only the CSV rows stamped with the run period's hours
+are read: models that run an HVAC sizing simulation (the DOE large office's coincident plant sizing) also
+report their design days there (see :func:`_run_period_rows`).
 
 **Unmodelled effects** (``effects=[(name, magnitude), ...]``, the catalogue :mod:`buildenv.effects`) are put
 in by :mod:`buildenv.effects_inject`: model edits after the schedules are re-pointed, sensor effects on the
@@ -47,6 +60,7 @@ read by a BMS); consumption ``N(0, 1 %)`` multiplicative and a 0.1 kWh meter res
 from __future__ import annotations
 
 import datetime as dt
+import re
 import tempfile
 from collections.abc import Sequence
 from dataclasses import dataclass, field
@@ -60,7 +74,7 @@ from buildenv.defaults import DEFAULT_DAY_SETTINGS, default_week
 from buildenv.effects_inject import InjectedEffect, inject_energyplus, plan_effects, sensor_effect_series
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.runner import clean_outputs, run_energyplus
-from buildenv.errors import ReferenceBuildingError
+from buildenv.errors import ReferenceBuildingError, SimulationError
 from buildenv.schedules import hourly_schedules
 from buildenv.weather import epw_day_of_year, resolve_epw
 
@@ -79,6 +93,12 @@ SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "
 TEMPERATURE_NOISE_K, TEMPERATURE_RESOLUTION_K = 0.1, 0.1
 CONSUMPTION_NOISE_FRACTION, CONSUMPTION_RESOLUTION_KWH = 0.01, 0.1
 HOURS_PER_YEAR = 8760
+_DATA_CENTRE_COIL_ERROR = (
+    "{}: EnergyPlus failed (Severe FindRootSimpleController) on the data centre's zero-capacity extra heating "
+    "coil, which the model's EMS switches on when the data centre heats below 10 degC outdoors, with its setpoint "
+    "at its inlet temperature (the BMS setbacks of the offices around it make it heat): try a warmer period")
+# names of the systems of 24/7 spaces, which keep their own schedules (see serves_24h_space)
+_24H_NAME = re.compile(r"data[\s_-]*cent(er|re)|server[\s_-]*room", re.IGNORECASE)
 
 
 @dataclass
@@ -118,8 +138,38 @@ def reference_idf(building: str | Path) -> Path:
     return path
 
 
+def _unoccupied_thermostats(objects: list[IdfObject]) -> set[str]:
+    """Names (lower case) of the dual-setpoint thermostats that control only zones without ``People``."""
+    occupied = {o[2].lower() for o in of_type(objects, "People") if len(o) > 2}
+    lists = {o[1].lower(): {z.lower() for z in o[2:]} for o in of_type(objects, "ZoneList")}
+    for o in of_type(objects, "People"):  # People may name a ZoneList
+        occupied |= lists.get(o[2].lower(), set()) if len(o) > 2 else set()
+    controls: dict[str, bool] = {}  # dual setpoint name -> controls an occupied zone
+    for o in of_type(objects, "ZoneControl:Thermostat"):
+        zones = lists.get(o[2].lower(), {o[2].lower()}) | {o[2].lower()}
+        for kind, name in zip(o[4::2], o[5::2]):
+            if kind.lower() == "thermostatsetpoint:dualsetpoint":
+                controls[name.lower()] = controls.get(name.lower(), False) or bool(zones & occupied)
+    return {name for name, occ in controls.items() if not occ}
+
+
+def serves_24h_space(obj: IdfObject, unoccupied_thermostats: set[str] = frozenset()) -> bool:
+    """Whether ``obj`` belongs to a system of a 24/7 space (data centre, server room): it keeps its schedules.
+
+    A dual-setpoint thermostat of zones without people, or an object named after a data centre or server
+    room (the ASHRAE 90.1 large office's ``AirLoop DataCenter ...`` air loops, which share the offices'
+    minimum outdoor-air schedule).
+    """
+    name = obj[1] if len(obj) > 1 else ""
+    if obj[0].lower() == "thermostatsetpoint:dualsetpoint" and name.lower() in unoccupied_thermostats:
+        return True
+    return bool(_24H_NAME.search(name))
+
+
 def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
-    """Find the schedules each role replaces, from the objects that use them."""
+    """Find the schedules each role replaces, from the office systems that use them (not 24/7 spaces')."""
+    unoccupied = _unoccupied_thermostats(objects)
+    objects = [o for o in objects if not serves_24h_space(o, unoccupied)]
     dual = of_type(objects, "ThermostatSetpoint:DualSetpoint")
     found = ScheduleMap(heating_setpoint=sorted({o[2] for o in dual}), cooling_setpoint=sorted({o[3] for o in dual}),
                         outdoor_air=sorted({o[17] for o in of_type(objects, "Controller:OutdoorAir")
@@ -179,13 +229,14 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
     # re-point every reference to a replaced schedule (definitions and EMS objects keep the old names)
     rename = {old.lower(): f"buildenv_{role}" for role in SCHEDULE_ROLES for old in getattr(mapping, role)}
     kept_kinds = ("schedule:", "energymanagementsystem:", "output:")
+    unoccupied = _unoccupied_thermostats(objects)
     edited = []
     for o in without(objects, kinds={"RunPeriod", "RunPeriodControl:SpecialDays",
                                      "RunPeriodControl:DaylightSavingTime", "OutputControl:Files",
                                      "Output:SQLite", "OutputControl:Table:Style", "Output:Variable",
                                      "Output:Meter", "Output:Meter:MeterFileOnly", "Output:Table:Monthly",
                                      "Output:Table:SummaryReports", "Output:Table:TimeBins"}):
-        if not o[0].lower().startswith(kept_kinds):
+        if not o[0].lower().startswith(kept_kinds) and not serves_24h_space(o, unoccupied):
             o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
         edited.append(o)
     sim = of_type(edited, "SimulationControl")
@@ -243,11 +294,38 @@ def zone_areas(eio: Path) -> dict[str, float]:
     return areas
 
 
-def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int) -> ReferenceRun:
-    """Aggregate a finished reference run as the two sensors (see the module docstring)."""
+def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
+    """The rows of ``frame`` (an ``eplusout.csv``) stamped with the run period's ``hours`` hours from ``first_day``.
+
+    Models with "Do HVAC Sizing Simulation for Sizing Periods" (the DOE large office: coincident plant
+    sizing) also report their design days. EnergyPlus's CSV keys rows by their ``MM/DD  HH:MM:SS`` stamp:
+    the design days' rows come on top of the run's, and on a date the run shares with a design day the
+    run period (simulated last) has overwritten them (checked against ``eplusout.eso``, EnergyPlus 25.2).
+    """
+    day0 = dt.datetime(first_day.year, first_day.month, first_day.day)
+    expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00"
+                for h in range(hours)]
+    stamps = frame["Date/Time"].astype(str).str.strip()
+    rows = frame[stamps.isin(set(expected)).to_numpy()]
+    if list(stamps[rows.index]) != expected:
+        raise ReferenceBuildingError(f"{csv}: {len(rows)} hourly rows stamped {first_day} and after ({len(frame)} "
+                                     f"in all), expected {hours} consecutive hours")
+    return rows.reset_index(drop=True)
+
+
+def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int,
+                 first_day: dt.date | None = None) -> ReferenceRun:
+    """Aggregate a finished reference run as the two sensors (see the module docstring).
+
+    ``first_day`` (the run period's first day): read only the rows stamped with the run period's hours
+    (:func:`_run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run period's.
+    """
     import pandas as pd
 
     frame = pd.read_csv(out / "eplusout.csv")
+    if first_day is not None:
+        frame = _run_period_rows(frame, first_day, (weeks + warmup_weeks) * cat.HOURS_PER_WEEK,
+                                 out / "eplusout.csv")
     areas = zone_areas(out / "eplusout.eio")
     zones = [z for z in occupied if z.upper() in areas]
     temps, weights = [], []
@@ -309,8 +387,13 @@ def run_reference(building: str | Path, epw: str | Path, start: dt.date, setting
         weather = resolve_epw(epw)
         idf, _ = prepare_model(source, full, first_day, work, schedule_map, effects=planned, epw=weather)
         occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
-        run_energyplus(idf, weather, work, label=source.stem)
-        result = read_sensors(work, occupied, len(settings), warmup_weeks)
+        try:
+            run_energyplus(idf, weather, work, label=source.stem)
+        except SimulationError as error:
+            if "FindRootSimpleController" in str(error) and "DATACENTER" in str(error).upper():
+                raise ReferenceBuildingError(_DATA_CENTRE_COIL_ERROR.format(source.stem)) from error
+            raise
+        result = read_sensors(work, occupied, len(settings), warmup_weeks, first_day)
         clean_outputs(work, keep=("eplusout.err",))
     result.temperature_c = sensor_effect_series(result.temperature_c, result.warmup_temperature_c, planned)
     result.effects = [e.truth() for e in planned]

@@ -130,7 +130,7 @@ def register(sub) -> None:
     p.add_argument("--comfort-weight", type=float, default=1.0, help="w of reward = -(energy + w * comfort)")
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of scored weeks")
     p.add_argument("--generations", type=int, default=1000,
-                   help="NSGA-II generations (1000 are within 1 %% of a 10x longer run: bench/results/nsga2_convergence.md)")
+                   help="NSGA-II generations (1000: within 1 %% of a 10x longer run, see nsga2_convergence.md)")
     p.add_argument("--population", type=int, default=100, help="NSGA-II population")
     p.add_argument("--policy", default=None, help="trained PPO policy (for --method ppo)")
     p.add_argument("--seed", type=int, default=0)

@@ -66,7 +66,7 @@ class Problem:
     lo: np.ndarray
     hi: np.ndarray
     effects: tuple[str, ...] = ()  # model-side effects (buildenv.effects_model) whose parameters follow
-    absent: np.ndarray | None = None  # (weeks, 7) days predicted unoccupied (the holidays effect)
+    absent: np.ndarray | None = None  # (weeks, 7) absence shares of the days (the holidays effect; 0 = normal)
 
     @property
     def n_base(self) -> int:
@@ -96,7 +96,7 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
         site: a :class:`buildenv.site.Site`.
         weeks: the site's weeks (0-based).
         effects: model-side effects (:mod:`buildenv.effects_model`) whose parameters are calibrated too.
-        absent: ``(site weeks, 7)`` booleans, days predicted unoccupied (rows of ``weeks`` are used).
+        absent: ``(site weeks, 7)`` absence shares of the days (rows of ``weeks`` are used).
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")

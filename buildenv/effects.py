@@ -116,9 +116,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
            "energyplus", "absent weekdays in the measured period", (1.0, 3.0), 2.0, ("consumption", "temperature"),
            (),
-           "absent days: weekdays whose measurements fit an unoccupied day far better (the day's "
-           "standardised squared error falls by more than 15 %) are predicted unoccupied; the flags are "
-           "estimated from the data like the occupancy hours"),
+           "absent days: for each weekday the share of its occupied-hours lighting and plug loads that did not "
+           "happen is fitted to its measured consumption; days where it is at least half and the day's "
+           "standardised squared error falls by more than 15 % are predicted (partly) unoccupied; they are "
+"estimated from the data like the occupancy hours"),
 
     Effect("night_plug_loads", "plug loads left on at night",
            "Equipment left on outside occupied hours beyond what the model's night share allows (servers, "

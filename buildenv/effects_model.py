@@ -12,8 +12,9 @@ candidates (``N`` weeks, each with its own parameter values):
   sag that grows by ``sag_k_per_wh_m2`` per Wh/m2 not delivered and decays with a 3-hour time constant;
   ``heat_recovery`` lowers Q_AHU_H by the share ``min(1, eff x (T_in - T_out) / (T_supply - T_out))`` an
   exchanger of sensible effectiveness ``eff`` recovers (exhaust at the indoor temperature); ``holidays``
-  (a ``(N, 7)`` mask of absent days) holds Q_EQP and Q_LIGHT at the day's night level (its 00:00-05:00 mean)
-  and Q_PEOPLE at 0 all day. Absent days are handled on the outputs, not by zeroing the occupancy input:
+  (``(N, 7)`` absence shares of the days, 1 = nobody came) moves Q_EQP and Q_LIGHT that share of the way to
+  the day's night level (its 00:00-05:00 mean) and Q_PEOPLE that share of the way to 0. Absent days are
+  handled on the outputs, not by zeroing the occupancy input:
   the metamodel never saw an unoccupied weekday in training (occupancy spans every weekday), and measured
   on the default site it predicts such a day *higher* consumption, not lower.
 - **sensor readings** (:func:`sensor_temperature`, the measured-temperature model; the building's own
@@ -115,7 +116,7 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
         outputs: ``(N, 168, 8)`` metamodel outputs (a modified copy is returned).
         x: the encoded inputs the outputs were simulated from ``(N, 192, C)`` (occupancy, weather, supply air).
         params: ``{effect: (N, k)}``.
-        absent: ``(N, 7)`` booleans, days nobody came in (``holidays``), or None.
+        absent: ``(N, 7)`` absence shares of the days (``holidays``; 0 = a normal day), or None.
     """
     n = len(outputs)
     active = [e for e in OUTPUT_EFFECTS if _column(params, e, 0, n) is not None
@@ -126,11 +127,11 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
     out = np.array(outputs, dtype=np.float32, copy=True)
     if has_absent:
         days = out.reshape(n, 7, cat.HOURS_PER_DAY, -1)  # a view of out
-        mask = np.asarray(absent, bool)
+        share = np.asarray(absent, np.float32)[..., None]  # (N, 7, 1): 1 = nobody came, 0 = a normal day
         for name in ("Q_EQP", "Q_LIGHT"):
             night = days[:, :, :6, _OUT[name]].mean(-1, keepdims=True)
-            days[..., _OUT[name]] = np.where(mask[..., None], night, days[..., _OUT[name]])
-        days[..., _OUT["Q_PEOPLE"]] = np.where(mask[..., None], 0.0, days[..., _OUT["Q_PEOPLE"]])
+            days[..., _OUT[name]] += share * (night - days[..., _OUT[name]])
+        days[..., _OUT["Q_PEOPLE"]] *= 1.0 - share
     week = x[:, sg.CONTEXT_HOURS:]
     p = _column(params, "night_plug_loads", 0, n)
     if p is not None:

@@ -11,9 +11,10 @@ significant gain, stop when none is significant):
    current model with the new parameters at their "no effect" values (``evaluations`` cost evaluations).
    The control is the current model recalibrated the same way with no new effect: every candidate is
    compared with it, so that the extra calibration effort is not credited to the effect.
-   ``holidays`` is estimated differently: the absent-day flags of each week are found by simulating the week
-   with each weekday unoccupied (one batched call) and keeping the days whose standardised squared error
-   falls by more than :data:`ABSENCE_THRESHOLD`; the held-out weeks' flags are found the same way.
+   ``holidays`` is estimated differently: for each weekday, the share of its occupied-hours lighting and plug
+   loads that did not happen is fitted by least squares to the day's measured consumption, and the days
+   where it is at least half and the day's standardised squared error falls by more than
+   :data:`ABSENCE_THRESHOLD` are kept as absent; the held-out weeks' days are found the same way.
 3. Each candidate is judged on the **held-out weeks** only. The residuals of both series are standardised
    by the base model's residual standard deviations on the fit weeks and pooled; ``SSE_before`` and
    ``SSE_after`` are their sums of squares. The score is the held-out gain ``1 - SSE_after / SSE_before``.
@@ -48,7 +49,7 @@ from buildenv import effects_model as em
 from buildenv import surrogate as sg
 from buildenv.effects import EFFECTS, get_effect
 
-ABSENCE_THRESHOLD = 0.15  # a normal weekday fits an absent day 1.5-3.5x worse; a holiday 0.6-0.8x (measured)
+ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"
 
 
@@ -85,7 +86,8 @@ class ModelFit:
     Attributes:
         effects: effects in the model (``holidays`` included when absent days are modelled).
         params: physical parameters in problem order (theta, occupancy, then the non-holiday effects').
-        absent: ``(site weeks, 7)`` booleans, days predicted unoccupied.
+        absent: ``(site weeks, 7)`` absence fractions of the days (0: a normal day; see
+            :func:`detect_absent_days`).
         cost: calibration cost on the fit weeks.
         evaluations: cost evaluations spent on it.
     """
@@ -108,7 +110,7 @@ class ModelFit:
         out = {e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])}
                for e in self.model_effects}
         if HOLIDAYS in self.effects:
-            out[HOLIDAYS] = {"absent_days": int(self.absent.sum())}
+            out[HOLIDAYS] = {"absent_days": int((self.absent > 0).sum())}
         return out
 
 
@@ -142,25 +144,26 @@ def _standardised_errors(ctx: _Context, weeks: list[int], t: np.ndarray, q: np.n
 
 
 def detect_absent_days(ctx: _Context, fit: ModelFit, weeks: list[int]) -> np.ndarray:
-    """``(len(weeks), 7)`` booleans: weekdays better explained unoccupied (see the module docstring).
-
-    Each week is simulated as it is and with each weekday unoccupied in turn, all in one batched call.
-    """
-    problem = _problem(ctx, fit, weeks, np.zeros((ctx.site.weeks, 7), bool))
-    n, variants = len(weeks), 1 + len(cat.WEEKDAYS)
-    absent = np.zeros((n * variants, 7), bool)
-    for d in range(len(cat.WEEKDAYS)):
-        absent[np.arange(n) * variants + 1 + d, d] = True
-    rep = {k: np.repeat(getattr(problem, k), variants, axis=0)
-           for k in ("x_base", "temperature_c", "consumption_wh_m2", "has_previous")}
-    variant = dataclasses.replace(problem, **rep, absent=absent)
-    _, t, q = cal.simulate(variant, ctx.surrogate, fit.params[None])
-    err = _standardised_errors(ctx, list(np.repeat(weeks, variants)), t[0], q[0]).reshape(n, variants, 7)
-    present = err[:, 0, :len(cat.WEEKDAYS)]
-    alone = np.stack([err[:, 1 + d, d] for d in range(len(cat.WEEKDAYS))], axis=1)
-    flags = np.zeros((n, 7), bool)
-    flags[:, :len(cat.WEEKDAYS)] = alone < (1.0 - ABSENCE_THRESHOLD) * present
-    return flags
+    """``(len(weeks), 7)`` absence fractions: for each weekday, the share ``f`` of its occupied-hours lighting
+    and plug loads that did not happen, fitted by least squares to the day's measured consumption; a day is
+    kept (``f > 0``) when ``f >= 0.5`` and its standardised squared error falls by more than
+    :data:`ABSENCE_THRESHOLD`, else 0 (see the module docstring)."""
+    problem = _problem(ctx, fit, weeks, np.zeros((ctx.site.weeks, 7)))
+    out, t, q = cal.simulate(problem, ctx.surrogate, fit.params[None])
+    out, t, q = out[0], t[0], q[0]
+    days = out.reshape(len(weeks), 7, cat.HOURS_PER_DAY, -1)
+    channels = [cat.OUTPUT_NAMES.index(n) for n in ("Q_EQP", "Q_LIGHT")]
+    load = days[..., channels].sum(-1)  # (weeks, 7, 24) Wh/m2
+    dq = (load[..., :6].mean(-1, keepdims=True) - load) / ctx.sigma[1]  # an absent day's change, standardised
+    measured = ctx.site.consumption_wh_m2()[weeks].reshape(dq.shape)
+    r = np.nan_to_num((measured - q.reshape(dq.shape)) / ctx.sigma[1])
+    dq = np.where(np.isfinite(measured), dq, 0.0)
+    f = np.clip((r * dq).sum(-1) / np.maximum((dq ** 2).sum(-1), 1e-9), 0.0, 1.0)
+    before = _standardised_errors(ctx, weeks, t, q)
+    after = before - (r ** 2).sum(-1) + ((r - f[..., None] * dq) ** 2).sum(-1)
+    keep = (f >= 0.5) & (after < (1.0 - ABSENCE_THRESHOLD) * before)
+    keep[:, len(cat.WEEKDAYS):] = False
+    return np.where(keep, f, 0.0)
 
 
 def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
@@ -190,7 +193,7 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
     """The base model: the site's calibration when made on the fit weeks without effects, else a new one;
     then extended with the known ``base_effects`` one by one (:func:`refit`)."""
     calib = ctx.site.calibration or {}
-    none = np.zeros((ctx.site.weeks, 7), bool)
+    none = np.zeros((ctx.site.weeks, 7))
     if calib and calib.get("fit_weeks") == ctx.fit_weeks and not calib.get("effects") \
             and calib.get("catalogue_hash") == cat.catalogue_hash():
         params = np.array([calib["theta"][n] for n in cal._free_theta()]
@@ -223,7 +226,7 @@ def heldout_score(ctx: _Context, before: ModelFit, after: ModelFit, k: int) -> d
     sse_b = float(_standardised_errors(ctx, ctx.heldout, tb, qb).sum())
     sse_a = float(_standardised_errors(ctx, ctx.heldout, ta, qa).sum())
     if after.effects and after.effects[-1] == HOLIDAYS:
-        k = max(1, int(a.absent[ctx.heldout].sum() - b.absent[ctx.heldout].sum()))
+        k = max(1, int((a.absent[ctx.heldout] > 0).sum() - (b.absent[ctx.heldout] > 0).sum()))
     r1 = _lag1(ctx, ctx.heldout, tb, qb)
     n = int(np.isfinite(ctx.site.temperature_c[ctx.heldout]).sum() + np.isfinite(
         ctx.site.consumption_wh_m2()[ctx.heldout]).sum())

@@ -32,7 +32,8 @@ def _cmd_effects(args: argparse.Namespace) -> int:
         return 0
     for r in rows:
         lo, hi = r["magnitude_range"]
-        params = ", ".join(f"{p['name']} [{p['unit']}] {p['lo']:g}..{p['hi']:g}" for p in r["parameters"]) or "-"
+        params = ", ".join(f"{p['name']} [{p['unit']}] {p['lo']:g}..{p['hi']:g}" for p in r["parameters"])
+        params = f"{r['model']}" + (f" ({params})" if params else "")
         print(f"{r['name']}  ({r['title']}; {r['kind']})\n"
               f"    magnitude: {lo:g} to {hi:g} {r['magnitude_unit']} in practice, default {r['default_magnitude']:g}\n"
               f"    shows in: {', '.join(r['series'])}\n"

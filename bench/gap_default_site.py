@@ -1,0 +1,76 @@
+"""The gap diagnosis of the default site, and what the extended model changes for the optimiser (issue 6).
+
+Copies the shipped default site, runs ``buildenv.gap.diagnose`` on it (the extended model is saved into the
+copy), then optimises week 46 with NSGA-II (equal comfort) on the base and on the extended model and runs both
+choices on the site's EnergyPlus reference. Writes ``bench/results/gap_default_site.{md,json}``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import os
+import platform
+import shutil
+from pathlib import Path
+
+from agents.cli import make_env, optimise
+from agents.verify import verify
+from buildenv.env import DEFAULT_SITE
+from buildenv.gap import diagnose, save_extended_model
+from buildenv.site import load_site
+from buildenv.surrogate import load_metamodel
+
+RESULTS = Path(__file__).resolve().parent / "results"
+WEEK = 46
+KEYS = ("predicted_savings_percent", "realised_savings_percent", "comfort_historical_predicted",
+        "comfort_historical", "comfort_chosen_predicted", "comfort_chosen")
+
+
+def main() -> None:
+    """Diagnose, optimise on both models, verify, write the results."""
+    out = Path("out/gap-default-site")
+    if out.exists():
+        shutil.rmtree(out)
+    shutil.copytree(DEFAULT_SITE, out)
+    load = os.getloadavg()[0]
+    result = diagnose(load_site(out), load_metamodel(), plot=RESULTS / "gap_default_site.png")
+    save_extended_model(load_site(out), result)
+    result.pop("_fit")
+    checks = {}
+    for label, site in (("base model", str(DEFAULT_SITE)), ("extended model", str(out))):
+        env = make_env(site)
+        run = optimise(env, "nsga2", WEEK)
+        checks[label] = verify(env, WEEK, run["action"]).summary
+    record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
+              "load_average_at_start": load, "command": "python bench/gap_default_site.py",
+              "diagnosis": result, "week": WEEK, "nsga2_checks": checks}
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "gap_default_site.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
+    lines = ["# Gap diagnosis of the default site", "",
+             f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; "
+             f"`{record['command']}` (diagnosis {result['seconds']:.0f} s).", "",
+             f"Verdict: **{result['verdict']}**. Fit weeks {result['fit_weeks']}, held-out weeks "
+             f"{result['heldout_weeks']}.", "",
+             "| effect | held-out gain | p-value | selected | estimated |", "|---|---|---|---|---|"]
+    for e in result["effects"]:
+        est = ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items())
+        lines.append(f"| {e['name']} | {100 * e['score']:.1f} % | {e['significance']['p_value']:.2g} | "
+                     f"{'yes' if e['selected'] else 'no'} | {est} |")
+    if result.get("heldout_after"):
+        b, a = result["heldout_before"], result["heldout_after"]
+        lines += ["", "| held-out | base model | extended model |", "|---|---|---|"]
+        for key, name in (("cv_rmse_q_percent", "CV(RMSE)_Q %"), ("nmbe_q_percent", "NMBE_Q %"),
+                          ("rmse_t_celsius", "RMSE_T degC"), ("r2_t", "R2_T"), ("r2_q", "R2_Q")):
+            lines.append(f"| {name} | {b[key]:.3f} | {a[key]:.3f} |")
+    lines += ["", f"## NSGA-II (equal comfort) on week {WEEK}, checked on the EnergyPlus reference", "",
+              "| model | " + " | ".join(KEYS) + " |", "|---" * (len(KEYS) + 1) + "|"]
+    for label, s in checks.items():
+        lines.append(f"| {label} | " + " | ".join(f"{s[k]:.3f}" for k in KEYS) + " |")
+    lines += ["", "![localisation](gap_default_site.png)"]
+    (RESULTS / "gap_default_site.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

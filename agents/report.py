@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.plotting import shade_occupancy
+from buildenv.plotting import save_figure, shade_occupancy
 
 
 def _pyplot():
@@ -38,10 +38,7 @@ def plot_pareto(front, points: dict[str, tuple[float, float]], path: Path, title
     ax.grid(alpha=0.3)
     ax.legend(fontsize=8)
     ax.set_title(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=120)
 
 
 def plot_before_after(verification, path: Path, target_c: float = 22.5, title: str = "") -> Path:
@@ -63,10 +60,7 @@ def plot_before_after(verification, path: Path, target_c: float = 22.5, title: s
     ax_q.set_xlabel("hour of the week (Monday 00:00 = 0; occupied hours shaded green)")
     ax_t.legend(fontsize=7, ncol=3)
     ax_t.set_title(title, fontsize=10)
-    fig.tight_layout()
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return Path(path)
+    return save_figure(fig, path, dpi=120)
 
 
 def markdown_table(rows: list[dict], columns: list[tuple[str, str, str]]) -> str:

@@ -9,7 +9,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.calibration import KNOWN_GEOMETRY, build_problem, predict, problem_occupancy
-from buildenv.plotting import shade_occupancy
+from buildenv.plotting import save_figure, shade_occupancy
 
 
 def calibrated_vector(result: dict, problem) -> np.ndarray:
@@ -54,8 +54,4 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
     ax_t.set_title(title, fontsize=9)
     ax_t.legend(loc="upper right", fontsize=8)
     ax_q.set_xlabel("hour (weeks start Monday 00:00; occupied hours shaded green)")
-    fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

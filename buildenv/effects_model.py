@@ -36,9 +36,11 @@ from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.effects import EFFECTS, get_effect
 
-INPUT_EFFECTS = ("wind_infiltration", "solar_shading", "holidays")
+INPUT_EFFECTS = ("wind_infiltration", "solar_shading")
 OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery")
-SENSOR_EFFECTS = ("temperature_sensor_bias", "temperature_sensor_lag")
+#: effects of the building itself, simulated for any week (holidays are dates of the measured period, and the
+#: sensor effects are measurement matters)
+BUILDING_EFFECTS = INPUT_EFFECTS + OUTPUT_EFFECTS
 IRRADIANCE_INPUTS = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H")
 SAG_TIME_CONSTANT_H = 3.0
 

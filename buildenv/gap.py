@@ -258,6 +258,23 @@ def _metrics(ctx: _Context, fit: ModelFit, weeks: list[int], t: np.ndarray, q: n
     return {k: (round(v, 5) if isinstance(v, float) else v) for k, v in out.items()}
 
 
+def _context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> _Context:
+    """The fit / held-out split of a site (:func:`buildenv.calibration.default_weeks`) and its metric scales."""
+    fit_weeks, heldout = cal.default_weeks(site.weeks)
+    ctx = _Context(site, surrogate, fit_weeks, heldout, settings)
+    ctx.scale = cal._scale(cal.build_problem(site, fit_weeks))
+    return ctx
+
+
+def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
+    """Held-out metrics (:func:`buildenv.calibration.site_metrics`) of a site's base model: calibrated on its
+    fit weeks, with the settings' ``base_effects`` and no other effect."""
+    ctx = _context(site, surrogate, settings or DiagnosisSettings())
+    fit = base_fit(ctx)
+    t, q = predict(ctx, fit, ctx.heldout)
+    return _metrics(ctx, fit, ctx.heldout, t, q)
+
+
 def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None,
              localisation: bool = True, progress: bool = False, plot: str | Path | None = None) -> dict:
     """Diagnose the gap between a site's measurements and its calibrated metamodel.
@@ -282,9 +299,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     started = time.perf_counter()
     if site.weeks < 2:
         raise cal.CalibrationError(f"{site.path}: the diagnosis needs at least 2 weeks (fit + held-out)")
-    fit_weeks, heldout = cal.default_weeks(site.weeks)
-    ctx = _Context(site, surrogate, fit_weeks, heldout, settings)
-    ctx.scale = cal._scale(cal.build_problem(site, fit_weeks))
+    ctx = _context(site, surrogate, settings)
+    fit_weeks, heldout = ctx.fit_weeks, ctx.heldout
     current = base_fit(ctx, progress)
     t, q = predict(ctx, current, fit_weeks)
     ctx.sigma = (float(np.nanstd(site.temperature_c[fit_weeks] - t)) or 1.0,

@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv.effects import EFFECTS, get_effect
-from buildenv.gap import DiagnosisSettings, diagnose
+from buildenv.gap import DiagnosisSettings, base_heldout_metrics, diagnose
 
 NONE = "none"
 FIRST_MONDAYS = (dt.date(2019, 10, 7), dt.date(2019, 12, 2))
@@ -108,7 +108,7 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, buil
     if case["true"] != NONE and case["true"] in result["selected"]:
         series = get_effect(case["true"]).series[0]
         twin = load_site(_site(out, case, building, epw, inject=False))
-        twin_mse = _twin_base_mse(twin, surrogate, settings, series)
+        twin_mse = _mse(base_heldout_metrics(twin, surrogate, settings), series)
         entry = next(e for e in result["effects"] if e["name"] == case["true"])
         b, a = _mse(result["heldout_before"], series), _mse(result["heldout_after"], series)
         row["shrinkage"] = {"series": series, "mse_before": b, "mse_after": a, "mse_twin": twin_mse,
@@ -117,18 +117,6 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, buil
                             "parameters": entry["parameters"]}
     row["seconds"] = round(time.perf_counter() - started, 1)
     return row
-
-
-def _twin_base_mse(site, surrogate, settings: DiagnosisSettings, series: str) -> float:
-    """Held-out MSE of the base model (with the known base effects) on a clean twin site."""
-    from buildenv import gap
-
-    fit_weeks, heldout = gap.cal.default_weeks(site.weeks)
-    ctx = gap._Context(site, surrogate, fit_weeks, heldout, settings)
-    ctx.scale = gap.cal._scale(gap.cal.build_problem(site, fit_weeks))
-    fit = gap.base_fit(ctx)
-    t, q = gap.predict(ctx, fit, heldout)
-    return _mse(gap._metrics(ctx, fit, heldout, t, q), series)
 
 
 def known_effects(out: Path, surrogate, settings: DiagnosisSettings, building: str, epw: str) -> list[str]:

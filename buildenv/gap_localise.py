@@ -214,7 +214,7 @@ def plot_localisation(result: dict, path: str | Path, measured_t: np.ndarray | N
     import matplotlib.pyplot as plt
     from matplotlib.colors import TwoSlopeNorm
 
-    from buildenv.plotting import shade_occupancy
+    from buildenv.plotting import save_figure, shade_occupancy
 
     series = {"temperature": (measured_t, predicted_t), "consumption": (measured_q, predicted_q)}
     with_series = all(a is not None for pair in series.values() for a in pair)
@@ -252,12 +252,7 @@ def plot_localisation(result: dict, path: str | Path, measured_t: np.ndarray | N
             ax.set_ylabel(f"{name} residual ({result[name]['unit']})", fontsize=8)
             ax.grid(alpha=0.3)
         ax.set_xlabel("hour (weeks start Monday 00:00; occupied hours shaded green)")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=100)
 
 
 # ----------------------------------------------------------------------------------------------------------------

@@ -9,6 +9,18 @@ import numpy as np
 from buildenv import catalogue as cat
 
 
+def save_figure(fig, path: str | Path, dpi: int = 110) -> Path:
+    """Lay out ``fig``, write it as a PNG at ``path`` (its folder is created), close it and return the path."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    plt.close(fig)
+    return path
+
+
 def shade_occupancy(ax, occupancy_fraction: np.ndarray) -> None:
     """Shade the occupied hours (occupancy fraction > 0) of an hourly axis in green."""
     occupied = np.asarray(occupancy_fraction) > 0
@@ -64,9 +76,4 @@ def plot_week(outputs: np.ndarray, weather: np.ndarray, schedules: dict[str, np.
     ax_q.legend(loc="upper right", fontsize=8, ncol=6)
     if title:
         fig.suptitle(title)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path, dpi=110)

@@ -91,7 +91,7 @@ class SiteModel:
         rows = np.array([epw_day_of_year(d) for d in days])[:, None] * cat.HOURS_PER_DAY + np.arange(24)
         effects = {name: np.array([[values[p.name] for p in get_effect(name).parameters]], dtype=float)
                    for name, values in (calib.get("effects") or {}).items()
-                   if name in em.INPUT_EFFECTS + em.OUTPUT_EFFECTS and name != "holidays"}
+                   if name in em.BUILDING_EFFECTS}
         return cls(surrogate, theta, occupancy, np.asarray(site.settings[0], float), starts, hourly[rows],
                    float(site.floor_area_m2), site.name, effects, day0)
 

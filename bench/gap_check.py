@@ -28,6 +28,17 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x:.0f} %"
 
 
+def _implausible(row: dict) -> str:
+    """Candidates that were significant with enough gain but not named: their estimate is smaller than the
+    effect ever is in practice (``Effect.smallest``)."""
+    names = [n for n in row.get("implausible", []) if row["p_values"].get(n, 1.0) < 0.05 / len(row["p_values"])]
+    return ", ".join(f"{n} {_primary(row['estimates'][n])}" for n in names) or "-"
+
+
+def _primary(estimate: dict) -> str:
+    return next((f"{k} {v:.3g}" for k, v in estimate.items()), "")
+
+
 def main() -> None:
     """Run (or resume) the check and write the results."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
@@ -36,18 +47,20 @@ def main() -> None:
     parser.add_argument("--out", default="out/diagnose-check")
     parser.add_argument("--evaluations", type=int, default=1500)
     parser.add_argument("--max-effects", type=int, default=2)
+    parser.add_argument("--name", default="gap_check", help="stem of the result files in bench/results")
     args = parser.parse_args()
     started, load = time.perf_counter(), os.getloadavg()[0]
     settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects)
     result = run_check(args.out, args.cases, args.seed, settings=settings, progress=True)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
-               f"--evaluations {args.evaluations} --max-effects {args.max_effects}")
+               f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
+               + (f" --name {args.name}" if args.name != "gap_check" else ""))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
                                                                                           - started, 1), **result}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "gap_check.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
+    (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     labels = s["labels"]
     named = sorted({n for row in s["confusion"].values() for n, c in row.items() if c} | set(labels),
                    key=lambda n: (n not in labels, labels.index(n) if n in labels else 0, n))
@@ -75,15 +88,16 @@ def main() -> None:
     for t in labels:
         lines.append(f"| {t} | " + " | ".join(str(s["confusion"][t].get(n, 0)) for n in named) + " |")
     lines += ["", "## Cases", "", "| case | injected | magnitude | first Monday | named | selected | "
-              "gain of the injected effect | shrinkage of its gap | seconds |", "|---|---|---|---|---|---|---|---|---|"]
+              "gain of the injected effect | shrinkage of its gap | significant, estimate implausible | seconds |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["cases"]:
         gain = r["scores"].get(r["true"])
         sh = r.get("shrinkage", {}).get("of_effect_gap") if r.get("shrinkage") else None
         mag = "-" if r["magnitude"] is None else f"{r['magnitude']:.2f}"
         lines.append(f"| {r['case']} | {r['true']} | {mag} | {r['start']} | {r['named']} | "
                      f"{', '.join(r['selected']) or '-'} | {'-' if gain is None else f'{gain:.3f}'} | "
-                     f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {r['seconds']} |")
-    (RESULTS / "gap_check.md").write_text("\n".join(lines) + "\n")
+                     f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r)} | {r['seconds']} |")
+    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

@@ -19,6 +19,16 @@ capacity (design-day sizing with a 1.33 factor, VAV reheat coils sized by their 
 twice what a Chicago November needs. Measured on medium_office, Chicago, 4 weeks from 2019-11-04: at 70 % the
 cap binds in almost no hour (peak consumption -5 %, occupied temperature unchanged: below the sensor noise);
 at 50 % the peak falls 10 % and the coldest occupied hour 0.7 K; at 30 % 29 % and 3.3 K.
+
+**Plausibility** (:attr:`Effect.smallest`, set from the same sources, not fitted to any blind check): a
+calibrated addition smaller than the smallest instance of the effect seen in practice is not that effect.
+Temperature bias 0.3 K (a class-B Pt1000's tolerance near 20 degC is about 0.4 K: less is not a fault); sensor
+lag 0.25 h (below a quarter of the hourly sampling it cannot be told from noise); plug loads 0.5 W/m2 (one
+standby monitor per 10 m2); shading 15 % of the solar gains (half the lightest blinds' 30 %); heat recovery
+effectiveness 0.3 (the poorest exchangers sold reach about 0.5); wind infiltration 0.01 air changes per hour
+per m/s (10 % of a tight office's 0.1 air changes per hour). The capacity limit and holidays have no such
+bound (a capacity is plausible at any value; absent days are judged by their own test, see
+:mod:`buildenv.gap`).
 """
 
 from __future__ import annotations
@@ -68,6 +78,9 @@ class Effect:
         series: measured series it mainly shows in (``temperature``, ``consumption``).
         parameters: the model-side addition's parameters.
         model: one line on the model-side addition.
+        smallest: the smallest size of the effect that real buildings show, as ``|first parameter|`` (same
+            unit), or None when any estimate is plausible. A diagnosis does not name the effect when its
+            estimate is smaller: such a fit absorbs some other shortcoming of the model (see the module docstring).
     """
 
     name: str
@@ -80,6 +93,13 @@ class Effect:
     series: tuple[str, ...]
     parameters: tuple[ModelParameter, ...]
     model: str
+    smallest: float | None = None
+
+    def plausible(self, values: dict[str, float]) -> bool:
+        """Whether calibrated parameter values ``{name: value}`` describe an effect of a size seen in practice."""
+        if self.smallest is None or not self.parameters:
+            return True
+        return abs(values[self.parameters[0].name]) >= self.smallest
 
     def check_magnitude(self, magnitude: float) -> float:
         """The magnitude as a float; raises :class:`EffectError` if it lies outside what the injection can do."""
@@ -98,19 +118,19 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            ("consumption", "temperature"),
            (ModelParameter("ach_per_m_s", "1/h per m/s", 0.0, 0.15, 0.0,
                            "infiltration air changes added per m/s of wind speed"),),
-           "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x wind speed"),
+           "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x wind speed", 0.01),
     Effect("temperature_sensor_bias", "temperature sensor bias",
            "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "
            "near a radiator or in the sun). The consumption is unaffected.",
            "sensor", "K (reading - truth)", (-3.0, 3.0), 1.0, ("temperature",),
            (ModelParameter("bias_k", "K", -3.0, 3.0, 0.0, "offset added to the predicted temperature"),),
-           "the predicted temperature reads bias_k higher"),
+           "the predicted temperature reads bias_k higher", 0.3),
     Effect("temperature_sensor_lag", "temperature sensor lag",
            "The sensor responds slowly (a heavy housing, a sensor in a wall pocket): it reads a first-order "
            "lagged air temperature, so morning start-ups and evening setbacks look slower than they are.",
            "sensor", "h (time constant)", (0.5, 3.0), 1.5, ("temperature",),
            (ModelParameter("tau_h", "h", 0.0, 4.0, 0.0, "first-order time constant of the sensor"),),
-           "the predicted temperature is passed through a first-order lag of time constant tau_h"),
+           "the predicted temperature is passed through a first-order lag of time constant tau_h", 0.25),
     Effect("holidays", "holidays and absent-occupancy days",
            "Weekdays nobody comes in (public holidays, bridge days, closures) while the BMS keeps its weekday "
            "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
@@ -127,13 +147,13 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "W/m2 added outside occupied hours", (1.0, 5.0), 3.0, ("consumption",),
            (ModelParameter("night_w_m2", "W/m2", 0.0, 8.0, 0.0,
                            "electric load added in every unoccupied hour"),),
-           "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied"),
+           "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied", 0.5),
     Effect("solar_shading", "solar shading / blinds",
            "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
            "hours are colder and need more heat than the model says.",
            "energyplus", "% of the solar gains blocked", (30.0, 70.0), 50.0, ("temperature", "consumption"),
            (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
-           "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)"),
+           "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)", 0.15),
     Effect("heating_capacity_limit", "heating capacity limit",
            "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
            "the setpoint, so consumption plateaus and the temperature sags.",
@@ -150,7 +170,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "% sensible effectiveness", (50.0, 80.0), 70.0, ("consumption",),
            (ModelParameter("effectiveness", "-", 0.0, 0.9, 0.0,
                            "sensible effectiveness of the heat exchanger"),),
-           "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers"),
+           "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
+           0.3),
 )}
 
 #: Magnitudes the injections accept (wider than practice, for stress tests).

@@ -22,8 +22,11 @@ significant gain, stop when none is significant):
    new parameters (the flagged held-out days for holidays) and ``n_eff = n (1 - r1) / (1 + r1)`` the number of
    held-out values corrected for the lag-1 autocorrelation ``r1`` of the base residuals; p-values are
    compared with ``alpha / m`` (Bonferroni over the ``m`` candidates of the step). A candidate is selected
-   when it is significant **and** its gain reaches ``min_gain`` (a practical threshold: a calibrated model
-   that only misses by structure, with no effect injected, gains less than this from any single effect).
+   when it is significant, its gain reaches ``min_gain`` (a practical threshold: a calibrated model
+   that only misses by structure, with no effect injected, gains less than this from any single effect)
+   **and** its estimate is plausible: at least the smallest size of the effect seen in practice
+   (:meth:`buildenv.effects.Effect.plausible`; a heat exchanger of effectiveness 0.1 is the model borrowing
+   the effect to absorb another miss).
 4. The best selected candidate joins the model and step 2 repeats with the others, until none qualifies or
    ``max_effects`` are in.
 
@@ -353,21 +356,26 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
 
 def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: float) -> dict:
     significant = score["p_value"] < threshold
+    parameters = trial.effect_parameters().get(name, {})
+    plausible = name == HOLIDAYS or get_effect(name).plausible(parameters)
     return {"name": name, "title": get_effect(name).title, "score": round(score["gain"], 4),
             "significance": {"p_value": score["p_value"], "threshold": threshold, "f": round(score["f"], 3),
                              "k": score["k"], "n_eff": score["n_eff"], "significant": significant,
                              "test": "F-test on held-out standardised SSE, n corrected for lag-1 autocorrelation, "
                                      "Bonferroni over the step's candidates"},
-            "qualifies": bool(significant and score["gain"] >= min_gain),
-            "parameters": trial.effect_parameters().get(name, {}),
+            "plausible": bool(plausible),
+            "qualifies": bool(significant and score["gain"] >= min_gain and plausible),
+            "parameters": parameters,
             "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"]}
 
 
 def _verdict(selected: list[str], entries: list[dict]) -> str:
     if not selected:
         best = entries[0] if entries else None
+        why = "" if not best or best["plausible"] else \
+            f"; its estimate {best['parameters']} is smaller than the effect is in practice"
         tail = f" (best candidate: {best['name']}, held-out gain {100 * best['score']:.1f} %, p = " \
-               f"{best['significance']['p_value']:.2g})" if best else ""
+               f"{best['significance']['p_value']:.2g}{why})" if best else ""
         return "no significant unmodelled effect" + tail
     return "unmodelled effect(s) found: " + ", ".join(f"{n} ({get_effect(n).title})" for n in selected)
 

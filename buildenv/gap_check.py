@@ -104,6 +104,8 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, buil
            "ranked": [e["name"] for e in result["effects"]],
            "scores": {e["name"]: e["score"] for e in result["effects"]},
            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
+           "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
+           "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
            "verdict": result["verdict"]}
     if case["true"] != NONE and case["true"] in result["selected"]:
         series = get_effect(case["true"]).series[0]

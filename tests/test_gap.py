@@ -53,6 +53,18 @@ def test_catalogue_lists_the_eight_effects_with_magnitudes_and_parameters():
         parse_effect("heat_recovery=150")
 
 
+def test_an_effect_is_named_only_at_a_size_seen_in_practice():
+    for e in EFFECTS.values():
+        if e.smallest is None:
+            continue
+        none = {p.name: p.none for p in e.parameters}
+        assert not e.plausible(none), e.name
+        assert e.plausible({**none, e.parameters[0].name: e.parameters[0].hi}), e.name
+    recovery = get_effect("heat_recovery")
+    assert not recovery.plausible({"effectiveness": 0.108}) and recovery.plausible({"effectiveness": 0.6})
+    assert get_effect("temperature_sensor_bias").plausible({"bias_k": -1.0})
+
+
 def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):
     site, params = calibrated
     base = _predict(site, surrogate, params)

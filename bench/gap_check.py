@@ -28,10 +28,10 @@ def _pct(x: float | None) -> str:
     return "-" if x is None else f"{100 * x:.0f} %"
 
 
-def _implausible(row: dict) -> str:
-    """Candidates that were significant with enough gain but not named: their estimate is smaller than the
-    effect ever is in practice (``Effect.smallest``)."""
-    names = [n for n in row.get("implausible", []) if row["p_values"].get(n, 1.0) < 0.05 / len(row["p_values"])]
+def _implausible(row: dict, alpha: float) -> str:
+    """Candidates of the first step that were significant (``alpha`` Bonferroni over the candidates) but whose
+    estimate is smaller than the effect ever is in practice (``Effect.smallest``), so never named."""
+    names = [n for n in row.get("implausible", []) if row["p_values"].get(n, 1.0) < alpha / len(row["p_values"])]
     return ", ".join(f"{n} {_primary(row['estimates'][n])}" for n in names) or "-"
 
 
@@ -96,7 +96,8 @@ def main() -> None:
         mag = "-" if r["magnitude"] is None else f"{r['magnitude']:.2f}"
         lines.append(f"| {r['case']} | {r['true']} | {mag} | {r['start']} | {r['named']} | "
                      f"{', '.join(r['selected']) or '-'} | {'-' if gain is None else f'{gain:.3f}'} | "
-                     f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r)} | {r['seconds']} |")
+                     f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r, settings.alpha)} | "
+                     f"{r['seconds']} |")
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 

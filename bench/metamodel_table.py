@@ -13,6 +13,7 @@ Writes ``bench/results/metamodels_table1.{md,json}``.
 from __future__ import annotations
 
 import argparse
+import csv
 import json
 import time
 from pathlib import Path
@@ -35,8 +36,8 @@ ROWS = [("Loss (x1e-2)", "loss", 100.0), ("MSE_T (x1e-2)", "mse_t", 100.0), ("MS
 
 def fastest_epoch(log: Path) -> float:
     """Shortest epoch of a run's training log (seconds): the per-epoch cost least disturbed by other jobs."""
-    rows = log.read_text().splitlines()[1:]
-    return min(float(r.split(",")[3]) for r in rows)
+    with log.open(newline="") as f:
+        return min(float(row["seconds"]) for row in csv.DictReader(f))
 
 
 def main() -> None:

@@ -385,6 +385,13 @@ def problem_occupancy(problem: Problem, params: np.ndarray) -> np.ndarray:
     return np.broadcast_to(frac > 0, problem.temperature_c.shape)
 
 
+def calibrated_parameters(calibration: dict) -> np.ndarray:
+    """The parameter vector (problem order: free theta_build, then occupancy hours) of a saved calibration
+    (``calibration.json``'s ``theta`` in catalogue units and ``occupancy`` in h)."""
+    return np.array([calibration["theta"][n] for n in _free_theta()]
+                    + list(np.asarray(calibration["occupancy"], float).ravel()))
+
+
 def load_calibration(site_path: str | Path) -> dict:
     """The ``calibration.json`` of a site folder."""
     path = Path(site_path) / "calibration.json"

@@ -199,9 +199,7 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
     none = np.zeros((ctx.site.weeks, 7))
     if calib and calib.get("fit_weeks") == ctx.fit_weeks and not calib.get("effects") \
             and calib.get("catalogue_hash") == cat.catalogue_hash():
-        params = np.array([calib["theta"][n] for n in cal._free_theta()]
-                          + list(np.asarray(calib["occupancy"], float).ravel()))
-        fit = ModelFit((), params, none, float(calib.get("cost", np.nan)), 0)
+        fit = ModelFit((), cal.calibrated_parameters(calib), none, float(calib.get("cost", np.nan)), 0)
     else:
         problem = cal.build_problem(ctx.site, ctx.fit_weeks)
         params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
@@ -357,7 +355,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
 def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: float) -> dict:
     significant = score["p_value"] < threshold
     parameters = trial.effect_parameters().get(name, {})
-    plausible = name == HOLIDAYS or get_effect(name).plausible(parameters)
+    plausible = get_effect(name).plausible(parameters)
     return {"name": name, "title": get_effect(name).title, "score": round(score["gain"], 4),
             "significance": {"p_value": score["p_value"], "threshold": threshold, "f": round(score["f"], 3),
                              "k": score["k"], "n_eff": score["n_eff"], "significant": significant,

@@ -28,9 +28,7 @@ def surrogate():
 def calibrated():
     """The default site, its calibrated parameters and its 6 weeks."""
     site = load_site(DEFAULT_SITE)
-    c = site.calibration
-    params = np.array([c["theta"][n] for n in cal._free_theta()] + list(np.ravel(c["occupancy"])))
-    return site, params
+    return site, cal.calibrated_parameters(site.calibration)
 
 
 def _predict(site, surrogate, params, effects=(), values=()):

@@ -48,14 +48,23 @@ def main() -> None:
     parser.add_argument("--evaluations", type=int, default=1500)
     parser.add_argument("--max-effects", type=int, default=2)
     parser.add_argument("--name", default="gap_check", help="stem of the result files in bench/results")
+    parser.add_argument("--base-effects", default="auto",
+                        help="effects every case models from the start: auto (diagnose a clean reference site "
+                             "first), none, or comma-separated names")
+    parser.add_argument("--judge", choices=("pooled", "effect_series"), default="pooled",
+                        help="score candidates on both series, or on the series each shows in")
     args = parser.parse_args()
     started, load = time.perf_counter(), os.getloadavg()[0]
-    settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects)
-    result = run_check(args.out, args.cases, args.seed, settings=settings, progress=True)
+    settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge)
+    base = args.base_effects if args.base_effects == "auto" else \
+        [] if args.base_effects == "none" else [e.strip() for e in args.base_effects.split(",")]
+    result = run_check(args.out, args.cases, args.seed, settings=settings, base_effects=base, progress=True)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
                f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
-               + (f" --name {args.name}" if args.name != "gap_check" else ""))
+               + (f" --name {args.name}" if args.name != "gap_check" else "")
+               + (f" --judge {args.judge}" if args.judge != "pooled" else "")
+               + (f" --base-effects {args.base_effects}" if args.base_effects != "auto" else ""))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
                                                                                           - started, 1), **result}

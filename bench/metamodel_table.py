@@ -5,7 +5,8 @@ Each model is trained by ``buildenv train`` (through :func:`buildenv.training.tr
 in training), the paper's loss, Adam with a cosine learning rate and ``--epochs`` epochs; then scored on the
 test weeks. Runs are kept in ``--runs`` and reused by a rerun.
 
-    .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10]
+    .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10] \
+        [--batch-size 64]
 
 Writes ``bench/results/metamodels_table1.{md,json}``.
 """
@@ -46,6 +47,7 @@ def main() -> None:
     parser.add_argument("--data", required=True, help="campaign directory (buildenv simulate --out)")
     parser.add_argument("--weeks", type=int, default=10000, help="training weeks per model")
     parser.add_argument("--epochs", type=int, default=10)
+    parser.add_argument("--batch-size", type=int, default=64, help="training weeks per Adam step, every model")
     parser.add_argument("--runs", default="data/bench-runs/table1", help="where checkpoints are kept")
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated subset of the columns")
     args = parser.parse_args()
@@ -53,10 +55,11 @@ def main() -> None:
     results = {}
     for label in columns:
         model, config = MODELS[label]
-        tag = f"{model}-{run_tag(config)}-{args.weeks}-{args.epochs}"
+        tag = f"{model}-{run_tag(config)}-{args.weeks}-{args.epochs}" + (
+            f"-b{args.batch_size}" if args.batch_size != 64 else "")
         print(f"== {label}: {model} {json.dumps(config)}", flush=True)
         result = trained(tag, Path(args.runs), args.data, model, config, max_weeks=args.weeks, epochs=args.epochs,
-                         patience=args.epochs, progress=False)
+                         patience=args.epochs, batch_size=args.batch_size, progress=False)
         result["inference_weeks_per_second"] = round(inference_speed(model, config), 1)
         result["fastest_epoch_seconds"] = fastest_epoch(Path(args.runs) / f"{tag}.pt.csv")
         results[label] = result
@@ -78,10 +81,12 @@ def main() -> None:
     date = time.strftime("%Y-%m-%d")
     lines = [f"# Table 1: metamodels compared ({date})", "",
              f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_table.py --data {args.data} "
-             f"--weeks {args.weeks} --epochs {args.epochs} --models {','.join(columns)}`.", "",
+             f"--weeks {args.weeks} --epochs {args.epochs} --batch-size {args.batch_size} "
+             f"--models {','.join(columns)}`.", "",
              f"Every model: {first['train_weeks']} training weeks, {first['val_weeks']} validation and "
              f"{first['test_weeks']} test weeks (split `weather_weeks`, seed 0: the test weeks' climate and week "
-             f"of year never occur in training), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch 64) "
+             f"of year never occur in training), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch "
+             f"{args.batch_size}) "
              "on the paper's loss, best validation epoch kept. Mean (std) over test weeks; definitions in "
              "`buildenv/metrics.py` (MSE in standardised units, per-week R2 as `sklearn.metrics.r2_score`, "
              "pooled R2 over all test hours). Training time is the run's wall clock (it grows when other jobs "
@@ -89,9 +94,11 @@ def main() -> None:
              "inference is measured when the table is written.", "", *header, *body, ""]
     lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "metamodels_table1.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / "metamodels_table1.json").write_text(json.dumps(
+    stem = "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
+    (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{stem}.json").write_text(json.dumps(
         {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": args.epochs,
+         "batch_size": args.batch_size,
          "models": {c: {"model": MODELS[c][0], "config": MODELS[c][1], **results[c]} for c in columns}},
         indent=2) + "\n")
     print("\n".join(header + body))

@@ -14,7 +14,7 @@ def _settings(args: argparse.Namespace):
     candidates = tuple(get_effect(e.strip()).name for e in args.candidates.split(",")) if args.candidates \
         else tuple(EFFECTS)
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain,
-                             max_effects=args.max_effects, seed=args.seed,
+                             max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
 
 
@@ -55,6 +55,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--min-gain", type=float, default=0.15,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
+    p.add_argument("--judge", choices=("pooled", "effect-series"), default="pooled",
+                   help="score each candidate on both series (default) or on the series it shows in")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")
     p.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -23,7 +23,9 @@ cases, and the shrinkage of the gap on the effect's main series over held-out we
 ``(MSE_before - MSE_after) / (MSE_before - MSE_twin)``, where MSE_twin is the base model's held-out error on
 the same site without the injection (same period, same noise): the share of the gap *the effect caused* that
 the extended model removes. Each case's result is written as ``case_NNN.json`` in ``out``; a rerun skips
-finished cases (a long check resumes).
+finished cases (a long check resumes) and reuses the sites already made, after checking that each was made for
+its case: the plan depends on the known effects, so a check whose known effects changed would otherwise
+diagnose old sites under new labels.
 """
 
 from __future__ import annotations
@@ -81,10 +83,29 @@ def _site(out: Path, case: dict, building: str, epw: str, inject: bool) -> Path:
 
     effects = [(case["true"], case["magnitude"])] if inject and case["true"] != NONE else []
     path = out / (f"case_{case['case']:03d}" if inject else f"case_{case['case']:03d}_twin")
-    if not (path / "site.toml").is_file():
+    if (path / "site.toml").is_file():
+        _check_site_matches(path, case, effects)
+    else:
         make_reference_site(path, building, epw, dt.date.fromisoformat(case["start"]), WEEKS,
                             seed=case["noise_seed"], effects=effects, effect_seed=case["effect_seed"])
     return path
+
+
+def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]) -> None:
+    """Raise when a site folder left by an earlier run was made for another case (another plan: other seed or
+    other known effects), instead of diagnosing it under the wrong label."""
+    from buildenv.site import load_site
+
+    site = load_site(path)
+    truth_path = path / "truth.json"
+    truth = json.loads(truth_path.read_text()) if truth_path.is_file() else {"effects": []}
+    made = [(e["name"], float(e["magnitude"])) for e in truth["effects"]]
+    same = (site.start.isoformat() == case["start"] and len(made) == len(effects)
+            and all(a == b and abs(m - n) < 1e-9 for (a, m), (b, n) in zip(made, effects)))
+    if not same:
+        raise ValueError(f"{path}: this site was made for another case ({made or 'no effect'}, from "
+                         f"{site.start}), not case {case['case']} ({effects or 'no effect'}, from {case['start']}); "
+                         "give the check a fresh --out folder")
 
 
 def _mse(metrics: dict, series: str) -> float:
@@ -103,6 +124,8 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, buil
     row = {**case, "named": named, "correct": named == case["true"], "selected": result["selected"],
            "ranked": [e["name"] for e in result["effects"]],
            "scores": {e["name"]: e["score"] for e in result["effects"]},
+           "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
+           "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
            "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
            "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],

@@ -96,15 +96,23 @@ def _biased_site(tmp_path, bias_k: float, weeks: int = 2):
     return load_site(tmp_path)
 
 
-def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tmp_path, surrogate):
+@pytest.mark.parametrize("judge", ["pooled", "effect_series"])
+def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tmp_path, surrogate, judge):
     site = _biased_site(tmp_path, 2.0)
     settings = DiagnosisSettings(candidates=("temperature_sensor_bias", "solar_shading"), evaluations=300,
-                                 base_evaluations=800, max_effects=1)
+                                 base_evaluations=800, max_effects=1, judge=judge)
     result = diagnose(site, surrogate, settings, plot=tmp_path / "diagnosis.png")
     assert result["selected"] == ["temperature_sensor_bias"]
     first = result["effects"][0]
     assert first["name"] == "temperature_sensor_bias" and first["significance"]["significant"]
     assert 1.0 < first["parameters"]["bias_k"] < 3.0
+    # "effect_series" judges a sensor bias on the temperature alone, where it shows; "pooled" on both series
+    assert first["judged_on"] == (["temperature"] if judge == "effect_series" else ["temperature", "consumption"])
+    if judge == "effect_series":
+        assert first["score"] == pytest.approx(first["gain_by_series"]["temperature"], abs=1e-3)
+    else:
+        (tb, ta), (qb, qa) = first["sse_by_series"]["temperature"], first["sse_by_series"]["consumption"]
+        assert first["score"] == pytest.approx(1 - (ta + qa) / (tb + qb), abs=1e-3)
     assert first["heldout_after"]["rmse_t_celsius"] < 0.8 * first["heldout_before"]["rmse_t_celsius"]
     assert {"localisation", "effects", "selected", "verdict"} <= set(result)
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
@@ -113,6 +121,12 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     json.dumps(result, default=float)
     calibration = json.loads(saved.read_text())
     assert calibration["effects"]["temperature_sensor_bias"]["bias_k"] == first["parameters"]["bias_k"]
+
+
+def test_diagnosis_rejects_an_unknown_judging_rule(calibrated, surrogate):
+    site, _ = calibrated
+    with pytest.raises(ValueError, match="unknown judge 'both'"):
+        diagnose(site, surrogate, DiagnosisSettings(judge="both"))
 
 
 def test_site_model_simulates_the_building_effects_found(calibrated, surrogate, tmp_path):

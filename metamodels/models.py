@@ -14,6 +14,9 @@ settings, occupancy), so the bidirectional ones may look ahead.
   by a small per-hour network (that many hidden units, ReLU) on the hour's own inputs, its token's latent
   vector and its place in the token: a token then need not squeeze all its hours' outputs through
   ``d_model`` numbers, and hour-level drivers (the setpoint in force this hour) reach the output directly.
+  ``hourly_gru`` > 0 (with ``hourly_head``) runs a bidirectional GRU of that many units per direction over the
+  head's hourly features before the read-out, so that each hour also sees the thermal state carried from the
+  hours before and after it (about 2x slower; see ``bench/results/metamodels_progress.md``).
 - ``bigru``: bidirectional GRU, linear read-out.
 - ``lstm``: (forward) LSTM, linear read-out.
 - ``convgru``: two 1-D convolutions (kernel 5, ReLU) then a bidirectional GRU.
@@ -106,7 +109,7 @@ class Transformer(nn.Module):
 
     def __init__(self, inputs: int, outputs: int, d_model: int = 64, heads: int = 8, head_dim: int = 8,
                  layers: int = 4, window: int = 12, d_ff: int = 256, dropout: float = 0.0, patch_hours: int = 1,
-                 hourly_head: int = 0, max_hours: int = 512):
+                 hourly_head: int = 0, hourly_gru: int = 0, max_hours: int = 512):
         super().__init__()
         self.patch, self.outputs = patch_hours, outputs
         self.token_window = math.ceil(window / patch_hours)
@@ -115,7 +118,7 @@ class Transformer(nn.Module):
         self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
         self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
         if hourly_head:
-            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs)
+            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru)
         else:
             self.readout = nn.Linear(d_model, outputs * patch_hours)
 
@@ -143,20 +146,24 @@ class HourlyHead(nn.Module):
     computed as a sum so that the token's term is evaluated once per token, not once per hour.
     """
 
-    def __init__(self, inputs: int, d_model: int, patch_hours: int, hidden: int, outputs: int):
+    def __init__(self, inputs: int, d_model: int, patch_hours: int, hidden: int, outputs: int, gru: int = 0):
         super().__init__()
         self.patch = patch_hours
         self.from_latent = nn.Linear(d_model, hidden)
         self.from_inputs = nn.Linear(inputs, hidden, bias=False)
         self.position = nn.Parameter(torch.zeros(patch_hours, hidden))
-        self.out = nn.Linear(hidden, outputs)
+        self.rnn = nn.GRU(hidden, gru, batch_first=True, bidirectional=True) if gru else None
+        self.out = nn.Linear(2 * gru if gru else hidden, outputs)
 
     def forward(self, x: torch.Tensor, latent: torch.Tensor) -> torch.Tensor:
         """``x`` ``(batch, hours, inputs)``, ``latent`` ``(batch, tokens, d_model)`` -> ``(batch, hours, outputs)``."""
         batch, tokens, _ = latent.shape
         h = self.from_inputs(x).view(batch, tokens, self.patch, -1)
-        h = h + self.from_latent(latent)[:, :, None, :] + self.position
-        return self.out(torch.relu(h)).reshape(batch, tokens * self.patch, -1)
+        h = torch.relu(h + self.from_latent(latent)[:, :, None, :] + self.position)
+        h = h.reshape(batch, tokens * self.patch, -1)
+        if self.rnn is not None:
+            h = self.rnn(h)[0]
+        return self.out(h)
 
 
 class BiGRU(nn.Module):

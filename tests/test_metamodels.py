@@ -119,6 +119,8 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
 
 
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
+                                         ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
+                                                          "hourly_gru": 8}),
                                          ("lstm", {"layers": 1}), ("ffn", {"layers": 1})])
 def test_traced_inference_matches_eager(name, config):
     torch.manual_seed(0)
@@ -145,6 +147,17 @@ def test_hourly_head_sees_each_hour():
     assert y.shape == (1, 24, 2)
     changed = (y - y2).abs().amax(-1)[0]
     assert changed[7] > 0 and changed[7] > 10 * changed[6]
+
+
+def test_hourly_gru_carries_an_hour_to_the_neighbouring_tokens():
+    torch.manual_seed(0)
+    model = build("transformer", 3, 2, layers=1, window=1, patch_hours=6, hourly_head=8, hourly_gru=4).eval()
+    x = torch.randn(1, 48, 3)
+    x2 = x.clone()
+    x2[0, 7] += 5.0  # hour 7: token 1; with a 1-hour window token 3 (hours 18-23) is beyond attention's reach
+    with torch.no_grad():
+        changed = (model(x) - model(x2)).abs().amax(-1)[0]
+    assert changed[7] > 0 and changed[20] > 0 and changed[40] > 0
 
 
 def test_attention_paths_agree():

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv.effects import JUDGES
 from buildenv.gap import DiagnosisSettings
 from buildenv.gap_check import run_check
 
@@ -51,13 +52,14 @@ def main() -> None:
     parser.add_argument("--base-effects", default="auto",
                         help="effects every case models from the start: auto (diagnose a clean reference site "
                              "first), none, or comma-separated names")
-    parser.add_argument("--judge", choices=("pooled", "effect_series"), default="pooled",
+    parser.add_argument("--judge", choices=JUDGES, default="pooled",
                         help="score candidates on both series, or on the series each shows in")
     args = parser.parse_args()
     started, load = time.perf_counter(), os.getloadavg()[0]
     settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge)
-    base = args.base_effects if args.base_effects == "auto" else \
-        [] if args.base_effects == "none" else [e.strip() for e in args.base_effects.split(",")]
+    base: str | list[str] = args.base_effects
+    if base != "auto":
+        base = [] if base == "none" else [e.strip() for e in base.split(",")]
     result = run_check(args.out, args.cases, args.seed, settings=settings, base_effects=base, progress=True)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "

@@ -17,8 +17,9 @@ import json
 import time
 from pathlib import Path
 
+from buildenv.gap_check import NONE
+
 RESULTS = Path(__file__).resolve().parent / "results"
-NONE = "none"
 
 
 def paired_rows(a: dict, b: dict) -> list[dict]:

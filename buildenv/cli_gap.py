@@ -6,6 +6,8 @@ import argparse
 import json
 from pathlib import Path
 
+from buildenv.effects import JUDGES
+
 
 def _settings(args: argparse.Namespace):
     from buildenv.effects import EFFECTS, get_effect
@@ -55,7 +57,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--min-gain", type=float, default=0.15,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
-    p.add_argument("--judge", choices=("pooled", "effect-series"), default="pooled",
+    p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",
                    help="score each candidate on both series (default) or on the series it shows in")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")

@@ -39,6 +39,11 @@ from dataclasses import dataclass
 from buildenv.errors import BuildenvError
 
 
+# How a gap diagnosis scores a candidate effect (buildenv.gap.DiagnosisSettings.judge): on both measured series
+# pooled, or on the series the effect shows in (Effect.series).
+JUDGES = ("pooled", "effect_series")
+
+
 class EffectError(BuildenvError, ValueError):
     """An effect name or magnitude is unknown or out of range."""
 

@@ -57,7 +57,7 @@ from buildenv import calibration as cal
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import EFFECTS, get_effect
+from buildenv.effects import EFFECTS, JUDGES, get_effect
 
 ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"
@@ -316,8 +316,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     from tqdm import tqdm
 
     settings = settings or DiagnosisSettings()
-    if settings.judge not in ("effect_series", "pooled"):
-        raise ValueError(f"unknown judge {settings.judge!r}; choose effect_series or pooled")
+    if settings.judge not in JUDGES:
+        raise ValueError(f"unknown judge {settings.judge!r}; choose {' or '.join(JUDGES)}")
     for name in (*settings.candidates, *settings.base_effects):
         get_effect(name)
     started = time.perf_counter()

@@ -154,14 +154,16 @@ def run(seed: int, long_factor: float, long_cap: float, workers: int | None, eva
         for method, label in (("cmaes", "metamodel CMA-ES parameters"), ("adam", "metamodel Adam parameters")):
             result = found[method]
             t0 = time.perf_counter()
-            scores = score_energyplus(site, parameters_of(result), result["fit_weeks"], result["heldout_weeks"])
+            scores = score_energyplus(site, parameters_of(result), result["fit_weeks"], result["heldout_weeks"],
+                                      zoning=surrogate.zoning)
             rerun = {"seconds": result["seconds"], "evaluations": result["evaluations"],
                      "scoring_seconds": round(time.perf_counter() - t0, 2)}
             rows.append(row(f"{label}, re-simulated", "EnergyPlus", None, rerun, scores["fit"], scores["heldout"]))
         long_budget = round(min(long_factor * budget, long_cap), 1)
         for wall, label in ((budget, "EnergyPlus shoebox, CMA-ES, budget T"),
                             (long_budget, f"EnergyPlus shoebox, CMA-ES, budget {long_budget / budget:.1f} T")):
-            result = calibrate_energyplus_cmaes(site, seed=seed, wall_seconds=wall, workers=workers)
+            result = calibrate_energyplus_cmaes(site, seed=seed, wall_seconds=wall, workers=workers,
+                                                zoning=surrogate.zoning)
             r = row(label, "EnergyPlus", wall, result, result["fit"], result["heldout"])
             r.update(history=result["history"], scoring_seconds=result["scoring_seconds"],
                      workers=result["workers"], theta=result["theta"], occupancy=result["occupancy"])

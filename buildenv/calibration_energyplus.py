@@ -53,6 +53,7 @@ from buildenv.calibration import (
     score_outputs,
 )
 from buildenv.campaign import TASKS_PER_WORKER
+from buildenv.energyplus.shoebox import DEFAULT_ZONING
 
 METHOD = "cmaes-energyplus"
 HOURS_PER_YEAR = 8760
@@ -68,12 +69,14 @@ class SiteRun:
         first_day: EPW day index (0..364) of the run's first day, a Monday.
         settings: I_k of each simulated week, ``(run weeks, 7, 12)``.
         keep: indices of the requested weeks among the run's weeks, in request order.
+        zoning: the shoebox's zoning (:data:`buildenv.energyplus.shoebox.ZONINGS`).
     """
 
     weather: str
     first_day: int
     settings: np.ndarray
     keep: tuple[int, ...]
+    zoning: str = DEFAULT_ZONING
 
     @property
     def weeks(self) -> int:
@@ -81,8 +84,9 @@ class SiteRun:
         return int(len(self.settings))
 
 
-def plan_site_run(site, weeks: list[int]) -> SiteRun:
-    """The EnergyPlus run that simulates ``weeks`` (0-based site weeks) with the week before as warm-up.
+def plan_site_run(site, weeks: list[int], zoning: str = DEFAULT_ZONING) -> SiteRun:
+    """The EnergyPlus run that simulates ``weeks`` (0-based site weeks) with the week before as warm-up, with
+    the shoebox of ``zoning``.
 
     Raises:
         CalibrationError: no weeks, a week the site lacks, or a run that would cross Dec 31 or Feb 29.
@@ -100,7 +104,7 @@ def plan_site_run(site, weeks: list[int]) -> SiteRun:
         raise CalibrationError(f"site weeks {first}..{last} of {site.path} cross Dec 31 or Feb 29; the EnergyPlus "
                                "calibration runs inside one 365-day year: choose other --weeks")
     return SiteRun(str(site.weather), int(hours[0]) // cat.HOURS_PER_DAY, np.asarray(site.settings[first:last + 1]),
-                   tuple(w - first for w in weeks))
+                   tuple(w - first for w in weeks), zoning)
 
 
 def schedule_rows(theta: dict[str, float], run: SiteRun, occupancy: np.ndarray) -> np.ndarray:
@@ -131,15 +135,13 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
     Raises:
         SimulationError: EnergyPlus failed.
     """
-    from buildenv.energyplus.runner import read_hourly_csv, run_energyplus
+    from buildenv.energyplus.runner import run_energyplus
     from buildenv.energyplus.shoebox import (
-        OUTPUT_VARIABLES,
         SCHEDULE_COLUMNS,
         build_epjson,
         theta_dict,
     )
-    from buildenv.energyplus.simulate import J_PER_WH
-    from buildenv.errors import SimulationError
+    from buildenv.energyplus.simulate import read_outputs
     from buildenv.weather import load_weather
 
     t = theta_dict(np.asarray(theta, float))
@@ -151,21 +153,13 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
         csv = work / "schedules.csv"
         np.savetxt(csv, schedule_rows(t, run, occupancy), delimiter=",", fmt="%.4f",
                    header=",".join(SCHEDULE_COLUMNS), comments="")
-        model = build_epjson(t, weather, csv, 0, run.weeks)
+        model = build_epjson(t, weather, csv, 0, run.weeks, run.zoning)
         first = dt.date(_EPW_YEAR, 1, 1) + dt.timedelta(days=run.first_day)
         last = first + dt.timedelta(days=7 * run.weeks - 1)
         model["RunPeriod"]["weeks"].update(begin_month=first.month, begin_day_of_month=first.day,
                                            end_month=last.month, end_day_of_month=last.day)
         run_energyplus(model, weather.path, work, label="shoebox")
-        raw = read_hourly_csv(work / "eplusout.csv", OUTPUT_VARIABLES)
-    hours = run.weeks * cat.HOURS_PER_WEEK
-    columns = []
-    for name in cat.OUTPUT_NAMES:
-        series = raw[name]
-        if len(series) != hours:
-            raise SimulationError(f"EnergyPlus returned {len(series)} hours for {run.weeks} weeks")
-        columns.append(series if name in cat.TEMPERATURE_OUTPUTS else series / J_PER_WH / t["floor_area_m2"])
-    outputs = np.stack(columns, axis=-1).reshape(run.weeks, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES))
+        outputs = read_outputs(work / "eplusout.csv", t, run.weeks, run.zoning)
     return outputs[list(run.keep)]
 
 
@@ -230,7 +224,8 @@ def evaluate_energyplus(problem, run: SiteRun, pool: ShoeboxPool, params: np.nda
 
 
 def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int = 0, wall_seconds: float = 60.0,
-                               workers: int | None = None, progress: bool = False) -> dict:
+                               workers: int | None = None, progress: bool = False,
+                               zoning: str = DEFAULT_ZONING) -> dict:
     """Calibrate the EnergyPlus shoebox to a site with CMA-ES under a wall-clock budget, and score it.
 
     Same free parameters, bounds, start point, step size and cost as
@@ -245,6 +240,7 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
         wall_seconds: wall-clock budget of the CMA-ES loop, s (see the module docstring).
         workers: worker processes (default: all cores).
         progress: progress bar (generations).
+        zoning: the shoebox's zoning (:data:`buildenv.energyplus.shoebox.ZONINGS`).
     Returns:
         ``{"method": "cmaes-energyplus", "seconds" (loop, s), "wall_seconds" (budget, s), "evaluations",
         "generations", "cost", "history": [[s, evaluations, best cost] per generation], "scoring_seconds",
@@ -260,9 +256,9 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
     fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
         sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
     problem = build_problem(site, fit_weeks)
-    run = plan_site_run(site, fit_weeks)
+    run = plan_site_run(site, fit_weeks, zoning)
     if heldout:
-        plan_site_run(site, heldout)  # refuse weeks EnergyPlus cannot score before spending the budget
+        plan_site_run(site, heldout, zoning)  # refuse weeks EnergyPlus cannot score before spending the budget
     box = problem.hi - problem.lo
     history: list[list[float]] = []
     with ShoeboxPool(workers) as pool:
@@ -286,13 +282,13 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
         bar.close()
         best = problem.lo + np.asarray(es.result.xbest) * box
         scoring = time.perf_counter()
-        scores = score_energyplus(site, best, fit_weeks, heldout, pool)
+        scores = score_energyplus(site, best, fit_weeks, heldout, pool, zoning)
         scoring_seconds = time.perf_counter() - scoring
     theta, occ = _split(problem, best[None])
     result = {"method": METHOD, "seconds": round(seconds, 2), "wall_seconds": wall_seconds,
               "evaluations": int(es.result.evaluations), "generations": len(history),
               "cost": float(es.result.fbest), "history": history, "scoring_seconds": round(scoring_seconds, 2),
-              "workers": pool.workers, "fit_weeks": fit_weeks, "heldout_weeks": heldout,
+              "workers": pool.workers, "zoning": zoning, "fit_weeks": fit_weeks, "heldout_weeks": heldout,
               "guideline14_p": GUIDELINE14_P,
               "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
               "occupancy": np.round(occ[0], 3).tolist(), "catalogue_hash": cat.catalogue_hash()}
@@ -302,7 +298,7 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
 
 
 def score_energyplus(site, params: np.ndarray, fit_weeks: list[int], heldout: list[int],
-                     pool: ShoeboxPool | None = None) -> dict[str, dict[str, float]]:
+                     pool: ShoeboxPool | None = None, zoning: str = DEFAULT_ZONING) -> dict[str, dict[str, float]]:
     """Metrics of physical parameters ``params (dim,)`` simulated by EnergyPlus on fit and held-out weeks.
 
     Standardised MSEs use the fit weeks' measured mean and standard deviation, as
@@ -317,7 +313,7 @@ def score_energyplus(site, params: np.ndarray, fit_weeks: list[int], heldout: li
     with ShoeboxPool(1) if pool is None else nullcontext(pool) as runner:
         for key, weeks in (("fit", fit_weeks), ("heldout", heldout)):
             if weeks:
-                outputs = runner.simulate(plan_site_run(site, weeks), theta, occ)[0]
+                outputs = runner.simulate(plan_site_run(site, weeks, zoning), theta, occ)[0]
                 out[key] = score_outputs(build_problem(site, weeks), outputs, np.asarray(params, float), scale)
     return out
 

@@ -25,15 +25,16 @@ import os
 import shutil
 import tempfile
 import time
+from collections.abc import Iterator
 from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import asdict, dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
-from collections.abc import Iterator
 
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError, DatasetError
 from buildenv.sampling import METHODS, sample_group, sample_weeks
 from buildenv.weather import resolve_epw, shipped_weather
@@ -54,6 +55,8 @@ class CampaignConfig:
         epw: weather short names or EPW paths; runs are spread evenly over them.
         weeks_per_run: consecutive weeks simulated per EnergyPlus run (1-52).
         sampling: ``uniform`` (paper) or ``lhs``.
+        zoning: the shoebox's zoning, ``core_perimeter`` or ``single`` (the paper's single zone; see
+            :mod:`buildenv.energyplus.shoebox`).
     """
 
     weeks: int
@@ -61,6 +64,7 @@ class CampaignConfig:
     epw: list[str] = field(default_factory=lambda: list(DEFAULT_CLIMATES))
     weeks_per_run: int = cat.WEEKS_PER_YEAR
     sampling: str = "uniform"
+    zoning: str = DEFAULT_ZONING
 
     def validate(self) -> None:
         """Raise :class:`BuildenvError` on a value no campaign can use."""
@@ -70,6 +74,8 @@ class CampaignConfig:
             raise BuildenvError(f"--weeks-per-run must be within 1..{cat.WEEKS_PER_YEAR} (got {self.weeks_per_run})")
         if self.sampling not in METHODS:
             raise BuildenvError(f"--sampling must be one of {', '.join(METHODS)} (got {self.sampling!r})")
+        if self.zoning not in ZONINGS:
+            raise BuildenvError(f"--zoning must be one of {', '.join(ZONINGS)} (got {self.zoning!r})")
         if not self.epw:
             raise BuildenvError("--epw: give at least one weather file")
         for epw in self.epw:
@@ -87,6 +93,7 @@ class RunTask:
     epw: str
     weather_index: int
     start_week: int
+    zoning: str = DEFAULT_ZONING
 
     @property
     def n_weeks(self) -> int:
@@ -107,7 +114,7 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     tasks, offset = [], 0
     for r, n in enumerate(lengths):
         tasks.append(RunTask(r, thetas[r], settings[offset:offset + n], occupancy[offset:offset + n],
-                             config.epw[climates[r]], int(climates[r]), starts[r]))
+                             config.epw[climates[r]], int(climates[r]), starts[r], config.zoning))
         offset += n
     return tasks
 
@@ -118,7 +125,7 @@ def run_task(task: RunTask) -> tuple[int, np.ndarray]:
 
     with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-") as tmp:
         result = simulate_weeks(task.theta, task.settings, task.occupancy, task.epw, task.start_week,
-                                workdir=Path(tmp))
+                                workdir=Path(tmp), zoning=task.zoning)
     return task.run_id, result.outputs.astype(np.float32)
 
 
@@ -156,6 +163,7 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
     campaign_file = out / "campaign.json"
     if campaign_file.exists():
         previous = json.loads(campaign_file.read_text())
+        previous["config"].setdefault("zoning", "single")  # campaigns made before zoning was a choice
         if previous != record:
             raise DatasetError(f"{out} holds another campaign ({campaign_file}: {previous['config']}); "
                                "use another --out or delete it")

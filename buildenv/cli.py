@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 
 
@@ -130,7 +131,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     from buildenv.campaign import DEFAULT_CLIMATES, CampaignConfig, run_campaign
 
     config = CampaignConfig(weeks=args.weeks, seed=args.seed, epw=args.epw or list(DEFAULT_CLIMATES),
-                            weeks_per_run=args.weeks_per_run, sampling=args.sampling)
+                            weeks_per_run=args.weeks_per_run, sampling=args.sampling, zoning=args.zoning)
     path = run_campaign(config, Path(args.out), workers=args.workers, scheduler=args.scheduler,
                         progress=not args.quiet)
     manifest = json.loads((Path(args.out) / "manifest.json").read_text())
@@ -194,6 +195,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--weeks-per-run", type=int, default=cat.WEEKS_PER_YEAR,
                    help=f"consecutive weeks per EnergyPlus run (1-{cat.WEEKS_PER_YEAR})")
     p.add_argument("--sampling", choices=["uniform", "lhs"], default="uniform")
+    p.add_argument("--zoning", choices=list(ZONINGS), default=DEFAULT_ZONING,
+                   help="the simulated building: a core and a perimeter zone, or the paper's single zone")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)
 

@@ -51,6 +51,11 @@ class Dataset:
     def __len__(self) -> int:
         return int(self._h5["outputs"].shape[0])
 
+    @property
+    def zoning(self) -> str:
+        """The zoning of the simulated shoebox (``single`` for campaigns made before it was a choice)."""
+        return str(self.manifest.get("config", {}).get("zoning", "single"))
+
     def close(self) -> None:
         """Close the HDF5 file."""
         self._h5.close()

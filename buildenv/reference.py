@@ -13,10 +13,15 @@ gas and electric heating coils, its own occupancy, lighting and plug-load schedu
   replaces the HVAC operation schedule (fans, night-cycle managers: outside it the systems only cycle on
   to hold the setback setpoints, as the reference's night-cycle managers do);
 - ``outdoor_air``: the minimum outdoor-air schedule of every ``Controller:OutdoorAir`` becomes
-  ``ventilation_on * min(1, ventilation_ach / 1.0)``: the reference's design minimum outdoor air stands for
-  the historical setting (1.0 air change per hour); less ventilation closes the dampers proportionally.
-  More than the design cannot be expressed: EnergyPlus caps the schedule at 1 (measured: 1.3 and 1.6 air
-  changes per hour give the same run as 1.0).
+  ``ventilation_on * min(1, ventilation_ach / design_ach)``, where ``design_ach`` is the reference's design
+  minimum outdoor air (the occupied zones' design outdoor air of a sizing run with Chicago's weather file,
+  from the model's own ``DesignSpecification:OutdoorAir``) in the units of our model's ``ventilation_ach``:
+  air changes per hour of ``floor area x 3.5 m`` (:func:`design_outdoor_air_ach`; the DOE medium office:
+  0.69). Less ventilation closes the dampers proportionally; more than the design cannot be expressed
+  (EnergyPlus caps the schedule at 1). A site's historical setting is the design rounded to the catalogue's grid
+  (:func:`historical_ventilation_ach`), so that the settings a site records are the air the building
+  really gets (earlier sites recorded 1.0 for the design whatever it was, which overstated the medium
+  office's ventilation by 45 % and forced calibration to make up for it elsewhere).
 - ``supply_air_c`` is not mapped: the reference's supply air is the cooling supply of a VAV or packaged
   unit, not the tempered fresh air of our model's air handling unit.
 
@@ -60,6 +65,7 @@ read by a BMS); consumption ``N(0, 1 %)`` multiplicative and a 0.1 kWh meter res
 from __future__ import annotations
 
 import datetime as dt
+import functools
 import re
 import tempfile
 from collections.abc import Sequence
@@ -70,10 +76,17 @@ from typing import Any
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.defaults import DEFAULT_DAY_SETTINGS, default_week
-from buildenv.effects_inject import InjectedEffect, inject_energyplus, plan_effects, sensor_effect_series
+from buildenv.defaults import default_week
+from buildenv.effects_inject import (
+    InjectedEffect,
+    inject_energyplus,
+    plan_effects,
+    sensor_effect_series,
+    sizing_objects,
+)
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.runner import clean_outputs, run_energyplus
+from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
 from buildenv.errors import ReferenceBuildingError, SimulationError
 from buildenv.schedules import hourly_schedules
 from buildenv.weather import epw_day_of_year, resolve_epw
@@ -87,12 +100,14 @@ REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
     "medium_office_2019": ("ASHRAE901_OfficeMedium_STD2019_Denver.idf", 3),
     "large_office_2019": ("ASHRAE901_OfficeLarge_STD2019_Denver.idf", 12),
 }
-# air changes per hour the reference's design minimum outdoor air stands for: the historical setting
-HISTORICAL_ACH = DEFAULT_DAY_SETTINGS["ventilation_ach"]
 SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
 TEMPERATURE_NOISE_K, TEMPERATURE_RESOLUTION_K = 0.1, 0.1
 CONSUMPTION_NOISE_FRACTION, CONSUMPTION_RESOLUTION_KWH = 0.01, 0.1
 HOURS_PER_YEAR = 8760
+# the weather of the sizing run that gives a model's design outdoor air: that air follows the model's
+# DesignSpecification:OutdoorAir, not the weather, and the ASHRAE 90.1-2019 large office fails to size its
+# cooling coils with some weather files (Oklahoma City, Phoenix), so every model is sized with this one
+OUTDOOR_AIR_SIZING_WEATHER = "usa_il_chicago"
 _DATA_CENTRE_COIL_ERROR = (
     "{}: EnergyPlus failed (Severe FindRootSimpleController) on the data centre's zero-capacity extra heating "
     "coil, which the model's EMS switches on when the data centre heats below 10 degC outdoors, with its setpoint "
@@ -181,15 +196,16 @@ def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
     return found
 
 
-def _schedule_columns(settings: np.ndarray) -> dict[str, np.ndarray]:
-    """Hourly values of the four roles for ``settings`` ``(weeks, 7, 12)`` -> ``{role: (weeks*168,)}``."""
+def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.ndarray]:
+    """Hourly values of the four roles for ``settings`` ``(weeks, 7, 12)`` -> ``{role: (weeks*168,)}``, for a
+    model whose design minimum outdoor air is ``design_ach`` (1/h, see :func:`design_outdoor_air_ach`)."""
     occupancy = np.zeros((len(settings), len(cat.WEEKDAYS), len(cat.GROUPS["occupancy"])))
     occupancy[..., 0], occupancy[..., 1] = cat.get("occupancy_start_hour").min, cat.get("occupancy_end_hour").max
     s = {k: v.reshape(-1) for k, v in hourly_schedules(settings, occupancy).items()}
     hvac = np.maximum.reduce([s["heating_comfort_on"], s["cooling_comfort_on"], s["ventilation_on"]])
     return {"heating_setpoint": s["heating_setpoint_c"], "cooling_setpoint": s["cooling_setpoint_c"],
             "hvac_availability": hvac, "outdoor_air": s["ventilation_on"] * np.minimum(
-                1.0, s["ventilation_ach"] / HISTORICAL_ACH)}
+                1.0, s["ventilation_ach"] / design_ach)}
 
 
 def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdir: Path,
@@ -215,7 +231,7 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
         raise ReferenceBuildingError(f"the run {first_day}..{last_day} crosses a new year; "
                                      "start it earlier or shorten it")
     # the Schedule:File: a year of hourly values, the run's hours filled from the settings
-    columns = _schedule_columns(settings)
+    columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
     start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
     table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
     for j, role in enumerate(SCHEDULE_ROLES):
@@ -258,6 +274,53 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
     idf = workdir / f"{source.stem}_buildenv.idf"
     idf.write_text(format_idf(edited))
     return idf, mapping
+
+
+@functools.lru_cache(maxsize=32)
+def design_outdoor_air_ach(source: Path, epw: Path | None) -> float:
+    """The design minimum outdoor air of a model's occupied zones, in air changes per hour of
+    ``floor area x FLOOR_HEIGHT_M`` (our model's ``ventilation_ach``), from a sizing run (cached).
+
+    The sum over zones with ``People`` of the larger of each zone's heating and cooling "Calc Outdoor Air Flow
+    Rate" (``eplusout.eio`` Zone Sizing Information), divided by the same zones' floor area. Raises
+    :class:`ReferenceBuildingError` without a weather file or without zone outdoor air.
+    """
+    if epw is None:
+        raise ReferenceBuildingError(f"{source.stem}: the design outdoor air needs a sizing run with a weather file")
+    objects = read_idf(source)
+    occupied = {o[2].upper() for o in of_type(objects, "People")}
+    with tempfile.TemporaryDirectory(prefix="buildenv-oa-") as tmp:
+        eio = _sizing_run(source, Path(tmp), Path(epw))(sizing_objects(objects))
+        flows = zone_outdoor_air_m3_s(eio)
+        areas = zone_areas(eio)
+    zones = [z for z in flows if z in occupied and z in areas]
+    total = sum(flows[z] for z in zones)
+    if total <= 0.0:
+        raise ReferenceBuildingError(f"{source}: no design outdoor air in its occupied zones (sizing run)")
+    return total * 3600.0 / (sum(areas[z] for z in zones) * FLOOR_HEIGHT_M)
+
+
+def historical_ventilation_ach(building: str | Path) -> float:
+    """The ventilation a reference building's site records as its historical setting: its design minimum
+    outdoor air (:func:`design_outdoor_air_ach`) on the catalogue's grid of ``ventilation_ach`` (1/h)."""
+    var = cat.get("ventilation_ach")
+    design = design_outdoor_air_ach(reference_idf(building), resolve_epw(OUTDOOR_AIR_SIZING_WEATHER))
+    return float(var.snap(np.clip(design, var.min, var.max)))
+
+
+def zone_outdoor_air_m3_s(eio: Path) -> dict[str, float]:
+    """``{zone name (upper case): design outdoor air (m3/s)}`` from the Zone Sizing Information of
+    ``eplusout.eio`` (the larger of the heating and cooling lines, as EnergyPlus reports them)."""
+    header: list[str] | None = None
+    flows: dict[str, float] = {}
+    for line in Path(eio).read_text(errors="replace").splitlines():
+        fields = [f.strip() for f in line.split(",")]
+        if fields[0] == "! <Zone Sizing Information>":
+            header = [h.split("{")[0].strip().lower() for h in fields]
+        elif fields[0] == "Zone Sizing Information" and header and "calc outdoor air flow rate" in header:
+            value = float(fields[header.index("calc outdoor air flow rate")])
+            flows[fields[1].upper()] = max(flows.get(fields[1].upper(), 0.0), value)
+    return flows
 
 
 def _sizing_run(source: Path, workdir: Path, epw: Path | None):
@@ -410,9 +473,13 @@ def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, np.ndarr
     return t, q
 
 
-def historical_settings(weeks: int) -> np.ndarray:
-    """The default building's typical historical settings on every day, ``(weeks, 7, 12)``."""
-    return default_week(weeks)[0]
+def historical_settings(weeks: int, ventilation_ach: float | None = None) -> np.ndarray:
+    """The default building's typical historical settings on every day, ``(weeks, 7, 12)``; ``ventilation_ach``
+    (1/h) replaces the default ventilation (a reference building's: :func:`historical_ventilation_ach`)."""
+    settings = default_week(weeks)[0]
+    if ventilation_ach is not None:
+        settings[..., cat.SETTING_NAMES.index("ventilation_ach")] = ventilation_ach
+    return settings
 
 
 def make_reference_site(out: str | Path, building: str | Path = "medium_office", epw: str | Path = "usa_il_chicago",
@@ -428,7 +495,8 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
         epw: weather short name or EPW path.
         start: Monday of the first measured week.
         weeks: measured weeks.
-        settings: I_k per week ``(weeks, 7, 12)``; default :func:`historical_settings`.
+        settings: I_k per week ``(weeks, 7, 12)``; default :func:`historical_settings` with the building's
+            design ventilation (:func:`historical_ventilation_ach`).
         seed: seed of the sensor noise.
         floors: storeys (known geometry); taken from :data:`REFERENCE_BUILDINGS` for shipped buildings.
         schedule_map: schedules to replace (detected if ``None``).
@@ -443,7 +511,9 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
         if str(building) not in REFERENCE_BUILDINGS:
             raise ReferenceBuildingError(f"{building}: give the number of floors of a user IDF (--floors)")
         floors = REFERENCE_BUILDINGS[str(building)][1]
-    settings = historical_settings(weeks) if settings is None else np.asarray(settings, float)
+    if settings is None:
+        settings = historical_settings(weeks, historical_ventilation_ach(building))
+    settings = np.asarray(settings, float)
     run = run_reference(building, epw, start, settings, schedule_map=schedule_map, effects=effects,
                         effect_seed=effect_seed)
     temperature, consumption = add_sensor_noise(run, seed)

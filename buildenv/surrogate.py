@@ -139,6 +139,12 @@ class Surrogate:
     jit: bool = True
     _runner: object = field(default=None, repr=False, compare=False)
 
+    @property
+    def zoning(self) -> str:
+        """Zoning of the shoebox whose simulations trained it (``single`` for checkpoints made before the
+        choice existed); EnergyPlus runs that stand for this metamodel use the same."""
+        return str(self.checkpoint.metadata.get("zoning", "single"))
+
     def _inference_model(self):
         """The module ``predict_encoded`` calls (traced once, on first use)."""
         if self._runner is None:

@@ -57,6 +57,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     rng = np.random.default_rng(seed)
     with open_dataset(data) as ds:
         parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
+        ds_zoning = ds.zoning
         train_idx = parts["train"]
         if max_weeks is not None and max_weeks < len(train_idx):
             train_idx = np.sort(rng.choice(train_idx, size=max_weeks, replace=False))
@@ -68,7 +69,8 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     config = dict(model_config or {})
     net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
     metadata = {**sg.metadata(), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
-                "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx))}
+                "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx)),
+                "zoning": ds_zoning}
     ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)

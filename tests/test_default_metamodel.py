@@ -28,8 +28,8 @@ def test_default_metamodel_predicts_fresh_energyplus_weeks(epw, start_week, seed
     rng = np.random.default_rng(seed)
     theta = sample_group("theta_build", 1, rng)[0]
     settings, occupancy = sample_weeks(2, rng)
-    sim = simulate_weeks(theta, settings, occupancy, epw, start_week=start_week)
     surrogate = load_metamodel()
+    sim = simulate_weeks(theta, settings, occupancy, epw, start_week=start_week, zoning=surrogate.zoning)
     # week 2 with week 1 as its context, as in a campaign; week 1 with its own first day
     pred = surrogate.predict(np.repeat(theta[None], 2, 0), settings, occupancy, sim.weather,
                              previous=(settings[[0, 0]], occupancy[[0, 0]], sim.weather[[0, 0]]),

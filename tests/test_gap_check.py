@@ -21,8 +21,10 @@ def test_plan_is_seeded_and_cycles_through_the_labels():
 
 
 def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site(tmp_path):
-    settings = DiagnosisSettings(candidates=("temperature_sensor_bias", "solar_shading"), evaluations=250,
-                                 base_evaluations=900, max_effects=1)
+    # the calibration budget of bench/gap_check.py: with 250 evaluations the two-zone metamodel's calibration is
+    # not converged yet and a sensor bias absorbs the rest (the clean site was then named biased)
+    settings = DiagnosisSettings(candidates=("temperature_sensor_bias", "solar_shading"), evaluations=1500,
+                                 max_effects=1)
     result = run_check(tmp_path, cases=2, seed=1, settings=settings, base_effects=["night_plug_loads"],
                        effects=("temperature_sensor_bias",))
     rows = {r["true"]: r for r in result["cases"]}

@@ -3,11 +3,19 @@
 Modelling choices (each a constant below, so that a reader can find and change it):
 
 Geometry
-    The whole building is one thermal zone (the paper's "single thermal zone including vertical walls, a
-    horizontal roof and a horizontal ground"). A square footprint of side ``sqrt(floor_area / floors)``
-    and a height of ``floors * FLOOR_HEIGHT_M``; the zone floor area is set to the full floor area and its
-    volume to ``floor_area * FLOOR_HEIGHT_M``. Facades face north, east, south and west (catalogue order
-    1-4). Each facade carries one horizontal window band, centred, of the facade's window-to-wall ratio.
+    A square footprint of side ``sqrt(floor_area / floors)`` and a height of ``floors * FLOOR_HEIGHT_M``;
+    the zones' floor areas add up to the full floor area and their volumes to ``floor_area * FLOOR_HEIGHT_M``.
+    Facades face north, east, south and west (catalogue order 1-4). Each facade carries one horizontal window
+    band, centred, of the facade's window-to-wall ratio.
+Zoning (``zoning=``)
+    ``single``: the whole building is one thermal zone (the paper's "single thermal zone including vertical
+    walls, a horizontal roof and a horizontal ground").
+    ``core_perimeter``: a perimeter ring ``PERIMETER_DEPTH_M`` deep (at most a quarter of the side) holds the
+    facades, windows and infiltration; the core, the rest of the footprint, only meets the perimeter
+    (plasterboard / air / plasterboard partitions), the roof and the ground. Internal gains, internal mass,
+    fan coils and air handling unit are split between the zones by floor area; both follow the same
+    thermostat. This is how multi-zone offices behave and a single zone cannot: at night the perimeter sits
+    at the setback and heats while the core, warmed by the day's gains, keeps the mean temperature higher.
 Envelope
     Walls: concrete ``WALL_CONCRETE_M`` / insulation (theta) / plasterboard, from outside in. Roof: membrane /
     insulation (theta) / concrete slab. Ground floor: insulation ``GROUND_INSULATION_M`` under a concrete
@@ -15,10 +23,11 @@ Envelope
     annual mean) of the weather file. Glazing: a simple glazing system (``GLAZING_U``, ``GLAZING_SHGC``).
 Capacitance
     The catalogue's effective heat capacity per m3 (50-300 kJ/K/m3) is an InternalMass of concrete with
-    both faces exposed (surface ``2 x floor area``) whose thickness gives ``capacitance x volume``.
+    both faces exposed (surface ``2 x floor area``, split between zones by floor area) whose thickness gives
+    ``capacitance x volume``.
 Infiltration
-    Constant air changes per hour (no wind or stack dependence: that is one of the effects the gap
-    diagnosis looks for).
+    Constant air changes per hour of the building's volume, through the envelope (no wind or stack
+    dependence: that is one of the effects the gap diagnosis looks for).
 Internal gains
     Occupants at ``PERSON_ACTIVITY_W`` each; workstations at ``PC_POWER_W`` each; lighting at
     ``LIGHTING_W_M2``. All follow the hourly occupancy; lights and equipment stay at the night percentage
@@ -38,7 +47,8 @@ Air handling unit
 Schedules
     Every hourly schedule is a column of one Schedule:File (absolute path), so every week may differ.
 Outputs
-    Hourly: zone mean air temperature and the seven energies, converted to Wh per m2 of floor area.
+    Hourly: the floor-area weighted mean of the zones' air temperatures (a building's sensors read the mean
+    of its zones) and the seven energies summed over the zones, converted to Wh per m2 of floor area.
 """
 
 from __future__ import annotations
@@ -61,6 +71,12 @@ GROUND_INSULATION_M = 0.05
 GROUND_SWING = 0.3
 GLAZING_U = 2.4  # W/(m2 K)
 GLAZING_SHGC = 0.40
+PERIMETER_DEPTH_M = 4.57  # depth of the perimeter zone (the DOE reference offices' 15 ft), at most side / 4
+PARTITION_AIR_GAP_M2K_W = 0.15  # thermal resistance of the air gap in the core/perimeter partition
+# EnergyPlus's warm-up check compares each zone's loads day to day within a fraction (default 0.04): a core's
+# few watts of cooling can miss it by a hair for 25 days (measured: 4.4 % in Golden, run 53 of the 40,000-week
+# campaign), which EnergyPlus reports as Severe; the loads of two zones converge within 10 %
+CORE_WARMUP_LOADS_TOLERANCE = 0.1
 WINDOW_MARGIN = 0.05  # share of the facade width left opaque at each end of the window band
 PERSON_ACTIVITY_W = 120.0
 PC_POWER_W = 150.0
@@ -76,22 +92,22 @@ INSULATION = {"conductivity": 0.035, "density": 30.0, "specific_heat": 1400.0}
 PLASTERBOARD = {"conductivity": 0.25, "density": 900.0, "specific_heat": 1000.0}
 MEMBRANE = {"conductivity": 0.17, "density": 1100.0, "specific_heat": 1000.0}
 
-ZONE = "Office"
-IDEAL_LOADS = "Office Fan Coils"
-AHU = "Office AHU"
-AHU_HEATING_COIL = "AHU Heating Coil"
-AHU_COOLING_COIL = "AHU Cooling Coil"
+ZONE = "Office"  # the single zone
+PERIMETER, CORE = "Perimeter", "Core"  # the two zones of core_perimeter
+ZONINGS = ("single", "core_perimeter")
+DEFAULT_ZONING = "core_perimeter"
 
-#: EnergyPlus report variable (key, name) behind each catalogue output.
+#: EnergyPlus report variable (HVAC part of the key, name) behind each catalogue output; the key is the zone
+#: name for zone variables, else ``f"{zone} {part}"``.
 OUTPUT_VARIABLES: dict[str, tuple[str, str]] = {
-    "Q_AC_OFFICE": (IDEAL_LOADS, "Zone Ideal Loads Supply Air Total Cooling Energy"),
-    "Q_HEAT_OFFICE": (IDEAL_LOADS, "Zone Ideal Loads Supply Air Total Heating Energy"),
-    "Q_PEOPLE": (ZONE, "Zone People Total Heating Energy"),
-    "Q_EQP": (ZONE, "Zone Electric Equipment Electricity Energy"),
-    "Q_LIGHT": (ZONE, "Zone Lights Electricity Energy"),
-    "Q_AHU_C": (AHU_COOLING_COIL, "Cooling Coil Total Cooling Energy"),
-    "Q_AHU_H": (AHU_HEATING_COIL, "Heating Coil Heating Energy"),
-    "T_INT_OFFICE": (ZONE, "Zone Mean Air Temperature"),
+    "Q_AC_OFFICE": ("Fan Coils", "Zone Ideal Loads Supply Air Total Cooling Energy"),
+    "Q_HEAT_OFFICE": ("Fan Coils", "Zone Ideal Loads Supply Air Total Heating Energy"),
+    "Q_PEOPLE": ("", "Zone People Total Heating Energy"),
+    "Q_EQP": ("", "Zone Electric Equipment Electricity Energy"),
+    "Q_LIGHT": ("", "Zone Lights Electricity Energy"),
+    "Q_AHU_C": ("AHU Cooling Coil", "Cooling Coil Total Cooling Energy"),
+    "Q_AHU_H": ("AHU Heating Coil", "Heating Coil Heating Energy"),
+    "T_INT_OFFICE": ("", "Zone Mean Air Temperature"),
 }
 
 #: Columns of the Schedule:File, in order.
@@ -120,6 +136,21 @@ class Geometry:
         side = math.sqrt(area / floors)
         return cls(area, floors, side, floors * FLOOR_HEIGHT_M, area * FLOOR_HEIGHT_M)
 
+    @property
+    def perimeter_depth_m(self) -> float:
+        """Depth of the perimeter zone of ``core_perimeter`` zoning (m)."""
+        return min(PERIMETER_DEPTH_M, self.side_m / 4.0)
+
+    def core_facade(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Like :meth:`facade` for the core's side facing that facade (core_perimeter zoning)."""
+        p, q = self.perimeter_depth_m, self.side_m - self.perimeter_depth_m
+        return {
+            "south": (np.array([p, p, 0.0]), np.array([1.0, 0.0, 0.0])),
+            "east": (np.array([q, p, 0.0]), np.array([0.0, 1.0, 0.0])),
+            "north": (np.array([q, q, 0.0]), np.array([-1.0, 0.0, 0.0])),
+            "west": (np.array([p, q, 0.0]), np.array([0.0, -1.0, 0.0])),
+        }[name]
+
     def facade(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Bottom-left corner seen from outside and the unit vector along the facade, for a facade name."""
         s = self.side_m
@@ -129,6 +160,60 @@ class Geometry:
             "north": (np.array([s, s, 0.0]), np.array([-1.0, 0.0, 0.0])),
             "west": (np.array([0.0, s, 0.0]), np.array([0.0, -1.0, 0.0])),
         }[name]
+
+
+def check_zoning(zoning: str) -> str:
+    """``zoning`` if it is one of :data:`ZONINGS`; raises ``ValueError`` naming them otherwise."""
+    if zoning not in ZONINGS:
+        raise ValueError(f"zoning {zoning!r}: expected one of {', '.join(ZONINGS)}")
+    return zoning
+
+
+def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
+    """``{zone: share of the floor area (and volume)}`` of a zoning; the shares sum to 1."""
+    if check_zoning(zoning) == "single":
+        return {ZONE: 1.0}
+    core = (g.side_m - 2.0 * g.perimeter_depth_m) ** 2 / g.side_m ** 2
+    return {PERIMETER: 1.0 - core, CORE: core}
+
+
+def zone_hvac_names(zone: str) -> dict[str, str]:
+    """Names of a zone's fan coils (ideal loads), air handling unit and its coils."""
+    return {"fan_coils": f"{zone} Fan Coils", "ahu": f"{zone} AHU", "heating_coil": f"{zone} AHU Heating Coil",
+            "cooling_coil": f"{zone} AHU Cooling Coil"}
+
+
+def output_keys(name: str, zoning: str) -> list[tuple[str, str]]:
+    """The (key, report variable) pairs, one per zone, behind catalogue output ``name``."""
+    part, variable = OUTPUT_VARIABLES[name]
+    return [(f"{zone} {part}" if part else zone, variable) for zone in zone_names(zoning)]
+
+
+def zone_names(zoning: str) -> tuple[str, ...]:
+    """Zone names of a zoning."""
+    return (ZONE,) if check_zoning(zoning) == "single" else (PERIMETER, CORE)
+
+
+def output_variables(zoning: str) -> list[tuple[str, str]]:
+    """Every (key, report variable) pair the model reports hourly."""
+    return [pair for name in cat.OUTPUT_NAMES for pair in output_keys(name, zoning)]
+
+
+def _horizontal_outlines(g: Geometry, zoning: str) -> dict[str, tuple[str, list[tuple[float, float]]]]:
+    """``{name suffix: (zone, [(x, y), ...] counter-clockwise seen from above)}`` of the roof and floor pieces."""
+    s = g.side_m
+    if zoning == "single":
+        return {"": (ZONE, [(0.0, s), (0.0, 0.0), (s, 0.0), (s, s)])}
+    p, q = g.perimeter_depth_m, s - g.perimeter_depth_m
+    outlines = {"core": (CORE, [(p, q), (p, p), (q, p), (q, q)])}
+    south = [(0.0, 0.0), (s, 0.0), (q, p), (p, p)]
+    for turn, facade in enumerate(("south", "east", "north", "west")):  # each a quarter turn about the centre
+        c = s / 2.0
+        piece = south
+        for _ in range(turn):
+            piece = [(c - (y - c), c + (x - c)) for x, y in piece]
+        outlines[facade] = (PERIMETER, [(round(x, 4), round(y, 4)) for x, y in piece])
+    return outlines
 
 
 def theta_dict(theta: np.ndarray | dict[str, float]) -> dict[str, float]:
@@ -206,7 +291,7 @@ def write_schedule_file(path: Path, theta: dict[str, float], settings: np.ndarra
 
 
 def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedule_csv: Path,
-                 start_week: int, n_weeks: int) -> dict:
+                 start_week: int, n_weeks: int, zoning: str = DEFAULT_ZONING) -> dict:
     """Generate the shoebox as an epJSON document.
 
     Args:
@@ -215,11 +300,13 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
         schedule_csv: path of the Schedule:File written by :func:`schedule_table` (made absolute here).
         start_week: week of year of the first simulated week (weeks start on Mondays; Jan 1st is a Monday).
         n_weeks: number of consecutive weeks to simulate.
+        zoning: ``single`` (one zone, the paper's) or ``core_perimeter`` (see the module docstring).
     Returns:
         The epJSON model as a dict (``json.dump`` it to a ``.epJSON`` file).
     """
     t = theta_dict(theta)
     g = Geometry.from_theta(t)
+    check_zoning(zoning)
     csv = str(Path(schedule_csv).resolve())
     if start_week < 0 or start_week + n_weeks > cat.WEEKS_PER_YEAR:
         raise ValueError(f"weeks {start_week}..{start_week + n_weeks - 1} do not fit in weeks "
@@ -236,8 +323,10 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
     add("SimulationControl", "SimulationControl 1", do_zone_sizing_calculation="No",
         do_system_sizing_calculation="No", do_plant_sizing_calculation="No",
         run_simulation_for_sizing_periods="No", run_simulation_for_weather_file_run_periods="Yes")
+    warmup = {} if zoning == "single" else {"loads_convergence_tolerance_value": CORE_WARMUP_LOADS_TOLERANCE,
+                                            "maximum_number_of_warmup_days": 50}
     add("Building", "buildenv shoebox", north_axis=0.0, terrain="City", solar_distribution="FullExterior",
-        maximum_number_of_warmup_days=25, minimum_number_of_warmup_days=6)
+        **{"maximum_number_of_warmup_days": 25, "minimum_number_of_warmup_days": 6, **warmup})
     add("Timestep", "Timestep 1", number_of_timesteps_per_hour=TIMESTEPS_PER_HOUR)
     add("GlobalGeometryRules", "GlobalGeometryRules 1", starting_vertex_position="UpperLeftCorner",
         vertex_entry_direction="Counterclockwise", coordinate_system="Relative")
@@ -274,23 +363,24 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
     add("Material", "Insulation roof", **_material(t["roof_insulation_m"], INSULATION))
     add("Construction", "Roof", outside_layer="Membrane", layer_2="Insulation roof", layer_3="Concrete roof")
     add("Construction", "Ground floor", outside_layer="Ground insulation", layer_2="Concrete roof")
-    capacity_j_per_k = t["capacitance_kj_per_k_m3"] * 1000.0 * g.volume_m3
-    mass_area = 2.0 * g.floor_area_m2
-    mass_thickness = capacity_j_per_k / (CONCRETE["density"] * CONCRETE["specific_heat"] * mass_area)
-    add("Material", "Internal mass concrete", **_material(mass_thickness, CONCRETE, "Smooth"))
-    add("Construction", "Internal mass", outside_layer="Internal mass concrete")
     add("WindowMaterial:SimpleGlazingSystem", "Glazing", u_factor=GLAZING_U,
         solar_heat_gain_coefficient=GLAZING_SHGC, visible_transmittance=0.6)
     add("Construction", "Window", outside_layer="Glazing")
 
-    # Zone and surfaces.
-    add("Zone", ZONE, ceiling_height=FLOOR_HEIGHT_M, volume=round(g.volume_m3, 3),
-        floor_area=round(g.floor_area_m2, 3), part_of_total_floor_area="Yes")
+    # Zones and surfaces.
+    add("Material:AirGap", "Partition air gap", thermal_resistance=PARTITION_AIR_GAP_M2K_W)
+    add("Construction", "Partition", outside_layer="Plasterboard", layer_2="Partition air gap",
+        layer_3="Plasterboard")
+    shares = zone_shares(g, zoning)
+    for zone, share in shares.items():
+        add("Zone", zone, ceiling_height=FLOOR_HEIGHT_M, volume=round(share * g.volume_m3, 3),
+            floor_area=round(share * g.floor_area_m2, 3), part_of_total_floor_area="Yes")
+    envelope = PERIMETER if zoning == "core_perimeter" else ZONE
     s, h = g.side_m, g.height_m
     for facade in FACADES:
         origin, along = g.facade(facade)
         add("BuildingSurface:Detailed", f"Wall {facade}", surface_type="Wall", construction_name=f"Wall {facade}",
-            zone_name=ZONE, outside_boundary_condition="Outdoors", sun_exposure="SunExposed",
+            zone_name=envelope, outside_boundary_condition="Outdoors", sun_exposure="SunExposed",
             wind_exposure="WindExposed", vertices=_rect(origin, along, 0.0, s, 0.0, h))
         wwr = t[f"window_to_wall_{facade}_percent"] / 100.0
         width = s * (1.0 - 2.0 * WINDOW_MARGIN)
@@ -300,14 +390,23 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
         for i, v in enumerate(_rect(origin, along, s * WINDOW_MARGIN, width, (h - height) / 2.0, height), 1):
             fields.update({f"vertex_{i}_{axis}_coordinate": v[f"vertex_{axis}_coordinate"] for axis in "xyz"})
         add("FenestrationSurface:Detailed", f"Window {facade}", **fields)
-    add("BuildingSurface:Detailed", "Roof", surface_type="Roof", construction_name="Roof", zone_name=ZONE,
-        outside_boundary_condition="Outdoors", sun_exposure="SunExposed", wind_exposure="WindExposed",
-        vertices=_xyz([(0.0, s, h), (0.0, 0.0, h), (s, 0.0, h), (s, s, h)]))
-    add("BuildingSurface:Detailed", "Ground floor", surface_type="Floor", construction_name="Ground floor",
-        zone_name=ZONE, outside_boundary_condition="Ground", sun_exposure="NoSun", wind_exposure="NoWind",
-        vertices=_xyz([(s, s, 0.0), (s, 0.0, 0.0), (0.0, 0.0, 0.0), (0.0, s, 0.0)]))
-    add("InternalMass", "Internal mass", construction_name="Internal mass", zone_or_zonelist_name=ZONE,
-        surface_area=round(mass_area, 3))
+    for name, (zone, outline) in _horizontal_outlines(g, zoning).items():
+        add("BuildingSurface:Detailed", f"Roof {name}".strip(), surface_type="Roof", construction_name="Roof",
+            zone_name=zone, outside_boundary_condition="Outdoors", sun_exposure="SunExposed",
+            wind_exposure="WindExposed", vertices=_xyz([(x, y, h) for x, y in outline]))
+        add("BuildingSurface:Detailed", f"Ground floor {name}".strip(), surface_type="Floor",
+            construction_name="Ground floor", zone_name=zone, outside_boundary_condition="Ground",
+            sun_exposure="NoSun", wind_exposure="NoWind", vertices=_xyz([(x, y, 0.0) for x, y in outline[::-1]]))
+    if zoning == "core_perimeter":
+        inner = s - 2.0 * g.perimeter_depth_m
+        for facade in FACADES:  # the core's walls face the perimeter; the perimeter's face the core
+            origin, along = g.core_facade(facade)
+            core_side = _rect(origin, along, 0.0, inner, 0.0, h)
+            for zone, other, vertices in ((CORE, PERIMETER, core_side), (PERIMETER, CORE, core_side[::-1])):
+                add("BuildingSurface:Detailed", f"Partition {facade} {zone}", surface_type="Wall",
+                    construction_name="Partition", zone_name=zone, outside_boundary_condition="Surface",
+                    outside_boundary_condition_object=f"Partition {facade} {other}", sun_exposure="NoSun",
+                    wind_exposure="NoWind", vertices=vertices)
 
     # Schedules: constants and one Schedule:File column per hourly series.
     add("ScheduleTypeLimits", "Any Number")
@@ -318,91 +417,117 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
         add("Schedule:File", name, schedule_type_limits_name="Any Number", file_name=csv, column_number=column,
             rows_to_skip_at_top=1, number_of_hours_of_data=8760, column_separator="Comma",
             interpolate_to_timestep="No", minutes_per_item=60)
-
-    # Internal gains and infiltration.
-    add("People", "Occupants", zone_or_zonelist_or_space_or_spacelist_name=ZONE,
-        number_of_people_schedule_name="occupancy_fraction", number_of_people_calculation_method="People",
-        number_of_people=round(t["occupant_density_per_m2"] * g.floor_area_m2, 3), fraction_radiant=0.3,
-        sensible_heat_fraction="Autocalculate", activity_level_schedule_name="Activity")
-    add("Lights", "Lighting", zone_or_zonelist_or_space_or_spacelist_name=ZONE, schedule_name="lighting_fraction",
-        design_level_calculation_method="LightingLevel", lighting_level=round(LIGHTING_W_M2 * g.floor_area_m2, 3),
-        fraction_radiant=0.42, fraction_visible=0.18)
-    add("ElectricEquipment", "Workstations", zone_or_zonelist_or_space_or_spacelist_name=ZONE,
-        schedule_name="equipment_fraction", design_level_calculation_method="EquipmentLevel",
-        design_level=round(t["pc_density_per_m2"] * g.floor_area_m2 * PC_POWER_W, 3), fraction_radiant=0.3)
-    add("ZoneInfiltration:DesignFlowRate", "Infiltration", zone_or_zonelist_or_space_or_spacelist_name=ZONE,
-        schedule_name="Always on", design_flow_rate_calculation_method="AirChanges/Hour",
-        air_changes_per_hour=t["infiltration_ach"], constant_term_coefficient=1.0,
-        temperature_term_coefficient=0.0, velocity_term_coefficient=0.0, velocity_squared_term_coefficient=0.0)
-
-    # Thermostat and zone equipment.
     add("ThermostatSetpoint:DualSetpoint", "Setpoints", heating_setpoint_temperature_schedule_name="heating_setpoint_c",
         cooling_setpoint_temperature_schedule_name="cooling_setpoint_c")
-    add("ZoneControl:Thermostat", "Thermostat", zone_or_zonelist_name=ZONE, control_type_schedule_name="Dual setpoint",
-        control_1_object_type="ThermostatSetpoint:DualSetpoint", control_1_name="Setpoints")
-    add("NodeList", "Zone inlets", nodes=[{"node_name": "Fan coil supply"}, {"node_name": "AHU supply"}])
-    add("NodeList", "Zone exhausts", nodes=[{"node_name": "Fan coil exhaust"}, {"node_name": "AHU exhaust"}])
-    add("ZoneHVAC:EquipmentConnections", ZONE, zone_name=ZONE, zone_conditioning_equipment_list_name="Equipment",
-        zone_air_inlet_node_or_nodelist_name="Zone inlets", zone_air_exhaust_node_or_nodelist_name="Zone exhausts",
-        zone_air_node_name="Zone air", zone_return_air_node_or_nodelist_name="Zone return")
-    add("ZoneHVAC:EquipmentList", "Equipment", load_distribution_scheme="SequentialLoad", equipment=[
-        {"zone_equipment_object_type": "ZoneHVAC:OutdoorAirUnit", "zone_equipment_name": AHU,
-         "zone_equipment_cooling_sequence": 1, "zone_equipment_heating_or_no_load_sequence": 1},
-        {"zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem", "zone_equipment_name": IDEAL_LOADS,
-         "zone_equipment_cooling_sequence": 2, "zone_equipment_heating_or_no_load_sequence": 2}])
-    add("ZoneHVAC:IdealLoadsAirSystem", IDEAL_LOADS, zone_supply_air_node_name="Fan coil supply",
-        zone_exhaust_air_node_name="Fan coil exhaust", maximum_heating_supply_air_temperature=50.0,
-        minimum_cooling_supply_air_temperature=13.0, maximum_heating_supply_air_humidity_ratio=0.0156,
-        minimum_cooling_supply_air_humidity_ratio=0.0077, heating_limit="LimitCapacity",
-        maximum_sensible_heating_capacity=round(t["heating_power_w_m2"] * g.floor_area_m2, 3),
-        cooling_limit="LimitCapacity",
-        maximum_total_cooling_capacity=round(t["cooling_power_w_m2"] * g.floor_area_m2, 3),
-        dehumidification_control_type="None", humidification_control_type="None")
-
-    # Air handling unit: outdoor air -> DX cooling coil -> electric heating coil -> supply fan -> zone.
-    oa_flow = cat.get("ventilation_ach").max * g.volume_m3 / 3600.0
-    add("ZoneHVAC:OutdoorAirUnit", AHU, availability_schedule_name="ventilation_on", zone_name=ZONE,
-        outdoor_air_flow_rate=round(oa_flow, 5), outdoor_air_schedule_name="ventilation_fraction",
-        supply_fan_name="AHU supply fan", supply_fan_placement="DrawThrough", exhaust_fan_name="AHU exhaust fan",
-        exhaust_air_flow_rate=round(oa_flow, 5), exhaust_air_schedule_name="ventilation_fraction",
-        unit_control_type="TemperatureControl", high_air_control_temperature_schedule_name="supply_air_c",
-        low_air_control_temperature_schedule_name="supply_air_c", outdoor_air_node_name="AHU outdoor air",
-        airoutlet_node_name="AHU supply", airinlet_node_name="AHU exhaust",
-        supply_fanoutlet_node_name="AHU supply", outdoor_air_unit_list_name="AHU components")
-    add("ZoneHVAC:OutdoorAirUnit:EquipmentList", "AHU components",
-        component_1_object_type="CoilSystem:Cooling:DX", component_1_name="AHU cooling system",
-        component_2_object_type="Coil:Heating:Electric", component_2_name=AHU_HEATING_COIL)
-    add("CoilSystem:Cooling:DX", "AHU cooling system", availability_schedule_name="ventilation_on",
-        dx_cooling_coil_system_inlet_node_name="AHU outdoor air",
-        dx_cooling_coil_system_outlet_node_name="AHU cooled air",
-        dx_cooling_coil_system_sensor_node_name="AHU cooled air",
-        cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed", cooling_coil_name=AHU_COOLING_COIL)
-    add("Coil:Cooling:DX:SingleSpeed", AHU_COOLING_COIL, availability_schedule_name="ventilation_on",
-        gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * oa_flow / DX_FLOW_PER_CAPACITY, 2),
-        gross_rated_sensible_heat_ratio=0.75, gross_rated_cooling_cop=3.0,
-        rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * oa_flow, 5),
-        air_inlet_node_name="AHU outdoor air", air_outlet_node_name="AHU cooled air",
-        total_cooling_capacity_function_of_temperature_curve_name="Constant biquadratic",
-        total_cooling_capacity_function_of_flow_fraction_curve_name="Constant quadratic",
-        energy_input_ratio_function_of_temperature_curve_name="Constant biquadratic",
-        energy_input_ratio_function_of_flow_fraction_curve_name="Constant quadratic",
-        part_load_fraction_correlation_curve_name="Constant quadratic")
-    add("Coil:Heating:Electric", AHU_HEATING_COIL, availability_schedule_name="ventilation_on", efficiency=1.0,
-        nominal_capacity=round(oa_flow * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
-        air_inlet_node_name="AHU cooled air", air_outlet_node_name="AHU heated air")
-    add("Fan:ConstantVolume", "AHU supply fan", availability_schedule_name="ventilation_on", fan_total_efficiency=0.6,
-        pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5), motor_efficiency=0.9,
-        motor_in_airstream_fraction=1.0, air_inlet_node_name="AHU heated air", air_outlet_node_name="AHU supply")
-    add("Fan:ConstantVolume", "AHU exhaust fan", availability_schedule_name="ventilation_on",
-        fan_total_efficiency=0.6, pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5),
-        motor_efficiency=0.9, motor_in_airstream_fraction=1.0, air_inlet_node_name="AHU exhaust",
-        air_outlet_node_name="AHU relief")
     add("Curve:Biquadratic", "Constant biquadratic", coefficient1_constant=1.0, coefficient2_x=0.0,
         coefficient3_x_2=0.0, coefficient4_y=0.0, coefficient5_y_2=0.0, coefficient6_x_y=0.0,
         minimum_value_of_x=-50.0, maximum_value_of_x=60.0, minimum_value_of_y=-50.0, maximum_value_of_y=60.0)
     add("Curve:Quadratic", "Constant quadratic", coefficient1_constant=1.0, coefficient2_x=0.0,
         coefficient3_x_2=0.0, minimum_value_of_x=0.0, maximum_value_of_x=1.5)
 
-    for i, (key, variable) in enumerate(OUTPUT_VARIABLES.values()):
+    capacity_j_per_k = t["capacitance_kj_per_k_m3"] * 1000.0 * g.volume_m3
+    mass_thickness = capacity_j_per_k / (CONCRETE["density"] * CONCRETE["specific_heat"] * 2.0 * g.floor_area_m2)
+    add("Material", "Internal mass concrete", **_material(mass_thickness, CONCRETE, "Smooth"))
+    add("Construction", "Internal mass", outside_layer="Internal mass concrete")
+    for zone, share in shares.items():
+        _add_zone_loads(add, zone, share, t, g, infiltration=zone == envelope)
+        _add_zone_hvac(add, zone, share, t, g)
+
+    for i, (key, variable) in enumerate(output_variables(zoning)):
         add("Output:Variable", f"Output {i}", key_value=key, variable_name=variable, reporting_frequency="Hourly")
     return m
+
+
+def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geometry, infiltration: bool) -> None:
+    """Internal mass, people, lighting, workstations (each ``share`` of the building's) and infiltration (the
+    whole building's, in the zone with the envelope) of one zone."""
+    area = share * g.floor_area_m2
+    add("InternalMass", f"{zone} internal mass", construction_name="Internal mass", zone_or_zonelist_name=zone,
+        surface_area=round(2.0 * area, 3))
+    add("People", f"{zone} occupants", zone_or_zonelist_or_space_or_spacelist_name=zone,
+        number_of_people_schedule_name="occupancy_fraction", number_of_people_calculation_method="People",
+        number_of_people=round(t["occupant_density_per_m2"] * area, 3), fraction_radiant=0.3,
+        sensible_heat_fraction="Autocalculate", activity_level_schedule_name="Activity")
+    add("Lights", f"{zone} lighting", zone_or_zonelist_or_space_or_spacelist_name=zone,
+        schedule_name="lighting_fraction", design_level_calculation_method="LightingLevel",
+        lighting_level=round(LIGHTING_W_M2 * area, 3), fraction_radiant=0.42, fraction_visible=0.18)
+    add("ElectricEquipment", f"{zone} workstations", zone_or_zonelist_or_space_or_spacelist_name=zone,
+        schedule_name="equipment_fraction", design_level_calculation_method="EquipmentLevel",
+        design_level=round(t["pc_density_per_m2"] * area * PC_POWER_W, 3), fraction_radiant=0.3)
+    if infiltration:  # air changes of the whole building's volume, through the envelope
+        add("ZoneInfiltration:DesignFlowRate", f"{zone} infiltration",
+            zone_or_zonelist_or_space_or_spacelist_name=zone, schedule_name="Always on",
+            design_flow_rate_calculation_method="Flow/Zone",
+            design_flow_rate=round(t["infiltration_ach"] * g.volume_m3 / 3600.0, 6), constant_term_coefficient=1.0,
+            temperature_term_coefficient=0.0, velocity_term_coefficient=0.0, velocity_squared_term_coefficient=0.0)
+
+
+def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometry) -> None:
+    """Thermostat, fan coils (ideal loads) and air handling unit of one zone, each ``share`` of the building's."""
+    area = share * g.floor_area_m2
+    names = zone_hvac_names(zone)
+    add("ZoneControl:Thermostat", f"{zone} thermostat", zone_or_zonelist_name=zone,
+        control_type_schedule_name="Dual setpoint", control_1_object_type="ThermostatSetpoint:DualSetpoint",
+        control_1_name="Setpoints")
+    add("NodeList", f"{zone} inlets", nodes=[{"node_name": f"{zone} fan coil supply"},
+                                             {"node_name": f"{zone} AHU supply"}])
+    add("NodeList", f"{zone} exhausts", nodes=[{"node_name": f"{zone} fan coil exhaust"},
+                                               {"node_name": f"{zone} AHU exhaust"}])
+    add("ZoneHVAC:EquipmentConnections", zone, zone_name=zone,
+        zone_conditioning_equipment_list_name=f"{zone} equipment",
+        zone_air_inlet_node_or_nodelist_name=f"{zone} inlets",
+        zone_air_exhaust_node_or_nodelist_name=f"{zone} exhausts", zone_air_node_name=f"{zone} air",
+        zone_return_air_node_or_nodelist_name=f"{zone} return")
+    add("ZoneHVAC:EquipmentList", f"{zone} equipment", load_distribution_scheme="SequentialLoad", equipment=[
+        {"zone_equipment_object_type": "ZoneHVAC:OutdoorAirUnit", "zone_equipment_name": names["ahu"],
+         "zone_equipment_cooling_sequence": 1, "zone_equipment_heating_or_no_load_sequence": 1},
+        {"zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem", "zone_equipment_name": names["fan_coils"],
+         "zone_equipment_cooling_sequence": 2, "zone_equipment_heating_or_no_load_sequence": 2}])
+    add("ZoneHVAC:IdealLoadsAirSystem", names["fan_coils"], zone_supply_air_node_name=f"{zone} fan coil supply",
+        zone_exhaust_air_node_name=f"{zone} fan coil exhaust", maximum_heating_supply_air_temperature=50.0,
+        minimum_cooling_supply_air_temperature=13.0, maximum_heating_supply_air_humidity_ratio=0.0156,
+        minimum_cooling_supply_air_humidity_ratio=0.0077, heating_limit="LimitCapacity",
+        maximum_sensible_heating_capacity=round(t["heating_power_w_m2"] * area, 3),
+        cooling_limit="LimitCapacity", maximum_total_cooling_capacity=round(t["cooling_power_w_m2"] * area, 3),
+        dehumidification_control_type="None", humidification_control_type="None")
+
+    # Air handling unit: outdoor air -> DX cooling coil -> electric heating coil -> supply fan -> zone.
+    oa_flow = cat.get("ventilation_ach").max * share * g.volume_m3 / 3600.0
+    add("ZoneHVAC:OutdoorAirUnit", names["ahu"], availability_schedule_name="ventilation_on", zone_name=zone,
+        outdoor_air_flow_rate=round(oa_flow, 5), outdoor_air_schedule_name="ventilation_fraction",
+        supply_fan_name=f"{zone} AHU supply fan", supply_fan_placement="DrawThrough",
+        exhaust_fan_name=f"{zone} AHU exhaust fan", exhaust_air_flow_rate=round(oa_flow, 5),
+        exhaust_air_schedule_name="ventilation_fraction", unit_control_type="TemperatureControl",
+        high_air_control_temperature_schedule_name="supply_air_c",
+        low_air_control_temperature_schedule_name="supply_air_c", outdoor_air_node_name=f"{zone} AHU outdoor air",
+        airoutlet_node_name=f"{zone} AHU supply", airinlet_node_name=f"{zone} AHU exhaust",
+        supply_fanoutlet_node_name=f"{zone} AHU supply", outdoor_air_unit_list_name=f"{zone} AHU components")
+    add("ZoneHVAC:OutdoorAirUnit:EquipmentList", f"{zone} AHU components",
+        component_1_object_type="CoilSystem:Cooling:DX", component_1_name=f"{zone} AHU cooling system",
+        component_2_object_type="Coil:Heating:Electric", component_2_name=names["heating_coil"])
+    add("CoilSystem:Cooling:DX", f"{zone} AHU cooling system", availability_schedule_name="ventilation_on",
+        dx_cooling_coil_system_inlet_node_name=f"{zone} AHU outdoor air",
+        dx_cooling_coil_system_outlet_node_name=f"{zone} AHU cooled air",
+        dx_cooling_coil_system_sensor_node_name=f"{zone} AHU cooled air",
+        cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed", cooling_coil_name=names["cooling_coil"])
+    add("Coil:Cooling:DX:SingleSpeed", names["cooling_coil"], availability_schedule_name="ventilation_on",
+        gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * oa_flow / DX_FLOW_PER_CAPACITY, 2),
+        gross_rated_sensible_heat_ratio=0.75, gross_rated_cooling_cop=3.0,
+        rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * oa_flow, 5),
+        air_inlet_node_name=f"{zone} AHU outdoor air", air_outlet_node_name=f"{zone} AHU cooled air",
+        total_cooling_capacity_function_of_temperature_curve_name="Constant biquadratic",
+        total_cooling_capacity_function_of_flow_fraction_curve_name="Constant quadratic",
+        energy_input_ratio_function_of_temperature_curve_name="Constant biquadratic",
+        energy_input_ratio_function_of_flow_fraction_curve_name="Constant quadratic",
+        part_load_fraction_correlation_curve_name="Constant quadratic")
+    add("Coil:Heating:Electric", names["heating_coil"], availability_schedule_name="ventilation_on", efficiency=1.0,
+        nominal_capacity=round(oa_flow * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
+        air_inlet_node_name=f"{zone} AHU cooled air", air_outlet_node_name=f"{zone} AHU heated air")
+    add("Fan:ConstantVolume", f"{zone} AHU supply fan", availability_schedule_name="ventilation_on",
+        fan_total_efficiency=0.6, pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5),
+        motor_efficiency=0.9, motor_in_airstream_fraction=1.0, air_inlet_node_name=f"{zone} AHU heated air",
+        air_outlet_node_name=f"{zone} AHU supply")
+    add("Fan:ConstantVolume", f"{zone} AHU exhaust fan", availability_schedule_name="ventilation_on",
+        fan_total_efficiency=0.6, pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5),
+        motor_efficiency=0.9, motor_in_airstream_fraction=1.0, air_inlet_node_name=f"{zone} AHU exhaust",
+        air_outlet_node_name=f"{zone} AHU relief")

@@ -12,7 +12,16 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.energyplus.runner import read_hourly_csv, run_energyplus
-from buildenv.energyplus.shoebox import OUTPUT_VARIABLES, build_epjson, theta_dict, write_schedule_file
+from buildenv.energyplus.shoebox import (
+    DEFAULT_ZONING,
+    Geometry,
+    build_epjson,
+    output_keys,
+    theta_dict,
+    write_schedule_file,
+    zone_names,
+    zone_shares,
+)
 from buildenv.errors import SimulationError
 from buildenv.weather import load_weather
 
@@ -36,7 +45,7 @@ class WeeksResult:
 
 def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
                    epw: str | Path, start_week: int, workdir: Path | None = None,
-                   keep_files: bool = False) -> WeeksResult:
+                   keep_files: bool = False, zoning: str = DEFAULT_ZONING) -> WeeksResult:
     """Run EnergyPlus for ``len(settings)`` consecutive weeks of one building.
 
     Args:
@@ -47,6 +56,7 @@ def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, o
         start_week: week of year of the first week (0 = the week starting Monday January 1st).
         workdir: where EnergyPlus runs (a temporary directory, removed afterwards, if ``None``).
         keep_files: keep the model, schedules and EnergyPlus outputs in ``workdir``.
+        zoning: ``single`` or ``core_perimeter`` (:mod:`buildenv.energyplus.shoebox`).
     Returns:
         :class:`WeeksResult`.
     """
@@ -69,21 +79,37 @@ def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, o
     workdir.mkdir(parents=True, exist_ok=True)
     try:
         csv = write_schedule_file(workdir / "schedules.csv", t, settings, occupancy, start_week)
-        model = build_epjson(t, weather, csv, start_week, n_weeks)
+        model = build_epjson(t, weather, csv, start_week, n_weeks, zoning)
         if keep_files:
             (workdir / "shoebox.epJSON").write_text(json.dumps(model, indent=1))
         run_energyplus(model, weather.path, workdir, label="shoebox")
-        raw = read_hourly_csv(workdir / "eplusout.csv", OUTPUT_VARIABLES)
+        outputs = read_outputs(workdir / "eplusout.csv", t, n_weeks, zoning)
     finally:
         if tmp is not None and not keep_files:
             shutil.rmtree(tmp, ignore_errors=True)
+    return WeeksResult(outputs, weather.weeks(start_week, n_weeks), start_week)
+
+
+def read_outputs(csv_path: Path, theta: dict[str, float], n_weeks: int, zoning: str = DEFAULT_ZONING) -> np.ndarray:
+    """The catalogue outputs of a finished shoebox run, ``(n_weeks, 168, 8)``.
+
+    Energies are summed over the zones and divided by the floor area (Wh/m2 in the hour); the temperature
+    is the floor-area weighted mean of the zones' air temperatures (degC), as a building's sensors read it.
+    Raises :class:`SimulationError` if the run did not report ``n_weeks`` weeks of hours.
+    """
+    shares = zone_shares(Geometry.from_theta(theta), zoning)
+    zones = zone_names(zoning)
+    pairs = {f"{name}|{zone}": pair for name in cat.OUTPUT_NAMES
+             for zone, pair in zip(zones, output_keys(name, zoning))}
+    raw = read_hourly_csv(Path(csv_path), pairs)
     hours = n_weeks * cat.HOURS_PER_WEEK
-    area = t["floor_area_m2"]
     columns = []
     for name in cat.OUTPUT_NAMES:
-        series = raw[name]
-        if len(series) != hours:
-            raise SimulationError(f"EnergyPlus returned {len(series)} hours for {n_weeks} weeks ({workdir})")
-        columns.append(series if name in cat.TEMPERATURE_OUTPUTS else series / J_PER_WH / area)
-    outputs = np.stack(columns, axis=-1).reshape(n_weeks, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES))
-    return WeeksResult(outputs, weather.weeks(start_week, n_weeks), start_week)
+        series = [raw[f"{name}|{zone}"] for zone in zones]
+        if any(len(x) != hours for x in series):
+            raise SimulationError(f"{csv_path}: EnergyPlus returned {len(series[0])} hours for {n_weeks} weeks")
+        if name in cat.TEMPERATURE_OUTPUTS:
+            columns.append(sum(shares[zone] * x for zone, x in zip(zones, series)))
+        else:
+            columns.append(sum(series) / J_PER_WH / theta["floor_area_m2"])
+    return np.stack(columns, axis=-1).reshape(n_weeks, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES))

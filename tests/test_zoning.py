@@ -1,0 +1,137 @@
+"""The shoebox's zoning (single zone, or core + perimeter) and the stand-in's ventilation in physical units."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from buildenv import catalogue as cat
+from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.defaults import DEFAULT_THETA, default_week
+from buildenv.energyplus.shoebox import (
+    CORE,
+    PERIMETER,
+    PERIMETER_DEPTH_M,
+    Geometry,
+    build_epjson,
+    zone_shares,
+)
+from buildenv.energyplus.simulate import simulate_weeks
+from buildenv.errors import BuildenvError
+from buildenv.reference import (
+    _schedule_columns,
+    design_outdoor_air_ach,
+    historical_settings,
+    historical_ventilation_ach,
+    reference_idf,
+)
+from buildenv.weather import load_weather, resolve_epw
+
+OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
+JANUARY = 2
+
+
+def test_zone_shares_follow_the_footprint():
+    office = Geometry.from_theta({"floor_area_m2": 4982.2, "number_of_floors": 3})
+    shares = zone_shares(office, "core_perimeter")
+    assert sum(shares.values()) == pytest.approx(1.0)
+    core_side = office.side_m - 2 * PERIMETER_DEPTH_M
+    assert shares[CORE] == pytest.approx(core_side ** 2 / office.side_m ** 2)
+    tower = Geometry.from_theta({"floor_area_m2": 1000.0, "number_of_floors": 15})  # 8.2 m side
+    assert tower.perimeter_depth_m == pytest.approx(tower.side_m / 4)
+    assert zone_shares(tower, "core_perimeter")[CORE] == pytest.approx(0.25)
+    assert zone_shares(office, "single") == {"Office": 1.0}
+    with pytest.raises(ValueError, match="zoning 'two'"):
+        zone_shares(office, "two")
+
+
+def test_core_perimeter_model_is_closed_and_paired(tmp_path):
+    weather = load_weather("usa_il_chicago")
+    model = build_epjson(DEFAULT_THETA, weather, tmp_path / "s.csv", 0, 1, zoning="core_perimeter")
+    assert set(model["Zone"]) == {PERIMETER, CORE}
+    area = sum(z["floor_area"] for z in model["Zone"].values())
+    assert area == pytest.approx(DEFAULT_THETA["floor_area_m2"], rel=1e-6)
+    surfaces = model["BuildingSurface:Detailed"]
+    for name, s in surfaces.items():
+        if s["outside_boundary_condition"] == "Surface":  # each partition faces its twin, vertices reversed
+            twin = surfaces[s["outside_boundary_condition_object"]]
+            assert twin["outside_boundary_condition_object"] == name and twin["zone_name"] != s["zone_name"]
+            assert twin["vertices"] == s["vertices"][::-1]
+    walls = [s for s in surfaces.values()
+             if s["outside_boundary_condition"] == "Outdoors" and s["surface_type"] == "Wall"]
+    assert {s["zone_name"] for s in walls} == {PERIMETER}  # the core has no facade
+    for kind in ("Roof", "Floor"):  # roof and ground cover the footprint once
+        pieces = [s for s in surfaces.values() if s["surface_type"] == kind]
+        total = 0.0
+        for s in pieces:
+            xy = np.array([[v["vertex_x_coordinate"], v["vertex_y_coordinate"]] for v in s["vertices"]])
+            total += 0.5 * abs(np.dot(xy[:, 0], np.roll(xy[:, 1], 1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], 1)))
+        side = Geometry.from_theta(DEFAULT_THETA).side_m
+        assert total == pytest.approx(side ** 2, rel=1e-3)
+    assert len(build_epjson(DEFAULT_THETA, weather, tmp_path / "s.csv", 0, 1, zoning="single")["Zone"]) == 1
+
+
+@pytest.fixture(scope="module")
+def january(tmp_path_factory):
+    settings, occupancy = default_week()
+    work = tmp_path_factory.mktemp("zoning")
+    runs = {z: simulate_weeks(DEFAULT_THETA, settings, occupancy, "usa_il_chicago", JANUARY, workdir=work / z,
+                              keep_files=True, zoning=z).outputs[0] for z in ("single", "core_perimeter")}
+    return runs, work
+
+
+def test_outputs_are_the_zones_mean_temperature_and_summed_energy(january):
+    runs, work = january
+    frame = pd.read_csv(work / "core_perimeter" / "eplusout.csv")
+    column = {c.split(" [")[0].upper(): c for c in frame.columns}
+    shares = zone_shares(Geometry.from_theta(DEFAULT_THETA), "core_perimeter")
+    t = sum(shares[z] * frame[column[f"{z.upper()}:ZONE MEAN AIR TEMPERATURE"]] for z in (PERIMETER, CORE))
+    np.testing.assert_allclose(runs["core_perimeter"][:, OUT["T_INT_OFFICE"]], t, atol=1e-6)
+    heat = sum(frame[column[f"{z.upper()} FAN COILS:ZONE IDEAL LOADS SUPPLY AIR TOTAL HEATING ENERGY"]]
+               for z in (PERIMETER, CORE))
+    np.testing.assert_allclose(runs["core_perimeter"][:, OUT["Q_HEAT_OFFICE"]],
+                               heat / 3600.0 / DEFAULT_THETA["floor_area_m2"], rtol=1e-6)
+
+
+def test_perimeter_heats_at_night_while_the_mean_stays_above_setback(january):
+    runs, _ = january
+    settings, occupancy = default_week()
+    setback = settings[0, 0, cat.SETTING_NAMES.index("heating_setback_c")]
+    hours = np.arange(cat.HOURS_PER_WEEK)
+    night = (hours // 24 < 5) & (hours % 24 < 6)  # weekday nights 0-6 h
+    split = runs["core_perimeter"]
+    assert split[night, OUT["Q_HEAT_OFFICE"]].mean() > 1.0  # Wh/m2 per night hour
+    assert split[night, OUT["T_INT_OFFICE"]].mean() > setback + 0.3  # the warm core lifts the mean
+    # the same internal gains and envelope: the energy balance of the week stays close
+    week = lambda out: out[:, [OUT["Q_HEAT_OFFICE"], OUT["Q_AHU_H"]]].sum()  # noqa: E731
+    assert week(split) == pytest.approx(week(runs["single"]), rel=0.25)
+
+
+def test_reference_design_ventilation_is_recorded_in_model_units():
+    medium = design_outdoor_air_ach(reference_idf("medium_office"), resolve_epw("usa_il_chicago"))
+    assert 0.6 < medium < 0.8  # 3 air handlers x 1.117 m3/s over 4,982 m2 x 3.5 m
+    assert historical_ventilation_ach("medium_office") == pytest.approx(0.7)
+    settings = historical_settings(1, 1.3)
+    assert np.all(settings[..., cat.SETTING_NAMES.index("ventilation_ach")] == 1.3)
+    low = historical_settings(1, 0.7)
+    oa_design = _schedule_columns(low, 0.7)["outdoor_air"]
+    oa_half = _schedule_columns(low, 1.4)["outdoor_air"]
+    assert oa_design.max() == pytest.approx(1.0) and oa_half.max() == pytest.approx(0.5)
+    assert _schedule_columns(settings, 0.7)["outdoor_air"].max() == pytest.approx(1.0)  # above design: capped
+
+
+def test_campaign_zoning_is_validated_and_old_campaigns_resume_as_single(tmp_path):
+    with pytest.raises(BuildenvError, match="--zoning"):
+        CampaignConfig(weeks=1, zoning="three").validate()
+    config = CampaignConfig(weeks=1, seed=1, epw=["usa_co_golden"], weeks_per_run=1, zoning="single")
+    out = tmp_path / "old"
+    out.mkdir()
+    record = {"config": {k: v for k, v in config.__dict__.items() if k != "zoning"},
+              "catalogue_hash": cat.catalogue_hash()}
+    (out / "campaign.json").write_text(json.dumps(record))  # written before zoning existed
+    run_campaign(config, out, workers=1, progress=False)
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["config"]["zoning"] == "single"

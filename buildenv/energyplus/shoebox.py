@@ -96,17 +96,19 @@ ZONE = "Office"  # the single zone
 PERIMETER, CORE = "Perimeter", "Core"  # the two zones of core_perimeter
 ZONINGS = ("single", "core_perimeter")
 DEFAULT_ZONING = "core_perimeter"
+# HVAC objects of each zone are named f"{zone} {part}" (see zone_hvac_names)
+FAN_COILS, AHU_HEATING_COIL, AHU_COOLING_COIL = "Fan Coils", "AHU Heating Coil", "AHU Cooling Coil"
 
 #: EnergyPlus report variable (HVAC part of the key, name) behind each catalogue output; the key is the zone
 #: name for zone variables, else ``f"{zone} {part}"``.
 OUTPUT_VARIABLES: dict[str, tuple[str, str]] = {
-    "Q_AC_OFFICE": ("Fan Coils", "Zone Ideal Loads Supply Air Total Cooling Energy"),
-    "Q_HEAT_OFFICE": ("Fan Coils", "Zone Ideal Loads Supply Air Total Heating Energy"),
+    "Q_AC_OFFICE": (FAN_COILS, "Zone Ideal Loads Supply Air Total Cooling Energy"),
+    "Q_HEAT_OFFICE": (FAN_COILS, "Zone Ideal Loads Supply Air Total Heating Energy"),
     "Q_PEOPLE": ("", "Zone People Total Heating Energy"),
     "Q_EQP": ("", "Zone Electric Equipment Electricity Energy"),
     "Q_LIGHT": ("", "Zone Lights Electricity Energy"),
-    "Q_AHU_C": ("AHU Cooling Coil", "Cooling Coil Total Cooling Energy"),
-    "Q_AHU_H": ("AHU Heating Coil", "Heating Coil Heating Energy"),
+    "Q_AHU_C": (AHU_COOLING_COIL, "Cooling Coil Total Cooling Energy"),
+    "Q_AHU_H": (AHU_HEATING_COIL, "Heating Coil Heating Energy"),
     "T_INT_OFFICE": ("", "Zone Mean Air Temperature"),
 }
 
@@ -172,15 +174,15 @@ def check_zoning(zoning: str) -> str:
 def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
     """``{zone: share of the floor area (and volume)}`` of a zoning; the shares sum to 1."""
     if check_zoning(zoning) == "single":
-        return {ZONE: 1.0}
+        return dict(zip(zone_names(zoning), (1.0,)))
     core = (g.side_m - 2.0 * g.perimeter_depth_m) ** 2 / g.side_m ** 2
-    return {PERIMETER: 1.0 - core, CORE: core}
+    return dict(zip(zone_names(zoning), (1.0 - core, core)))
 
 
 def zone_hvac_names(zone: str) -> dict[str, str]:
     """Names of a zone's fan coils (ideal loads), air handling unit and its coils."""
-    return {"fan_coils": f"{zone} Fan Coils", "ahu": f"{zone} AHU", "heating_coil": f"{zone} AHU Heating Coil",
-            "cooling_coil": f"{zone} AHU Cooling Coil"}
+    return {"fan_coils": f"{zone} {FAN_COILS}", "ahu": f"{zone} AHU", "heating_coil": f"{zone} {AHU_HEATING_COIL}",
+            "cooling_coil": f"{zone} {AHU_COOLING_COIL}"}
 
 
 def output_keys(name: str, zoning: str) -> list[tuple[str, str]]:

@@ -146,11 +146,15 @@ class Surrogate:
         return str(self.checkpoint.metadata.get("zoning", "single"))
 
     def _inference_model(self):
-        """The module ``predict_encoded`` calls (traced once, on first use)."""
+        """The module ``predict_encoded`` calls: physical inputs ``(N, 192, C)`` -> physical outputs of the week
+        ``(N, 168, 8)``, standardisation included (traced once, on first use)."""
         if self._runner is None:
             import torch
 
-            model = self.checkpoint.model.eval()
+            from metamodels.normalisation import StandardisedModel
+
+            ck = self.checkpoint
+            model = StandardisedModel(ck.model.eval(), ck.input_norm, ck.output_norm, CONTEXT_HOURS).eval()
             self._runner = model
             if self.jit:
                 example = torch.zeros(2, CONTEXT_HOURS + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS))
@@ -189,14 +193,12 @@ class Surrogate:
         """
         import torch
 
-        ck = self.checkpoint
         model = self._inference_model()
         out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         with torch.inference_mode():
             for start in range(0, len(x), batch_size):
-                xb = torch.from_numpy(np.ascontiguousarray(ck.input_norm.transform(x[start:start + batch_size])))
-                y = model(xb)[:, CONTEXT_HOURS:]
-                out[start:start + batch_size] = ck.output_norm.inverse(y).numpy()
+                xb = torch.from_numpy(np.ascontiguousarray(x[start:start + batch_size], dtype=np.float32))
+                out[start:start + batch_size] = model(xb).numpy()
         return out
 
 

@@ -41,3 +41,22 @@ class Standardiser:
     def from_state(cls, state: dict[str, list[float]]) -> Standardiser:
         """Inverse of :meth:`state`."""
         return cls(np.asarray(state["mean"], dtype=np.float32), np.asarray(state["std"], dtype=np.float32))
+
+
+class StandardisedModel(torch.nn.Module):
+    """A network wrapped for inference on physical inputs: standardise the inputs, run it, drop the first
+    ``skip_steps`` steps of its outputs and bring the rest back to physical units, all in one module so
+    that a traced copy runs the whole chain in float32 on every core (numpy would standardise on one)."""
+
+    def __init__(self, model: torch.nn.Module, inputs: Standardiser, outputs: Standardiser, skip_steps: int = 0):
+        super().__init__()
+        self.model = model
+        self.skip_steps = int(skip_steps)
+        for name, value in (("in_mean", inputs.mean), ("in_std", inputs.std), ("out_mean", outputs.mean),
+                            ("out_std", outputs.std)):
+            self.register_buffer(name, torch.as_tensor(np.asarray(value, dtype=np.float32)))
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``(batch, steps, inputs)`` physical -> ``(batch, steps - skip_steps, outputs)`` physical."""
+        y = self.model((x - self.in_mean) / self.in_std)
+        return y[:, self.skip_steps:] * self.out_std + self.out_mean

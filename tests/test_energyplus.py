@@ -7,7 +7,8 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.defaults import DEFAULT_THETA, default_week
-from buildenv.energyplus.runner import run_energyplus
+from buildenv.campaign import CampaignConfig, plan_campaign
+from buildenv.energyplus.runner import run_energyplus, warmup_loads_only
 from buildenv.energyplus.shoebox import (
     DEFAULT_ZONING,
     LIGHTING_W_M2,
@@ -134,3 +135,29 @@ def test_energyplus_severe_error_is_reported_with_err_lines(tmp_path):
     assert "broken.epJSON" in message
     assert "Severe" in message or "Fatal" in message
     assert "PLASTERBOARD" in message.upper()
+
+
+WARMUP_SEVERE = [
+    '** Severe  ** CheckWarmupConvergence: Loads Initialization, Zone="PERIMETER" did not converge after 50 warmup '
+    'days.', "**   ~~~   ** ...Environment(RunPeriod)=\"WEEKS\"",
+    "**   ~~~   ** ..Max Temp Comparison = 0.20 vs Temperature Convergence Tolerance=0.40 - Pass Convergence",
+    "**   ~~~   ** ..Max Cool Load Comparison = 0.1229 vs Loads Convergence Tolerance=0.10 - Fail Convergence"]
+
+
+def test_warmup_loads_only_accepts_converged_temperatures_and_nothing_else():
+    assert warmup_loads_only(WARMUP_SEVERE)
+    hot = [line.replace("0.20 vs", "0.55 vs").replace("0.40 - Pass", "0.40 - Fail") for line in WARMUP_SEVERE]
+    assert not warmup_loads_only(hot)  # a zone whose temperature did not settle: the state is not sound
+    assert not warmup_loads_only(WARMUP_SEVERE + ["** Severe  ** GetSurfaceData: a surface names a missing layer"])
+    assert not warmup_loads_only([])
+    assert not warmup_loads_only([line.replace("Severe ", "Fatal ") for line in WARMUP_SEVERE])
+
+
+def test_campaign_run_whose_perimeter_loads_never_settle_in_warmup_still_simulates():
+    """Run 2 of the seed-0 1,040-week Chicago/Miami campaign: a perimeter's cooling load in Miami in January
+    changes 12 % a day for the 50 warm-up days (EnergyPlus: Severe) while its temperatures converged."""
+    task = plan_campaign(CampaignConfig(weeks=1040, seed=0, epw=["usa_il_chicago", "usa_fl_miami"],
+                                        zoning="core_perimeter"))[2]
+    out = simulate_weeks(task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week,
+                         zoning=task.zoning).outputs
+    assert np.isfinite(out).all() and 15.0 < out[..., OUT["T_INT_OFFICE"]].mean() < 35.0

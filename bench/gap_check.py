@@ -84,6 +84,8 @@ def main() -> None:
              "| | value | target |", "|---|---|---|",
              f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
              f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",
+             f"| top-1 among the {s.get('visible_effect_cases', '-')} cases whose effect shows in the data "
+             f"(footprint >= 0.2 K or 2 %) | {_pct(s.get('top1_accuracy_visible'))} | |",
              f"| no-effect cases recognised | {_pct(s['none_recognised'])} | >= 90 % |",
              f"| false-alarm rate | {_pct(s['false_alarm_rate'])} | |",
              "| mean shrinkage of the effect's gap (held-out, found cases) | "
@@ -92,21 +94,24 @@ def main() -> None:
              f"| mean shrinkage of the whole gap of the series | {_pct(s['mean_shrinkage_of_total_gap'])} | |"]
     times = [r["seconds"] for r in result["cases"]]
     if times:
-        lines.append(f"| seconds per case (diagnosis, + twin when scored) | median {np.median(times):.0f}, "
+        lines.append(f"| seconds per case (diagnosis, + twin run) | median {np.median(times):.0f}, "
                      f"max {max(times):.0f} | diagnosis < 300 |")
     lines += ["", "## Confusion matrix (rows: injected, columns: named first)", "",
               "| injected \\ named | " + " | ".join(named) + " |", "|---" * (len(named) + 1) + "|"]
     for t in labels:
         lines.append(f"| {t} | " + " | ".join(str(s["confusion"][t].get(n, 0)) for n in named) + " |")
     lines += ["", "## Cases", "", "| case | injected | magnitude | first Monday | named | selected | "
-              "gain of the injected effect | shrinkage of its gap | significant, estimate implausible | seconds |",
-              "|---|---|---|---|---|---|---|---|---|---|"]
+              "footprint K, % | gain of the injected effect | shrinkage of its gap | "
+              "significant, estimate implausible | seconds |", "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["cases"]:
         gain = r["scores"].get(r["true"])
         sh = r.get("shrinkage", {}).get("of_effect_gap") if r.get("shrinkage") else None
         mag = "-" if r["magnitude"] is None else f"{r['magnitude']:.2f}"
+        fp = r.get("footprint")
+        fp_text = "-" if not fp else (f"{fp['temperature_k']:.2f}, {fp['consumption_percent']:.1f}"
+                                      + ("" if fp["visible"] else " (not visible)"))
         lines.append(f"| {r['case']} | {r['true']} | {mag} | {r['start']} | {r['named']} | "
-                     f"{', '.join(r['selected']) or '-'} | {'-' if gain is None else f'{gain:.3f}'} | "
+                     f"{', '.join(r['selected']) or '-'} | {fp_text} | {'-' if gain is None else f'{gain:.3f}'} | "
                      f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r, settings.alpha)} | "
                      f"{r['seconds']} |")
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")

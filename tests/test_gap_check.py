@@ -33,6 +33,12 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     summary = result["summary"]
     assert summary["top1_accuracy"] == 1.0 and summary["false_alarm_rate"] == 0.0
     assert summary["confusion"]["temperature_sensor_bias"]["temperature_sensor_bias"] == 1
+    bias = rows["temperature_sensor_bias"]
+    # the bias is all the injection changed: the twin differs by it on every hour, the consumption not at all
+    assert abs(bias["footprint"]["temperature_k"] - abs(bias["magnitude"])) < 0.1
+    assert bias["footprint"]["consumption_percent"] == 0.0 and bias["footprint"]["visible"]
+    assert "footprint" not in rows[NONE]
+    assert summary["visible_effect_cases"] == 1 and summary["top1_accuracy_visible"] == 1.0
     shrink = rows["temperature_sensor_bias"]["shrinkage"]
     assert shrink["series"] == "temperature" and shrink["mse_after"] < shrink["mse_before"]
     json.dumps(result, default=float)

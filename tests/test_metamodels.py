@@ -13,7 +13,7 @@ from buildenv.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.loss import paper_loss
 from metamodels.models import MODELS, band_mask, build
-from metamodels.normalisation import Standardiser
+from metamodels.normalisation import StandardisedModel, Standardiser
 
 SMALL_CONFIGS = {"transformer": {"layers": 1}, "bigru": {"layers": 1}, "lstm": {"layers": 1},
                  "convgru": {"layers": 1}, "ffn": {"layers": 2}}
@@ -134,6 +134,20 @@ def test_traced_inference_matches_eager(name, config):
     traced = fast.predict_encoded(x, batch_size=128)  # batches of 128, 128 and 44 weeks
     assert isinstance(fast._inference_model(), torch.jit.ScriptModule)
     np.testing.assert_allclose(traced, eager, rtol=1e-4, atol=1e-4)
+
+
+def test_standardised_model_is_the_numpy_chain_in_one_module():
+    """Inference standardises inputs and rescales outputs inside the module: same numbers as doing it around it."""
+    torch.manual_seed(0)
+    rng = np.random.default_rng(1)
+    x = (rng.normal(size=(5, 30, 6)) * [1, 10, 100, 0.1, 5, 50] + [0, 20, -3, 1, 8, 400]).astype(np.float32)
+    net = build("lstm", 6, 3, layers=1).eval()
+    inputs, outputs = Standardiser.fit(x), Standardiser.fit(rng.normal(3.0, 7.0, size=(40, 3)))
+    with torch.no_grad():
+        chain = outputs.inverse(net(torch.from_numpy(inputs.transform(x)))[:, 6:]).numpy()
+        wrapped = StandardisedModel(net, inputs, outputs, skip_steps=6)(torch.from_numpy(x)).numpy()
+    assert wrapped.shape == (5, 24, 3)
+    np.testing.assert_allclose(wrapped, chain, rtol=1e-6, atol=1e-5)
 
 
 def test_hourly_head_sees_each_hour():

@@ -140,6 +140,7 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0, help="CMA-ES seed")
     parser.add_argument("--cmaes-evaluations", type=int, default=6000)
     parser.add_argument("--model", type=Path, default=None, help="score this saved policy instead of training")
+    parser.add_argument("--conditions", default="", help="what else ran on the machine, for the report")
     parser.add_argument("--validation", action="store_true",
                         help="tuning protocol: hold out VALIDATION_WEEKS of the training weeks, print only")
     args = parser.parse_args()
@@ -206,9 +207,12 @@ def main() -> None:
     if len(runs) > 1:  # post hoc: per week, the best of the seeds' actions (one scored week per seed)
         best = float(np.mean([max(p["reward"] for p in r["ppo"]) for r in rows]))
         summary["best_of_seeds"] = {"reward": best, "gap_percent_of_mean_reward": gap_percent(cma_mean["reward"], best)}
-    command = "PYTHONPATH=. .venv/bin/python bench/ppo_vs_cmaes.py " + " ".join(sys.argv[1:])
+    argv = sys.argv[1:]
+    kept = [a for i, a in enumerate(argv)  # the report states the conditions; the command only what reruns it
+            if not a.startswith("--conditions") and not (i and argv[i - 1] == "--conditions")]
+    command = "PYTHONPATH=. .venv/bin/python bench/ppo_vs_cmaes.py " + " ".join(kept)
     result = {
-        "date": dt.date.today().isoformat(), "command": command.strip(),
+        "date": dt.date.today().isoformat(), "command": command.strip(), "conditions": args.conditions,
         "protocol": "validation" if args.validation else "test",
         "machine": {"platform": platform.platform(), "cores": os.cpu_count(), "gpu": torch.cuda.is_available(),
                     "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
@@ -237,7 +241,7 @@ def markdown(result: dict) -> str:
         f"Machine: {result['machine']['platform']}, {result['machine']['cores']} cores, no GPU; torch "
         f"{result['machine']['torch']} (threads: {result['machine']['torch_threads']}); 1-minute load average "
         f"before / at the end of the run {result['machine']['load_average_1min_at_start_and_end']} (the run itself "
-        "adds about 2; the machine is shared, its niced background jobs were paused). "
+        f"adds about 2). {result.get('conditions', '')} "
         f"Command: `{result['command']}`.", "",
         f"PPO (`agents.ppo.train_ppo`, variant `{result['variant']}`): {result['timesteps']} training weeks "
         f"drawn from the default site's {len(result['train_weeks'])} training weeks, {result['num_envs']} "
@@ -306,7 +310,8 @@ def markdown(result: dict) -> str:
         "on other weeks PPO beats CMA-ES's 6000-evaluation search, which is not a true optimum in 84 dimensions.",
         "",
         "## Tuning (training weeks only)", "",
-        "Hyper-parameters were chosen without the test weeks: PPO trained on the training weeks less "
+        "Tuned on 2026-11-21 with the single-zone default metamodel of that day and kept for the core + perimeter "
+        "one. Hyper-parameters were chosen without the test weeks: PPO trained on the training weeks less "
         f"{result['tuning']['validation_weeks']} and was compared with CMA-ES on those "
         "(`bench/ppo_vs_cmaes.py --validation --variant V --timesteps N --ppo-seeds S`). Gap of the mean reward "
         "over the validation weeks (positive = PPO worse):", "",

@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv.cli_sites import parse_known
 from buildenv.effects import JUDGES
 from buildenv.gap import DiagnosisSettings
 from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, run_check
@@ -55,19 +56,28 @@ def main() -> None:
                              "first), none, or comma-separated names")
     parser.add_argument("--judge", choices=JUDGES, default="pooled",
                         help="score candidates on both series, or on the series each shows in")
+    parser.add_argument("--base-restarts", type=int, default=1,
+                        help="CMA-ES runs of each base calibration, the lowest fit cost kept")
+    parser.add_argument("--known", action="append", default=[], metavar="NAME=VALUE",
+                        help="a building parameter every site declares known (site.toml [known]; repeatable)")
     args = parser.parse_args()
+    known = parse_known(args.known)
     started, load = time.perf_counter(), os.getloadavg()[0]
-    settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge)
+    settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge,
+                                 base_restarts=args.base_restarts)
     base: str | list[str] = args.base_effects
     if base != "auto":
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
-    result = run_check(args.out, args.cases, args.seed, settings=settings, base_effects=base, progress=True)
+    result = run_check(args.out, args.cases, args.seed, settings=settings, base_effects=base, progress=True,
+                       known_parameters=known)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
                f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
                + (f" --name {args.name}" if args.name != "gap_check" else "")
                + (f" --judge {args.judge}" if args.judge != "pooled" else "")
-               + (f" --base-effects {args.base_effects}" if args.base_effects != "auto" else ""))
+               + (f" --base-effects {args.base_effects}" if args.base_effects != "auto" else "")
+               + (f" --base-restarts {args.base_restarts}" if args.base_restarts != 1 else "")
+               + "".join(f" --known {k}={v:g}" for k, v in known.items()))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
                                                                                           - started, 1), **result}
@@ -81,7 +91,9 @@ def main() -> None:
              f"Building: {result['plan']['building']} in {result['plan']['epw']}, {result['plan']['weeks']}-week sites "
              "(2 fit + 2 held-out weeks), first Monday drawn between 2019-10-07 and 2019-12-02, one effect (or none) "
              "injected at a random magnitude, diagnosed blind (`buildenv/gap_check.py` states the procedure).",
-             f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.", "",
+             f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
+             "Building parameters every site declares known (fixed in calibration): "
+             + (", ".join(f"{k} = {v:g}" for k, v in known.items()) or "none") + ".", "",
              "| | value | target |", "|---|---|---|",
              f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
              f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",

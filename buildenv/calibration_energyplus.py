@@ -259,10 +259,9 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
     run = plan_site_run(site, fit_weeks, zoning)
     if heldout:
         plan_site_run(site, heldout, zoning)  # refuse weeks EnergyPlus cannot score before spending the budget
-    box = problem.hi - problem.lo
     history: list[list[float]] = []
     with ShoeboxPool(workers) as pool:
-        es = cmaes_strategy(problem.dim, seed)
+        es = cmaes_strategy(int(problem.free.sum()), seed)
         bar = tqdm(desc="CMA-ES (EnergyPlus)", unit="generation", disable=not progress, leave=False)
         started = time.perf_counter()
         last = 0.0
@@ -271,7 +270,7 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
             if history and elapsed + last > wall_seconds:
                 break
             z = np.asarray(es.ask())
-            f = evaluate_energyplus(problem, run, pool, problem.lo + z * box)
+            f = evaluate_energyplus(problem, run, pool, problem.from_unit(z))
             es.tell(list(z), f.tolist())
             last = time.perf_counter() - started - elapsed
             history.append([round(time.perf_counter() - started, 2), int(es.result.evaluations),
@@ -280,7 +279,7 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
             bar.set_postfix(cost=f"{es.result.fbest:.4f}")
         seconds = time.perf_counter() - started
         bar.close()
-        best = problem.lo + np.asarray(es.result.xbest) * box
+        best = problem.from_unit(np.asarray(es.result.xbest))[0]
         scoring = time.perf_counter()
         scores = score_energyplus(site, best, fit_weeks, heldout, pool, zoning)
         scoring_seconds = time.perf_counter() - scoring
@@ -291,7 +290,8 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
               "workers": pool.workers, "zoning": zoning, "fit_weeks": fit_weeks, "heldout_weeks": heldout,
               "guideline14_p": GUIDELINE14_P,
               "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
-              "occupancy": np.round(occ[0], 3).tolist(), "catalogue_hash": cat.catalogue_hash()}
+              "known": sorted(site.known), "occupancy": np.round(occ[0], 3).tolist(),
+              "catalogue_hash": cat.catalogue_hash()}
     for key, metrics in scores.items():
         result[key] = {**metrics, "seconds": result["seconds"], "evaluations": result["evaluations"]}
     return result

@@ -17,6 +17,7 @@ def _settings(args: argparse.Namespace):
         else tuple(EFFECTS)
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
+                             base_restarts=args.base_restarts,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
 
 
@@ -39,12 +40,14 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 
 def _cmd_diagnose_check(args: argparse.Namespace) -> int:
+    from buildenv.cli_sites import parse_known
     from buildenv.gap_check import run_check
     from buildenv.surrogate import load_metamodel
 
     base = "auto" if args.base_effects == "auto" else [e for e in args.base_effects.split(",") if e]
     result = run_check(args.out, args.cases, args.seed, load_metamodel(args.checkpoint), _settings(args),
-                       args.building, args.epw, base, progress=not args.quiet)
+                       args.building, args.epw, base, progress=not args.quiet,
+                       known_parameters=parse_known(args.known))
     (Path(args.out) / "check.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
     print(json.dumps(result if args.json else result["summary"], indent=None if args.json else 2, default=float))
     return 0
@@ -54,6 +57,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
+    p.add_argument("--base-restarts", type=int, default=1,
+                   help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), best kept")
     p.add_argument("--min-gain", type=float, default=0.15,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
@@ -66,6 +71,8 @@ def _common(p: argparse.ArgumentParser) -> None:
 
 def register(sub) -> None:
     """Add ``diagnose`` and ``diagnose-check`` to the main parser's subparsers."""
+    from buildenv.cli_sites import add_known_argument
+
     p = sub.add_parser("diagnose", help="where the calibrated model misses a site, which unmodelled effect "
                                         "causes it, and how far the gap shrinks once it is added")
     p.add_argument("--site", required=True, help="site folder")
@@ -86,5 +93,6 @@ def register(sub) -> None:
     p.add_argument("--epw", default="usa_il_chicago")
     p.add_argument("--base-effects", default="auto",
                    help="'auto' (diagnose a clean site of the building first), or comma-separated known effects")
+    add_known_argument(p)
     _common(p)
     p.set_defaults(func=_cmd_diagnose_check)

@@ -53,6 +53,31 @@ def parse_effects(items: list[str]) -> list[tuple[str, float]]:
     return effects
 
 
+def parse_known(items: list[str]) -> dict[str, float]:
+    """``--known NAME=VALUE`` values -> ``{name: value}`` (see :func:`buildenv.site.known_parameter`); raises
+    :class:`~buildenv.errors.SiteError` (one line) naming the bad item."""
+    from buildenv.errors import SiteError
+    from buildenv.site import known_parameter
+
+    known: dict[str, float] = {}
+    for item in items:
+        name, sep, text = item.partition("=")
+        name = name.strip()
+        try:
+            value = float(text)
+        except ValueError:
+            value = text
+        try:
+            if not sep:
+                raise SiteError("expected NAME=VALUE")
+            if name in known:
+                raise SiteError(f"{name} given more than once")
+            known[name] = known_parameter(name, value)
+        except SiteError as exc:
+            raise SiteError(f"--known {item!r}: {exc}") from exc
+    return known
+
+
 def _cmd_site_reference(args: argparse.Namespace) -> int:
     from buildenv.reference import make_reference_site
 
@@ -60,7 +85,7 @@ def _cmd_site_reference(args: argparse.Namespace) -> int:
     effects = parse_effects(args.effect)
     path = make_reference_site(args.out, args.building, args.epw, start, args.weeks, seed=args.seed,
                                floors=args.floors, schedule_map=_parse_map(args.map), effects=effects,
-                               effect_seed=args.effect_seed)
+                               effect_seed=args.effect_seed, known=parse_known(args.known))
     info = {"site": str(path), "building": args.building, "weather": args.epw, "start": str(start),
             "weeks": args.weeks}
     if effects:
@@ -95,11 +120,18 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     site = load_site(args.site)
     weeks = [int(w) for w in args.weeks.split(",")] if args.weeks else None
     result = calibrate_site(site, load_metamodel(args.checkpoint), weeks, method=args.method, seed=args.seed,
-                            max_evaluations=args.evaluations, progress=not args.quiet)
+                            max_evaluations=args.evaluations, progress=not args.quiet, restarts=args.restarts)
     result["plot"] = str(plot_calibration(load_site(args.site), load_metamodel(args.checkpoint), result,
                                           Path(args.site) / "calibration.png"))
     print(json.dumps(result, indent=None if args.json else 2))
     return 0
+
+
+def add_known_argument(p: argparse.ArgumentParser) -> None:
+    """``--known NAME=VALUE`` (repeatable): building parameters written to the site's ``[known]`` table."""
+    p.add_argument("--known", action="append", default=[], metavar="NAME=VALUE",
+                   help="a building parameter the owner knows, catalogue units (repeatable), e.g. "
+                        "occupant_density_per_m2=0.0538; written to site.toml's [known], fixed in calibration")
 
 
 def register(sub) -> None:
@@ -124,6 +156,7 @@ def register(sub) -> None:
                    help="inject an unmodelled effect (repeatable; `buildenv effects` lists them; the truth goes "
                         "to truth.json)")
     p.add_argument("--effect-seed", type=int, default=0, help="seed of the effects' random choices (holiday dates)")
+    add_known_argument(p)
     p.add_argument("--out", required=True, help="site folder to write")
     p.set_defaults(func=_cmd_site_reference)
     p = site_sub.add_parser("show", help="summarise a site folder (validates it)")
@@ -134,7 +167,9 @@ def register(sub) -> None:
     p.add_argument("--site", required=True, help="site folder")
     p.add_argument("--weeks", default=None, help="calibration weeks, e.g. 0,1 (default: the first half)")
     p.add_argument("--method", default="cmaes", choices=["cmaes", "adam"])
-    p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations")
+    p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations (per run)")
+    p.add_argument("--restarts", type=int, default=1,
+                   help="independent CMA-ES runs (seeds SEED, SEED+1, ...), the lowest cost kept")
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")

@@ -18,6 +18,11 @@ first by diagnosing a clean site of the same building (``reference`` case, 4 Nov
 enter every case's model as ``base_effects`` (like a building whose known effects are already modelled);
 such an effect is then not injected, since the model already carries it.
 
+**Known building parameters.** ``known_parameters`` makes every site, the clean reference included, declare
+those building parameters in its ``[known]`` table (:class:`StandIn`), as an owner who knows them from the
+design documents would; calibration then keeps them fixed, and an effect that recalibrating them would have
+absorbed (extra night plug loads against a known night share) stays in the residual, where it can be named.
+
 **Scores**: confusion matrix (true x named), top-1 accuracy over effect cases, false-alarm rate over "none"
 cases, and the shrinkage of the gap on the effect's main series over held-out weeks:
 ``(MSE_before - MSE_after) / (MSE_before - MSE_twin)``, where MSE_twin is the base model's held-out error on
@@ -40,6 +45,7 @@ from __future__ import annotations
 import datetime as dt
 import json
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -52,6 +58,23 @@ FIRST_MONDAYS = (dt.date(2019, 10, 7), dt.date(2019, 12, 2))
 REFERENCE_START = dt.date(2019, 11, 4)
 WEEKS = 4
 VISIBLE_NOISE_MULTIPLE = 2.0
+
+
+@dataclass(frozen=True)
+class StandIn:
+    """The building every case is made of: a reference building, its weather, and the building parameters its
+    sites declare known (``site.toml``'s ``[known]``, catalogue units; none by default)."""
+
+    building: str = "medium_office"
+    epw: str = "usa_il_chicago"
+    known: dict[str, float] = field(default_factory=dict)
+
+    def make(self, path: Path, start: dt.date, seed: int, effects: list | None = None, effect_seed: int = 0) -> Path:
+        """Run the stand-in over :data:`WEEKS` weeks from ``start`` and write the site folder ``path``."""
+        from buildenv.reference import make_reference_site
+
+        return make_reference_site(path, self.building, self.epw, start, WEEKS, seed=seed, effects=effects,
+                                   effect_seed=effect_seed, known=self.known or None)
 
 
 def draw_magnitude(name: str, rng: np.random.Generator) -> float:
@@ -86,22 +109,19 @@ def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tu
     return plan
 
 
-def _site(out: Path, case: dict, building: str, epw: str, inject: bool) -> Path:
-    from buildenv.reference import make_reference_site
-
+def _site(out: Path, case: dict, stand_in: StandIn, inject: bool) -> Path:
     effects = [(case["true"], case["magnitude"])] if inject and case["true"] != NONE else []
     path = out / (f"case_{case['case']:03d}" if inject else f"case_{case['case']:03d}_twin")
     if (path / "site.toml").is_file():
-        _check_site_matches(path, case, effects)
+        _check_site_matches(path, case, effects, stand_in.known)
     else:
-        make_reference_site(path, building, epw, dt.date.fromisoformat(case["start"]), WEEKS,
-                            seed=case["noise_seed"], effects=effects, effect_seed=case["effect_seed"])
+        stand_in.make(path, dt.date.fromisoformat(case["start"]), case["noise_seed"], effects, case["effect_seed"])
     return path
 
 
-def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]) -> None:
+def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]], known: dict[str, float]) -> None:
     """Raise when a site folder left by an earlier run was made for another case (another plan: other seed or
-    other known effects), instead of diagnosing it under the wrong label."""
+    other known effects) or declares other known parameters, instead of diagnosing it under the wrong label."""
     from buildenv.site import load_site
 
     site = load_site(path)
@@ -114,17 +134,20 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
         raise ValueError(f"{path}: this site was made for another case ({made or 'no effect'}, from "
                          f"{site.start}), not case {case['case']} ({effects or 'no effect'}, from {case['start']}); "
                          "give the check a fresh --out folder")
+    if site.known != dict(known):
+        raise ValueError(f"{path}: this site declares known parameters {site.known or 'none'}, the check "
+                         f"{dict(known) or 'none'}; give the check a fresh --out folder")
 
 
-def footprint(out: Path, case: dict, building: str, epw: str) -> dict:
+def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
     """What the injected effect changed in a case's held-out measurements (see the module docstring):
     ``{"temperature_k", "consumption_percent", "visible"}``."""
     from buildenv.calibration import default_weeks
     from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
     from buildenv.site import load_site
 
-    site = load_site(_site(out, case, building, epw, inject=True))
-    twin = load_site(_site(out, case, building, epw, inject=False))
+    site = load_site(_site(out, case, stand_in, inject=True))
+    twin = load_site(_site(out, case, stand_in, inject=False))
     weeks = default_weeks(site.weeks)[1]
     dt_k = site.temperature_c[weeks] - twin.temperature_c[weeks]
     twin_q = twin.consumption_wh_m2()[weeks]
@@ -140,12 +163,12 @@ def _mse(metrics: dict, series: str) -> float:
     return metrics["rmse_t_celsius"] ** 2 if series == "temperature" else metrics["rmse_q_wh_m2"] ** 2
 
 
-def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, building: str, epw: str) -> dict:
+def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
     """Make, diagnose and score one case (and its clean twin when an effect is injected)."""
     from buildenv.site import load_site
 
     started = time.perf_counter()
-    site = load_site(_site(out, case, building, epw, inject=True))
+    site = load_site(_site(out, case, stand_in, inject=True))
     result = diagnose(site, surrogate, settings, localisation=False)
     result.pop("_fit", None)
     named = result["selected"][0] if result["selected"] else NONE
@@ -160,7 +183,7 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, buil
            "verdict": result["verdict"]}
     if case["true"] != NONE and case["true"] in result["selected"]:
         series = get_effect(case["true"]).series[0]
-        twin = load_site(_site(out, case, building, epw, inject=False))
+        twin = load_site(_site(out, case, stand_in, inject=False))
         twin_mse = _mse(base_heldout_metrics(twin, surrogate, settings), series)
         entry = next(e for e in result["effects"] if e["name"] == case["true"])
         b, a = _mse(result["heldout_before"], series), _mse(result["heldout_after"], series)
@@ -169,22 +192,22 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, buil
                             "of_effect_gap": (b - a) / (b - twin_mse) if b - twin_mse > 1e-12 else float("nan"),
                             "parameters": entry["parameters"]}
     if case["true"] != NONE:
-        row["footprint"] = footprint(out, case, building, epw)
+        row["footprint"] = footprint(out, case, stand_in)
     row["seconds"] = round(time.perf_counter() - started, 1)
     return row
 
 
-def known_effects(out: Path, surrogate, settings: DiagnosisSettings, building: str, epw: str) -> list[str]:
+def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> list[str]:
     """Effects the clean stand-in already has (diagnosis of a clean reference site), cached in ``out``."""
-    cache = out / "reference_diagnosis.json"
-    if cache.is_file():
-        return json.loads(cache.read_text())["selected"]
-    from buildenv.reference import make_reference_site
     from buildenv.site import load_site
 
-    path = out / "reference"
-    if not (path / "site.toml").is_file():
-        make_reference_site(path, building, epw, REFERENCE_START, WEEKS, seed=0)
+    path, cache = out / "reference", out / "reference_diagnosis.json"
+    if (path / "site.toml").is_file():
+        _check_site_matches(path, {"case": "reference", "start": REFERENCE_START.isoformat()}, [], stand_in.known)
+        if cache.is_file():
+            return json.loads(cache.read_text())["selected"]
+    else:
+        stand_in.make(path, REFERENCE_START, seed=0)
     result = diagnose(load_site(path), surrogate, settings, localisation=False)
     result.pop("_fit", None)
     cache.write_text(json.dumps(result, indent=1, default=float) + "\n")
@@ -215,7 +238,8 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
 
 def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: DiagnosisSettings | None = None,
               building: str = "medium_office", epw: str = "usa_il_chicago", base_effects: str | list[str] = "auto",
-              effects: tuple[str, ...] | None = None, progress: bool = False) -> dict:
+              effects: tuple[str, ...] | None = None, progress: bool = False,
+              known_parameters: dict[str, float] | None = None) -> dict:
     """Run (or resume) a blind check and summarise it.
 
     Args:
@@ -228,6 +252,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         base_effects: ``"auto"`` (diagnose a clean reference site first), or a list of known effects.
         effects: the effects injected (default: the whole catalogue).
         progress: progress bar over cases.
+        known_parameters: building parameters every site declares known (:class:`StandIn`).
     Returns:
         ``{"summary": ..., "cases": [...], "base_effects": [...], "plan": {...}}``.
     """
@@ -239,7 +264,8 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
     out.mkdir(parents=True, exist_ok=True)
     surrogate = surrogate or load_metamodel()
     settings = settings or DiagnosisSettings()
-    known = (known_effects(out, surrogate, settings, building, epw) if base_effects == "auto"
+    stand_in = StandIn(building, epw, dict(known_parameters or {}))
+    known = (known_effects(out, surrogate, settings, stand_in) if base_effects == "auto"
              else [get_effect(e).name for e in base_effects])
     settings = DiagnosisSettings(**{**settings.__dict__, "base_effects": tuple(known)})
     plan = plan_cases(cases, seed, tuple(known), effects)
@@ -250,14 +276,15 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
             row = json.loads(path.read_text())
             if {k: row.get(k) for k in case} == case:
                 if case["true"] != NONE and "footprint" not in row:  # a case finished before footprints
-                    row["footprint"] = footprint(out, case, building, epw)
+                    row["footprint"] = footprint(out, case, stand_in)
                     path.write_text(json.dumps(row, indent=1, default=float) + "\n")
                 rows.append(row)
                 continue
-        row = run_case(out, case, surrogate, settings, building, epw)
+        row = run_case(out, case, surrogate, settings, stand_in)
         path.write_text(json.dumps(row, indent=1, default=float) + "\n")
         rows.append(row)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]
     return {"summary": summarise(rows, labels), "cases": rows, "base_effects": known,
             "plan": {"cases": cases, "seed": seed, "building": building, "epw": epw, "weeks": WEEKS,
+                     "known_parameters": stand_in.known,
                      "settings": {k: v for k, v in settings.__dict__.items() if k != "candidates"}}}

@@ -486,7 +486,7 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
                         start: dt.date = dt.date(2019, 11, 4), weeks: int = 4, settings: np.ndarray | None = None,
                         seed: int = 0, floors: int | None = None, schedule_map: ScheduleMap | None = None,
                         effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
-                        effect_seed: int = 0) -> Path:
+                        effect_seed: int = 0, known: dict[str, float] | None = None) -> Path:
     """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.site`).
 
     Args:
@@ -504,6 +504,8 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
             :mod:`buildenv.effects_inject`); written to ``truth.json`` as ``{"name", "magnitude", "unit",
             "details"}`` entries, never to ``site.toml`` (the diagnosis must find them blind).
         effect_seed: seed of the effects' random choices (holiday dates).
+        known: building parameters the site declares known (``site.toml``'s ``[known]``, catalogue units):
+            what the building's documents say, which calibration then keeps fixed.
     """
     from buildenv.site import write_site
 
@@ -526,4 +528,4 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
     return write_site(out, name=f"{building} in {epw} (reference-building stand-in)", weather=str(epw), start=start,
                       floor_area_m2=round(run.floor_area_m2, 1), number_of_floors=int(floors), settings=settings,
                       temperature_c=temperature, consumption_kwh=consumption, source=source,
-                      truth={"building": str(building), "effects": run.effects})
+                      truth={"building": str(building), "effects": run.effects}, known=known)

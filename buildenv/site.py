@@ -2,7 +2,7 @@
 
 A site folder holds (format for users: ``docs/site-format.md``)::
 
-    site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional [source]
+    site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional [known], [source]
     measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
     settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
     calibration.json   optional, written by calibration (:func:`save_calibration`); not interpreted here
@@ -61,8 +61,10 @@ DEFAULT_MEASUREMENTS = "measurements.csv"
 DEFAULT_SETTINGS = "settings.csv"
 MEASUREMENT_COLUMNS: tuple[str, ...] = ("timestamp", "indoor_temperature_c", "heat_consumption_kwh")
 SETTINGS_COLUMNS: tuple[str, ...] = ("date", *cat.SETTING_NAMES)
-TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "geometry", "source")
+TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "geometry", "known", "source")
 GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
+#: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
+KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
 
 #: Plausible indoor air temperature, degC; a value outside is a unit or sensor error.
 TEMPERATURE_RANGE_C: tuple[float, float] = (-20.0, 50.0)
@@ -98,6 +100,8 @@ class Site:
         consumption_kwh: heat consumption (heating + equipment + lighting) in each hour, kWh,
             ``(weeks, 168)``, NaN where missing.
         source: the free ``[source]`` table of ``site.toml`` (what produced the data), not interpreted.
+        known: the ``[known]`` table: building parameters the owner knows (design documents, BMS), in catalogue
+            units, ``{theta_build name: value}``; calibration keeps them fixed like the geometry.
         calibration: parsed ``calibration.json`` or None.
         truth: parsed ``truth.json`` (true parameters of a synthetic site) or None.
     """
@@ -112,6 +116,7 @@ class Site:
     temperature_c: np.ndarray
     consumption_kwh: np.ndarray
     source: dict = field(default_factory=dict)
+    known: dict[str, float] = field(default_factory=dict)
     calibration: dict | None = None
     truth: dict | None = None
 
@@ -179,8 +184,10 @@ class Site:
         return np.asarray(load_weather(self.weather).hourly)[self.epw_hours()]
 
     def theta_known(self) -> dict[str, float]:
-        """The building parameters the site fixes: ``{"floor_area_m2": m2, "number_of_floors": count}``."""
-        return {"floor_area_m2": float(self.floor_area_m2), "number_of_floors": float(self.number_of_floors)}
+        """The building parameters the site fixes, catalogue units: the geometry (``floor_area_m2`` in m2,
+        ``number_of_floors``) and whatever ``[known]`` declares."""
+        return {"floor_area_m2": float(self.floor_area_m2), "number_of_floors": float(self.number_of_floors),
+                **{k: float(v) for k, v in self.known.items()}}
 
 
 # --------------------------------------------------------------------------- loading
@@ -231,6 +238,7 @@ def load_site(path: str | os.PathLike) -> Site:
         temperature_c=temperature,
         consumption_kwh=consumption,
         source=desc["source"],
+        known=desc["known"],
         calibration=_read_json(folder / CALIBRATION_FILE),
         truth=_read_json(folder / TRUTH_FILE),
     )
@@ -296,7 +304,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         if key in data and (not isinstance(data[key], str) or not data[key].strip()):
             raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, "
                             f"got {data[key]!r}")
-    for key in ("geometry", "source"):
+    for key in ("geometry", "known", "source"):
         if key in data and not isinstance(data[key], dict):
             raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a table ([{key}]), "
                             f"got {data[key]!r}")
@@ -323,6 +331,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
             raise SiteError(f"{loc}: {exc}") from exc
 
     return {
+        "known": _read_known(descriptor, text, data.get("known", {})),
         "name": data["name"].strip(),
         "weather": _resolve_weather(descriptor, text, data["weather"]),
         "floor_area_m2": float(area),
@@ -332,6 +341,36 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         "source": dict(data.get("source", {})),
         "text": text,
     }
+
+
+def known_parameter(name: str, value: Any) -> float:
+    """A value a site may declare known (``[known]``): ``name`` a theta_build variable other than the geometry,
+    ``value`` a number in its catalogue range and unit. Raises :class:`SiteError` (no location) otherwise."""
+    if name in GEOMETRY_KEYS:
+        raise SiteError(f"{name!r} belongs in [geometry], not [known]")
+    if name not in KNOWN_KEYS:
+        close = difflib.get_close_matches(name, KNOWN_KEYS, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise SiteError(f"unknown key {name!r} in [known]{hint}; allowed: {_allowed(KNOWN_KEYS)}")
+    variable = cat.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SiteError(f"{name} must be a number ({variable.unit}), got {value!r}")
+    try:
+        variable.check(float(value))
+    except CatalogueError as exc:
+        raise SiteError(str(exc)) from exc
+    return float(value)
+
+
+def _read_known(descriptor: Path, text: str, table: Mapping[str, Any]) -> dict[str, float]:
+    """Validate ``[known]`` (:func:`known_parameter`), errors located at the key's line."""
+    known: dict[str, float] = {}
+    for key, value in table.items():
+        try:
+            known[key] = known_parameter(key, value)
+        except SiteError as exc:
+            raise SiteError(f"{_where(descriptor, text, key, 'known')}: {exc}") from exc
+    return known
 
 
 def _resolve_weather(descriptor: Path, text: str, weather: str) -> str:
@@ -718,6 +757,7 @@ def write_site(
     consumption_kwh: np.ndarray,
     source: Mapping[str, Any] | None = None,
     truth: Mapping[str, Any] | None = None,
+    known: Mapping[str, float] | None = None,
 ) -> Path:
     """Write a site folder that :func:`load_site` reads back, then validate it by loading it.
 
@@ -737,6 +777,7 @@ def write_site(
         temperature_c: ``(weeks, 168)`` hourly indoor temperature, degC, NaN where missing.
         consumption_kwh: ``(weeks, 168)`` hourly heat consumption, kWh, NaN where missing.
         source: free ``[source]`` table (strings, numbers, booleans, lists, nested tables).
+        known: ``[known]`` table, ``{theta_build name: value}`` in catalogue units (see :attr:`Site.known`).
         truth: true parameters of a synthetic site, written as ``truth.json``.
 
     Returns:
@@ -766,6 +807,8 @@ def write_site(
     lines = [f"name = {_toml_string(str(name))}", f"weather = {_toml_string(str(weather))}", "",
              "[geometry]", f"floor_area_m2 = {_toml_number(floor_area_m2)}",
              f"number_of_floors = {int(number_of_floors)}"]
+    if known:
+        lines += ["", *_toml_table("known", {k: float(v) for k, v in known.items()})]
     if source:
         lines += ["", *_toml_table("source", source)]
     (folder / DESCRIPTOR).write_text("\n".join(lines) + "\n", encoding="utf-8")

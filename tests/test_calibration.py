@@ -44,7 +44,7 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
 
 
-def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None):
+def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None):
     """A site whose 'measurements' are the metamodel's own prediction for known parameters."""
     settings = historical_settings(weeks)
     write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
@@ -58,7 +58,7 @@ def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None):
         t, q_kwh = t.copy(), q_kwh.copy()
         t[gaps], q_kwh[gaps] = np.nan, np.nan
     write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
-               number_of_floors=3, settings=settings, temperature_c=t, consumption_kwh=q_kwh)
+               number_of_floors=3, settings=settings, temperature_c=t, consumption_kwh=q_kwh, known=known)
     return load_site(tmp_path)
 
 
@@ -93,6 +93,33 @@ def test_calibration_recovers_known_parameters(tmp_path, surrogate):
     assert got["infiltration_ach"] == pytest.approx(0.5, abs=0.1)
     assert got["capacitance_kj_per_k_m3"] == pytest.approx(120, abs=30)
     assert (tmp_path / "calibration.json").is_file() and load_site(tmp_path).calibration["method"] == "cmaes"
+
+
+def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, surrogate):
+    known = {"pc_night_percent": 25.0, "window_to_wall_south_percent": 40.0, "heating_power_w_m2": 50.0}
+    site = _synthetic_site(tmp_path, surrogate, _truth(), known=known)
+    problem = cal.build_problem(site, [0])
+    fixed = [problem.names.index(n) for n in known]
+    assert problem.free.sum() == problem.dim - len(known) and not problem.free[fixed].any()
+    z = np.random.default_rng(0).random((4, problem.free.sum()))
+    params = problem.from_unit(z)
+    np.testing.assert_array_equal(params[:, fixed], np.broadcast_to([25.0, 40.0, 50.0], (4, 3)))
+    np.testing.assert_allclose(problem.to_unit(params[1]), z[1])
+    for method, kwargs in (("cmaes", {"max_evaluations": 400}), ("adam", {})):
+        result = cal.calibrate_site(site, surrogate, weeks=[0], method=method, seed=0, save=False, **kwargs)
+        assert {n: result["theta"][n] for n in known} == known and result["known"] == sorted(known)
+
+
+def test_restarts_keep_the_best_of_independent_runs(tmp_path, surrogate):
+    site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=1)
+    problem = cal.build_problem(site, [0])
+    _, single = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=120)
+    best, info = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=120, restarts=3)
+    assert len(info["run_costs"]) == 3 and info["run_costs"][0] == single["cost"]  # run 0 is the single run
+    assert info["cost"] == min(info["run_costs"]) and info["evaluations"] >= 3 * 100
+    assert cal.evaluate(problem, surrogate, best[None])[0] == pytest.approx(info["cost"], abs=1e-6)
+    with pytest.raises(cal.CalibrationError, match="restarts must be at least 1"):
+        cal.calibrate_cmaes(problem, surrogate, restarts=0)
 
 
 def test_gradient_calibration_fits_too(tmp_path, surrogate):

@@ -149,3 +149,23 @@ def test_parser_defaults_and_required():
         parser.parse_args([])  # a subcommand is required
     with pytest.raises(SystemExit):
         parser.parse_args(["simulate", "--weeks", "2", "--out", "x", "--sampling", "sobol"])
+
+
+@pytest.mark.parametrize("item, error", [
+    ("pc_night_percent", "expected NAME=VALUE"),
+    ("pc_night=40", "unknown key 'pc_night' in [known] (did you mean 'pc_night_percent'?)"),
+    ("pc_night_percent=lots", "pc_night_percent must be a number (%), got 'lots'"),
+    ("number_of_floors=3", "'number_of_floors' belongs in [geometry], not [known]"),
+])
+def test_site_reference_rejects_a_bad_known_parameter_in_one_line(item, error, tmp_path, capsys):
+    assert main(["site", "reference", "--known", item, "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--known {item!r}: {error}" in err[0]
+    assert not (tmp_path / "s").exists()  # refused before EnergyPlus ran
+
+
+def test_known_parameters_parse_from_the_command_line():
+    from buildenv.cli_sites import parse_known
+
+    assert parse_known(["pc_night_percent=44.4", "occupant_density_per_m2=0.0538"]) == {
+        "pc_night_percent": 44.4, "occupant_density_per_m2": 0.0538}

@@ -10,7 +10,7 @@ import pytest
 from buildenv.cli import main
 from buildenv.env import DEFAULT_SITE
 from buildenv.gap import DiagnosisSettings
-from buildenv.gap_check import NONE, _site, plan_cases, run_check
+from buildenv.gap_check import NONE, StandIn, _site, plan_cases, run_check
 
 
 def test_plan_is_seeded_and_cycles_through_the_labels():
@@ -57,9 +57,12 @@ def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):
     shutil.copytree(DEFAULT_SITE, tmp_path / "case_000")  # a clean site from 2019-11-04
     case = {"case": 0, "true": NONE, "magnitude": None, "start": "2019-11-04", "noise_seed": 0, "effect_seed": 0}
-    assert _site(tmp_path, case, "medium_office", "usa_il_chicago", inject=True) == tmp_path / "case_000"
+    stand_in = StandIn("medium_office", "usa_il_chicago")
+    assert _site(tmp_path, case, stand_in, inject=True) == tmp_path / "case_000"
     with pytest.raises(ValueError, match="made for another case"):
-        _site(tmp_path, {**case, "true": "temperature_sensor_bias", "magnitude": 1.5}, "medium_office",
-              "usa_il_chicago", inject=True)
+        _site(tmp_path, {**case, "true": "temperature_sensor_bias", "magnitude": 1.5}, stand_in, inject=True)
     with pytest.raises(ValueError, match="made for another case"):
-        _site(tmp_path, {**case, "start": "2019-10-07"}, "medium_office", "usa_il_chicago", inject=True)
+        _site(tmp_path, {**case, "start": "2019-10-07"}, stand_in, inject=True)
+    declaring = StandIn("medium_office", "usa_il_chicago", {"pc_night_percent": 44.4})
+    with pytest.raises(ValueError, match="declares known parameters none"):
+        _site(tmp_path, case, declaring, inject=True)

@@ -168,7 +168,7 @@ number_of_floors = 3
 def test_unknown_top_level_key(site_dir: Path):
     _toml(site_dir, GOOD_TOML.replace('weather = "usa_il_chicago"', 'weather = "usa_il_chicago"\nwether = 1'))
     with pytest.raises(SiteError, match=r"site\.toml:3: unknown key 'wether'.*allowed: name, weather, "
-                                        r"measurements, settings, geometry, source"):
+                                        r"measurements, settings, geometry, known, source"):
         load_site(site_dir)
 
 
@@ -176,6 +176,27 @@ def test_unknown_geometry_key(site_dir: Path):
     _toml(site_dir, GOOD_TOML + "height_m = 10\n")
     with pytest.raises(SiteError, match=r"site\.toml:7: unknown key 'height_m' in \[geometry\].*"
                                         r"allowed: floor_area_m2, number_of_floors"):
+        load_site(site_dir)
+
+
+def test_known_parameters_round_trip_and_join_the_fixed_theta(tmp_path: Path):
+    site = load_site(_write(tmp_path / "s", known={"pc_night_percent": 44.4, "window_to_wall_south_percent": 33}))
+    assert site.known == {"pc_night_percent": 44.4, "window_to_wall_south_percent": 33.0}
+    assert site.theta_known() == {"floor_area_m2": AREA, "number_of_floors": 3.0, "pc_night_percent": 44.4,
+                                  "window_to_wall_south_percent": 33.0}
+    assert load_site(_write(tmp_path / "plain")).known == {}
+
+
+@pytest.mark.parametrize("line, error", [
+    ("floor_area_m2 = 5000", r"site\.toml:9: 'floor_area_m2' belongs in \[geometry\], not \[known\]"),
+    ("pc_nite_percent = 40", r"site\.toml:9: unknown key 'pc_nite_percent' in \[known\] \(did you mean "
+                             r"'pc_night_percent'\?\)"),
+    ('pc_night_percent = "40 %"', r"site\.toml:9: pc_night_percent must be a number \(%\), got '40 %'"),
+    ("heating_power_w_m2 = 400", r"site\.toml:9: heating_power_w_m2=400 is outside its range \[10, 100\] W/m2"),
+])
+def test_known_parameter_errors_name_the_line(site_dir: Path, line: str, error: str):
+    _toml(site_dir, GOOD_TOML + "\n[known]\n" + line + "\n")
+    with pytest.raises(SiteError, match=error):
         load_site(site_dir)
 
 

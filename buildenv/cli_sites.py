@@ -102,6 +102,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
     site = load_site(args.site)
     info = {"site": str(site.path), "name": site.name, "weather": site.weather, "start": str(site.start),
             "weeks": site.weeks, "floor_area_m2": site.floor_area_m2, "number_of_floors": site.number_of_floors,
+            "known": site.known,
             "temperature_hours": int(site.temperature_mask.sum()),
             "consumption_hours": int(site.consumption_mask.sum()),
             "mean_temperature_c": round(float(np.nanmean(site.temperature_c)), 2),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import pytest
 
@@ -169,3 +170,14 @@ def test_known_parameters_parse_from_the_command_line():
 
     assert parse_known(["pc_night_percent=44.4", "occupant_density_per_m2=0.0538"]) == {
         "pc_night_percent": 44.4, "occupant_density_per_m2": 0.0538}
+
+
+def test_site_show_lists_what_the_site_declares_known(tmp_path, capsys):
+    from buildenv.env import DEFAULT_SITE
+
+    shutil.copytree(DEFAULT_SITE, tmp_path / "s")
+    with open(tmp_path / "s" / "site.toml", "a") as f:
+        f.write("\n[known]\npc_night_percent = 44.4\n")
+    assert main(["site", "show", str(tmp_path / "s")]) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["known"] == {"pc_night_percent": 44.4} and info["weeks"] == 6

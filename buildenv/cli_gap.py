@@ -58,7 +58,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
     p.add_argument("--base-restarts", type=int, default=1,
-                   help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), best kept")
+                   help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
+                        "lowest fit cost kept")
     p.add_argument("--min-gain", type=float, default=0.15,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")

@@ -74,7 +74,7 @@ class StandIn:
         from buildenv.reference import make_reference_site
 
         return make_reference_site(path, self.building, self.epw, start, WEEKS, seed=seed, effects=effects,
-                                   effect_seed=effect_seed, known=self.known or None)
+                                   effect_seed=effect_seed, known=self.known)
 
 
 def draw_magnitude(name: str, rng: np.random.Generator) -> float:

@@ -1,0 +1,87 @@
+"""Recorded blind checks judged again under the catalogue's current plausibility rules.
+
+The first effect a diagnosis names is decided by its first step alone: the candidate with the largest held-out
+gain among those that are significant, reach the minimum gain and are plausible (``Effect.plausible``). Every
+result of ``bench/gap_check.py`` records that step for each case (gains, p-values, estimates), so a change of
+the plausibility rules can be replayed on it exactly, without rerunning a calibration. The later steps (the
+second effect) are not replayed.
+
+    .venv/bin/python bench/gap_check_rejudge.py --name gap_check_rejudged bench/results/gap_check_known_seed0.json ...
+
+Writes ``bench/results/<name>.{md,json}``. A rule read off these records is only checked in-sample here: a
+fresh seed run with ``bench/gap_check.py`` is the test.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from gap_check_compare import tally
+
+from buildenv.effects import get_effect
+from buildenv.gap_check import NONE
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def first_named(row: dict, alpha: float, min_gain: float) -> str:
+    """The effect a recorded case's first step names under the current plausibility rules (``none`` if none)."""
+    threshold = alpha / len(row["p_values"])
+    for name in sorted(row["scores"], key=lambda n: -row["scores"][n]):
+        if row["p_values"][name] < threshold and row["scores"][name] >= min_gain \
+                and get_effect(name).plausible(row["estimates"][name]):
+            return name
+    return NONE
+
+
+def main() -> None:
+    """Re-judge the given result files and write the comparison."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("results", nargs="+", help="result files of bench/gap_check.py")
+    parser.add_argument("--name", default="gap_check_rejudged", help="stem of the result files")
+    args = parser.parse_args()
+    sets = []
+    for path in args.results:
+        page = json.loads(Path(path).read_text())
+        settings = page["plan"]["settings"]
+        rows = [{"case": r["case"], "true": r["true"], "magnitude": r["magnitude"], "a": r["named"],
+                 "b": first_named(r, settings["alpha"], settings["min_gain"])} for r in page["cases"]]
+        sets.append({"result": path, "seed": page["plan"]["seed"], "known": page["plan"].get("known_parameters", {}),
+                     "restarts": settings.get("base_restarts", 1), "rows": rows,
+                     "recorded": tally(rows, "a"), "rejudged": tally(rows, "b")})
+    every = [r for s in sets for r in s["rows"]]
+    totals = {"recorded": tally(every, "a"), "rejudged": tally(every, "b")}
+    lines = [f"# Recorded blind checks judged again under the current plausibility rules ({time.strftime('%Y-%m-%d')})",
+             "", "Command: `.venv/bin/python bench/gap_check_rejudge.py --name " + args.name + " "
+             + " ".join(args.results) + "`. First step only (the first effect named).", "",
+             "| result | seed | known parameters | base runs | recorded: right, wrong, clean | "
+             "now: right, wrong, clean |", "|---|---|---|---|---|---|"]
+
+    def cell(t: dict) -> str:
+        return (f"{t['named_right']}/{t['effect_cases']}, {t['named_wrong']}/{t['effect_cases']}, "
+                f"{t['clean_recognised']}/{t['clean_cases']}")
+
+    for s in sets:
+        known = "declared loads" if s["known"] else "none"
+        lines.append(f"| {Path(s['result']).stem} | {s['seed']} | {known} | {s['restarts']} | {cell(s['recorded'])} | "
+                     f"{cell(s['rejudged'])} |")
+    lines.append(f"| all | | | | {cell(totals['recorded'])} | {cell(totals['rejudged'])} |")
+    lines += ["", "Cases named differently:", "", "| result | case | injected | magnitude | recorded | now |",
+              "|---|---|---|---|---|---|"]
+    for s in sets:
+        for r in s["rows"]:
+            if r["a"] != r["b"]:
+                magnitude = "-" if r["magnitude"] is None else f"{r['magnitude']:.2f}"
+                lines.append(f"| {Path(s['result']).stem} | {r['case']} | {r['true']} | {magnitude} | {r['a']} | "
+                             f"{r['b']} |")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{args.name}.json").write_text(json.dumps({"totals": totals, "sets": sets}, indent=1) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

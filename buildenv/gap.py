@@ -33,7 +33,8 @@ significant gain, stop when none is significant):
    that only misses by structure, with no effect injected, gains less than this from any single effect)
    **and** its estimate is plausible: at least the smallest size of the effect seen in practice
    (:meth:`buildenv.effects.Effect.plausible`; a heat exchanger of effectiveness 0.1 is the model borrowing
-   the effect to absorb another miss).
+   the effect to absorb another miss), or for a sensor bias the model's own offset against the reference
+   office (:meth:`buildenv.effects.Effect.named_from` states each floor and its source).
 4. The best selected candidate joins the model and step 2 repeats with the others, until none qualifies or
    ``max_effects`` are in.
 
@@ -406,7 +407,8 @@ def _verdict(selected: list[str], entries: list[dict]) -> str:
     if not selected:
         best = entries[0] if entries else None
         why = "" if not best or best["plausible"] else \
-            f"; its estimate {best['parameters']} is smaller than the effect is in practice"
+            f"; its estimate {best['parameters']} is below what the diagnosis names: " \
+            f"{get_effect(best['name']).named_from()}"
         tail = f" (best candidate: {best['name']}, held-out gain {100 * best['score']:.1f} %, p = " \
                f"{best['significance']['p_value']:.2g}{why})" if best else ""
         return "no significant unmodelled effect" + tail

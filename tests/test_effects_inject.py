@@ -229,8 +229,12 @@ def test_cli_lists_the_catalogue(capsys):
     assert [r["name"] for r in rows] == list(EFFECTS)
     assert all({"magnitude_unit", "magnitude_range", "default_magnitude", "series", "parameters"} <= set(r)
                for r in rows)
+    named_from = {r["name"]: r["named_from"] for r in rows}
+    assert named_from["heating_capacity_limit"] is None  # a capacity is plausible at any value
+    assert named_from["temperature_sensor_bias"].startswith("|bias_k| >= 0.8 K (")
     assert main(["effects"]) == 0
-    assert "heat_recovery" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "heat_recovery" in out and "named from: effectiveness >= 0.3 (" in out
 
 
 def test_injected_effect_is_inactive_at_no_effect():

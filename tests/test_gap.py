@@ -11,7 +11,7 @@ from buildenv import calibration as cal
 from buildenv import effects_model as em
 from buildenv.env import DEFAULT_SITE
 from buildenv.effects import EFFECTS, EffectError, get_effect, parse_effect
-from buildenv.gap import DiagnosisSettings, diagnose, save_extended_model
+from buildenv.gap import DiagnosisSettings, _verdict, diagnose, save_extended_model
 from buildenv.site import load_site, write_site
 from buildenv.site_model import SiteModel
 from buildenv.surrogate import load_metamodel
@@ -66,6 +66,9 @@ def test_an_effect_is_named_only_at_a_size_seen_in_practice():
     bias = get_effect("temperature_sensor_bias")
     # the model's own offset against the reference office (up to 0.79 K recorded) is not named a sensor bias
     assert bias.plausible({"bias_k": -1.0}) and not bias.plausible({"bias_k": -0.6})
+    verdict = _verdict([], [{"name": bias.name, "plausible": False, "parameters": {"bias_k": -0.6}, "score": 0.3,
+                             "significance": {"p_value": 1e-9}}])
+    assert verdict.startswith("no significant unmodelled effect") and "|bias_k| >= 0.8 K" in verdict
 
 
 def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):

@@ -27,7 +27,8 @@ the bar was 0.3 K) but the model's own detection floor, read off the blind check
 (``bench/results/gap_check*.json``). Calibrated with a bias and no bias injected, the model reads
 -0.79 to +0.56 K (median -0.32 K) in 170 recorded cases: the shoebox runs warmer than the reference office,
 mostly at night, and a bias absorbs that structural offset. With the internal loads declared known the
-offset shows most (-0.37 to -0.79 K), and a 0.3 K bar named a bias on 13 of 32 sites that had none.
+offset shows most (-0.20 to -0.79 K, median -0.58 K), and a 0.3 K bar named a bias on 13 of 29 sites that
+had none.
 In those records injected biases of 1.2-2.8 K were estimated at 0.96-2.8 K; smaller ones (0.66 and
 0.77 K, estimated at 0.43 and 0.29 K) cannot be told from the model's offset. Runs made after the rule
 (seed 3, and seed 1 free with three base runs: 213 cases in all) stayed within the same range. Sensor

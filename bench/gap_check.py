@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.cli_sites import parse_known
+from buildenv.cli_sites import add_known_argument, parse_known
 from buildenv.effects import JUDGES
 from buildenv.gap import DiagnosisSettings
 from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, run_check
@@ -58,8 +58,7 @@ def main() -> None:
                         help="score candidates on both series, or on the series each shows in")
     parser.add_argument("--base-restarts", type=int, default=1,
                         help="CMA-ES runs of each base calibration, the lowest fit cost kept")
-    parser.add_argument("--known", action="append", default=[], metavar="NAME=VALUE",
-                        help="a building parameter every site declares known (site.toml [known]; repeatable)")
+    add_known_argument(parser)
     args = parser.parse_args()
     known = parse_known(args.known)
     started, load = time.perf_counter(), os.getloadavg()[0]

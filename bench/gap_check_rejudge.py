@@ -1,10 +1,10 @@
 """Recorded blind checks judged again under the catalogue's current plausibility rules.
 
 The first effect a diagnosis names is decided by its first step alone: the candidate with the largest held-out
-gain among those that are significant, reach the minimum gain and are plausible (``Effect.plausible``). Every
-result of ``bench/gap_check.py`` records that step for each case (gains, p-values, estimates), so a change of
-the plausibility rules can be replayed on it exactly, without rerunning a calibration. The later steps (the
-second effect) are not replayed.
+gain among those that qualify (:func:`buildenv.gap.candidate_qualifies`: significant, the minimum gain, a
+plausible estimate). Every result of ``bench/gap_check.py`` records that step for each case (gains, p-values,
+estimates), so a change of the plausibility rules can be replayed on it exactly, without rerunning a
+calibration. The later steps (the second effect) are not replayed.
 
     .venv/bin/python bench/gap_check_rejudge.py --name gap_check_rejudged bench/results/gap_check_known_seed0.json ...
 
@@ -21,7 +21,7 @@ from pathlib import Path
 
 from gap_check_compare import tally
 
-from buildenv.effects import get_effect
+from buildenv.gap import candidate_qualifies
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -31,8 +31,8 @@ def first_named(row: dict, alpha: float, min_gain: float) -> str:
     """The effect a recorded case's first step names under the current plausibility rules (``none`` if none)."""
     threshold = alpha / len(row["p_values"])
     for name in sorted(row["scores"], key=lambda n: -row["scores"][n]):
-        if row["p_values"][name] < threshold and row["scores"][name] >= min_gain \
-                and get_effect(name).plausible(row["estimates"][name]):
+        if candidate_qualifies(name, row["scores"][name], row["p_values"][name], threshold, min_gain,
+                               row["estimates"][name]):
             return name
     return NONE
 

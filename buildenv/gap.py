@@ -386,10 +386,18 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     return result
 
 
+def candidate_qualifies(name: str, gain: float, p_value: float, threshold: float, min_gain: float,
+                        parameters: dict[str, float]) -> bool:
+    """Whether a candidate may join the model (module docstring, step 3): significant (``p_value <
+    threshold``), a held-out gain of at least ``min_gain`` and a plausible estimate ``parameters``."""
+    return p_value < threshold and gain >= min_gain and get_effect(name).plausible(parameters)
+
+
 def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: float) -> dict:
     significant = score["p_value"] < threshold
     parameters = trial.effect_parameters().get(name, {})
     plausible = get_effect(name).plausible(parameters)
+    qualifies = candidate_qualifies(name, score["gain"], score["p_value"], threshold, min_gain, parameters)
     return {"name": name, "title": get_effect(name).title, "score": round(score["gain"], 4),
             "significance": {"p_value": score["p_value"], "threshold": threshold, "f": round(score["f"], 3),
                              "k": score["k"], "n_eff": score["n_eff"], "significant": significant,
@@ -398,7 +406,7 @@ def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: 
             "judged_on": score["series"], "gain_by_series": score["gain_by_series"],
             "sse_by_series": score["sse_by_series"],
             "plausible": bool(plausible),
-            "qualifies": bool(significant and score["gain"] >= min_gain and plausible),
+            "qualifies": bool(qualifies),
             "parameters": parameters,
             "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"]}
 

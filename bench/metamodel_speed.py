@@ -44,7 +44,8 @@ CONFIGS: list[tuple[str, dict]] = [
     ("transformer", {"patch_hours": 6}),
     ("transformer", {"patch_hours": 8}),
     ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128}),
-    ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128, "hourly_head": 64}),  # the shipped default
+    ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128, "hourly_head": 64}),
+    ("transformer", {"patch_hours": 8, "layers": 2, "d_ff": 128, "hourly_head": 64, "hourly_state": 16}),
     ("bigru", {}), ("lstm", {}), ("convgru", {}), ("ffn", {}),
 ]
 
@@ -62,10 +63,11 @@ def energyplus_weeks_per_second(weeks: int, zoning: str) -> float:
         shutil.rmtree(out.parent, ignore_errors=True)
 
 
-def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int) -> float:
-    """Best-of-``repeats`` speed of ``load_metamodel().predict`` on dataset-like catalogue arrays."""
+def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int, checkpoint: str | None = None) -> float:
+    """Best-of-``repeats`` speed of ``load_metamodel(checkpoint).predict`` on dataset-like catalogue arrays
+    (``None``: the shipped default)."""
     rng = np.random.default_rng(0)
-    surrogate = sg.load_metamodel()
+    surrogate = sg.load_metamodel(checkpoint)
     theta = sample_group("theta_build", weeks, rng)
     settings, occupancy = sample_weeks(weeks, rng)
     year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
@@ -86,6 +88,8 @@ def main() -> None:
     parser.add_argument("--weeks", type=int, default=4096, help="weeks per timing")
     parser.add_argument("--batch", type=int, default=256, help="weeks per model call")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--checkpoint", action="append", metavar="LABEL=PATH",
+                        help="also time the product path of this checkpoint (repeatable; the shipped default always)")
     args = parser.parse_args()
     torch.set_num_threads(os.cpu_count() or 1)
     eplus_by_zoning = {z: energyplus_weeks_per_second(args.eplus_weeks, z) for z in ZONINGS}
@@ -100,20 +104,24 @@ def main() -> None:
         print(f"{name:12s} {json.dumps(config):45s} {speed:9.1f} weeks/s  x{speed / eplus:6.1f}")
     result = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "torch": torch.__version__, "command": "bench/metamodel_speed.py " + " ".join(
-                  f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items()),
+                  f"--{k.replace('_', '-')} {x}" for k, v in vars(args).items() if v is not None
+                  for x in (v if isinstance(v, list) else [v])),
               "energyplus_weeks_per_second": round(eplus, 2),
               "energyplus_weeks_per_second_by_zoning": {z: round(v, 2) for z, v in eplus_by_zoning.items()},
               "models": rows}
-    shipped = sg.DEFAULT_CHECKPOINT.is_file()
-    if shipped:
-        speed = surrogate_weeks_per_second(args.weeks, args.batch, args.repeats)
-        default = sg.load_metamodel()
-        reference = eplus_by_zoning[default.zoning]
-        result["default_surrogate"] = {"config": default.checkpoint.config, "zoning": default.zoning,
+    products = ([("shipped default", None)] if sg.DEFAULT_CHECKPOINT.is_file() else []) + [
+        (item.partition("=")[0], item.partition("=")[2]) for item in args.checkpoint or []]
+    result["product_path"] = []
+    for label, path in products:
+        speed = surrogate_weeks_per_second(args.weeks, args.batch, args.repeats, path)
+        surrogate = sg.load_metamodel(path)
+        reference = eplus_by_zoning[surrogate.zoning]
+        result["product_path"].append({"label": label, "checkpoint": path or "default",
+                                       "config": surrogate.checkpoint.config, "zoning": surrogate.zoning,
                                        "weeks_per_second": round(speed, 1),
-                                       "speedup_vs_energyplus": round(speed / reference, 1)}
-        print(f"load_metamodel().predict (encoding included, traced): {speed:9.1f} weeks/s  "
-              f"x{speed / reference:6.1f} ({default.zoning} shoebox)")
+                                       "speedup_vs_energyplus": round(speed / reference, 1)})
+        print(f"{label}: load_metamodel().predict (encoding included, traced): {speed:9.1f} weeks/s  "
+              f"x{speed / reference:6.1f} ({surrogate.zoning} shoebox)")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "metamodel_speed.json").write_text(json.dumps(result, indent=2) + "\n")
     lines = [f"# Metamodel vs EnergyPlus speed ({result['date']})", "",
@@ -127,11 +135,10 @@ def main() -> None:
              "| model | config | parameters | weeks/s | x EnergyPlus |", "|---|---|---|---|---|"]
     lines += [f"| {r['model']} | `{json.dumps(r['config'])}` | {r['parameters']} | {r['weeks_per_second']} | "
               f"{r['speedup_vs_energyplus']} |" for r in rows]
-    if shipped:
-        d = result["default_surrogate"]
-        lines += ["", f"The product path: `buildenv.load_metamodel().predict(theta, settings, occupancy, weather)` of "
-                  f"the shipped default (`{json.dumps(d['config'])}`), {args.weeks} weeks from catalogue arrays, "
-                  f"encoding and standardisation included, traced model: **{d['weeks_per_second']} weeks/s, "
+    for d in result["product_path"]:
+        lines += ["", f"The product path, {d['label']}: `buildenv.load_metamodel({d['checkpoint']!r}).predict(theta, "
+                  f"settings, occupancy, weather)` (`{json.dumps(d['config'])}`), {args.weeks} weeks from catalogue "
+                  f"arrays, encoding and standardisation included, traced model: **{d['weeks_per_second']} weeks/s, "
                   f"{d['speedup_vs_energyplus']}x the {d['zoning']} EnergyPlus shoebox it was trained on** "
                   f"({d['weeks_per_second'] / eplus:.1f}x the single zone)."]
     (RESULTS / "metamodel_speed.md").write_text("\n".join(lines) + "\n")

@@ -2,13 +2,14 @@
 
 Each model is trained by ``buildenv train`` (through :func:`buildenv.training.train_metamodel`) on the same
 ``--weeks`` training weeks of a campaign, with the ``weather_weeks`` split (test weeks' weather never seen
-in training), the paper's loss, Adam with a cosine learning rate and ``--epochs`` epochs; then scored on the
+in training) or, with ``--split buildings``, the ``buildings`` split (test weeks' buildings never seen in
+training), the paper's loss, Adam with a cosine learning rate and ``--epochs`` epochs; then scored on the
 test weeks. Runs are kept in ``--runs`` and reused by a rerun.
 
     .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10] \
-        [--batch-size 64]
+        [--batch-size 64] [--split weather_weeks|buildings] [--name STEM]
 
-Writes ``bench/results/metamodels_table1.{md,json}``.
+Writes ``bench/results/metamodels_table1.{md,json}`` (``--name``: another stem).
 """
 
 from __future__ import annotations
@@ -28,7 +29,10 @@ MODELS: dict[str, tuple[str, dict]] = {
     "ConvGRU": ("convgru", {}),
     "FFN": ("ffn", {}),
     "Transformer (paper, hourly tokens)": ("transformer", {}),
+    "Transformer + thermal states": ("transformer", {**DEFAULT_TRANSFORMER, "hourly_state": 16}),
 }
+SPLIT_MEANING = {"weather_weeks": "the test weeks' climate and week of year never occur in training",
+                 "buildings": "the test weeks' buildings, i.e. EnergyPlus runs, never occur in training"}
 ROWS = [("Loss (x1e-2)", "loss", 100.0), ("MSE_T (x1e-2)", "mse_t", 100.0), ("MSE_Q (x1e-2)", "mse_q", 100.0),
         ("MSE_T occ (x1e-2)", "mse_t_occ", 100.0), ("MSE_Q occ (x1e-2)", "mse_q_occ", 100.0),
         ("R2_T (x1e-3)", "r2_t", 1000.0), ("R2_Q (x1e-3)", "r2_q", 1000.0),
@@ -50,16 +54,20 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=64, help="training weeks per Adam step, every model")
     parser.add_argument("--runs", default="data/bench-runs/table1", help="where checkpoints are kept")
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated subset of the columns")
+    parser.add_argument("--name", help="results file stem (default metamodels_table1[_batchN])")
+    parser.add_argument("--split", default="weather_weeks", choices=["weather_weeks", "buildings"],
+                        help="buildings: test weeks come from buildings never seen in training")
     args = parser.parse_args()
     columns = [m.strip() for m in args.models.split(",")]
     results = {}
     for label in columns:
         model, config = MODELS[label]
         tag = f"{model}-{run_tag(config)}-{args.weeks}-{args.epochs}" + (
-            f"-b{args.batch_size}" if args.batch_size != 64 else "")
+            f"-b{args.batch_size}" if args.batch_size != 64 else "") + (
+            f"-{args.split}" if args.split != "weather_weeks" else "")
         print(f"== {label}: {model} {json.dumps(config)}", flush=True)
         result = trained(tag, Path(args.runs), args.data, model, config, max_weeks=args.weeks, epochs=args.epochs,
-                         patience=args.epochs, batch_size=args.batch_size, progress=False)
+                         patience=args.epochs, batch_size=args.batch_size, split=args.split, progress=False)
         result["inference_weeks_per_second"] = round(inference_speed(model, config), 1)
         result["fastest_epoch_seconds"] = fastest_epoch(Path(args.runs) / f"{tag}.pt.csv")
         results[label] = result
@@ -82,10 +90,12 @@ def main() -> None:
     lines = [f"# Table 1: metamodels compared ({date})", "",
              f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_table.py --data {args.data} "
              f"--weeks {args.weeks} --epochs {args.epochs} --batch-size {args.batch_size} "
-             f"--models {','.join(columns)}`.", "",
+             f"--models '{','.join(columns)}'" + (f" --name {args.name}" if args.name else "")
+             + (f" --runs {args.runs}" if args.runs != "data/bench-runs/table1" else "")
+             + (f" --split {args.split}" if args.split != "weather_weeks" else "") + "`.", "",
              f"Every model: {first['train_weeks']} training weeks, {first['val_weeks']} validation and "
-             f"{first['test_weeks']} test weeks (split `weather_weeks`, seed 0: the test weeks' climate and week "
-             f"of year never occur in training), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch "
+             f"{first['test_weeks']} test weeks (split `{args.split}`, seed 0: " + SPLIT_MEANING[args.split]
+             + f"), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch "
              f"{args.batch_size}) "
              "on the paper's loss, best validation epoch kept. Mean (std) over test weeks; definitions in "
              "`buildenv/metrics.py` (MSE in standardised units, per-week R2 as `sklearn.metrics.r2_score`, "
@@ -94,7 +104,7 @@ def main() -> None:
              "inference is measured when the table is written.", "", *header, *body, ""]
     lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
     RESULTS.mkdir(exist_ok=True)
-    stem = "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
+    stem = args.name or "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
     (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{stem}.json").write_text(json.dumps(
         {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": args.epochs,

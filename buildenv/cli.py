@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.dataset import SPLITS
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 
@@ -204,7 +205,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", required=True, choices=["transformer", "bigru", "lstm", "convgru", "ffn"])
     p.add_argument("--data", required=True, help="dataset directory")
     p.add_argument("--out", required=True, help="checkpoint path (rerun to resume from CKPT.last)")
-    p.add_argument("--split", default="weather_weeks", choices=["random", "weather_weeks", "climate"])
+    p.add_argument("--split", default="weather_weeks", choices=list(SPLITS),
+                   help="weather_weeks: test weeks' weather never seen in training; buildings: test weeks' "
+                        "buildings never seen in training")
     p.add_argument("--max-weeks", type=int, default=None, help="at most this many training weeks")
     p.add_argument("--holdout-climate", action="append", default=None, metavar="WEATHER",
                    help="keep this climate's weeks out of training and score them apart (repeatable)")

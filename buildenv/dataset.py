@@ -29,7 +29,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.errors import DatasetError
 
-SPLITS = ("random", "weather_weeks", "climate")
+SPLITS = ("random", "weather_weeks", "buildings", "climate")
 ARRAYS = ("theta", "settings", "occupancy", "weather", "outputs", "run_id", "week_in_run", "week_of_year",
           "weather_index")
 
@@ -90,8 +90,10 @@ class Dataset:
 
         Args:
             kind: ``random`` (weeks shuffled), ``weather_weeks`` (whole weather weeks, i.e. a climate and a
-                week of year, go to one split only: test weeks' weather is never seen in training) or
-                ``climate`` (whole climates held out; ``test_climates`` names them, else the fractions pick).
+                week of year, go to one split only: test weeks' weather is never seen in training),
+                ``buildings`` (whole EnergyPlus runs, i.e. buildings, go to one split only: test weeks come from
+                buildings never seen in training, as a calibrated site's building is) or ``climate`` (whole
+                climates held out; ``test_climates`` names them, else the fractions pick).
             fractions: train, validation, test shares (by weeks for ``random``, by groups otherwise).
             seed: shuffling seed.
             test_climates: weather names held out as test set (``climate`` split only).
@@ -120,6 +122,8 @@ class Dataset:
             groups = np.arange(n)
         elif kind == "weather_weeks":
             groups = climate * 100 + self._h5["week_of_year"][:].astype(np.int64)
+        elif kind == "buildings":
+            groups = self._h5["run_id"][:].astype(np.int64)
         else:
             groups = climate
             if test_climates:

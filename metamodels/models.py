@@ -17,6 +17,12 @@ settings, occupancy), so the bidirectional ones may look ahead.
   ``hourly_gru`` > 0 (with ``hourly_head``) runs a bidirectional GRU of that many units per direction over the
   head's hourly features before the read-out, so that each hour also sees the thermal state carried from the
   hours before and after it (about 2x slower; see ``bench/results/metamodels_progress.md``).
+  ``hourly_state`` > 0 (with ``hourly_head``, our addition) gives each hour that many *thermal states* per
+  direction instead: exponentially weighted means of learnt hourly drives over the hours before it (and, in
+  the other direction, after it), each with its own learnt time constant (initialised from 1 h to 4 days,
+  log-spaced). A building's temperature is, to first order, such a filtered heat balance, clamped by the
+  thermostat; the states are linear filters (one matrix product per direction, no sequential loop, so they
+  run at matrix speed on a CPU, unlike a GRU) and a ReLU layer after them does the clamping.
 - ``bigru``: bidirectional GRU, linear read-out.
 - ``lstm``: (forward) LSTM, linear read-out.
 - ``convgru``: two 1-D convolutions (kernel 5, ReLU) then a bidirectional GRU.
@@ -109,7 +115,7 @@ class Transformer(nn.Module):
 
     def __init__(self, inputs: int, outputs: int, d_model: int = 64, heads: int = 8, head_dim: int = 8,
                  layers: int = 4, window: int = 12, d_ff: int = 256, dropout: float = 0.0, patch_hours: int = 1,
-                 hourly_head: int = 0, hourly_gru: int = 0, max_hours: int = 512):
+                 hourly_head: int = 0, hourly_gru: int = 0, hourly_state: int = 0, max_hours: int = 512):
         super().__init__()
         self.patch, self.outputs = patch_hours, outputs
         self.token_window = math.ceil(window / patch_hours)
@@ -118,7 +124,7 @@ class Transformer(nn.Module):
         self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
         self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
         if hourly_head:
-            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru)
+            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru, hourly_state)
         else:
             self.readout = nn.Linear(d_model, outputs * patch_hours)
 
@@ -139,20 +145,77 @@ class Transformer(nn.Module):
         return self.readout(y).reshape(batch, hours, self.outputs)
 
 
+class ThermalStates(nn.Module):
+    """Exponentially weighted means of ``channels`` hourly drives, forward or backward in time.
+
+    Channel ``c`` with time constant ``tau_c`` (hours, learnt as its logarithm) holds, at hour ``t``, the mean of
+    the drive over hours ``s <= t`` (``s >= t`` backward) weighted by ``exp(-|t - s| / tau_c)``, normalised
+    by the weights present, so that the first hours of a sequence are not biased towards zero:
+    ``num_t = a num_{t-1} + u_t``, ``den_t = a den_{t-1} + 1``, state ``num_t / den_t`` with ``a = exp(-1 / tau)``.
+
+    The recurrence is evaluated in blocks of ``block`` hours, with no loop over hours: one small matrix product
+    within each block, one across the blocks' end values, ``(batch, hours, channels) -> (batch, hours, channels)``.
+    (A full ``hours x hours`` filter matrix gives the same numbers at about ten times the cost on a CPU.)
+    """
+
+    def __init__(self, channels: int, backward: bool = False, tau_min_h: float = 1.0, tau_max_h: float = 96.0,
+                 block: int = 8):
+        super().__init__()
+        self.backward, self.block = backward, block
+        self.log_tau = nn.Parameter(torch.linspace(math.log(tau_min_h), math.log(tau_max_h), channels))
+
+    def forward(self, drive: torch.Tensor) -> torch.Tensor:
+        if self.backward:
+            drive = drive.flip(1)
+        batch, hours, channels = drive.shape
+        blocks = -(-hours // self.block)
+        padded = F.pad(drive, (0, 0, 0, blocks * self.block - hours))  # zeros after the end change nothing before
+        # (channels,); kept above 0, where 0 ** 0 would have no gradient
+        decay = torch.exp(-torch.exp(-self.log_tau)).clamp(min=1e-6)
+        k = torch.arange(self.block, device=drive.device, dtype=drive.dtype)
+        within = self._powers(decay, k[:, None] - k[None, :])  # (channels, block, block), lower triangular
+        u = padded.view(batch, blocks, self.block, channels).permute(3, 0, 1, 2)  # (channels, batch, blocks, block)
+        local = torch.matmul(u, within.transpose(1, 2)[:, None])  # sums within each block
+        b = torch.arange(blocks, device=drive.device, dtype=drive.dtype)
+        across = self._powers(decay ** self.block, b[:, None] - b[None, :])  # (channels, blocks, blocks)
+        carried = torch.matmul(local[..., -1], across.transpose(1, 2))  # num at each block's last hour
+        before = F.pad(carried[..., :-1], (1, 0))  # num at the hour before each block
+        num = local + before[..., None] * decay[:, None, None, None] ** (k + 1)
+        t = torch.arange(blocks * self.block, device=drive.device, dtype=drive.dtype)
+        den = (1 - decay[:, None] ** (t + 1)) / (1 - decay[:, None])  # (channels, hours)
+        states = (num.reshape(channels, batch, -1) / den[:, None]).permute(1, 2, 0)[:, :hours]
+        return states.flip(1) if self.backward else states
+
+    @staticmethod
+    def _powers(decay: torch.Tensor, lag: torch.Tensor) -> torch.Tensor:
+        """``decay ** lag`` where ``lag >= 0``, else 0: ``(channels,)``, ``(n, n)`` -> ``(channels, n, n)``."""
+        return decay[:, None, None] ** lag.clamp(min=0) * (lag >= 0)
+
+
 class HourlyHead(nn.Module):
     """Per-hour read-out of a patched Transformer: ``ReLU(A latent + B inputs + c_position) -> outputs``.
 
     The first layer acts on the concatenation (token latent, hour's inputs, hour's place in the token); it is
-    computed as a sum so that the token's term is evaluated once per token, not once per hour.
+    computed as a sum so that the token's term is evaluated once per token, not once per hour. With ``gru``
+    a bidirectional GRU runs over these hourly features; with ``state``, forward and backward
+    :class:`ThermalStates` of linear drives of them feed a second ReLU layer (see the module docstring).
     """
 
-    def __init__(self, inputs: int, d_model: int, patch_hours: int, hidden: int, outputs: int, gru: int = 0):
+    def __init__(self, inputs: int, d_model: int, patch_hours: int, hidden: int, outputs: int, gru: int = 0,
+                 state: int = 0):
         super().__init__()
+        if gru and state:
+            raise ValueError("choose hourly_gru or hourly_state, not both")
         self.patch = patch_hours
         self.from_latent = nn.Linear(d_model, hidden)
         self.from_inputs = nn.Linear(inputs, hidden, bias=False)
         self.position = nn.Parameter(torch.zeros(patch_hours, hidden))
         self.rnn = nn.GRU(hidden, gru, batch_first=True, bidirectional=True) if gru else None
+        if state:
+            self.drive = nn.Linear(hidden, 2 * state)
+            self.past, self.future = ThermalStates(state), ThermalStates(state, backward=True)
+            self.mix = nn.Linear(hidden + 2 * state, hidden)
+        self.state = state
         self.out = nn.Linear(2 * gru if gru else hidden, outputs)
 
     def forward(self, x: torch.Tensor, latent: torch.Tensor) -> torch.Tensor:
@@ -163,6 +226,9 @@ class HourlyHead(nn.Module):
         h = h.reshape(batch, tokens * self.patch, -1)
         if self.rnn is not None:
             h = self.rnn(h)[0]
+        elif self.state:
+            past, future = self.drive(h).split(self.state, dim=-1)
+            h = torch.relu(self.mix(torch.cat([h, self.past(past), self.future(future)], dim=-1)))
         return self.out(h)
 
 

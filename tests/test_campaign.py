@@ -135,13 +135,17 @@ def test_splits(small_dataset, tmp_path):
     run_campaign(CampaignConfig(weeks=12, seed=1, epw=["usa_il_chicago", "usa_fl_miami", "usa_co_golden"],
                                 weeks_per_run=2), out, workers=2, progress=False)
     with open_dataset(out) as ds:
-        for kind in ("random", "weather_weeks", "climate"):
+        for kind in ("random", "weather_weeks", "buildings", "climate"):
             parts = ds.split(kind, fractions=(0.5, 0.17, 0.33), seed=0)
             together = np.concatenate(list(parts.values()))
             assert sorted(together.tolist()) == list(range(len(ds))), kind
         ww = ds.split("weather_weeks", fractions=(0.5, 0.17, 0.33))
         key = ds.weather_index[:].astype(int) * 100 + ds.week_of_year[:].astype(int)
         assert not set(key[ww["train"]]) & set(key[ww["test"]])
+        runs = ds.split("buildings", fractions=(0.5, 0.17, 0.33))
+        run_id = ds.run_id[:]
+        assert not set(run_id[runs["train"]]) & (set(run_id[runs["test"]]) | set(run_id[runs["val"]]))
+        assert len(runs["test"]) > 0
         held = ds.split("climate", test_climates=["usa_fl_miami"])
         miami = ds.weather_names.index("usa_fl_miami")
         assert set(ds.weather_index[:][held["test"]]) == {miami}

@@ -121,6 +121,8 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
                                          ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
                                                           "hourly_gru": 8}),
+                                         ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
+                                                          "hourly_state": 4}),
                                          ("lstm", {"layers": 1}), ("ffn", {"layers": 1})])
 def test_traced_inference_matches_eager(name, config):
     torch.manual_seed(0)
@@ -172,6 +174,39 @@ def test_hourly_gru_carries_an_hour_to_the_neighbouring_tokens():
     with torch.no_grad():
         changed = (model(x) - model(x2)).abs().amax(-1)[0]
     assert changed[7] > 0 and changed[20] > 0 and changed[40] > 0
+
+
+def test_thermal_states_are_the_normalised_exponential_recurrence():
+    """The matrix form equals the hour-by-hour recurrence: num = a num + u, den = a den + 1, state = num / den."""
+    from metamodels.models import ThermalStates
+
+    torch.manual_seed(0)
+    drive = torch.randn(2, 30, 3)
+    for backward in (False, True):
+        states = ThermalStates(3, backward=backward, tau_min_h=0.5, tau_max_h=20.0)
+        with torch.no_grad():
+            got = states(drive)
+        decay = torch.exp(-1.0 / states.log_tau.exp()).detach()
+        num, den, expected = torch.zeros(2, 3), torch.zeros(3), {}
+        for hour in (reversed(range(30)) if backward else range(30)):
+            num, den = decay * num + drive[:, hour], decay * den + 1.0
+            expected[hour] = num / den
+        torch.testing.assert_close(got, torch.stack([expected[h] for h in range(30)], 1), rtol=1e-5, atol=1e-5)
+    # a constant drive gives that constant at every hour (no pull towards zero at the sequence's ends)
+    torch.testing.assert_close(ThermalStates(4)(torch.full((1, 50, 4), 3.0)), torch.full((1, 50, 4), 3.0))
+
+
+def test_hourly_state_carries_an_hour_to_distant_hours_both_ways():
+    torch.manual_seed(0)
+    model = build("transformer", 3, 2, layers=1, window=1, patch_hours=6, hourly_head=8, hourly_state=4).eval()
+    x = torch.randn(1, 48, 3)
+    x2 = x.clone()
+    x2[0, 20] += 5.0  # hour 20: token 3; with a 1-hour window tokens 0 and 6 are beyond attention's reach
+    with torch.no_grad():
+        changed = (model(x) - model(x2)).abs().amax(-1)[0]
+    assert changed[2] > 0 and changed[40] > 0
+    with pytest.raises(ValueError, match="not both"):
+        build("transformer", 3, 2, patch_hours=6, hourly_head=8, hourly_state=4, hourly_gru=4)
 
 
 def test_attention_paths_agree():

@@ -19,6 +19,10 @@ from buildenv.errors import SimulationError
 
 _SEVERE = re.compile(r"\*\*\s+(Severe|Fatal)\s+\*\*")
 _ALL_LINES = 10_000
+_TEMP_COMPARISON = re.compile(r"Temp Comparison\s*=\s*([0-9.Ee+-]+)")
+#: day-to-day change of a zone temperature (K) up to which an unconverged warm-up is accepted (EnergyPlus's
+#: largest temperature convergence tolerance), see :func:`warmup_settled`
+WARMUP_TEMPERATURE_LIMIT_K = 0.5
 log = logging.getLogger(__name__)
 
 
@@ -50,19 +54,28 @@ def severe_lines(err_path: Path, limit: int = 8) -> list[str]:
     return out
 
 
-def warmup_loads_only(severe: list[str]) -> bool:
-    """Whether the severe errors of a run (:func:`severe_lines`) are only warm-up non-convergence of zone
-    loads while every zone temperature converged.
+def warmup_settled(severe: list[str]) -> bool:
+    """Whether the severe errors of a run (:func:`severe_lines`) are only warm-up non-convergence of a thermal
+    state that did settle: every zone's loads, and its temperatures within :data:`WARMUP_TEMPERATURE_LIMIT_K`.
 
     EnergyPlus warms a run up by repeating its first day until each zone's temperatures and loads change
     less than a tolerance from one day to the next, and reports a zone that did not within the maximum number
-    of warm-up days as Severe, then simulates the run period anyway. When only the loads comparison failed
-    (a zone whose small cooling load keeps changing by a few % a day, e.g. a perimeter in Miami in January)
-    the thermal state the run starts from has converged and the results are sound.
+    of warm-up days as Severe, then simulates the run period anyway. Two such reports leave a sound run:
+
+    - only the loads comparison failed (a zone whose small cooling load keeps changing by a few % a day, e.g.
+      a perimeter in Miami in January), so the temperatures the run starts from have converged;
+    - a temperature comparison failed by less than 0.5 K, the largest temperature tolerance EnergyPlus
+      accepts (``Building``): a thermostat whose heating and cooling setpoints lie 0.5 K apart can switch
+      between the two on alternate warm-up days (run 3408 of the seed-0 80,000-week campaign with 13 weeks per
+      run: Tampa in January, the perimeter's minimum temperature changing 0.46 K a day for 50 days).
+
+    A larger day-to-day temperature change, or any other severe error, still fails the run.
     """
     headers = [line for line in severe if _SEVERE.search(line)]
-    return (bool(headers) and all("Severe" in h and "CheckWarmupConvergence" in h for h in headers)
-            and not any("Temp Comparison" in line and "Fail" in line for line in severe))
+    if not headers or not all("Severe" in h and "CheckWarmupConvergence" in h for h in headers):
+        return False
+    failed = [_TEMP_COMPARISON.search(line) for line in severe if "Temp Comparison" in line and "Fail" in line]
+    return all(m is not None and float(m.group(1)) <= WARMUP_TEMPERATURE_LIMIT_K for m in failed)
 
 
 def run_energyplus(model: dict | Path, epw: Path, workdir: Path, label: str = "model") -> Path:
@@ -75,8 +88,8 @@ def run_energyplus(model: dict | Path, epw: Path, workdir: Path, label: str = "m
         label: file stem of the written model, used in error messages.
     Raises:
         SimulationError: EnergyPlus returned non-zero or reported a severe error; the message names the
-            model and quotes the first severe lines of ``eplusout.err``. A warm-up whose zone temperatures
-            converged but whose loads did not (:func:`warmup_loads_only`) is logged as a warning instead.
+            model and quotes the first severe lines of ``eplusout.err``. A warm-up whose thermal state settled
+            without meeting every tolerance (:func:`warmup_settled`) is logged as a warning instead.
     """
     from pyenergyplus.api import EnergyPlusAPI
 
@@ -95,9 +108,9 @@ def run_energyplus(model: dict | Path, epw: Path, workdir: Path, label: str = "m
         api.state_manager.delete_state(state)
     err = workdir / "eplusout.err"
     severe = severe_lines(err, limit=_ALL_LINES)
-    if code == 0 and warmup_loads_only(severe):
-        log.warning("%s: zone loads did not converge during warm-up (temperatures did): %s", model_path,
-                    " | ".join(severe[:8]))
+    if code == 0 and warmup_settled(severe):
+        log.warning("%s: warm-up did not fully converge (zone temperatures within %.1f K a day): %s", model_path,
+                    WARMUP_TEMPERATURE_LIMIT_K, " | ".join(severe[:8]))
         severe = []
     if code != 0 or severe:
         detail = " | ".join(severe[:8]) if severe else f"exit code {code}, see {err}"

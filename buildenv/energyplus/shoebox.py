@@ -77,7 +77,7 @@ PARTITION_AIR_GAP_M2K_W = 0.15  # thermal resistance of the air gap in the core/
 # few watts of cooling can miss it by a hair for 25 days (measured: 4.4 % in Golden, run 53 of the 40,000-week
 # campaign), which EnergyPlus reports as Severe; the loads of two zones converge within 10 % nearly always (a
 # perimeter's small cooling load in Miami in January kept changing 12 % a day for 50 days: run 2 of the seed-0
-# 1,040-week campaign), and a warm-up whose temperatures converged is accepted (runner.warmup_loads_only)
+# 1,040-week campaign), and a warm-up whose temperatures converged is accepted (runner.warmup_settled)
 CORE_WARMUP_LOADS_TOLERANCE = 0.1
 WINDOW_MARGIN = 0.05  # share of the facade width left opaque at each end of the window band
 PERSON_ACTIVITY_W = 120.0

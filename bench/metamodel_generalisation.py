@@ -1,0 +1,109 @@
+"""How metamodels do on buildings they never saw: their own test split, a fresh campaign, an unseen climate.
+
+A week held out of training by the ``weather_weeks`` split still comes from a building (an EnergyPlus run)
+whose other weeks were trained on; a calibrated site's building is always new. This bench scores each
+checkpoint, in one run, on
+
+- ``own test``: the checkpoint's own held-out weeks on its training dataset (``--data``, optional);
+- ``fresh buildings``: every week of an independent campaign (``--fresh``, another seed: buildings, settings
+  and occupancy never seen; made with ``buildenv simulate`` if the folder does not exist yet);
+- ``unseen climate``: the weeks of the climates the checkpoint kept out of training, in the fresh campaign.
+
+    .venv/bin/python bench/metamodel_generalisation.py --model shipped=default \
+        --model new=data/runs/new.pt --fresh data/campaign-cp-fresh-seed1 [--fresh-weeks 4160 --fresh-seed 1]
+
+Writes ``bench/results/metamodel_generalisation.{md,json}`` (``--name`` changes the stem).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from _training_runs import RESULTS, machine
+
+from buildenv import surrogate as sg
+from buildenv.dataset import open_dataset
+from buildenv.training import evaluate_metamodel, score
+
+COLUMNS = [("loss", "loss", 1.0, 4), ("R2_T per week", "r2_t", 1.0, 4), ("R2_T pooled", "r2_t_pooled", 1.0, 4),
+           ("R2_Q per week", "r2_q", 1.0, 4), ("RMSE_T degC", "rmse_t_celsius", 1.0, 3),
+           ("CV(RMSE)_Q %", "cv_rmse_q_percent", 1.0, 2)]
+
+
+def fresh_scores(checkpoint: str, fresh: Path) -> dict[str, dict]:
+    """Scores on every week of ``fresh`` and, apart, on the weeks of climates the checkpoint never saw."""
+    surrogate = sg.load_metamodel(None if checkpoint == "default" else checkpoint)
+    unseen = surrogate.checkpoint.metadata.get("holdout_climates") or []
+    with open_dataset(fresh) as ds:
+        x, y = sg.encode_dataset(ds, np.arange(len(ds)))
+        climate = ds.weather_index[:]
+        unseen_ids = [ds.weather_names.index(c) for c in unseen if c in ds.weather_names]
+    out = {"fresh buildings": score(surrogate, x, y) | {"weeks": len(x)}}
+    apart = np.isin(climate, unseen_ids)
+    if apart.any():
+        out["unseen climate"] = score(surrogate, x[apart], y[apart]) | {"weeks": int(apart.sum()),
+                                                                       "climates": unseen}
+    return out
+
+
+def main() -> None:
+    """Score every ``--model`` on every test set and write the table."""
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--model", action="append", required=True, metavar="LABEL=CHECKPOINT",
+                        help="a checkpoint path or 'default' (repeatable)")
+    parser.add_argument("--data", help="the checkpoints' training dataset, for their own test split")
+    parser.add_argument("--fresh", required=True, help="campaign of new buildings (made if missing)")
+    parser.add_argument("--fresh-weeks", type=int, default=4160)
+    parser.add_argument("--fresh-seed", type=int, default=1)
+    parser.add_argument("--fresh-weeks-per-run", type=int, default=13, help="13: four buildings a year of weeks")
+    parser.add_argument("--name", default="metamodel_generalisation")
+    args = parser.parse_args()
+    fresh = Path(args.fresh)
+    if not (fresh / "manifest.json").is_file():
+        subprocess.run([str(Path(sys.executable).with_name("buildenv")), "simulate", "--weeks", str(args.fresh_weeks),
+                        "--seed", str(args.fresh_seed), "--weeks-per-run", str(args.fresh_weeks_per_run),
+                        "--out", str(fresh)], check=True)
+    manifest = json.loads((fresh / "manifest.json").read_text())
+    results: dict[str, dict] = {}
+    for item in args.model:
+        label, _, checkpoint = item.partition("=")
+        print(f"== {label}: {checkpoint}", flush=True)
+        row: dict[str, dict] = {}
+        if args.data:
+            own = evaluate_metamodel(None if checkpoint == "default" else checkpoint, args.data)
+            if own["subset"] == "test":
+                row["own test"] = own
+        row.update(fresh_scores(checkpoint, fresh))
+        results[label] = {"checkpoint": checkpoint, "scores": row}
+    date = time.strftime("%Y-%m-%d")
+    header = "| model | test set | weeks | " + " | ".join(c[0] for c in COLUMNS) + " |"
+    lines = [f"# Metamodels on buildings they never saw ({date})", "",
+             f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_generalisation.py "
+             + " ".join(f"--model {m}" for m in args.model) + (f" --data {args.data}" if args.data else "")
+             + f" --fresh {args.fresh}`.", "",
+             f"Fresh buildings: `{args.fresh}`, a campaign of {manifest.get('config', {}).get('weeks', '?')} weeks "
+             f"(seed {manifest.get('config', {}).get('seed', '?')}, "
+             f"{manifest.get('config', {}).get('weeks_per_run', '?')} weeks per EnergyPlus run) over every "
+             "shipped climate; unseen climate: its weeks of the climates the checkpoint kept out of training. "
+             "Definitions in `buildenv/metrics.py`.", "", header, "|---" * (len(COLUMNS) + 3) + "|"]
+    for label, result in results.items():
+        for part, s in result["scores"].items():
+            lines.append(f"| {label} | {part} | {s['weeks']} | "
+                         + " | ".join(f"{s[key] * scale:.{digits}f}" for _, key, scale, digits in COLUMNS) + " |")
+    lines += [""] + [f"- {label}: `{r['checkpoint']}`" for label, r in results.items()]
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{args.name}.json").write_text(json.dumps(
+        {"date": date, "machine": machine(), "fresh": args.fresh, "models": results}, indent=2) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -10,7 +10,7 @@ the shipped default checkpoint from catalogue arrays (encoding included, traced 
 environment and calibration make, against the shoebox of the zoning that default was trained on. The
 architecture table's ratios are against the paper's single zone.
 
-    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--weeks 4096] [--batch 256] [--repeats 3]
+    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--weeks 4096] [--batch 128] [--repeats 3]
 
 Writes ``bench/results/metamodel_speed.{md,json}``.
 """
@@ -86,7 +86,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--eplus-weeks", type=int, default=1040)
     parser.add_argument("--weeks", type=int, default=4096, help="weeks per timing")
-    parser.add_argument("--batch", type=int, default=256, help="weeks per model call")
+    parser.add_argument("--batch", type=int, default=128, help="weeks per model call")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--checkpoint", action="append", metavar="LABEL=PATH",
                         help="also time the product path of this checkpoint (repeatable; the shipped default always)")

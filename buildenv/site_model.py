@@ -27,7 +27,7 @@ from buildenv import effects_model as em
 from buildenv.effects import get_effect
 from buildenv.errors import BuildingEnvError
 from buildenv.schedules import hourly_schedules
-from buildenv.surrogate import encode_weeks
+from buildenv.surrogate import INFERENCE_BATCH, encode_weeks
 from buildenv.weather import epw_day_of_year
 
 
@@ -142,8 +142,8 @@ class SiteModel:
             return self.surrogate.predict(theta, settings, occ, self.weather(weeks), previous_week)
         out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         weather = self.weather(weeks)
-        for start in range(0, n, 256):  # the extended model: effects act on the inputs and on the outputs
-            part = slice(start, start + 256)
+        for start in range(0, n, INFERENCE_BATCH):  # the extended model: effects act on inputs and outputs
+            part = slice(start, start + INFERENCE_BATCH)
             x = encode_weeks(theta[part], settings[part], occ[part], weather[part],
                              tuple(a[part] for a in previous_week))
             x = em.transform_inputs(x, self.effects)

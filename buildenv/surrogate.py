@@ -41,6 +41,9 @@ TEMPERATURE_CHANNELS: list[int] = [cat.OUTPUT_NAMES.index(n) for n in cat.TEMPER
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
 log = logging.getLogger(__name__)
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "data" / "metamodel_default.pt"
+#: weeks per model call: on a 2-core CPU 128 runs 15-20 % faster than 256 and 512 (the activations stay in
+#: cache; ``bench/metamodel_speed.py --batch``), and any number of weeks is accepted
+INFERENCE_BATCH = 128
 
 
 class CheckpointError(BuildenvError):
@@ -170,7 +173,7 @@ class Surrogate:
 
     def predict(self, theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                has_previous: np.ndarray | None = None, batch_size: int = 256) -> np.ndarray:
+                has_previous: np.ndarray | None = None, batch_size: int = INFERENCE_BATCH) -> np.ndarray:
         """Hourly outputs ``(N, 168, 8)`` (Wh/m2, degC) of N weeks in as few model calls as the batch allows.
 
         Arguments as :func:`encode_weeks`.
@@ -185,11 +188,10 @@ class Surrogate:
             out[part] = self.predict_encoded(x, batch_size)
         return out
 
-    def predict_encoded(self, x: np.ndarray, batch_size: int = 256) -> np.ndarray:
+    def predict_encoded(self, x: np.ndarray, batch_size: int = INFERENCE_BATCH) -> np.ndarray:
         """Outputs ``(N, 168, 8)`` in physical units from already encoded inputs ``(N, 192, C)``.
 
-        ``batch_size`` weeks go through the model at a time (256 is fastest on a 2-core CPU: the activations
-        stay in cache); any N is accepted.
+        ``batch_size`` weeks go through the model at a time (:data:`INFERENCE_BATCH`); any N is accepted.
         """
         import torch
 

@@ -1,10 +1,10 @@
-"""Learning curve of the default Transformer: test accuracy vs number of training weeks.
+"""Learning curve of the shipped Transformer architecture: test accuracy vs number of training weeks.
 
-The same architecture, split (``weather_weeks``, seed 0) and number of epochs at every size; the training
-weeks are seeded random subsets of the training split. Runs are kept in ``--runs`` and reused by a rerun.
+The same architecture, split (``--split``, seed 0) and number of epochs at every size; the training weeks are
+seeded random subsets of the training split. Runs are kept in ``--runs`` and reused by a rerun.
 
-    .venv/bin/python bench/metamodel_learning_curve.py --data data/campaign-40000 \
-        [--sizes 1000,2500,5000,10000,20000] [--epochs 10]
+    .venv/bin/python bench/metamodel_learning_curve.py --data data/campaign-cp-80000-r13 \
+        [--sizes 1000,2500,5000,10000,20000] [--epochs 10] [--split weather_weeks|buildings] [--previous]
 
 Writes ``bench/results/metamodel_learning_curve.{md,json,png}``.
 """
@@ -16,7 +16,9 @@ import json
 import time
 from pathlib import Path
 
-from _training_runs import DEFAULT_TRANSFORMER, RESULTS, machine, run_tag, trained
+from _training_runs import PREVIOUS_TRANSFORMER, RESULTS, machine, run_tag, shipped_transformer, trained
+
+from buildenv.dataset import SPLITS
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -49,12 +51,17 @@ def main() -> None:
     parser.add_argument("--sizes", default="1000,2500,5000,10000,20000")
     parser.add_argument("--epochs", type=int, default=10)
     parser.add_argument("--runs", default="data/bench-runs/learning-curve")
+    parser.add_argument("--split", default="weather_weeks", choices=SPLITS)
+    parser.add_argument("--previous", action="store_true",
+                        help="the architecture of the default shipped until 2026-11-22 instead of today's")
     args = parser.parse_args()
+    config = PREVIOUS_TRANSFORMER if args.previous else shipped_transformer()
     rows = []
     for size in (int(s) for s in args.sizes.split(",")):
         print(f"== {size} training weeks", flush=True)
-        tag = f"transformer-{run_tag(DEFAULT_TRANSFORMER)}-{size}-{args.epochs}"
-        result = trained(tag, Path(args.runs), args.data, "transformer", DEFAULT_TRANSFORMER, max_weeks=size,
+        split = "" if args.split == "weather_weeks" else f"-{args.split}"
+        tag = f"transformer-{run_tag(config)}-{size}-{args.epochs}{split}"
+        result = trained(tag, Path(args.runs), args.data, "transformer", config, max_weeks=size, split=args.split,
                          epochs=args.epochs, patience=args.epochs, progress=False)
         rows.append({"train_weeks": result["train_weeks"], "seconds": result["fit"]["seconds"],
                      "test": {k: v for k, v in result["test"].items() if not isinstance(v, list)}})
@@ -62,13 +69,15 @@ def main() -> None:
     RESULTS.mkdir(exist_ok=True)
     plot(rows, RESULTS / "metamodel_learning_curve.png")
     (RESULTS / "metamodel_learning_curve.json").write_text(json.dumps(
-        {"date": date, "machine": machine(), "config": DEFAULT_TRANSFORMER, "epochs": args.epochs, "rows": rows},
+        {"date": date, "machine": machine(), "config": config, "split": args.split, "data": args.data,
+         "epochs": args.epochs, "rows": rows},
         indent=2) + "\n")
-    lines = [f"# Learning curve of the default Transformer ({date})", "",
+    options = (f" --split {args.split}" if args.split != "weather_weeks" else "") + (" --previous" * args.previous)
+    lines = [f"# Learning curve of the Transformer ({date})", "",
              f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_learning_curve.py --data "
-             f"{args.data} --sizes {args.sizes} --epochs {args.epochs}`.", "",
-             f"Config `{json.dumps(DEFAULT_TRANSFORMER)}`, {args.epochs} epochs at every size, test weeks of the "
-             "`weather_weeks` split (seed 0). Plot: `metamodel_learning_curve.png`.", "",
+             f"{args.data} --sizes {args.sizes} --epochs {args.epochs}{options}`.", "",
+             f"Config `{json.dumps(config)}`, {args.epochs} epochs at every size, test weeks of the "
+             f"`{args.split}` split (seed 0). Plot: `metamodel_learning_curve.png`.", "",
              "| training weeks | loss | R2_T | R2_T pooled | R2_Q | R2_Q pooled | RMSE_T (degC) | CV(RMSE)_Q (%) "
              "| training time (s) |", "|---|---|---|---|---|---|---|---|---|"]
     for r in rows:

@@ -20,16 +20,18 @@ import json
 import time
 from pathlib import Path
 
-from _training_runs import DEFAULT_TRANSFORMER, RESULTS, inference_speed, machine, mean_std, run_tag, trained
+from _training_runs import (PREVIOUS_TRANSFORMER, RESULTS, inference_speed, machine, mean_std, run_tag,
+                            shipped_transformer, trained)
 
 MODELS: dict[str, tuple[str, dict]] = {
-    "Transformer": ("transformer", DEFAULT_TRANSFORMER),
+    "Transformer": ("transformer", shipped_transformer()),
     "BiGRU": ("bigru", {}),
     "LSTM": ("lstm", {}),
     "ConvGRU": ("convgru", {}),
     "FFN": ("ffn", {}),
     "Transformer (paper, hourly tokens)": ("transformer", {}),
-    "Transformer + thermal states": ("transformer", {**DEFAULT_TRANSFORMER, "hourly_state": 16}),
+    "Transformer (previous default)": ("transformer", PREVIOUS_TRANSFORMER),
+    "Transformer 2+2 layers + thermal states": ("transformer", {**PREVIOUS_TRANSFORMER, "hourly_state": 16}),
 }
 SPLIT_MEANING = {"weather_weeks": "the test weeks' climate and week of year never occur in training",
                  "buildings": "the test weeks' buildings, i.e. EnergyPlus runs, never occur in training"}

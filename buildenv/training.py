@@ -36,7 +36,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         data: dataset directory (``buildenv simulate --out``).
         model: ``transformer``, ``bigru``, ``lstm``, ``convgru`` or ``ffn``.
         out: checkpoint path (``out.last`` and ``out.csv`` are written beside it; a rerun resumes).
-        split: ``random``, ``weather_weeks`` or ``climate`` (see :meth:`buildenv.dataset.Dataset.split`).
+        split: ``weather_weeks``, ``buildings``, ``random`` or ``climate`` (:meth:`buildenv.dataset.Dataset.split`).
         max_weeks: use at most this many training weeks (a seeded random subset), e.g. for learning curves.
         model_config: keyword arguments of the model class.
         seed: seed of the split, the subset, the weights and the batch order.

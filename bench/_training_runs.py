@@ -46,7 +46,8 @@ def trained(tag: str, runs: Path, data: str, model: str, config: dict, **options
     return result
 
 
-def inference_speed(model: str, config: dict, batch: int = 128, weeks: int = 4096, repeats: int = 3) -> float:
+def inference_speed(model: str, config: dict, batch: int = sg.INFERENCE_BATCH, weeks: int = 4096,
+                    repeats: int = 3) -> float:
     """Best-of-``repeats`` weeks per second of batched inference (all cores, random encoded weeks, eager
     PyTorch) for an architecture; weights do not matter."""
     torch.manual_seed(0)

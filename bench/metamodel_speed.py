@@ -86,7 +86,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--eplus-weeks", type=int, default=1040)
     parser.add_argument("--weeks", type=int, default=4096, help="weeks per timing")
-    parser.add_argument("--batch", type=int, default=128, help="weeks per model call")
+    parser.add_argument("--batch", type=int, default=sg.INFERENCE_BATCH, help="weeks per model call")
     parser.add_argument("--repeats", type=int, default=3)
     parser.add_argument("--checkpoint", action="append", metavar="LABEL=PATH",
                         help="also time the product path of this checkpoint (repeatable; the shipped default always)")

@@ -2,11 +2,16 @@
 
 Copies the shipped default site, runs ``buildenv.gap.diagnose`` on it (the extended model is saved into the
 copy), then optimises week 46 with NSGA-II (equal comfort) on the base and on the extended model and runs both
-choices on the site's EnergyPlus reference. Writes ``bench/results/gap_default_site.{md,json}``.
+choices on the site's EnergyPlus reference. Writes ``bench/results/gap_default_site.{md,json}``;
+``--refit-step S`` diagnoses with that refit step (:class:`buildenv.gap.DiagnosisSettings`) and writes
+``gap_default_site_step{S}.{md,json}`` instead.
+
+    .venv/bin/python bench/gap_default_site.py [--refit-step 0.05]
 """
 
 from __future__ import annotations
 
+import argparse
 import datetime as dt
 import json
 import os
@@ -17,7 +22,7 @@ from pathlib import Path
 from agents.cli import make_env, optimise
 from agents.verify import verify
 from buildenv.env import DEFAULT_SITE
-from buildenv.gap import diagnose, save_extended_model
+from buildenv.gap import DiagnosisSettings, diagnose, save_extended_model
 from buildenv.site import load_site
 from buildenv.surrogate import load_metamodel
 
@@ -29,12 +34,19 @@ KEYS = ("predicted_savings_percent", "realised_savings_percent", "comfort_histor
 
 def main() -> None:
     """Diagnose, optimise on both models, verify, write the results."""
-    out = Path("out/gap-default-site")
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--refit-step", type=float, default=DiagnosisSettings.refit_step)
+    args = parser.parse_args()
+    default_step = args.refit_step == DiagnosisSettings.refit_step
+    stem = "gap_default_site" if default_step else f"gap_default_site_step{args.refit_step:g}".replace(".", "")
+    command = "python bench/gap_default_site.py" + ("" if default_step else f" --refit-step {args.refit_step:g}")
+    out = Path("out") / stem.replace("_", "-")
     if out.exists():
         shutil.rmtree(out)
     shutil.copytree(DEFAULT_SITE, out)
     load = os.getloadavg()[0]
-    result = diagnose(load_site(out), load_metamodel(), plot=RESULTS / "gap_default_site.png")
+    result = diagnose(load_site(out), load_metamodel(), DiagnosisSettings(refit_step=args.refit_step),
+                      plot=RESULTS / f"{stem}.png")
     save_extended_model(load_site(out), result)
     result.pop("_fit")
     checks = {}
@@ -43,10 +55,10 @@ def main() -> None:
         run = optimise(env, "nsga2", WEEK)
         checks[label] = verify(env, WEEK, run["action"]).summary
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
-              "load_average_at_start": load, "command": "python bench/gap_default_site.py",
+              "load_average_at_start": load, "command": command,
               "diagnosis": result, "week": WEEK, "nsga2_checks": checks}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "gap_default_site.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
+    (RESULTS / f"{stem}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     lines = ["# Gap diagnosis of the default site", "",
              f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; "
              f"`{record['command']}` (diagnosis {result['seconds']:.0f} s).", "",
@@ -67,8 +79,8 @@ def main() -> None:
               "| model | " + " | ".join(KEYS) + " |", "|---" * (len(KEYS) + 1) + "|"]
     for label, s in checks.items():
         lines.append(f"| {label} | " + " | ".join(f"{s[k]:.3f}" for k in KEYS) + " |")
-    lines += ["", "![localisation](gap_default_site.png)"]
-    (RESULTS / "gap_default_site.md").write_text("\n".join(lines) + "\n")
+    lines += ["", f"![localisation]({stem}.png)"]
+    (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
 
 

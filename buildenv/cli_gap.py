@@ -15,7 +15,8 @@ def _settings(args: argparse.Namespace):
 
     candidates = tuple(get_effect(e.strip()).name for e in args.candidates.split(",")) if args.candidates \
         else tuple(EFFECTS)
-    return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain,
+    step = {} if args.refit_step is None else {"refit_step": args.refit_step}
+    return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
@@ -57,6 +58,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
+    p.add_argument("--refit-step", type=float, default=None,
+                   help="CMA-ES initial step of the building parameters in a refit (share of their ranges; "
+                        "default 0.25)")
     p.add_argument("--base-restarts", type=int, default=1,
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
                         "lowest fit cost kept")

@@ -35,7 +35,9 @@ In those records injected biases of 1.2-2.8 K were estimated at 0.96-2.8 K; smal
 lag 0.25 h (below a quarter of the hourly sampling it cannot be told from noise); plug loads 0.5 W/m2 (one
 standby monitor per 10 m2); shading 15 % of the solar gains (half the lightest blinds' 30 %); heat recovery
 effectiveness 0.3 (the poorest exchangers sold reach about 0.5); wind infiltration 0.01 air changes per hour
-per m/s (10 % of a tight office's 0.1 air changes per hour). Holidays (a rule read off the blind checks'
+per m/s (10 % of a tight office's 0.1 air changes per hour); cold night air 0.02 K per Wh/m2 (0.1 K, the
+sensor's resolution, on a night heated at 5 Wh/m2 an hour; the default site's nights are fitted at 0.14-0.15).
+Holidays (a rule read off the blind checks'
 records, not from practice): at least one absent day flagged in the fit weeks. Absent days are estimated from
 the data, and the held-out weeks' days are flagged the same way (:mod:`buildenv.gap`). A candidate that flags
 no fit-week day has estimated nothing from the weeks it was calibrated on, and its held-out gain comes from
@@ -217,6 +219,21 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                            "sensible effectiveness of the heat exchanger"),),
            "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
            0.3, smallest_reason="the poorest exchangers sold reach about 0.5"),
+    Effect("night_cycle_cold_air", "cold supply air while the fans cycle at night",
+           "A central VAV system with terminal reheat supplies every zone air at its cooling supply temperature "
+           "(about 13 degC) whenever its fans run. Out of hours its night cycle starts the fans as soon as one "
+           "zone needs heat: the zones that need none (cores) get cold air at their boxes' minimum flow and cool "
+           "down, the others reheat it. Cold nights are colder than a model with zone heating says, and cost "
+           "more heat.",
+           "energyplus", "points of maximum air flow added to the VAV boxes' minimum out of hours", (10.0, 30.0),
+           20.0, ("temperature", "consumption"),
+           (ModelParameter("cooling_k_per_wh_m2", "K per Wh/m2", 0.0, 0.5, 0.0,
+                           "temperature lost per Wh/m2 of the model's heating in hours its ventilation is off"),
+            ModelParameter("reheat_share", "-", 0.0, 1.0, 0.0,
+                           "heat consumption added, as a share of the model's heating in those hours")),
+           "in the hours the ventilation is off, the predicted temperature falls by cooling_k_per_wh_m2 x the "
+           "predicted heating and the consumption rises by reheat_share x the same heating", 0.02,
+           smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)"),
 )}
 
 #: Magnitudes the injections accept (wider than practice, for stress tests).
@@ -229,6 +246,7 @@ INJECTION_LIMITS: dict[str, tuple[float, float]] = {
     "solar_shading": (0.0, 95.0),
     "heating_capacity_limit": (10.0, 100.0),
     "heat_recovery": (0.0, 90.0),
+    "night_cycle_cold_air": (0.0, 70.0),
 }
 
 #: The magnitude at which each injection changes nothing.

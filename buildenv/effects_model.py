@@ -15,7 +15,12 @@ candidates (``N`` weeks, each with its own parameter values):
   caps Q_HEAT_OFFICE + Q_AHU_H at ``capacity_w_m2`` (both scaled down together) and lowers T_INT_OFFICE by a
   sag that grows by ``sag_k_per_wh_m2`` per Wh/m2 not delivered and decays with a 3-hour time constant;
   ``heat_recovery`` lowers Q_AHU_H by the share ``min(1, eff x (T_in - T_out) / (T_supply - T_out))`` an
-  exchanger of sensible effectiveness ``eff`` recovers (exhaust at the indoor temperature); ``holidays``
+  exchanger of sensible effectiveness ``eff`` recovers (exhaust at the indoor temperature);
+  ``night_cycle_cold_air`` takes the predicted heating ``H = Q_HEAT_OFFICE + Q_AHU_H`` of the hours the
+  ventilation input is off (the night cycle runs the fans when the building needs heat) and lowers
+  T_INT_OFFICE by ``cooling_k_per_wh_m2 x H`` and raises Q_HEAT_OFFICE by ``reheat_share x H`` (fitted post hoc
+  on the default site, a first-order lag on the drop came out at zero, so the drop is immediate;
+  ``bench/results/default_site_error_budget.md``); ``holidays``
   (``(N, 7)`` absence shares of the days, 1 = nobody came) moves Q_EQP and Q_LIGHT that share of the way to
   the day's night level (its 00:00-05:00 mean) and Q_PEOPLE that share of the way to 0. Absent days are
   handled on the outputs, not by zeroing the occupancy input:
@@ -41,7 +46,7 @@ from buildenv import surrogate as sg
 from buildenv.effects import EFFECTS, get_effect
 
 INPUT_EFFECTS = ("wind_infiltration", "solar_shading")
-OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery")
+OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery", "night_cycle_cold_air")
 #: effects of the building itself, simulated for any week (holidays are dates of the measured period, and the
 #: sensor effects are measurement matters)
 BUILDING_EFFECTS = INPUT_EFFECTS + OUTPUT_EFFECTS
@@ -125,8 +130,8 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
         absent: ``(N, 7)`` absence shares of the days (``holidays``; 0 = a normal day), or None.
     """
     n = len(outputs)
-    active = [e for e in OUTPUT_EFFECTS if _column(params, e, 0, n) is not None
-              or (e == "heating_capacity_limit" and _column(params, e, 1, n) is not None)]
+    active = [e for e in OUTPUT_EFFECTS
+              if any(_column(params, e, j, n) is not None for j in range(len(EFFECTS[e].parameters)))]
     has_absent = absent is not None and bool(np.any(absent))
     if not active and not has_absent:
         return outputs
@@ -149,6 +154,14 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
         share = np.clip(eff * (t_in - t_out) / lift, 0.0, 1.0)
         ahu = out[..., _OUT["Q_AHU_H"]]
         out[..., _OUT["Q_AHU_H"]] = ahu - (share * np.maximum(ahu, 0.0)).astype(np.float32)
+    if "night_cycle_cold_air" in active:
+        cool, reheat = (_column(params, "night_cycle_cold_air", j, n) for j in (0, 1))
+        heat = out[..., _OUT["Q_HEAT_OFFICE"]] + out[..., _OUT["Q_AHU_H"]]
+        night_heat = np.maximum(heat, 0.0) * (week[..., _CH["ventilation_on"]] <= 0)
+        if cool is not None:
+            out[..., _OUT["T_INT_OFFICE"]] -= (cool * night_heat).astype(np.float32)
+        if reheat is not None:
+            out[..., _OUT["Q_HEAT_OFFICE"]] += (reheat * night_heat).astype(np.float32)
     if "heating_capacity_limit" in active:
         cap = _column(params, "heating_capacity_limit", 0, n)
         sag = _column(params, "heating_capacity_limit", 1, n)

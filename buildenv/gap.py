@@ -8,7 +8,8 @@ significant gain, stop when none is significant):
    reused when it was made on the same weeks without effects).
 2. For every candidate effect of :mod:`buildenv.effects` the model is extended with the effect's model-side
    addition (:mod:`buildenv.effects_model`) and recalibrated on the fit weeks: CMA-ES warm-started at the
-   current model with the new parameters at their "no effect" values (``evaluations`` cost evaluations).
+   current model with the new parameters at their "no effect" values (``evaluations`` cost evaluations;
+   initial step ``refit_step`` for the building parameters, 25 % of each range by default).
    The control is the current model recalibrated the same way with no new effect: every candidate is
    compared with it, so that the extra calibration effort is not credited to the effect.
    ``holidays`` is estimated differently: for each weekday, the share of its occupied-hours lighting and plug
@@ -72,15 +73,16 @@ class DiagnosisSettings:
     Attributes:
         candidates: effects tried (default: the whole catalogue).
         evaluations: CMA-ES cost evaluations per candidate refit.
-        base_evaluations: CMA-ES cost evaluations of each run of the base calibration (when it is made here).
-        base_restarts: CMA-ES runs of the base calibration, the lowest fit cost kept. Every candidate is
-            judged against the base, so a base stuck in a poor basin makes every candidate look like a gain:
-            a 4-week stand-in site with its internal loads declared known stopped at fit cost 0.314 from two
-            seeds (held-out R2_T 0.38) and at 0.260 from two others (0.81). With all parameters free the runs
-            agree, and the lowest fit cost is not the best held-out: on the clean site of
-            ``tests/test_gap_check.py`` three runs turned the model's -0.44 K night offset into a "sensor
-            bias" worth 24 % of the held-out error (11 % with one run). Hence 1 by default, 3 for sites that
-            declare parameters known.
+        refit_step: CMA-ES initial step of the building parameters and occupancy in a refit (share of each
+            calibration range; the new effect's parameters start at a step of 1). It trades two needs, both
+            measured. A wide step lets a refit take back what the base calibration had absorbed of an effect
+            into theta_build, but on few or mild fit weeks it also lets theta_build wander: on the default site
+            ``night_cycle_cold_air`` refitted at 0.25 gained 7 % of the held-out error (temperature +27 %,
+            consumption -23 %) and was not named; at 0.05 it gains 19 % with both series improving or holding
+            (``bench/results/gap_default_site.md``). A local step cannot take back what was absorbed: on the
+            first six blind cases of seed 0 (``bench/results/gap_check_night_seed0_step005.md``) a 63 %
+            heat exchanger came out at 0.29 effectiveness (under the 0.3 floor; 0.63 at 0.25) and a sensor lag
+            gained 11 % instead of 18 %, so 0.25 stays the default.
         alpha: family-wise significance level of a step (Bonferroni over its candidates).
         min_gain: smallest held-out gain (share of the standardised squared error removed) to select an effect.
         max_effects: most effects selected.
@@ -93,6 +95,7 @@ class DiagnosisSettings:
 
     candidates: tuple[str, ...] = tuple(EFFECTS)
     evaluations: int = 1500
+    refit_step: float = 0.25
     base_evaluations: int = 6000
     base_restarts: int = 1
     alpha: float = 0.05
@@ -211,7 +214,8 @@ def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
     fit = ModelFit(effects, np.concatenate([current.params, new]), absent)
     problem = _problem(ctx, fit, ctx.fit_weeks)
     n_old = len(current.params)
-    stds = np.concatenate([np.full(len(cal.parameter_names()), 0.25), np.full(n_old - len(cal.parameter_names()), 0.5),
+    n_base = len(cal.parameter_names())
+    stds = np.concatenate([np.full(n_base, ctx.settings.refit_step), np.full(n_old - n_base, 0.5),
                            np.full(len(new), 1.0)])
     params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.evaluations,
                                        start=fit.params, stds=stds)

@@ -120,6 +120,15 @@ def test_energyplus_edits_on_the_idf():
     special = of_type(out, "RunPeriodControl:SpecialDays")
     assert [o[2:] for o in special] == [[f"{d.month}/{d.day}", "1", "Holiday"]
                                         for d in map(dt.date.fromisoformat, planned[-1].details["dates"])]
+    night = inject_energyplus(objects, plan_effects([("night_cycle_cold_air", 20)], START, 1), "medium_office")
+    boxes = of_type(night, "AirTerminal:SingleDuct:VAV:Reheat")
+    assert {(o[6], o[9]) for o in boxes} == {("Scheduled", "buildenv night minimum flow 1")}
+    (program,) = of_type(night, "EnergyManagementSystem:Program")
+    assert program[2:] == ["IF buildenv_hvac_on > 0.5", "SET buildenv_minimum_flow_0 = 0.3", "ELSE",
+                           "SET buildenv_minimum_flow_0 = 0.5", "ENDIF"]
+    small = read_idf(reference_idf("small_office"))  # packaged single-zone units: no VAV boxes
+    with pytest.raises(ReferenceBuildingError, match="night_cycle_cold_air"):
+        inject_energyplus(small, plan_effects([("night_cycle_cold_air", 20)], START, 1), "small_office")
     with pytest.raises(ReferenceBuildingError, match="sizing run"):
         inject_energyplus(objects, plan_effects([("heating_capacity_limit", 50)], START, 1), "medium_office")
     with pytest.raises(ReferenceBuildingError, match="no heat exchanger"):
@@ -193,6 +202,14 @@ def test_heat_recovery_saves_heating(base):
     run = _run([("heat_recovery", 70.0)])
     assert run.consumption_kwh.sum() < 0.98 * base.consumption_kwh.sum()
     assert np.all(run.consumption_kwh <= base.consumption_kwh + 0.5)
+
+
+def test_night_cycle_cold_air_cools_the_nights(base):
+    run = _run([("night_cycle_cold_air", 30.0)])
+    night = (HOUR >= 23) | (HOUR < 6)
+    change = run.temperature_c[0] - base.temperature_c[0]
+    assert change[night].mean() < -0.1  # more cold air while the fans cycle (the mass carries some into the day)
+    assert run.consumption_kwh[0][night].sum() > 1.02 * base.consumption_kwh[0][night].sum()  # reheat
 
 
 def test_wind_infiltration_costs_heat_in_windy_hours(base, weather_week):

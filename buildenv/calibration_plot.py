@@ -6,16 +6,9 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv import catalogue as cat
 from buildenv import surrogate as sg
-from buildenv.calibration import KNOWN_GEOMETRY, build_problem, predict, problem_occupancy
+from buildenv.calibration import build_problem, calibrated_parameters, predict, problem_occupancy
 from buildenv.plotting import save_figure, shade_occupancy
-
-
-def calibrated_vector(result: dict, problem) -> np.ndarray:
-    """The physical parameter vector (problem order) of a calibration result."""
-    theta = [result["theta"][n] for n in cat.THETA_NAMES if n not in KNOWN_GEOMETRY]
-    return np.concatenate([theta, np.asarray(result["occupancy"], float).ravel()])
 
 
 def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) -> Path:
@@ -29,8 +22,8 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
     import matplotlib.pyplot as plt
 
     weeks = list(range(site.weeks))
-    problem = build_problem(site, weeks)
-    params = calibrated_vector(result, problem)
+    problem = build_problem(site, weeks, tuple(result.get("declared_effects", ())))
+    params = calibrated_parameters(result, problem.effects)
     t, q = predict(problem, surrogate, params)
     occupied = problem_occupancy(problem, params).reshape(-1).astype(float)
     hours = np.arange(len(weeks) * 168)
@@ -47,7 +40,8 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
         ax.set_ylabel(label)
         ax.grid(alpha=0.3)
     fit, held = result.get("fit", {}), result.get("heldout", {})
-    title = f"{site.name}: fit R2_T {fit.get('r2_t', float('nan')):.3f} R2_Q {fit.get('r2_q', float('nan')):.3f}"
+    declared = f" with {', '.join(problem.effects)}" if problem.effects else ""
+    title = f"{site.name}{declared}: fit R2_T {fit.get('r2_t', float('nan')):.3f} R2_Q {fit.get('r2_q', float('nan')):.3f}"
     if held:
         title += (f"; held-out (blue) R2_T {held['r2_t']:.3f} R2_Q {held['r2_q']:.3f}, "
                   f"CV(RMSE) {held['cv_rmse_q_percent']:.1f} %, NMBE {held['nmbe_q_percent']:.1f} %")

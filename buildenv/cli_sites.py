@@ -121,7 +121,8 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     site = load_site(args.site)
     weeks = [int(w) for w in args.weeks.split(",")] if args.weeks else None
     result = calibrate_site(site, load_metamodel(args.checkpoint), weeks, method=args.method, seed=args.seed,
-                            max_evaluations=args.evaluations, progress=not args.quiet, restarts=args.restarts)
+                            max_evaluations=args.evaluations, progress=not args.quiet, restarts=args.restarts,
+                            effects=tuple(args.effect))
     result["plot"] = str(plot_calibration(load_site(args.site), load_metamodel(args.checkpoint), result,
                                           Path(args.site) / "calibration.png"))
     print(json.dumps(result, indent=None if args.json else 2))
@@ -171,6 +172,10 @@ def register(sub) -> None:
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations (per run)")
     p.add_argument("--restarts", type=int, default=1,
                    help="independent CMA-ES runs (seeds SEED, SEED+1, ...), the lowest cost kept")
+    p.add_argument("--effect", action="append", default=[], metavar="NAME",
+                   help="an effect the building is known to have (repeatable; `buildenv effects` lists them), "
+                        "e.g. night_cycle_cold_air for a VAV system with terminal reheat: its parameters are "
+                        "fitted after the building's, and the site's model keeps it")
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")

@@ -5,7 +5,8 @@ significant gain, stop when none is significant):
 
 1. The site's weeks are split into fit weeks (the first half, as calibration does) and held-out weeks.
    The base model (theta_build + occupancy) is calibrated on the fit weeks (or the site's own calibration is
-   reused when it was made on the same weeks without effects).
+   reused when it was made on the same weeks, without effects or with the effects it was declared to have:
+   ``buildenv calibrate --effect``, which are then base effects, not candidates).
 2. For every candidate effect of :mod:`buildenv.effects` the model is extended with the effect's model-side
    addition (:mod:`buildenv.effects_model`) and recalibrated on the fit weeks: CMA-ES warm-started at the
    current model with the new parameters at their "no effect" values (``evaluations`` cost evaluations;
@@ -227,17 +228,31 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
     then extended with the known ``base_effects`` one by one (:func:`refit`)."""
     calib = ctx.site.calibration or {}
     none = np.zeros((ctx.site.weeks, 7))
-    if calib and calib.get("fit_weeks") == ctx.fit_weeks and not calib.get("effects") \
+    declared = declared_effects(ctx.site)
+    if calib and calib.get("fit_weeks") == ctx.fit_weeks and set(calib.get("effects") or ()) == set(declared) \
             and calib.get("catalogue_hash") == cat.catalogue_hash():
-        fit = ModelFit((), cal.calibrated_parameters(calib), none, float(calib.get("cost", np.nan)), 0)
+        fit = ModelFit(declared, cal.calibrated_parameters(calib, declared), none, float(calib.get("cost", np.nan)), 0)
     else:
         problem = cal.build_problem(ctx.site, ctx.fit_weeks)
         params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
                                            progress=progress, restarts=ctx.settings.base_restarts)
         fit = ModelFit((), params, none, info["cost"], info["evaluations"])
     for effect in ctx.settings.base_effects:
-        fit = refit(ctx, fit, effect)
+        if effect not in fit.effects:
+            fit = refit(ctx, fit, effect)
     return fit
+
+
+def declared_effects(site) -> tuple[str, ...]:
+    """The effects the site's calibration was declared to have (``buildenv calibrate --effect``)."""
+    return tuple((site.calibration or {}).get("declared_effects") or ())
+
+
+def with_declared_effects(site, settings: DiagnosisSettings) -> DiagnosisSettings:
+    """``settings`` with the site's declared effects (:func:`declared_effects`) among the base effects: the
+    owner said the building has them, so they are in the model from the start and are not candidates."""
+    extra = tuple(e for e in declared_effects(site) if e not in settings.base_effects)
+    return dataclasses.replace(settings, base_effects=extra + settings.base_effects) if extra else settings
 
 
 def _heldout_fit(ctx: _Context, fit: ModelFit) -> ModelFit:
@@ -305,7 +320,7 @@ def _context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> _Con
 def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
     """Held-out metrics (:func:`buildenv.calibration.site_metrics`) of a site's base model: calibrated on its
     fit weeks, with the settings' ``base_effects`` and no other effect."""
-    ctx = _context(site, surrogate, settings or DiagnosisSettings())
+    ctx = _context(site, surrogate, with_declared_effects(site, settings or DiagnosisSettings()))
     fit = base_fit(ctx)
     t, q = predict(ctx, fit, ctx.heldout)
     return _metrics(ctx, fit, ctx.heldout, t, q)
@@ -329,7 +344,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     """
     from tqdm import tqdm
 
-    settings = settings or DiagnosisSettings()
+    settings = with_declared_effects(site, settings or DiagnosisSettings())
     if settings.judge not in JUDGES:
         raise ValueError(f"unknown judge {settings.judge!r}; choose {' or '.join(JUDGES)}")
     for name in (*settings.candidates, *settings.base_effects):

@@ -44,14 +44,15 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
 
 
-def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None):
-    """A site whose 'measurements' are the metamodel's own prediction for known parameters."""
+def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=()):
+    """A site whose 'measurements' are the metamodel's own prediction for known parameters (those of
+    ``effects`` follow theta and occupancy in ``params``)."""
     settings = historical_settings(weeks)
     write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
                number_of_floors=3, settings=settings, temperature_c=np.full((weeks, 168), 20.0),
                consumption_kwh=np.full((weeks, 168), 10.0))
     site = load_site(tmp_path)
-    problem = cal.build_problem(site, list(range(weeks)))
+    problem = cal.build_problem(site, list(range(weeks)), effects)
     t, q = cal.predict(problem, surrogate, params)
     q_kwh = q * site.floor_area_m2 / 1000.0
     if gaps is not None:
@@ -146,3 +147,42 @@ def test_masked_gaps_change_nothing_else(tmp_path, surrogate):
     series = cal.model_series(problem_full, out)
     np.testing.assert_allclose(cal.costs(problem_gap, *series), cal.costs(masked, *series), rtol=1e-4)
     assert np.isfinite(cal.costs(problem_gap, *series)).all()
+
+
+def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model(tmp_path, surrogate):
+    from buildenv.calibration_plot import plot_calibration
+    from buildenv.site_model import SiteModel
+
+    effect = ("night_cycle_cold_air",)
+    site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), 0.15, 0.3], effects=effect)
+    result = cal.calibrate_site(site, surrogate, weeks=[0], seed=0, max_evaluations=2500, effects=effect)
+    fitted = result["effects"]["night_cycle_cold_air"]
+    assert result["declared_effects"] == list(effect) and result["cost"] < result["cost_without_effects"]
+    assert fitted["cooling_k_per_wh_m2"] > 0.05 and fitted["reheat_share"] > 0.1
+    # the held-out week is scored with the effect: better than the same building without it
+    problem = cal.build_problem(site, [1], effect)
+    params = cal.calibrated_parameters(result, effect)
+    without = cal.score_series(problem, *cal.predict(problem, surrogate, np.r_[params[:-2], 0.0, 0.0]), params,
+                               cal._scale(problem))
+    assert result["heldout"]["r2_t"] > without["r2_t"]
+    saved = load_site(tmp_path)
+    assert saved.calibration["effects"] == result["effects"]
+    assert set(SiteModel.from_site(saved, surrogate).effects) == set(effect)  # BuildingWeek-v0 simulates it
+    assert plot_calibration(saved, surrogate, saved.calibration, tmp_path / "c.png").is_file()
+
+
+def test_declared_effects_stage_keeps_the_building(tmp_path, surrogate):
+    site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=1)
+    problem = cal.build_problem(site, [0], ("temperature_sensor_bias",))
+    base = _truth()
+    params, info = cal.fit_declared_effects(problem, surrogate, base, seed=0, max_evaluations=200)
+    np.testing.assert_array_equal(params[:problem.n_base], base)
+    assert abs(params[-1]) < 0.2 and info["evaluations"] <= 200 + 10  # no bias in the data, none estimated
+
+
+@pytest.mark.parametrize("effects, message", [(("draughts",), "unknown effect 'draughts'"),
+                                              (("holidays",), "cannot be declared"),
+                                              (("heat_recovery", "heat_recovery"), "declared twice")])
+def test_declaring_a_wrong_effect_is_a_clear_error(effects, message):
+    with pytest.raises(cal.CalibrationError, match=message):
+        cal.check_declared_effects(effects)

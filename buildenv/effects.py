@@ -36,7 +36,8 @@ lag 0.25 h (below a quarter of the hourly sampling it cannot be told from noise)
 standby monitor per 10 m2); shading 15 % of the solar gains (half the lightest blinds' 30 %); heat recovery
 effectiveness 0.3 (the poorest exchangers sold reach about 0.5); wind infiltration 0.01 air changes per hour
 per m/s (10 % of a tight office's 0.1 air changes per hour); cold night air 0.02 K per Wh/m2 (0.1 K, the
-sensor's resolution, on a night heated at 5 Wh/m2 an hour; the default site's nights are fitted at 0.14-0.15).
+sensor's resolution, on a night heated at 5 Wh/m2 an hour; the default site's nights are fitted at 0.14-0.15);
+evening departure a tenth of the occupancy (the DOE offices' evening tail runs from 40 % to 10 %).
 Holidays (a rule read off the blind checks'
 records, not from practice): at least one absent day flagged in the fit weeks. Absent days are estimated from
 the data, and the held-out weeks' days are flagged the same way (:mod:`buildenv.gap`). A candidate that flags
@@ -234,6 +235,19 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "in the hours the ventilation is off, the predicted temperature falls by cooling_k_per_wh_m2 x the "
            "predicted heating and the consumption rises by reheat_share x the same heating", 0.02,
            smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)"),
+    Effect("evening_departure", "occupants leaving gradually in the evening",
+           "Offices do not empty at one hour: after the main working day part of the occupants stay on, with their "
+           "lights and computers, for some hours (the DOE reference offices keep 40 % of the occupants and half "
+           "the lights for two hours after 18:00, then 10 % for two more). Evenings are warmer and use more "
+           "electricity than a model whose occupancy ends at one hour.",
+           "energyplus", "hours the evening tail of the occupants' schedules is lengthened", (1.0, 3.0), 2.0,
+           ("temperature", "consumption"),
+           (ModelParameter("share", "-", 0.0, 1.0, 0.0,
+                           "occupancy kept after the calibrated occupancy ends (share of the occupied level)"),
+            ModelParameter("hours", "h", 0.0, 6.0, 0.0, "how long it is kept")),
+           "the metamodel's hourly occupancy input is raised to share for the hours after each day's occupancy "
+           "ends (the last one pro rata)", 0.1,
+           smallest_reason="a tenth of the occupancy (the DOE offices keep 10-40 % for four hours)"),
 )}
 
 #: Magnitudes the injections accept (wider than practice, for stress tests).
@@ -247,6 +261,7 @@ INJECTION_LIMITS: dict[str, tuple[float, float]] = {
     "heating_capacity_limit": (10.0, 100.0),
     "heat_recovery": (0.0, 90.0),
     "night_cycle_cold_air": (0.0, 70.0),
+    "evening_departure": (0.0, 6.0),
 }
 
 #: The magnitude at which each injection changes nothing.

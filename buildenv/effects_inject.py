@@ -67,6 +67,17 @@ sensors. Each effect of :mod:`buildenv.effects` is put into it at a ``magnitude`
   minimum: our model's zone heating has no cold air at night, which is the largest remaining miss of the
   calibrated default site (``bench/results/default_site_error_budget.md``).
 
+- ``evening_departure`` (hours the evening tail of the occupants' schedules is lengthened, rounded to whole
+  hours): the occupants' main day ends at the first whole hour after the last weekday hour in which the first
+  ``People`` object's schedule is at least half occupied (18:00 in the DOE offices). Every weekday clause of the
+  ``Schedule:Compact`` schedules of ``People``, ``Lights`` and ``ElectricEquipment`` keeps its first evening
+  value ``magnitude`` hours longer and the rest of its evening moves that much later (midnight cuts it): the
+  medium office's occupancy 0.4 from 18:00 to 20:00 then 0.1 to 22:00 becomes, at 2 h, 0.4 to 22:00 then 0.1
+  to 24:00; its lights 0.5 to 20:00 then 0.3 to 22:00 become 0.5 to 22:00 then 0.3. The clean stand-in already
+  has such a tail, which our model's occupancy (a block from start to end hour) lacks. Lights and plug-load schedules of other
+  types are left alone; an occupancy schedule of another type, and weekday clauses that interpolate or change
+  within an hour, raise :class:`~buildenv.errors.ReferenceBuildingError`.
+
 **Sensor post-processing** (``kind="sensor"``, :func:`apply_sensor_effects`, on the noise-free hourly
 occupied-zone mean temperature, warm-up weeks included, before the sensor noise is added):
 
@@ -217,7 +228,7 @@ def inject_energyplus(objects: list[IdfObject], effects: Sequence[InjectedEffect
     """
     edits = {"wind_infiltration": _wind_infiltration, "holidays": _holidays, "night_plug_loads": _night_plug_loads,
              "solar_shading": _solar_shading, "heat_recovery": _heat_recovery,
-             "night_cycle_cold_air": _night_cycle_cold_air}
+             "night_cycle_cold_air": _night_cycle_cold_air, "evening_departure": _evening_departure}
     out = [list(o) for o in objects]
     active = [e for e in effects if e.active and e.effect.kind == "energyplus"]
     for item in active:
@@ -356,6 +367,69 @@ def _night_plug_loads(objects: list[IdfObject], item: InjectedEffect, building: 
         new.append(["ElectricEquipment", f"{p[1]} buildenv night plug loads", p[2], added[occupancy.lower()],
                     "Watts/Area", "", f"{item.magnitude:.6g}", "", "0", "0.5", "0", NIGHT_PLUG_SUBCATEGORY])
     return objects + new
+
+
+def _hours_of(text: str) -> int:
+    """The whole hour of an ``Until: HH:MM`` field; raises :class:`ReferenceBuildingError` otherwise."""
+    clock = text.split(":", 1)[1].strip()
+    hours, _, minutes = clock.partition(":")
+    if not hours.strip().isdigit() or minutes.strip() not in ("00", "0", ""):
+        raise ReferenceBuildingError(f"'{text}' is not on a whole hour")
+    return int(hours)
+
+
+def weekday_profile(schedule: IdfObject) -> tuple[int, int, np.ndarray]:
+    """The weekday clause of a ``Schedule:Compact``: ``(first, end)`` indices of its ``Until:``/value fields and
+    its 24 hourly values. The clause is the first ``For:`` naming ``Weekdays`` (or ``AllDays``); its times must
+    be whole hours and it must not interpolate. Raises :class:`ReferenceBuildingError` otherwise."""
+    name = f"schedule {_field(schedule, 1)}"
+    if schedule[0].lower() != "schedule:compact":
+        raise ReferenceBuildingError(f"{name} is a {schedule[0]}; only Schedule:Compact weekdays can be edited")
+    heads = [i for i, f in enumerate(schedule) if f.lower().startswith("for:")
+             and {t.lower() for t in _for_tokens(f)} & {"weekdays", "alldays"}]
+    if not heads:
+        raise ReferenceBuildingError(f"{name} has no For: Weekdays clause")
+    first = j = heads[0] + 1
+    values, hour = np.zeros(24), 0
+    while j + 1 < len(schedule) and schedule[j].lower().startswith("until:"):
+        until = _hours_of(schedule[j])
+        values[hour:until] = float(schedule[j + 1])
+        hour, j = until, j + 2
+    if first < len(schedule) and schedule[first].lower().startswith("interpolate:"):
+        raise ReferenceBuildingError(f"{name} interpolates its weekday values")
+    if hour != 24:
+        raise ReferenceBuildingError(f"{name}: its weekday clause does not run to 24:00")
+    return first, j, values
+
+
+def _evening_departure(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:
+    people = of_type(objects, "People")
+    if not people:
+        raise ReferenceBuildingError(f"{building}: effect evening_departure needs People objects (occupied zones)")
+    schedules = {o[1].lower(): o for o in objects if o[0].lower() == "schedule:compact"}
+    occupancy = _field(people[0], 3).lower()
+    try:
+        if occupancy not in schedules:
+            raise ReferenceBuildingError(f"People {people[0][1]} uses schedule {people[0][3]}, not a "
+                                         "Schedule:Compact of the model")
+        occupied = np.nonzero(weekday_profile(schedules[occupancy])[2] >= 0.5)[0]
+        if not len(occupied):
+            raise ReferenceBuildingError(f"schedule {people[0][3]} is never half occupied on weekdays")
+        end, k = int(occupied[-1]) + 1, int(round(item.magnitude))
+        for name in sorted(_schedule_names(objects, ("People", "Lights", "ElectricEquipment"))):
+            o = schedules.get(name)
+            if o is None:
+                continue  # not a Schedule:Compact (the model's own Schedule:Constant loads, say): left alone
+            first, stop, values = weekday_profile(o)
+            later = values.copy()
+            hours = np.arange(end, 24)
+            later[end:] = values[np.maximum(end, hours - k)]
+            pairs = [f for h in range(24) if h == 23 or later[h + 1] != later[h]
+                     for f in (f"Until: {h + 1:02d}:00", f"{later[h]:.6g}")]
+            o[first:stop] = pairs  # edited in place: the objects are copies
+    except ReferenceBuildingError as exc:
+        raise ReferenceBuildingError(f"{building}: effect evening_departure: {exc}") from None
+    return objects
 
 
 def _solar_shading(objects: list[IdfObject], item: InjectedEffect, building: str) -> list[IdfObject]:

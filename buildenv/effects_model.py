@@ -5,7 +5,13 @@ candidates (``N`` weeks, each with its own parameter values):
 
 - **inputs** (:func:`transform_inputs`, physical encoded inputs ``(N, 192, C)`` before the metamodel):
   ``wind_infiltration`` makes the infiltration input hourly, ``calibrated + ach_per_m_s x wind speed``;
-  ``solar_shading`` scales every irradiance input by ``1 - blocked_fraction``.
+  ``solar_shading`` scales every irradiance input by ``1 - blocked_fraction``; ``evening_departure`` raises
+  the hourly occupancy input to ``share`` in the ``hours`` after each end of occupancy (the hour ``i`` after
+  it, counted from 1, gets ``share x clip(hours - i + 1, 0, 1)``), so the metamodel simulates the people, lights
+  and plug loads of a partly occupied evening. The metamodel was trained on occupancy of 0 or 1 only: on the
+  default site a share of 0.5 for 3 hours, with nothing recalibrated, raised the held-out R2 of temperature
+  from 0.913 to 0.942 and of consumption from 0.958 to 0.962 (both series improved, so it reads a fraction as
+  partial occupancy). The tail starts where the occupancy input falls to half or below (:data:`OCCUPIED_LEVEL`).
 - **building outputs** (:func:`transform_outputs`, ``(N, 168, 8)`` after the metamodel; what BuildingWeek-v0
   sees): ``night_plug_loads`` adds ``night_w_m2`` to Q_EQP in unoccupied hours (the meter only: routed
   instead through the equipment night share input, so that it heats the zones too, it did worse. On a 4.0 W/m2
@@ -45,7 +51,7 @@ from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.effects import EFFECTS, get_effect
 
-INPUT_EFFECTS = ("wind_infiltration", "solar_shading")
+INPUT_EFFECTS = ("wind_infiltration", "solar_shading", "evening_departure")
 OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery", "night_cycle_cold_air")
 #: effects of the building itself, simulated for any week (holidays are dates of the measured period, and the
 #: sensor effects are measurement matters)
@@ -111,12 +117,32 @@ def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndar
     if s is not None:
         for name in IRRADIANCE_INPUTS:
             x[..., _CH[name]] *= (1.0 - s)
+    share = _column(params, "evening_departure", 0, n)
+    if share is not None:
+        hours = _column(params, "evening_departure", 1, n)
+        occ = x[..., _CH["occupancy_fraction"]]
+        since = hours_since_occupied(occ > OCCUPIED_LEVEL)
+        tail = share * np.clip((0.0 if hours is None else hours) - since + 1.0, 0.0, 1.0) * (since >= 1)
+        x[..., _CH["occupancy_fraction"]] = np.maximum(occ, tail)
     return x
 
 
+#: An hour is occupied when its occupancy input is above this (the end of a day's occupancy, where a gradual
+#: departure's tail starts; a tail above it counts as occupied, for ``night_plug_loads`` too).
+OCCUPIED_LEVEL = 0.5
+
+
+def hours_since_occupied(occupied: np.ndarray) -> np.ndarray:
+    """``(N, T)`` hours since the last occupied hour of each sequence of booleans ``(N, T)`` (0 in occupied
+    hours, ``inf`` before the first)."""
+    t = np.arange(occupied.shape[-1], dtype=float)
+    last = np.maximum.accumulate(np.where(occupied, t, -np.inf), axis=-1)
+    return t - last
+
+
 def occupied_hours(x: np.ndarray) -> np.ndarray:
-    """``(N, 168)`` booleans: hours of the week the encoded inputs mark occupied."""
-    return x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]] > 0
+    """``(N, 168)`` booleans: hours of the week the encoded inputs mark occupied (above :data:`OCCUPIED_LEVEL`)."""
+    return x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]] > OCCUPIED_LEVEL
 
 
 def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, np.ndarray],

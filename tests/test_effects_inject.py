@@ -23,6 +23,7 @@ from buildenv.effects_inject import (
     first_order_lag,
     inject_energyplus,
     plan_effects,
+    weekday_profile,
 )
 from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.errors import ReferenceBuildingError
@@ -126,6 +127,16 @@ def test_energyplus_edits_on_the_idf():
     (program,) = of_type(night, "EnergyManagementSystem:Program")
     assert program[2:] == ["IF buildenv_hvac_on > 0.5", "SET buildenv_minimum_flow_0 = 0.3", "ELSE",
                            "SET buildenv_minimum_flow_0 = 0.5", "ENDIF"]
+    evening = inject_energyplus(objects, plan_effects([("evening_departure", 2)], START, 1), "medium_office")
+    schedules = {o[1]: o for o in of_type(evening, "Schedule:Compact")}
+    before = {o[1]: o for o in of_type(objects, "Schedule:Compact")}
+    # the DOE occupancy: 0.7 to 18:00, 0.4 to 20:00, 0.1 to 22:00, 0.05 to 24:00 -> 0.4 two hours longer
+    np.testing.assert_allclose(weekday_profile(schedules["BLDG_OCC_SCH"])[2][16:],
+                               [0.95, 0.7, 0.4, 0.4, 0.4, 0.4, 0.1, 0.1])
+    np.testing.assert_allclose(weekday_profile(schedules["BLDG_LIGHT_SCH"])[2][17:], [0.7] + [0.5] * 4 + [0.3] * 2)
+    for name in ("BLDG_OCC_SCH", "BLDG_LIGHT_SCH", "BLDG_EQUIP_SCH"):  # the day until 18:00 and other days kept
+        np.testing.assert_array_equal(weekday_profile(schedules[name])[2][:18], weekday_profile(before[name])[2][:18])
+        assert schedules[name][weekday_profile(schedules[name])[1]:] == before[name][weekday_profile(before[name])[1]:]
     small = read_idf(reference_idf("small_office"))  # packaged single-zone units: no VAV boxes
     with pytest.raises(ReferenceBuildingError, match="night_cycle_cold_air"):
         inject_energyplus(small, plan_effects([("night_cycle_cold_air", 20)], START, 1), "small_office")
@@ -210,6 +221,28 @@ def test_night_cycle_cold_air_cools_the_nights(base):
     change = run.temperature_c[0] - base.temperature_c[0]
     assert change[night].mean() < -0.1  # more cold air while the fans cycle (the mass carries some into the day)
     assert run.consumption_kwh[0][night].sum() > 1.02 * base.consumption_kwh[0][night].sum()  # reheat
+
+
+def test_evening_departure_warms_the_evenings_and_uses_more(base):
+    run = _run([("evening_departure", 3.0)])
+    evening = (DAY < 5) & (HOUR >= 20) & (HOUR < 24)
+    day = (DAY < 5) & (HOUR >= 9) & (HOUR < 17)
+    change = run.temperature_c[0] - base.temperature_c[0]
+    assert change[evening].mean() > 0.1 and abs(change[day].mean()) < 0.1  # people, lights and computers stay on
+    extra = run.consumption_kwh[0] - base.consumption_kwh[0]
+    assert extra[evening].mean() > 0.5 and abs(extra[day].mean()) < 0.1 * base.consumption_kwh[0][day].mean()
+
+
+def test_weekday_profile_refuses_what_it_cannot_shift():
+    ok = ["Schedule:Compact", "S", "Fraction", "Through: 12/31", "For: Weekdays", "Until: 08:00", "0",
+          "Until: 24:00", "1", "For: AllOtherDays", "Until: 24:00", "0"]
+    assert weekday_profile(ok)[:2] == (5, 9) and weekday_profile(ok)[2].sum() == 16
+    with pytest.raises(ReferenceBuildingError, match="not on a whole hour"):
+        weekday_profile(ok[:5] + ["Until: 08:30", "0", "Until: 24:00", "1"])
+    with pytest.raises(ReferenceBuildingError, match="no For: Weekdays"):
+        weekday_profile(ok[:4] + ["For: Saturday", "Until: 24:00", "0"])
+    with pytest.raises(ReferenceBuildingError, match="does not run to 24:00"):
+        weekday_profile(ok[:7])
 
 
 def test_wind_infiltration_costs_heat_in_windy_hours(base, weather_week):

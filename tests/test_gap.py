@@ -80,6 +80,10 @@ def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):
         np.testing.assert_array_equal(a, b)
 
 
+EVENING = np.isin(np.arange(168) % 24, [20, 21]) & (np.arange(168) < 120)  # weekdays, after the occupancy
+MORNING = np.isin(np.arange(168) % 24, [9, 10, 11])
+
+
 @pytest.mark.parametrize("name, values, check", [
     ("temperature_sensor_bias", [1.5], lambda d: np.allclose(d["t"], 1.5, atol=1e-5) and np.all(d["q"] == 0)),
     ("temperature_sensor_lag", [2.0], lambda d: np.abs(d["t"]).max() > 0.2 and np.all(d["q"] == 0)),
@@ -90,6 +94,8 @@ def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):
     ("heat_recovery", [0.7], lambda d: d["q"].max() <= 1e-4 and d["q"].sum() < 0),
     ("night_cycle_cold_air", [0.1, 0.2], lambda d: d["t"].max() <= 1e-5 and d["t"].min() < -0.1
      and d["q"].min() >= -1e-4 and d["q"].max() > 0.2),
+    ("evening_departure", [0.4, 3.0], lambda d: d["t"][..., EVENING].mean() > 0.1 and d["q"][..., EVENING].mean() > 0.5
+     and np.abs(d["q"][..., MORNING]).max() < 0.5),
 ])
 def test_each_effect_moves_the_prediction_the_expected_way(calibrated, surrogate, name, values, check):
     site, params = calibrated

@@ -44,7 +44,7 @@ def main() -> None:
     args = parser.parse_args()
     effects = tuple(args.effect or ["night_cycle_cold_air"])
     weeks = [int(w) for w in args.weeks.split(",")]
-    out = Path("out/declared-effects")
+    out = Path("out") / args.name.replace("_", "-")
     if out.exists():
         shutil.rmtree(out)
     shutil.copytree(DEFAULT_SITE, out)

@@ -75,7 +75,7 @@ sensors. Each effect of :mod:`buildenv.effects` is put into it at a ``magnitude`
   medium office's occupancy 0.4 from 18:00 to 20:00 then 0.1 to 22:00 becomes, at 2 h, 0.4 to 22:00 then 0.1
   to 24:00; its lights 0.5 to 20:00 then 0.3 to 22:00 become 0.5 to 22:00 then 0.3. The clean stand-in already
   has such a tail, which our model's occupancy (a block from start to end hour) lacks. Lights and plug-load schedules of other
-  types are left alone; an occupancy schedule of another type, and weekday clauses that interpolate or change
+  types or without a weekday clause (the large 2019 office's data centre) are left alone; an occupancy schedule of another type, and weekday clauses that interpolate or change
   within an hour, raise :class:`~buildenv.errors.ReferenceBuildingError`.
 
 **Sensor post-processing** (``kind="sensor"``, :func:`apply_sensor_effects`, on the noise-free hourly
@@ -378,6 +378,12 @@ def _hours_of(text: str) -> int:
     return int(hours)
 
 
+def _weekday_clauses(schedule: IdfObject) -> list[int]:
+    """Indices of the ``For:`` fields naming ``Weekdays`` or ``AllDays``."""
+    return [i for i, f in enumerate(schedule) if f.lower().startswith("for:")
+            and {t.lower() for t in _for_tokens(f)} & {"weekdays", "alldays"}]
+
+
 def weekday_profile(schedule: IdfObject) -> tuple[int, int, np.ndarray]:
     """The weekday clause of a ``Schedule:Compact``: ``(first, end)`` indices of its ``Until:``/value fields and
     its 24 hourly values. The clause is the first ``For:`` naming ``Weekdays`` (or ``AllDays``); its times must
@@ -385,8 +391,7 @@ def weekday_profile(schedule: IdfObject) -> tuple[int, int, np.ndarray]:
     name = f"schedule {_field(schedule, 1)}"
     if schedule[0].lower() != "schedule:compact":
         raise ReferenceBuildingError(f"{name} is a {schedule[0]}; only Schedule:Compact weekdays can be edited")
-    heads = [i for i, f in enumerate(schedule) if f.lower().startswith("for:")
-             and {t.lower() for t in _for_tokens(f)} & {"weekdays", "alldays"}]
+    heads = _weekday_clauses(schedule)
     if not heads:
         raise ReferenceBuildingError(f"{name} has no For: Weekdays clause")
     first = j = heads[0] + 1
@@ -418,8 +423,8 @@ def _evening_departure(objects: list[IdfObject], item: InjectedEffect, building:
         end, k = int(occupied[-1]) + 1, int(round(item.magnitude))
         for name in sorted(_schedule_names(objects, ("People", "Lights", "ElectricEquipment"))):
             o = schedules.get(name)
-            if o is None:
-                continue  # not a Schedule:Compact (the model's own Schedule:Constant loads, say): left alone
+            if o is None or not _weekday_clauses(o):
+                continue  # not a Schedule:Compact, or not by weekday (a data centre's load, say): left alone
             first, stop, values = weekday_profile(o)
             later = values.copy()
             hours = np.arange(end, 24)

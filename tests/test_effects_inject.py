@@ -27,7 +27,13 @@ from buildenv.effects_inject import (
 )
 from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.errors import ReferenceBuildingError
-from buildenv.reference import historical_settings, make_reference_site, reference_idf, run_reference
+from buildenv.reference import (
+    REFERENCE_BUILDINGS,
+    historical_settings,
+    make_reference_site,
+    reference_idf,
+    run_reference,
+)
 from buildenv.weather import epw_day_of_year, load_weather
 
 START = dt.date(2019, 11, 4)
@@ -231,6 +237,16 @@ def test_evening_departure_warms_the_evenings_and_uses_more(base):
     assert change[evening].mean() > 0.1 and abs(change[day].mean()) < 0.1  # people, lights and computers stay on
     extra = run.consumption_kwh[0] - base.consumption_kwh[0]
     assert extra[evening].mean() > 0.5 and abs(extra[day].mean()) < 0.1 * base.consumption_kwh[0][day].mean()
+
+
+@pytest.mark.parametrize("building", sorted(REFERENCE_BUILDINGS))
+def test_evening_departure_edits_every_shipped_office(building):
+    objects = read_idf(reference_idf(building))
+    out = inject_energyplus(objects, plan_effects([("evening_departure", 2)], START, 1), building)
+    occupancy = of_type(out, "People")[0][3]
+    after = {o[1]: o for o in of_type(out, "Schedule:Compact")}[occupancy]
+    before = {o[1]: o for o in of_type(objects, "Schedule:Compact")}[occupancy]
+    assert weekday_profile(after)[2].sum() > weekday_profile(before)[2].sum()  # more evening occupancy
 
 
 def test_weekday_profile_refuses_what_it_cannot_shift():

@@ -51,7 +51,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import EFFECTS, get_effect
+from buildenv.effects import EffectError, get_effect
 from buildenv.errors import BuildenvError
 from buildenv.schedules import hourly_schedules
 
@@ -420,9 +420,10 @@ def check_declared_effects(effects) -> tuple[str, ...]:
     the gap diagnosis detects from the data: ``buildenv diagnose``)."""
     out = tuple(effects)
     for name in out:
-        if name not in EFFECTS:
-            raise CalibrationError(f"unknown effect {name!r} to declare; `buildenv effects` lists "
-                                   f"{', '.join(EFFECTS)}")
+        try:
+            get_effect(name)
+        except EffectError as exc:
+            raise CalibrationError(f"--effect: {exc}") from None
         if name == "holidays":
             raise CalibrationError(f"effect {name!r} cannot be declared in calibration (its days are found from "
                                    "the data: run `buildenv diagnose`)")

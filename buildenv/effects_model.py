@@ -117,12 +117,11 @@ def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndar
     if s is not None:
         for name in IRRADIANCE_INPUTS:
             x[..., _CH[name]] *= (1.0 - s)
-    share = _column(params, "evening_departure", 0, n)
-    if share is not None:
-        hours = _column(params, "evening_departure", 1, n)
+    share, hours = (_column(params, "evening_departure", j, n) for j in (0, 1))
+    if share is not None and hours is not None:  # either at its none value: no tail
         occ = x[..., _CH["occupancy_fraction"]]
         since = hours_since_occupied(occ > OCCUPIED_LEVEL)
-        tail = share * np.clip((0.0 if hours is None else hours) - since + 1.0, 0.0, 1.0) * (since >= 1)
+        tail = share * np.clip(hours - since + 1.0, 0.0, 1.0) * (since >= 1)
         x[..., _CH["occupancy_fraction"]] = np.maximum(occ, tail)
     return x
 

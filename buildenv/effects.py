@@ -158,8 +158,9 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "% of the design infiltration added per m/s of wind", (10.0, 40.0), 25.0,
            ("consumption", "temperature"),
            (ModelParameter("ach_per_m_s", "1/h per m/s", 0.0, 0.15, 0.0,
-                           "infiltration air changes added per m/s of wind speed"),),
-           "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x wind speed", 0.01,
+                           "infiltration air changes added per m/s of wind speed (out of hours)"),),
+           "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x wind speed, a quarter "
+           "of it while the air handling unit runs", 0.01,
            smallest_reason="10 % of a tight office's 0.1 air changes per hour"),
     Effect("temperature_sensor_bias", "temperature sensor bias",
            "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "

@@ -104,6 +104,20 @@ def test_each_effect_moves_the_prediction_the_expected_way(calibrated, surrogate
     assert check({"t": t1 - t0, "q": q1 - q0})
 
 
+def test_wind_infiltration_is_a_quarter_while_the_air_handling_unit_runs():
+    # the DOE reference buildings' convention (and the stand-in's): a running air handling unit pressurises
+    # the building, so only a quarter of the wind-driven infiltration is left
+    from buildenv.surrogate import INPUT_CHANNELS
+
+    ch = {n: i for i, n in enumerate(INPUT_CHANNELS)}
+    x = np.zeros((1, 4, len(INPUT_CHANNELS)))
+    x[..., ch["infiltration_ach"]] = 0.2
+    x[..., ch["WIND_SPEED"]] = 4.0
+    x[0, :2, ch["ventilation_on"]] = 1.0
+    out = em.transform_inputs(x.copy(), {"wind_infiltration": np.array([[0.05]])})[0, :, ch["infiltration_ach"]]
+    np.testing.assert_allclose(out, [0.2 + 0.25 * 0.2, 0.2 + 0.25 * 0.2, 0.4, 0.4])
+
+
 def _biased_site(tmp_path, bias_k: float, weeks: int = 2):
     """The default site's first weeks with a temperature sensor reading ``bias_k`` high."""
     src = load_site(DEFAULT_SITE)

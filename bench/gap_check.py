@@ -52,6 +52,10 @@ def main() -> None:
     parser.add_argument("--max-effects", type=int, default=2)
     parser.add_argument("--refit-step", type=float, default=DiagnosisSettings.refit_step,
                         help="CMA-ES initial step of the building parameters in a refit (share of their ranges)")
+    parser.add_argument("--effect-first", type=int, default=DiagnosisSettings.effect_first_evaluations,
+                        help="evaluations of a refit's first stage, the new effect alone (0: joint refit only)")
+    parser.add_argument("--refit-restarts", type=int, default=DiagnosisSettings.refit_restarts,
+                        help="CMA-ES runs of every refit (control and candidates), the lowest fit cost kept")
     parser.add_argument("--name", default="gap_check", help="stem of the result files in bench/results")
     parser.add_argument("--base-effects", default="auto",
                         help="effects every case models from the start: auto (diagnose a clean reference site "
@@ -65,7 +69,8 @@ def main() -> None:
     known = parse_known(args.known)
     started, load = time.perf_counter(), os.getloadavg()[0]
     settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge,
-                                 base_restarts=args.base_restarts, refit_step=args.refit_step)
+                                 base_restarts=args.base_restarts, refit_step=args.refit_step,
+                                 effect_first_evaluations=args.effect_first, refit_restarts=args.refit_restarts)
     base: str | list[str] = args.base_effects
     if base != "auto":
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
@@ -79,6 +84,10 @@ def main() -> None:
                + (f" --base-effects {args.base_effects}" if args.base_effects != "auto" else "")
                + (f" --base-restarts {args.base_restarts}" if args.base_restarts != 1 else "")
                + (f" --refit-step {args.refit_step:g}" if args.refit_step != DiagnosisSettings.refit_step else "")
+               + (f" --refit-restarts {args.refit_restarts}"
+                  if args.refit_restarts != DiagnosisSettings.refit_restarts else "")
+               + (f" --effect-first {args.effect_first}"
+                  if args.effect_first != DiagnosisSettings.effect_first_evaluations else "")
                + "".join(f" --known {k}={v:g}" for k, v in known.items()))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()

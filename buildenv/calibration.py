@@ -283,6 +283,8 @@ def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, ma
     """
     if restarts < 1:
         raise CalibrationError(f"restarts must be at least 1 (got {restarts})")
+    if int(problem.free.sum()) == 1:
+        return _minimise_one(problem, surrogate, max_evaluations)
     x0 = None if start is None else problem.to_unit(start)
     bar = _bar(progress, max_evaluations * restarts, "CMA-ES")
     best, best_cost, evaluations, run_costs = None, np.inf, 0, []
@@ -301,6 +303,26 @@ def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, ma
             best_cost, best = float(es.result.fbest), problem.from_unit(np.asarray(es.result.xbest))[0]
     bar.close()
     return best, {"evaluations": evaluations, "cost": best_cost, "run_costs": run_costs}
+
+
+def _minimise_one(problem: Problem, surrogate: sg.Surrogate, max_evaluations: int) -> tuple[np.ndarray, dict]:
+    """One free parameter: Brent's bounded minimisation over its whole range (pycma does not run in one
+    dimension: its step-size bookkeeping raises "not yet initialized" within a few generations)."""
+    from scipy.optimize import minimize_scalar
+
+    j = int(np.flatnonzero(problem.free)[0])
+    base = problem.lo.copy()
+
+    def cost(u: float) -> float:
+        x = base.copy()
+        x[j] = problem.lo[j] + u * (problem.hi[j] - problem.lo[j])
+        return float(evaluate(problem, surrogate, x[None])[0])
+
+    res = minimize_scalar(cost, bounds=(0.0, 1.0), method="bounded",
+                          options={"maxiter": max(int(min(max_evaluations, 10_000)), 1), "xatol": 1e-4})
+    best = base.copy()
+    best[j] = problem.lo[j] + float(res.x) * (problem.hi[j] - problem.lo[j])
+    return best, {"evaluations": int(res.nfev), "cost": float(res.fun), "run_costs": [float(res.fun)]}
 
 
 def _bar(enabled: bool, total: int, desc: str):

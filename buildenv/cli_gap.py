@@ -16,6 +16,10 @@ def _settings(args: argparse.Namespace):
     candidates = tuple(get_effect(e.strip()).name for e in args.candidates.split(",")) if args.candidates \
         else tuple(EFFECTS)
     step = {} if args.refit_step is None else {"refit_step": args.refit_step}
+    if args.effect_first is not None:
+        step["effect_first_evaluations"] = args.effect_first
+    if args.refit_restarts is not None:
+        step["refit_restarts"] = args.refit_restarts
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts,
@@ -61,6 +65,10 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--refit-step", type=float, default=None,
                    help="CMA-ES initial step of the building parameters in a refit (share of their ranges; "
                         "default 0.25)")
+    p.add_argument("--effect-first", type=int, default=None, metavar="EVALUATIONS",
+                   help="evaluations of a refit's first stage, the new effect alone (default 0: joint refit only)")
+    p.add_argument("--refit-restarts", type=int, default=None,
+                   help="CMA-ES runs of every refit (control and candidates), lowest fit cost kept (default 1)")
     p.add_argument("--base-restarts", type=int, default=1,
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
                         "lowest fit cost kept")

@@ -467,11 +467,18 @@ def fit_declared_effects(problem: Problem, surrogate: sg.Surrogate, base: np.nda
     ``base`` (their calibrated values, ``(problem.n_base,)``), by CMA-ES started at the effects' "no effect"
     values. Returns the full parameter vector ``(problem.dim,)`` and ``{"evaluations", "cost"}``."""
     n = problem.n_base
+    start = np.concatenate([np.asarray(base, float)[:n]] + [em.none_parameters(e) for e in problem.effects])
+    return fit_last_parameters(problem, surrogate, start, n, seed, max_evaluations)
+
+
+def fit_last_parameters(problem: Problem, surrogate: sg.Surrogate, start: np.ndarray, fixed: int, seed: int = 0,
+                        max_evaluations: int = DECLARED_EFFECTS_EVALUATIONS) -> tuple[np.ndarray, dict]:
+    """Calibrate the parameters after the first ``fixed`` ones, those kept at ``start`` (physical, ``(dim,)``,
+    also the search's start). Returns the full parameter vector and ``{"evaluations", "cost"}``."""
     lo, hi = problem.lo.copy(), problem.hi.copy()
-    lo[:n] = hi[:n] = np.asarray(base, float)[:n]
-    staged = dataclasses.replace(problem, lo=lo, hi=hi)
-    start = np.concatenate([lo[:n]] + [em.none_parameters(e) for e in problem.effects])
-    best, info = calibrate_cmaes(staged, surrogate, seed, max_evaluations, start=start)
+    lo[:fixed] = hi[:fixed] = np.asarray(start, float)[:fixed]
+    best, info = calibrate_cmaes(dataclasses.replace(problem, lo=lo, hi=hi), surrogate, seed, max_evaluations,
+                                 start=start)
     return best, {"evaluations": info["evaluations"], "cost": info["cost"]}
 
 

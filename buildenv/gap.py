@@ -235,10 +235,7 @@ def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
     start, budget, spent, new_step = fit.params, ctx.settings.evaluations, 0, 1.0
     first = min(ctx.settings.effect_first_evaluations, budget // 2)
     if first and len(new):
-        lo, hi = problem.lo.copy(), problem.hi.copy()
-        lo[:n_old] = hi[:n_old] = fit.params[:n_old]
-        start, info = cal.calibrate_cmaes(dataclasses.replace(problem, lo=lo, hi=hi), ctx.surrogate,
-                                          ctx.settings.seed, first, start=fit.params)
+        start, info = cal.fit_last_parameters(problem, ctx.surrogate, fit.params, n_old, ctx.settings.seed, first)
         spent, new_step = info["evaluations"], 0.5
     stds = np.concatenate([np.full(n_base, ctx.settings.refit_step), np.full(n_old - n_base, 0.5),
                            np.full(len(new), new_step)])

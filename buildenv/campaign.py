@@ -35,12 +35,15 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
-from buildenv.errors import BuildenvError, DatasetError
+from buildenv.errors import BuildenvError, DatasetError, SimulationError
 from buildenv.sampling import METHODS, sample_group, sample_weeks
 from buildenv.weather import resolve_epw, shipped_weather
 
 log = logging.getLogger(__name__)
 
+#: share of a campaign's runs that may fail (and be left out) before the campaign stops: one building in
+#: thousands whose warm-up never settles must not stop a campaign that a rerun could never finish
+MAX_FAILED_SHARE = 0.01
 TASKS_PER_WORKER = 50  # recycle worker processes after this many EnergyPlus runs (each leaves ~3 MB behind)
 DEFAULT_CLIMATES: tuple[str, ...] = tuple(shipped_weather())
 
@@ -119,18 +122,30 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     return tasks
 
 
-def run_task(task: RunTask) -> tuple[int, np.ndarray]:
-    """Simulate one run (in a worker process); returns ``(run_id, outputs (weeks, 168, 8))``."""
+def run_task(task: RunTask) -> tuple[int, np.ndarray | None, str]:
+    """Simulate one run (in a worker process); returns ``(run_id, outputs (weeks, 168, 8), "")``, or
+    ``(run_id, None, message)`` when EnergyPlus refused the building (a :class:`SimulationError`)."""
     from buildenv.energyplus.simulate import simulate_weeks
 
-    with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-") as tmp:
-        result = simulate_weeks(task.theta, task.settings, task.occupancy, task.epw, task.start_week,
-                                workdir=Path(tmp), zoning=task.zoning)
-    return task.run_id, result.outputs.astype(np.float32)
+    try:
+        with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-") as tmp:
+            result = simulate_weeks(task.theta, task.settings, task.occupancy, task.epw, task.start_week,
+                                    workdir=Path(tmp), zoning=task.zoning)
+    except SimulationError as exc:
+        return task.run_id, None, str(exc)
+    return task.run_id, result.outputs.astype(np.float32), ""
 
 
 def _shard_path(out: Path, run_id: int) -> Path:
     return out / "shards" / f"run_{run_id:06d}.npz"
+
+
+def _record_failure(out: Path, task: RunTask, message: str) -> dict:
+    """Write what EnergyPlus said about a failed run beside the shards (a rerun tries the run again)."""
+    record = {"run_id": task.run_id, "epw": str(task.epw), "start_week": task.start_week, "weeks": task.n_weeks,
+              "error": message}
+    (out / "shards" / f"run_{task.run_id:06d}.failed.json").write_text(json.dumps(record, indent=2))
+    return record
 
 
 def _write_shard(out: Path, task: RunTask, outputs: np.ndarray) -> None:
@@ -175,7 +190,7 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
     (out / "shards").mkdir(exist_ok=True)
 
 
-def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np.ndarray]]:
+def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np.ndarray | None, str]]:
     if workers <= 1:
         for task in tasks:
             yield run_task(task)
@@ -197,7 +212,7 @@ def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np
                 fut.cancel()
 
 
-def _execute_dask(tasks: list[RunTask], scheduler: str) -> Iterator[tuple[int, np.ndarray]]:
+def _execute_dask(tasks: list[RunTask], scheduler: str) -> Iterator[tuple[int, np.ndarray | None, str]]:
     from distributed import Client, as_completed
 
     with Client(scheduler) as client:
@@ -210,7 +225,7 @@ def _execute_dask(tasks: list[RunTask], scheduler: str) -> Iterator[tuple[int, n
 
 
 def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, scheduler: str | None = None,
-                 progress: bool = True) -> Path:
+                 progress: bool = True, max_failed_share: float = MAX_FAILED_SHARE) -> Path:
     """Run (or resume) a campaign into ``out`` and return the path of the finished ``dataset.h5``.
 
     Args:
@@ -219,9 +234,12 @@ def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, 
         workers: local worker processes (default: all cores); ignored with ``scheduler``.
         scheduler: address of a Dask scheduler (``tcp://host:port``) to run on instead of local processes.
         progress: show a progress bar (weeks done / total).
+        max_failed_share: share of the planned runs EnergyPlus may refuse (a building whose warm-up never
+            settles, say): those are left out of the dataset and listed in the manifest's ``failed_runs``.
     Raises:
         DatasetError: ``out`` holds a different campaign.
-        SimulationError: an EnergyPlus run failed; finished runs stay saved and a rerun resumes.
+        SimulationError: more runs failed than ``max_failed_share`` allows (the message quotes the first);
+            finished runs stay saved and a rerun resumes, trying the failed runs again.
     """
     from tqdm import tqdm
 
@@ -237,13 +255,24 @@ def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, 
     started = time.perf_counter()
     workers = workers or os.cpu_count() or 1
     results = _execute_dask(todo, scheduler) if scheduler else _execute_local(todo, workers)
+    failed: dict[int, dict] = {}
     with tqdm(total=config.weeks, initial=done_weeks, unit="week", desc="simulate", disable=not progress) as bar:
-        for run_id, outputs in results:
-            _write_shard(out, by_id[run_id], outputs)
+        for run_id, outputs, error in results:
+            if outputs is None:
+                failed[run_id] = _record_failure(out, by_id[run_id], error)
+                log.warning("run %d left out of the campaign: %s", run_id, error)
+                if len(failed) > max_failed_share * len(tasks):
+                    raise SimulationError(f"{out}: {len(failed)} of {len(tasks)} EnergyPlus runs failed (more than "
+                                          f"{max_failed_share:.0%}); first: {next(iter(failed.values()))['error']}")
+            else:
+                _write_shard(out, by_id[run_id], outputs)
             bar.update(by_id[run_id].n_weeks)
     elapsed = time.perf_counter() - started
-    path = _consolidate(out, config, tasks)
-    manifest = {**_config_record(config), "complete": True, "weeks": config.weeks, "runs": len(tasks),
+    kept = [t for t in tasks if t.run_id not in failed]
+    path = _consolidate(out, config, kept)
+    manifest = {**_config_record(config), "complete": True, "weeks": sum(t.n_weeks for t in kept),
+                "weeks_planned": config.weeks, "runs": len(kept),
+                "failed_runs": [failed[r] for r in sorted(failed)],
                 "weather": [str(resolve_epw(e)) for e in config.epw], "versions": _versions(),
                 "seconds_last_session": round(elapsed, 1), "runs_simulated_last_session": len(todo),
                 "weeks_simulated_last_session": config.weeks - done_weeks, "workers": None if scheduler else workers,
@@ -261,7 +290,7 @@ def _consolidate(out: Path, config: CampaignConfig, tasks: list[RunTask]) -> Pat
 
     from buildenv.weather import load_weather
 
-    n = config.weeks
+    n = sum(t.n_weeks for t in tasks)
     tmp, final = out / "dataset.h5.tmp", out / "dataset.h5"
     chunk = min(64, n)
     with h5py.File(tmp, "w") as h5:

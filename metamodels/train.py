@@ -56,17 +56,28 @@ def pick_device(name: str) -> torch.device:
 
 
 @torch.no_grad()
+def _resident(tensor: torch.Tensor, device: torch.device) -> torch.Tensor:
+    """``tensor`` moved to a GPU ``device`` once for the whole training when it fits in a third of the free
+    memory (batches are then gathered there, not copied from host memory each step); left where it is otherwise."""
+    if device.type != "cuda":
+        return tensor
+    free, _ = torch.cuda.mem_get_info(device)
+    size = tensor.element_size() * tensor.nelement()
+    return tensor.to(device) if size < free / 3 else tensor
+
+
 def evaluate_loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, hour_mask: torch.Tensor,
                   cfg: TrainConfig, device: torch.device, batch_size: int = 512) -> float:
-    """Mean paper loss over a dataset (batched, eval mode)."""
+    """Mean paper loss over a dataset (batched, eval mode, no gradients)."""
     model.eval()
     total = 0.0
-    for start in range(0, len(x), batch_size):
-        xb, yb = x[start:start + batch_size].to(device), y[start:start + batch_size].to(device)
-        mask = hour_mask.to(device).expand(len(xb), -1)
-        loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha, cfg.beta,
-                          mask)
-        total += float(loss) * len(xb)
+    with torch.no_grad():
+        for start in range(0, len(x), batch_size):
+            xb, yb = x[start:start + batch_size].to(device), y[start:start + batch_size].to(device)
+            mask = hour_mask.to(device).expand(len(xb), -1)
+            loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha,
+                              cfg.beta, mask)
+            total += float(loss) * len(xb)
     return total / max(len(x), 1)
 
 
@@ -109,6 +120,7 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
     for _ in range(state["epoch"]):  # replay the shuffles so a resumed run sees the same batches
         torch.randperm(len(x_train), generator=generator)
     mask = hour_mask.to(device)
+    x_train, y_train = _resident(x_train, device), _resident(y_train, device)
     with open(log_path, "a", newline="") as handle:
         writer = csv.writer(handle)
         if state["epoch"] == 0:
@@ -118,8 +130,8 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
             model.train()
             for group in optimiser.param_groups:
                 group["lr"] = learning_rate(cfg, state["epoch"])
-            order = torch.randperm(len(x_train), generator=generator)
-            running, seen = 0.0, 0
+            order = torch.randperm(len(x_train), generator=generator).to(x_train.device)
+            running, seen = torch.zeros((), device=device), 0
             bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {state['epoch'] + 1}", leave=False,
                        disable=not progress)
             for start in bar:
@@ -130,9 +142,11 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
                 optimiser.zero_grad(set_to_none=True)
                 loss.backward()
                 optimiser.step()
-                running += loss.item() * len(idx)
+                running += loss.detach() * len(idx)  # summed on the device: no synchronisation per step
                 seen += len(idx)
-                bar.set_postfix(loss=f"{running / seen:.4f}")
+                if progress and bar.n % 50 == 0:
+                    bar.set_postfix(loss=f"{running.item() / seen:.4f}")
+            running = running.item()
             val_loss = evaluate_loss(model, x_val, y_val, hour_mask, cfg, device)
             seconds = time.perf_counter() - started
             state["epoch"] += 1

@@ -152,3 +152,50 @@ def test_splits(small_dataset, tmp_path):
         assert miami not in set(ds.weather_index[:][held["train"]])
         with pytest.raises(DatasetError, match="not in"):
             ds.split("climate", test_climates=["usa_xx_nowhere"])
+
+
+class _RefusingSimulator:
+    """Stands in for EnergyPlus: refuses the runs whose start week is in ``refuse``, returns constant weeks."""
+
+    def __init__(self, refuse: set[int]):
+        self.refuse = refuse
+
+    def __call__(self, theta, settings, occupancy, epw, start_week, workdir=None, zoning=None):
+        from types import SimpleNamespace
+
+        from buildenv.errors import SimulationError
+
+        if start_week in self.refuse:
+            raise SimulationError(f"EnergyPlus failed on shoebox.epJSON: ** Severe ** warm-up (week {start_week})")
+        return SimpleNamespace(outputs=np.full((len(settings), 168, len(cat.OUTPUT_NAMES)), float(start_week)))
+
+
+def test_a_failed_run_is_left_out_and_listed(tmp_path, monkeypatch):
+    config = CampaignConfig(weeks=8, seed=3, epw=["usa_il_chicago"], weeks_per_run=2)
+    tasks = plan_campaign(config)
+    refused = tasks[1]
+    monkeypatch.setattr("buildenv.energyplus.simulate.simulate_weeks", _RefusingSimulator({refused.start_week}))
+    run_campaign(config, tmp_path / "c", workers=1, progress=False, max_failed_share=0.3)
+    with open_dataset(tmp_path / "c") as ds:
+        assert len(ds) == 6 and ds.manifest["weeks"] == 6 and ds.manifest["weeks_planned"] == 8
+        assert refused.run_id not in set(ds.run_id[:].tolist())
+        assert [r["run_id"] for r in ds.manifest["failed_runs"]] == [refused.run_id]
+        assert "warm-up" in ds.manifest["failed_runs"][0]["error"]
+        kept = [t for t in tasks if t.run_id != refused.run_id]
+        np.testing.assert_array_equal(ds.outputs[:, 0, 0], np.repeat([t.start_week for t in kept], 2))
+        np.testing.assert_array_equal(ds.previous_week()[::2], -1)  # every kept run still starts from a warm-up
+
+
+def test_too_many_failed_runs_stop_the_campaign_and_a_rerun_retries_them(tmp_path, monkeypatch):
+    from buildenv.errors import SimulationError
+
+    config = CampaignConfig(weeks=8, seed=3, epw=["usa_il_chicago"], weeks_per_run=2)
+    tasks = plan_campaign(config)
+    monkeypatch.setattr("buildenv.energyplus.simulate.simulate_weeks", _RefusingSimulator({tasks[0].start_week}))
+    with pytest.raises(SimulationError, match=r"1 of 4 EnergyPlus runs failed .*warm-up"):
+        run_campaign(config, tmp_path / "c", workers=1, progress=False)
+    assert not (tmp_path / "c" / "manifest.json").exists()
+    monkeypatch.setattr("buildenv.energyplus.simulate.simulate_weeks", _RefusingSimulator(set()))
+    run_campaign(config, tmp_path / "c", workers=1, progress=False)
+    with open_dataset(tmp_path / "c") as ds:
+        assert len(ds) == 8 and ds.manifest["failed_runs"] == []

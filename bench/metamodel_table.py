@@ -32,6 +32,10 @@ MODELS: dict[str, tuple[str, dict]] = {
     "Transformer (paper, hourly tokens)": ("transformer", {}),
     "Transformer (previous default)": ("transformer", PREVIOUS_TRANSFORMER),
     "Transformer 2+2 layers + thermal states": ("transformer", {**PREVIOUS_TRANSFORMER, "hourly_state": 16}),
+    "Transformer + 2 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 2}),
+    "Transformer + 3 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 3}),
+    "Transformer with 32 states": ("transformer", {**shipped_transformer(), "hourly_state": 32}),
+    "Transformer with 4-hour tokens": ("transformer", {**shipped_transformer(), "patch_hours": 4}),
 }
 SPLIT_MEANING = {"weather_weeks": "the test weeks' climate and week of year never occur in training",
                  "buildings": "the test weeks' buildings, i.e. EnergyPlus runs, never occur in training"}

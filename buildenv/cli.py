@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.campaign import MAX_FAILED_SHARE
 from buildenv.dataset import SPLITS
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
@@ -134,10 +135,14 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     config = CampaignConfig(weeks=args.weeks, seed=args.seed, epw=args.epw or list(DEFAULT_CLIMATES),
                             weeks_per_run=args.weeks_per_run, sampling=args.sampling, zoning=args.zoning)
     path = run_campaign(config, Path(args.out), workers=args.workers, scheduler=args.scheduler,
-                        progress=not args.quiet)
+                        progress=not args.quiet, max_failed_share=args.max_failed_share)
     manifest = json.loads((Path(args.out) / "manifest.json").read_text())
+    failed = manifest.get("failed_runs", [])
+    for run in failed:
+        print(f"buildenv simulate: run {run['run_id']} ({run['weeks']} weeks) left out: {run['error']}",
+              file=sys.stderr)
     print(json.dumps({"dataset": str(path), "weeks": manifest["weeks"], "runs": manifest["runs"],
-                      "seconds_last_session": manifest["seconds_last_session"]}))
+                      "failed_runs": len(failed), "seconds_last_session": manifest["seconds_last_session"]}))
     return 0
 
 
@@ -198,6 +203,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--sampling", choices=["uniform", "lhs"], default="uniform")
     p.add_argument("--zoning", choices=list(ZONINGS), default=DEFAULT_ZONING,
                    help="the simulated building: a core and a perimeter zone, or the paper's single zone")
+    p.add_argument("--max-failed-share", type=float, default=MAX_FAILED_SHARE,
+                   help="share of runs EnergyPlus may refuse; they are left out and listed "
+                        f"(default {MAX_FAILED_SHARE})")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)
 

@@ -23,6 +23,8 @@ settings, occupancy), so the bidirectional ones may look ahead.
   log-spaced). A building's temperature is, to first order, such a filtered heat balance, clamped by the
   thermostat; the states are linear filters (one matrix product per direction, no sequential loop, so they
   run at matrix speed on a CPU, unlike a GRU) and a ReLU layer after them does the clamping.
+  ``hourly_state_layers`` > 1 stacks further such stages (residual): each filters the previous stage's
+  clamped features again, so that a response to a state can itself drive slower states.
 - ``bigru``: bidirectional GRU, linear read-out.
 - ``lstm``: (forward) LSTM, linear read-out.
 - ``convgru``: two 1-D convolutions (kernel 5, ReLU) then a bidirectional GRU.
@@ -115,7 +117,8 @@ class Transformer(nn.Module):
 
     def __init__(self, inputs: int, outputs: int, d_model: int = 64, heads: int = 8, head_dim: int = 8,
                  layers: int = 4, window: int = 12, d_ff: int = 256, dropout: float = 0.0, patch_hours: int = 1,
-                 hourly_head: int = 0, hourly_gru: int = 0, hourly_state: int = 0, max_hours: int = 512):
+                 hourly_head: int = 0, hourly_gru: int = 0, hourly_state: int = 0, hourly_state_layers: int = 1,
+                 max_hours: int = 512):
         super().__init__()
         self.patch, self.outputs = patch_hours, outputs
         self.token_window = math.ceil(window / patch_hours)
@@ -124,7 +127,8 @@ class Transformer(nn.Module):
         self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
         self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
         if hourly_head:
-            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru, hourly_state)
+            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru, hourly_state,
+                                   hourly_state_layers)
         else:
             self.readout = nn.Linear(d_model, outputs * patch_hours)
 
@@ -202,10 +206,12 @@ class HourlyHead(nn.Module):
     """
 
     def __init__(self, inputs: int, d_model: int, patch_hours: int, hidden: int, outputs: int, gru: int = 0,
-                 state: int = 0):
+                 state: int = 0, state_layers: int = 1):
         super().__init__()
         if gru and state:
             raise ValueError("choose hourly_gru or hourly_state, not both")
+        if state_layers < 1:
+            raise ValueError(f"hourly_state_layers must be at least 1, got {state_layers}")
         self.patch = patch_hours
         self.from_latent = nn.Linear(d_model, hidden)
         self.from_inputs = nn.Linear(inputs, hidden, bias=False)
@@ -215,6 +221,9 @@ class HourlyHead(nn.Module):
             self.drive = nn.Linear(hidden, 2 * state)
             self.past, self.future = ThermalStates(state), ThermalStates(state, backward=True)
             self.mix = nn.Linear(hidden + 2 * state, hidden)
+            # further stages filter the first stage's nonlinear features again (a thermostat's response to
+            # a state is itself a drive of later states)
+            self.stages = nn.ModuleList(_StateStage(hidden, state) for _ in range(state_layers - 1))
         self.state = state
         self.out = nn.Linear(2 * gru if gru else hidden, outputs)
 
@@ -229,7 +238,25 @@ class HourlyHead(nn.Module):
         elif self.state:
             past, future = self.drive(h).split(self.state, dim=-1)
             h = torch.relu(self.mix(torch.cat([h, self.past(past), self.future(future)], dim=-1)))
+            for stage in self.stages:
+                h = stage(h)
         return self.out(h)
+
+
+class _StateStage(nn.Module):
+    """One more stage of thermal states: drives of the hourly features, filtered forward and backward, mixed
+    back into them through a ReLU layer with a residual connection."""
+
+    def __init__(self, hidden: int, state: int):
+        super().__init__()
+        self.state = state
+        self.drive = nn.Linear(hidden, 2 * state)
+        self.past, self.future = ThermalStates(state), ThermalStates(state, backward=True)
+        self.mix = nn.Linear(hidden + 2 * state, hidden)
+
+    def forward(self, h: torch.Tensor) -> torch.Tensor:
+        past, future = self.drive(h).split(self.state, dim=-1)
+        return h + torch.relu(self.mix(torch.cat([h, self.past(past), self.future(future)], dim=-1)))
 
 
 class BiGRU(nn.Module):

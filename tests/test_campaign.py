@@ -199,3 +199,16 @@ def test_too_many_failed_runs_stop_the_campaign_and_a_rerun_retries_them(tmp_pat
     run_campaign(config, tmp_path / "c", workers=1, progress=False)
     with open_dataset(tmp_path / "c") as ds:
         assert len(ds) == 8 and ds.manifest["failed_runs"] == []
+
+
+def test_simulate_command_reports_the_runs_it_left_out(tmp_path, monkeypatch, capsys):
+    from buildenv.cli import main
+
+    config = CampaignConfig(weeks=8, seed=3, epw=["usa_il_chicago"], weeks_per_run=2)
+    refused = plan_campaign(config)[2]
+    monkeypatch.setattr("buildenv.energyplus.simulate.simulate_weeks", _RefusingSimulator({refused.start_week}))
+    assert main(["simulate", "--weeks", "8", "--seed", "3", "--epw", "usa_il_chicago", "--weeks-per-run", "2",
+                 "--workers", "1", "--max-failed-share", "0.3", "--quiet", "--out", str(tmp_path / "c")]) == 0
+    out, err = capsys.readouterr()
+    assert json.loads(out)["failed_runs"] == 1 and json.loads(out)["weeks"] == 6
+    assert f"run {refused.run_id} (2 weeks) left out" in err

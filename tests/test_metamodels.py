@@ -123,6 +123,8 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
                                                           "hourly_gru": 8}),
                                          ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
                                                           "hourly_state": 4}),
+                                         ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
+                                                          "hourly_state": 4, "hourly_state_layers": 2}),
                                          ("lstm", {"layers": 1}), ("ffn", {"layers": 1})])
 def test_traced_inference_matches_eager(name, config):
     torch.manual_seed(0)
@@ -207,6 +209,18 @@ def test_hourly_state_carries_an_hour_to_distant_hours_both_ways():
     assert changed[2] > 0 and changed[40] > 0
     with pytest.raises(ValueError, match="not both"):
         build("transformer", 3, 2, patch_hours=6, hourly_head=8, hourly_state=4, hourly_gru=4)
+
+
+def test_stacked_state_stages_add_parameters_and_keep_one_stage_checkpoints_loadable():
+    one = build("transformer", 3, 2, layers=1, patch_hours=6, hourly_head=8, hourly_state=4)
+    two = build("transformer", 3, 2, layers=1, patch_hours=6, hourly_head=8, hourly_state=4, hourly_state_layers=2)
+    extra = set(two.state_dict()) - set(one.state_dict())
+    assert extra and all(k.startswith("head.stages.0.") for k in extra)
+    assert set(one.state_dict()) <= set(two.state_dict())  # one stage: the same names as before stages existed
+    with torch.no_grad():
+        assert two(torch.randn(2, 48, 3)).shape == (2, 48, 2)
+    with pytest.raises(ValueError, match="hourly_state_layers"):
+        build("transformer", 3, 2, patch_hours=6, hourly_head=8, hourly_state=4, hourly_state_layers=0)
 
 
 def test_attention_paths_agree():

@@ -412,7 +412,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     result = {"site": str(site.path), "fit_weeks": fit_weeks, "heldout_weeks": heldout,
               "base_effects": list(settings.base_effects),
               "effects": first_step, "selected": selected, "steps": steps,
-              "verdict": _verdict(selected, first_step),
+              "verdict": _verdict(selected, first_step, settings.min_gain),
               "model": {"effects": current.effect_parameters(), "absent_days": _absent_dates(site, current),
                         "parameters": current.params.tolist()},
               "settings": dataclasses.asdict(settings)}
@@ -451,16 +451,27 @@ def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: 
             "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"]}
 
 
-def _verdict(selected: list[str], entries: list[dict]) -> str:
+def _verdict(selected: list[str], entries: list[dict], min_gain: float) -> str:
     if not selected:
         best = entries[0] if entries else None
-        why = "" if not best or best["plausible"] else \
-            f"; its estimate {best['parameters']} is below what the diagnosis names: " \
-            f"{get_effect(best['name']).named_from()}"
-        tail = f" (best candidate: {best['name']}, held-out gain {100 * best['score']:.1f} %, p = " \
-               f"{best['significance']['p_value']:.2g}{why})" if best else ""
-        return "no significant unmodelled effect" + tail
+        return "no significant unmodelled effect" + (f" (best candidate: {_why_not_named(best, min_gain)})"
+                                                     if best else "")
     return "unmodelled effect(s) found: " + ", ".join(f"{n} ({get_effect(n).title})" for n in selected)
+
+
+def _why_not_named(entry: dict, min_gain: float) -> str:
+    """The best candidate's figures and every rule of :func:`candidate_qualifies` it fails."""
+    sig = entry["significance"]
+    reasons = []
+    if sig["p_value"] >= sig["threshold"]:
+        reasons.append(f"not significant at p < {sig['threshold']:.2g}")
+    if entry["score"] < min_gain:
+        reasons.append(f"under the {100 * min_gain:.0f} % held-out gain an effect must bring to be named")
+    if not entry["plausible"]:
+        reasons.append(f"its estimate {entry['parameters']} is below what the diagnosis names: "
+                       f"{get_effect(entry['name']).named_from()}")
+    return f"{entry['name']}, held-out gain {100 * entry['score']:.1f} %, p = {sig['p_value']:.2g}" + \
+        "".join(f"; {r}" for r in reasons)
 
 
 def _absent_dates(site, fit: ModelFit) -> list[str]:

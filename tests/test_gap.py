@@ -68,8 +68,16 @@ def test_an_effect_is_named_only_at_a_size_seen_in_practice():
     # the model's own offset against the reference office (up to 0.79 K recorded) is not named a sensor bias
     assert bias.plausible({"bias_k": -1.0}) and not bias.plausible({"bias_k": -0.6})
     verdict = _verdict([], [{"name": bias.name, "plausible": False, "parameters": {"bias_k": -0.6}, "score": 0.3,
-                             "significance": {"p_value": 1e-9}}])
+                             "significance": {"p_value": 1e-9, "threshold": 0.025}}], 0.15)
     assert verdict.startswith("no significant unmodelled effect") and "|bias_k| >= 0.8 K" in verdict
+    assert "not significant" not in verdict and "held-out gain an effect must bring" not in verdict
+    # a significant candidate that removes too little of the held-out error says so
+    small = _verdict([], [{"name": "evening_departure", "plausible": True, "parameters": {}, "score": 0.134,
+                           "significance": {"p_value": 6.3e-8, "threshold": 0.025}}], 0.15)
+    assert small.endswith("p = 6.3e-08; under the 15 % held-out gain an effect must bring to be named)")
+    weak = _verdict([], [{"name": "holidays", "plausible": True, "parameters": {}, "score": 0.2,
+                          "significance": {"p_value": 0.2, "threshold": 0.025}}], 0.15)
+    assert weak.endswith("; not significant at p < 0.025)")
 
 
 def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):

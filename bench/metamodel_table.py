@@ -34,6 +34,13 @@ MODELS: dict[str, tuple[str, dict]] = {
     "Transformer 2+2 layers + thermal states": ("transformer", {**PREVIOUS_TRANSFORMER, "hourly_state": 16}),
     "Transformer + 2 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 2}),
     "Transformer + 3 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 3}),
+    "Transformer + 4 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 4}),
+    "Transformer + 6 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 6}),
+    "Transformer 2+2 layers + 3 state stages": ("transformer", {**shipped_transformer(), "layers": 2,
+                                                                "hourly_state_layers": 3}),
+    "Transformer + head 128": ("transformer", {**shipped_transformer(), "hourly_head": 128}),
+    "Transformer + 3 state stages + head 128": ("transformer", {**shipped_transformer(), "hourly_head": 128,
+                                                                "hourly_state_layers": 3}),
     "Transformer with 32 states": ("transformer", {**shipped_transformer(), "hourly_state": 32}),
     "Transformer with 4-hour tokens": ("transformer", {**shipped_transformer(), "patch_hours": 4}),
 }

@@ -23,8 +23,9 @@ from pathlib import Path
 from _training_runs import (PREVIOUS_TRANSFORMER, RESULTS, inference_speed, machine, mean_std, run_tag,
                             shipped_transformer, trained)
 
+SHIPPED = shipped_transformer()  # loads the default checkpoint: once, not once per variant
 MODELS: dict[str, tuple[str, dict]] = {
-    "Transformer": ("transformer", shipped_transformer()),
+    "Transformer": ("transformer", SHIPPED),
     "BiGRU": ("bigru", {}),
     "LSTM": ("lstm", {}),
     "ConvGRU": ("convgru", {}),
@@ -32,17 +33,16 @@ MODELS: dict[str, tuple[str, dict]] = {
     "Transformer (paper, hourly tokens)": ("transformer", {}),
     "Transformer (previous default)": ("transformer", PREVIOUS_TRANSFORMER),
     "Transformer 2+2 layers + thermal states": ("transformer", {**PREVIOUS_TRANSFORMER, "hourly_state": 16}),
-    "Transformer + 2 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 2}),
-    "Transformer + 3 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 3}),
-    "Transformer + 4 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 4}),
-    "Transformer + 6 state stages": ("transformer", {**shipped_transformer(), "hourly_state_layers": 6}),
-    "Transformer 2+2 layers + 3 state stages": ("transformer", {**shipped_transformer(), "layers": 2,
-                                                                "hourly_state_layers": 3}),
-    "Transformer + head 128": ("transformer", {**shipped_transformer(), "hourly_head": 128}),
-    "Transformer + 3 state stages + head 128": ("transformer", {**shipped_transformer(), "hourly_head": 128,
-                                                                "hourly_state_layers": 3}),
-    "Transformer with 32 states": ("transformer", {**shipped_transformer(), "hourly_state": 32}),
-    "Transformer with 4-hour tokens": ("transformer", {**shipped_transformer(), "patch_hours": 4}),
+    "Transformer + 2 state stages": ("transformer", {**SHIPPED, "hourly_state_layers": 2}),
+    "Transformer + 3 state stages": ("transformer", {**SHIPPED, "hourly_state_layers": 3}),
+    "Transformer + 4 state stages": ("transformer", {**SHIPPED, "hourly_state_layers": 4}),
+    "Transformer + 6 state stages": ("transformer", {**SHIPPED, "hourly_state_layers": 6}),
+    "Transformer 2+2 layers + 3 state stages": ("transformer", {**SHIPPED, "layers": 2, "hourly_state_layers": 3}),
+    "Transformer + head 128": ("transformer", {**SHIPPED, "hourly_head": 128}),
+    "Transformer + 3 state stages + head 128": ("transformer", {**SHIPPED, "hourly_head": 128,
+                                                                  "hourly_state_layers": 3}),
+    "Transformer with 32 states": ("transformer", {**SHIPPED, "hourly_state": 32}),
+    "Transformer with 4-hour tokens": ("transformer", {**SHIPPED, "patch_hours": 4}),
 }
 SPLIT_MEANING = {"weather_weeks": "the test weeks' climate and week of year never occur in training",
                  "buildings": "the test weeks' buildings, i.e. EnergyPlus runs, never occur in training"}

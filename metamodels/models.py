@@ -236,16 +236,22 @@ class HourlyHead(nn.Module):
         if self.rnn is not None:
             h = self.rnn(h)[0]
         elif self.state:
-            past, future = self.drive(h).split(self.state, dim=-1)
-            h = torch.relu(self.mix(torch.cat([h, self.past(past), self.future(future)], dim=-1)))
+            h = _filtered_features(self, h)
             for stage in self.stages:
-                h = stage(h)
+                h = h + _filtered_features(stage, h)
         return self.out(h)
 
 
+def _filtered_features(stage: nn.Module, h: torch.Tensor) -> torch.Tensor:
+    """``ReLU(mix(h, past states, future states))`` of one thermal-state stage (its ``drive``, ``past``,
+    ``future``, ``mix`` and ``state``), ``(batch, hours, hidden) -> (batch, hours, hidden)``."""
+    past, future = stage.drive(h).split(stage.state, dim=-1)
+    return torch.relu(stage.mix(torch.cat([h, stage.past(past), stage.future(future)], dim=-1)))
+
+
 class _StateStage(nn.Module):
-    """One more stage of thermal states: drives of the hourly features, filtered forward and backward, mixed
-    back into them through a ReLU layer with a residual connection."""
+    """One more stage of thermal states (the parameters :func:`_filtered_features` uses); the hourly head adds
+    its features to the previous stage's (residual)."""
 
     def __init__(self, hidden: int, state: int):
         super().__init__()
@@ -253,10 +259,6 @@ class _StateStage(nn.Module):
         self.drive = nn.Linear(hidden, 2 * state)
         self.past, self.future = ThermalStates(state), ThermalStates(state, backward=True)
         self.mix = nn.Linear(hidden + 2 * state, hidden)
-
-    def forward(self, h: torch.Tensor) -> torch.Tensor:
-        past, future = self.drive(h).split(self.state, dim=-1)
-        return h + torch.relu(self.mix(torch.cat([h, self.past(past), self.future(future)], dim=-1)))
 
 
 class BiGRU(nn.Module):

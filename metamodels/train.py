@@ -55,7 +55,6 @@ def pick_device(name: str) -> torch.device:
     return torch.device(name)
 
 
-@torch.no_grad()
 def _resident(tensor: torch.Tensor, device: torch.device) -> torch.Tensor:
     """``tensor`` moved to a GPU ``device`` once for the whole training when it fits in a third of the free
     memory (batches are then gathered there, not copied from host memory each step); left where it is otherwise."""
@@ -66,18 +65,18 @@ def _resident(tensor: torch.Tensor, device: torch.device) -> torch.Tensor:
     return tensor.to(device) if size < free / 3 else tensor
 
 
+@torch.no_grad()
 def evaluate_loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, hour_mask: torch.Tensor,
                   cfg: TrainConfig, device: torch.device, batch_size: int = 512) -> float:
     """Mean paper loss over a dataset (batched, eval mode, no gradients)."""
     model.eval()
     total = 0.0
-    with torch.no_grad():
-        for start in range(0, len(x), batch_size):
-            xb, yb = x[start:start + batch_size].to(device), y[start:start + batch_size].to(device)
-            mask = hour_mask.to(device).expand(len(xb), -1)
-            loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha,
-                              cfg.beta, mask)
-            total += float(loss) * len(xb)
+    for start in range(0, len(x), batch_size):
+        xb, yb = x[start:start + batch_size].to(device), y[start:start + batch_size].to(device)
+        mask = hour_mask.to(device).expand(len(xb), -1)
+        loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha, cfg.beta,
+                          mask)
+        total += float(loss) * len(xb)
     return total / max(len(x), 1)
 
 

@@ -20,6 +20,13 @@ twice what a Chicago November needs. Measured on medium_office, Chicago, 4 weeks
 cap binds in almost no hour (peak consumption -5 %, occupied temperature unchanged: below the sensor noise);
 at 50 % the peak falls 10 % and the coldest occupied hour 0.7 K; at 30 % 29 % and 3.3 K.
 
+**An effect the model already carries** (:attr:`Effect.building_parameter`). The metamodel's heating power is
+a calibrated building parameter, so an undersized plant is absorbed by the base calibration: on the blind
+case at 46 % of design (``bench/results/gap_check_evening_seed1.md``, case 0, available 36.3 W/m2) the
+calibrated heating power came out at 36.5 W/m2 against 70.0 for the clean twin, and the model-side cap on top
+found 6 % of the held-out error left to explain. The diagnosis therefore tests such an effect against the
+model without it (the parameter at the top of its range, where nothing is capped).
+
 **Plausibility** (:attr:`Effect.smallest`, set from the same sources, not fitted to any blind check): a
 calibrated addition smaller than the smallest instance of the effect seen in practice is not that effect.
 Temperature bias 0.8 K: not a size from practice (a class-B Pt1000's tolerance near 20 degC is about 0.4 K, and
@@ -106,6 +113,11 @@ class Effect:
             estimate is smaller: such a fit absorbs some other shortcoming of the model (see the module docstring).
         smallest_reason: where ``smallest`` comes from, in a few words (shown with the verdict and by
             ``buildenv effects``).
+        building_parameter: the theta_build variable through which the metamodel already carries the effect,
+            or None. Calibration then absorbs the effect into it, so an addition on top finds nothing left to
+            explain; the diagnosis instead tests whether the building needs that parameter short of the top of
+            its catalogue range, where the effect vanishes (:mod:`buildenv.gap`). When the site declares the
+            parameter known, the model-side addition (:attr:`parameters`) is tried as for any other effect.
     """
 
     name: str
@@ -120,6 +132,7 @@ class Effect:
     model: str
     smallest: float | None = None
     smallest_reason: str = ""
+    building_parameter: str | None = None
 
     @property
     def size_name(self) -> str:
@@ -212,7 +225,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                            "largest heating power (zone + air handling unit) the plant delivers"),
             ModelParameter("sag_k_per_wh_m2", "K per Wh/m2", 0.0, 0.2, 0.0,
                            "temperature lost per Wh/m2 of heat not delivered (decaying over ~3 h)")),
-           "the predicted heating is capped at capacity_w_m2; the heat not delivered lowers the temperature"),
+           "the metamodel's heating power (building parameter heating_power_w_m2) is calibrated, and the "
+           "diagnosis tests it against an unlimited heating power; with the heating power declared known, the "
+           "predicted heating is capped at capacity_w_m2 and the heat not delivered lowers the temperature",
+           building_parameter="heating_power_w_m2"),
     Effect("heat_recovery", "heat recovery on the air handling unit",
            "An air-to-air heat exchanger preheats the outdoor air with the exhaust air: the air handling unit's "
            "heating falls, most in cold weather.",

@@ -13,6 +13,14 @@ significant gain, stop when none is significant):
    initial step ``refit_step`` for the building parameters, 25 % of each range by default).
    The control is the current model recalibrated the same way with no new effect: every candidate is
    compared with it, so that the extra calibration effort is not credited to the effect.
+   An effect the model already carries through a building parameter
+   (:attr:`buildenv.effects.Effect.building_parameter`: an undersized heating plant is a low calibrated heating
+   power) has been absorbed by the base calibration, so an addition on top finds nothing left to explain.
+   It is judged the other way round: the control is the candidate, and the model it is compared with has that
+   parameter pinned at the top of its catalogue range, where the effect vanishes, recalibrated with the same
+   budget (``k = 1``). Measured on the blind cases of ``bench/results/gap_check_evening_seed1.md``: a plant at
+   46 % and 40 % of its design capacity gains 42 % and 32 % of the held-out error over an unlimited one (the
+   model-side cap on top of the absorbed limit: 6 %), the clean twin of the first 1.4 %.
    ``holidays`` is estimated differently: for each weekday, the share of its occupied-hours lighting and plug
    loads that did not happen is fitted by least squares to the day's measured consumption, and the days
    where it is at least half and the day's standardised squared error falls by more than
@@ -141,11 +149,14 @@ class ModelFit:
     absent: np.ndarray
     cost: float = float("nan")
     evaluations: int = 0
+    carried: tuple[str, ...] = ()
+    pinned: dict[str, float] = field(default_factory=dict)
 
     @property
     def model_effects(self) -> tuple[str, ...]:
-        """Effects with calibrated parameters (all but holidays)."""
-        return tuple(e for e in self.effects if e != HOLIDAYS)
+        """Effects with calibrated parameters of their own (all but holidays and those carried by a building
+        parameter)."""
+        return tuple(e for e in self.effects if e != HOLIDAYS and e not in self.carried)
 
     def effect_parameters(self) -> dict[str, dict[str, float]]:
         """``{effect: {parameter: value}}`` in physical units (holidays: the number of absent days)."""
@@ -153,6 +164,9 @@ class ModelFit:
         values = em.split_parameters(self.model_effects, self.params[None, n_base:])
         out = {e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])}
                for e in self.model_effects}
+        for e in self.carried:
+            name = get_effect(e).building_parameter
+            out[e] = {name: round(float(self.params[cal.parameter_names().index(name)]), 5)}
         if HOLIDAYS in self.effects:
             out[HOLIDAYS] = {"absent_days": int((self.absent > 0).sum())}
         return out
@@ -171,7 +185,31 @@ class _Context:
 
 def _problem(ctx: _Context, fit: ModelFit, weeks: list[int], absent: np.ndarray | None = None) -> cal.Problem:
     mask = fit.absent if absent is None else absent
-    return cal.build_problem(ctx.site, weeks, fit.model_effects, mask if mask.any() else None)
+    problem = cal.build_problem(ctx.site, weeks, fit.model_effects, mask if mask.any() else None)
+    for name, value in fit.pinned.items():
+        j = problem.names.index(name)
+        problem.lo[j] = problem.hi[j] = value
+    return problem
+
+
+def carried_by(ctx: _Context, effect: str) -> str | None:
+    """The building parameter that carries ``effect`` in this site's calibration
+    (:attr:`buildenv.effects.Effect.building_parameter`), or None when the effect has none or the site
+    declares it known (then the effect's own model-side addition is tried)."""
+    name = get_effect(effect).building_parameter
+    return name if name is not None and name not in ctx.site.theta_known() else None
+
+
+def without_carried_effect(ctx: _Context, current: ModelFit, effect: str) -> ModelFit:
+    """``current`` with the building parameter that carries ``effect`` pinned at the top of its catalogue
+    range, where the effect vanishes (an unlimited heating power), recalibrated like the control: the model
+    a carried effect is judged against."""
+    name = carried_by(ctx, effect)
+    top = cat.get(name).max
+    params = current.params.copy()
+    params[cal.parameter_names().index(name)] = top
+    pinned = dataclasses.replace(current, params=params, pinned={**current.pinned, name: top})
+    return refit(ctx, pinned, None)
 
 
 def predict(ctx: _Context, fit: ModelFit, weeks: list[int]) -> tuple[np.ndarray, np.ndarray]:
@@ -228,7 +266,7 @@ def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
         new = np.zeros(0)
     else:
         new = em.none_parameters(effect)
-    fit = ModelFit(effects, np.concatenate([current.params, new]), absent)
+    fit = dataclasses.replace(current, effects=effects, params=np.concatenate([current.params, new]), absent=absent)
     problem = _problem(ctx, fit, ctx.fit_weeks)
     n_old = len(current.params)
     n_base = len(cal.parameter_names())
@@ -241,7 +279,7 @@ def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
                            np.full(len(new), new_step)])
     params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, budget - spent,
                                        start=start, stds=stds, restarts=ctx.settings.refit_restarts)
-    return ModelFit(effects, params, absent, info["cost"], info["evaluations"] + spent)
+    return dataclasses.replace(fit, params=params, cost=info["cost"], evaluations=info["evaluations"] + spent)
 
 
 def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
@@ -388,9 +426,14 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
         trials = []
         control = refit(ctx, current, None)
         for name in remaining:
-            trial = refit(ctx, current, name)
             series = SERIES if settings.judge == "pooled" else get_effect(name).series
-            score = heldout_score(ctx, control, trial, len(em.none_parameters(name)), series)
+            if carried_by(ctx, name):  # in the model already: judged against the model without it
+                trial = dataclasses.replace(control, effects=(*control.effects, name),
+                                            carried=(*control.carried, name))
+                score = heldout_score(ctx, without_carried_effect(ctx, current, name), trial, 1, series)
+            else:
+                trial = refit(ctx, current, name)
+                score = heldout_score(ctx, control, trial, len(em.none_parameters(name)), series)
             trials.append((name, trial, score))
             bar.update(1)
         threshold = settings.alpha / len(trials)
@@ -417,7 +460,11 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
                         "parameters": current.params.tolist()},
               "settings": dataclasses.asdict(settings)}
     if selected:
-        final = heldout_score(ctx, base, current, 1)  # the whole gain of the diagnosis, against the base model
+        before = base  # the whole gain of the diagnosis, against the base model without any selected effect
+        for name in selected:
+            if name in current.carried:
+                before = without_carried_effect(ctx, before, name)
+        final = heldout_score(ctx, before, current, 1)
         result["heldout_before"], result["heldout_after"] = final["metrics_before"], final["metrics_after"]
     if localisation:
         result["localisation"] = localise_site(ctx, base, plot)
@@ -516,7 +563,9 @@ def save_extended_model(site, result: dict) -> Path | None:
     theta, occ = cal._split(cal.build_problem(site, result["fit_weeks"][:1], fit.model_effects), fit.params[None])
     extended = {**previous, "method": "cmaes+effects",
                 "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
-                "occupancy": np.round(occ[0], 3).tolist(), "effects": fit.effect_parameters(),
+                "occupancy": np.round(occ[0], 3).tolist(),
+                # an effect carried by a building parameter is in "theta" (and named in "diagnosis")
+                "effects": {e: v for e, v in fit.effect_parameters().items() if e not in fit.carried},
                 "absent_days": result["model"]["absent_days"], "fit_weeks": result["fit_weeks"],
                 "heldout_weeks": result["heldout_weeks"],
                 "diagnosis": {"selected": result["selected"], "verdict": result["verdict"]},

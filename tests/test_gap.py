@@ -196,3 +196,30 @@ def test_site_model_simulates_the_building_effects_found(calibrated, surrogate, 
     assert extended[..., ahu].sum() < plain[..., ahu].sum()
     t = list(em.cat.OUTPUT_NAMES).index("T_INT_OFFICE")
     np.testing.assert_allclose(extended[..., t], plain[..., t], atol=1e-4)  # a sensor effect is not the building
+
+
+@pytest.mark.parametrize("heating_power_w_m2, named", [(15.0, True), (100.0, False)])
+def test_a_heating_plant_short_of_power_is_named_against_an_unlimited_one(tmp_path, surrogate, heating_power_w_m2,
+                                                                          named):
+    # the metamodel carries a capacity limit through its heating power, so the base calibration absorbs it; the
+    # diagnosis judges it against the model with the heating power pinned at the top of the catalogue range
+    from test_calibration import _synthetic_site, _truth
+
+    truth = _truth()
+    truth[cal.parameter_names().index("heating_power_w_m2")] = heating_power_w_m2
+    site = _synthetic_site(tmp_path, surrogate, truth)
+    settings = DiagnosisSettings(candidates=("heating_capacity_limit",), evaluations=300, base_evaluations=800,
+                                 max_effects=1)
+    result = diagnose(site, surrogate, settings, localisation=False)
+    (entry,) = result["effects"]
+    assert result["selected"] == (["heating_capacity_limit"] if named else [])
+    assert set(entry["parameters"]) == {"heating_power_w_m2"}
+    if named:
+        assert entry["parameters"]["heating_power_w_m2"] < 30.0 and entry["score"] > 0.5
+        assert entry["heldout_after"]["rmse_t_celsius"] < 0.5 * entry["heldout_before"]["rmse_t_celsius"]
+        saved = json.loads(save_extended_model(site, result).read_text())
+        assert "heating_capacity_limit" not in saved["effects"]  # it is in theta, and named in the diagnosis
+        assert saved["diagnosis"]["selected"] == ["heating_capacity_limit"]
+        assert saved["theta"]["heating_power_w_m2"] == entry["parameters"]["heating_power_w_m2"]
+    else:
+        assert entry["score"] < 0.15

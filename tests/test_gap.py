@@ -223,3 +223,16 @@ def test_a_heating_plant_short_of_power_is_named_against_an_unlimited_one(tmp_pa
         assert saved["theta"]["heating_power_w_m2"] == entry["parameters"]["heating_power_w_m2"]
     else:
         assert entry["score"] < 0.15
+
+
+def test_a_carried_effect_that_trades_one_series_for_the_other_is_not_named():
+    # a sensor reading low absorbed by a low heating power: consumption better, temperature worse
+    from buildenv.gap import series_made_worse
+
+    assert series_made_worse("heating_capacity_limit", {"temperature": -0.74, "consumption": 0.78}) == ["temperature"]
+    assert series_made_worse("heating_capacity_limit", {"temperature": 0.40, "consumption": 0.44}) == []
+    verdict = _verdict([], [{"name": "heating_capacity_limit", "plausible": True, "parameters": {}, "score": 0.35,
+                             "series_made_worse": ["temperature"],
+                             "significance": {"p_value": 7e-7, "threshold": 0.006}}], 0.15)
+    assert verdict.endswith("it makes the temperature worse: a building parameter trading one series against the "
+                            "other absorbs another miss)")

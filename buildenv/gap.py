@@ -422,6 +422,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     steps: list[dict] = []
     remaining = [e for e in settings.candidates if e not in settings.base_effects]
     first_step: list[dict] = []
+    without_base: dict[str, ModelFit] = {}  # the base model without a carried effect (first step), reused below
     bar = tqdm(total=len(remaining), desc="effects", disable=not progress, leave=False)
     while remaining and len(current.effects) - len(base.effects) < settings.max_effects:
         trials = []
@@ -431,7 +432,10 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
             if carried_by(ctx, name):  # in the model already: judged against the model without it
                 trial = dataclasses.replace(control, effects=(*control.effects, name),
                                             carried=(*control.carried, name))
-                score = heldout_score(ctx, without_carried_effect(ctx, current, name), trial, 1, series)
+                without = without_carried_effect(ctx, current, name)
+                if current is base:
+                    without_base[name] = without
+                score = heldout_score(ctx, without, trial, 1, series)
             else:
                 trial = refit(ctx, current, name)
                 score = heldout_score(ctx, control, trial, len(em.none_parameters(name)), series)
@@ -464,7 +468,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
         before = base  # the whole gain of the diagnosis, against the base model without any selected effect
         for name in selected:
             if name in current.carried:
-                before = without_carried_effect(ctx, before, name)
+                before = without_base[name] if before is base and name in without_base \
+                    else without_carried_effect(ctx, before, name)
         final = heldout_score(ctx, before, current, 1)
         result["heldout_before"], result["heldout_after"] = final["metrics_before"], final["metrics_after"]
     if localisation:

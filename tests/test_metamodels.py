@@ -68,6 +68,17 @@ def test_standardiser_uses_only_what_it_is_given():
     np.testing.assert_allclose(norm.inverse(norm.transform(train)), train, rtol=1e-5)
 
 
+def test_standardiser_fitted_in_chunks_matches_one_float64_pass(monkeypatch):
+    import metamodels.normalisation as normalisation
+
+    x = np.random.default_rng(1).normal(300.0, 0.5, (40, 24, 6)).astype(np.float32)  # a large mean, a small spread
+    flat = x.astype(np.float64).reshape(-1, 6)
+    monkeypatch.setattr(normalisation, "FIT_CHUNK_VALUES", 50)  # 8 rows a chunk, 120 chunks
+    norm = Standardiser.fit(x)
+    np.testing.assert_allclose(norm.mean, flat.mean(0), rtol=1e-7)
+    np.testing.assert_allclose(norm.std, flat.std(0), rtol=1e-6)
+
+
 def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     torch.manual_seed(1)
     model = build("transformer", 5, 3, layers=1)

@@ -538,7 +538,7 @@ def _why_not_named(entry: dict, min_gain: float) -> str:
         reasons.append(f"it makes the {' and '.join(entry['series_made_worse'])} worse: a building parameter "
                        "trading one series against the other absorbs another miss")
     if not entry["plausible"]:
-        reasons.append(f"its estimate {entry['parameters']} is below what the diagnosis names: "
+        reasons.append(f"its estimate {entry['parameters']} is outside what the diagnosis names: "
                        f"{get_effect(entry['name']).named_from()}")
     return f"{entry['name']}, held-out gain {100 * entry['score']:.1f} %, p = {sig['p_value']:.2g}" + \
         "".join(f"; {r}" for r in reasons)

@@ -236,3 +236,19 @@ def test_a_carried_effect_that_trades_one_series_for_the_other_is_not_named():
                              "significance": {"p_value": 7e-7, "threshold": 0.006}}], 0.15)
     assert verdict.endswith("it makes the temperature worse: a building parameter trading one series against the "
                             "other absorbs another miss)")
+
+
+def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():
+    # seed 0 case 5 of the blind check (a heat exchanger): heating power calibrated at 99.9 W/m2, so the model is
+    # the same building as the unlimited one it is judged against, yet the two refits differed by 28 % held-out
+    from buildenv.gap import candidate_qualifies
+
+    assert not candidate_qualifies("heating_capacity_limit", 0.28, 2.6e-6, 0.006, 0.15, {"heating_power_w_m2": 99.85})
+    assert candidate_qualifies("heating_capacity_limit", 0.28, 2.6e-6, 0.006, 0.15, {"heating_power_w_m2": 36.0})
+    # with the heating power declared known, the model-side cap is judged as any other effect
+    assert candidate_qualifies("heating_capacity_limit", 0.28, 2.6e-6, 0.006, 0.15, {"capacity_w_m2": 99.0,
+                                                                                    "sag_k_per_wh_m2": 0.0})
+    verdict = _verdict([], [{"name": "heating_capacity_limit", "plausible": False, "score": 0.28,
+                             "parameters": {"heating_power_w_m2": 99.85}, "series_made_worse": [],
+                             "significance": {"p_value": 2.6e-6, "threshold": 0.006}}], 0.15)
+    assert "is outside what the diagnosis names: heating_power_w_m2 <= 90 (one catalogue step below" in verdict

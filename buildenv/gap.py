@@ -18,7 +18,9 @@ significant gain, stop when none is significant):
    power) has been absorbed by the base calibration, so an addition on top finds nothing left to explain.
    It is judged the other way round: the control is the candidate, and the model it is compared with has that
    parameter pinned at the top of its catalogue range, where the effect vanishes, recalibrated with the same
-   budget (``k = 1``); it must also make none of its series worse (:func:`series_made_worse`). Measured on
+   budget (``k = 1``); it must also make none of its series worse (:func:`series_made_worse`), and its
+   calibrated parameter must lie a catalogue step below the top (:meth:`buildenv.effects.Effect.carried_limit`:
+   nearer, the two models are the same building and a gain is the refits' own spread). Measured on
    the blind cases of ``bench/results/gap_check_capacity_seed1.md``: a plant at 46 % and 40 % of its design
    capacity gains 42 % and 32 % of the held-out error over an unlimited one (the model-side cap on top of the
    absorbed limit: 6 %), the clean twin of the first 1.4 %.

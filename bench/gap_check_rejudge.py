@@ -21,8 +21,7 @@ from pathlib import Path
 
 from gap_check_compare import tally
 
-from buildenv.effects import get_effect
-from buildenv.gap import candidate_qualifies, series_made_worse
+from buildenv.gap import candidate_qualifies
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -33,10 +32,8 @@ def first_named(row: dict, alpha: float, min_gain: float) -> str:
     a carried effect (its estimate is its building parameter) must also make none of its series worse."""
     threshold = alpha / len(row["p_values"])
     for name in sorted(row["scores"], key=lambda n: -row["scores"][n]):
-        carried = get_effect(name).building_parameter in row["estimates"][name]
-        worse = carried and series_made_worse(name, row.get("gains_by_series", {}).get(name, {}))
         if candidate_qualifies(name, row["scores"][name], row["p_values"][name], threshold, min_gain,
-                               row["estimates"][name]) and not worse:
+                               row["estimates"][name], row.get("gains_by_series", {}).get(name)):
             return name
     return NONE
 

@@ -51,12 +51,12 @@ the data, and the held-out weeks' days are flagged the same way (:mod:`buildenv.
 no fit-week day has estimated nothing from the weeks it was calibrated on, and its held-out gain comes from
 held-out days it flagged itself. In the blind checks recorded in ``bench/results/gap_check*.json`` that
 happened only on wrong namings: a sensor bias, and two 54-65 % heat exchangers whose lower consumption it took
-for absent days. Every correct naming had flagged at least one fit-week day. The capacity limit, judged through the calibrated
-heating power, is named only when that power is at least one catalogue step (10 W/m2) below the top of its
-range (:meth:`Effect.carried_limit`): nearer the top the model is the unlimited building at the catalogue's
-resolution (a rule read off seed 0 case 5, where a heating power calibrated at 99.9 W/m2 still gained 28 %
-against the pinned model, the two refits' own spread); with the heating power declared known, the model-side
-capacity has no bound.
+for absent days. Every correct naming had flagged at least one fit-week day. The capacity limit, judged
+through the calibrated heating power, is named only when that power is at least one catalogue step (10 W/m2)
+below the top of its range (:meth:`Effect.carried_limit`): nearer the top the model is the unlimited building
+at the catalogue's resolution (a rule read off seed 0 case 5, where a heating power calibrated at 99.9 W/m2
+still gained 28 % against the pinned model, the two refits' own spread); with the heating power declared
+known, the model-side capacity has no bound.
 """
 
 from __future__ import annotations

@@ -482,10 +482,12 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
 
 
 def candidate_qualifies(name: str, gain: float, p_value: float, threshold: float, min_gain: float,
-                        parameters: dict[str, float]) -> bool:
+                        parameters: dict[str, float], gain_by_series: dict[str, float] | None = None) -> bool:
     """Whether a candidate may join the model (module docstring, step 3): significant (``p_value <
-    threshold``), a held-out gain of at least ``min_gain`` and a plausible estimate ``parameters``."""
-    return p_value < threshold and gain >= min_gain and get_effect(name).plausible(parameters)
+    threshold``), a held-out gain of at least ``min_gain`` and a plausible estimate ``parameters``; a carried
+    effect also makes none of its series worse (:func:`carried_series_made_worse`, given ``gain_by_series``)."""
+    return p_value < threshold and gain >= min_gain and get_effect(name).plausible(parameters) \
+        and not carried_series_made_worse(name, parameters, gain_by_series or {})
 
 
 def series_made_worse(name: str, gain_by_series: dict[str, float]) -> list[str]:
@@ -499,13 +501,20 @@ def series_made_worse(name: str, gain_by_series: dict[str, float]) -> list[str]:
     return [s for s in get_effect(name).series if gain_by_series.get(s, 0.0) < 0.0]
 
 
+def carried_series_made_worse(name: str, parameters: dict[str, float], gain_by_series: dict[str, float]) -> list[str]:
+    """:func:`series_made_worse` when the estimate ``parameters`` is a carried effect's building parameter (the
+    diagnosis judged it through that parameter), else empty."""
+    carried = get_effect(name).building_parameter in parameters
+    return series_made_worse(name, gain_by_series) if carried else []
+
+
 def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: float) -> dict:
     significant = score["p_value"] < threshold
     parameters = trial.effect_parameters().get(name, {})
     plausible = get_effect(name).plausible(parameters)
-    worse = series_made_worse(name, score["gain_by_series"]) if name in trial.carried else []
-    qualifies = candidate_qualifies(name, score["gain"], score["p_value"], threshold, min_gain, parameters) \
-        and not worse
+    worse = carried_series_made_worse(name, parameters, score["gain_by_series"])
+    qualifies = candidate_qualifies(name, score["gain"], score["p_value"], threshold, min_gain, parameters,
+                                    score["gain_by_series"])
     return {"name": name, "title": get_effect(name).title, "score": round(score["gain"], 4),
             "significance": {"p_value": score["p_value"], "threshold": threshold, "f": round(score["f"], 3),
                              "k": score["k"], "n_eff": score["n_eff"], "significant": significant,

@@ -23,6 +23,7 @@ from buildenv.effects import JUDGES
 from buildenv.gap import DiagnosisSettings
 from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, run_check
 from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
+from buildenv.surrogate import load_metamodel
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
@@ -64,6 +65,8 @@ def main() -> None:
                         help="score candidates on both series, or on the series each shows in")
     parser.add_argument("--base-restarts", type=int, default=1,
                         help="CMA-ES runs of each base calibration, the lowest fit cost kept")
+    parser.add_argument("--checkpoint", default="default",
+                        help="metamodel checkpoint the diagnosis uses (default: the shipped one)")
     add_known_argument(parser)
     args = parser.parse_args()
     known = parse_known(args.known)
@@ -74,8 +77,9 @@ def main() -> None:
     base: str | list[str] = args.base_effects
     if base != "auto":
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
-    result = run_check(args.out, args.cases, args.seed, settings=settings, base_effects=base, progress=True,
-                       known_parameters=known)
+    surrogate = load_metamodel(None if args.checkpoint == "default" else args.checkpoint)
+    result = run_check(args.out, args.cases, args.seed, surrogate=surrogate, settings=settings, base_effects=base,
+                       progress=True, known_parameters=known)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
                f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
@@ -88,7 +92,8 @@ def main() -> None:
                   if args.refit_restarts != DiagnosisSettings.refit_restarts else "")
                + (f" --effect-first {args.effect_first}"
                   if args.effect_first != DiagnosisSettings.effect_first_evaluations else "")
-               + "".join(f" --known {k}={v:g}" for k, v in known.items()))
+               + "".join(f" --known {k}={v:g}" for k, v in known.items())
+               + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "default" else ""))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
                                                                                           - started, 1), **result}

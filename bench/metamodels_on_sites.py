@@ -15,6 +15,7 @@ reference`` command (kept under ``out/model-sites``). Writes ``bench/results/met
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import json
 import os
 import subprocess
@@ -63,11 +64,12 @@ def main() -> None:
                          "seconds": result["seconds"], **{k: result["heldout"][k] for k in METRICS}})
             print(json.dumps(rows[-1]), flush=True)
     command = "python bench/metamodels_on_sites.py " + " ".join(f'--model "{m}"' for m in args.model)
-    record = {"machine": machine(), "load_average_at_start": load, "command": command,
+    record = {"date": dt.date.today().isoformat(), "machine": machine(), "load_average_at_start": load,
+              "command": command,
               "seconds": round(time.perf_counter() - started, 1), "rows": rows}
     (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1) + "\n")
     lines = ["# Metamodels compared on calibrated sites (held-out weeks)", "",
-             f"Machine: {record['machine']}, 1-min load average at start {load:.2f}. Command: `{command}`.", "",
+             f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}. Command: `{command}`.", "",
              "Each site calibrated by each model (CMA-ES, 6,000 evaluations, seed 0, first half of the weeks fit); "
              "held-out metrics of the site's other weeks.", "",
              "| site | model | fit cost | R2_T | R2_Q | RMSE_T degC | CV(RMSE)_Q % | NMBE_Q % |", "|---|---|---|---|---|---|---|---|"]

@@ -57,6 +57,8 @@ def main() -> None:
                         help="evaluations of a refit's first stage, the new effect alone (0: joint refit only)")
     parser.add_argument("--refit-restarts", type=int, default=DiagnosisSettings.refit_restarts,
                         help="CMA-ES runs of every refit (control and candidates), the lowest fit cost kept")
+    parser.add_argument("--refit-anchor", type=float, default=DiagnosisSettings.refit_anchor,
+                        help="pull of every refit towards the model it starts from (0: none)")
     parser.add_argument("--name", default="gap_check", help="stem of the result files in bench/results")
     parser.add_argument("--base-effects", default="auto",
                         help="effects every case models from the start: auto (diagnose a clean reference site "
@@ -73,7 +75,8 @@ def main() -> None:
     started, load = time.perf_counter(), os.getloadavg()[0]
     settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge,
                                  base_restarts=args.base_restarts, refit_step=args.refit_step,
-                                 effect_first_evaluations=args.effect_first, refit_restarts=args.refit_restarts)
+                                 effect_first_evaluations=args.effect_first, refit_restarts=args.refit_restarts,
+                                 refit_anchor=args.refit_anchor)
     base: str | list[str] = args.base_effects
     if base != "auto":
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
@@ -90,6 +93,8 @@ def main() -> None:
                + (f" --refit-step {args.refit_step:g}" if args.refit_step != DiagnosisSettings.refit_step else "")
                + (f" --refit-restarts {args.refit_restarts}"
                   if args.refit_restarts != DiagnosisSettings.refit_restarts else "")
+               + (f" --refit-anchor {args.refit_anchor:g}"
+                  if args.refit_anchor != DiagnosisSettings.refit_anchor else "")
                + (f" --effect-first {args.effect_first}"
                   if args.effect_first != DiagnosisSettings.effect_first_evaluations else "")
                + "".join(f" --known {k}={v:g}" for k, v in known.items())

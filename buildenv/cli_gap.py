@@ -20,6 +20,8 @@ def _settings(args: argparse.Namespace):
         step["effect_first_evaluations"] = args.effect_first
     if args.refit_restarts is not None:
         step["refit_restarts"] = args.refit_restarts
+    if args.refit_anchor is not None:
+        step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts,
@@ -69,6 +71,9 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="evaluations of a refit's first stage, the new effect alone (default 0: joint refit only)")
     p.add_argument("--refit-restarts", type=int, default=None,
                    help="CMA-ES runs of every refit (control and candidates), lowest fit cost kept (default 1)")
+    p.add_argument("--refit-anchor", type=float, default=None,
+                   help="pull of every refit towards the model it starts from: weight of the squared move of "
+                        "its parameters, in units of their ranges, added to the fit cost (default 0: none)")
     p.add_argument("--base-restarts", type=int, default=1,
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
                         "lowest fit cost kept")

@@ -123,6 +123,27 @@ def test_restarts_keep_the_best_of_independent_runs(tmp_path, surrogate):
         cal.calibrate_cmaes(problem, surrogate, restarts=0)
 
 
+def test_anchored_refit_stays_near_its_start_unless_the_fit_pays(tmp_path, surrogate):
+    truth = _truth()
+    site = _synthetic_site(tmp_path, surrogate, truth, weeks=1)
+    problem = cal.build_problem(site, [0])
+    start = problem.from_unit(np.full(int(problem.free.sum()), 0.5))[0]  # far from the truth
+    stds = np.full(len(start), 0.25)
+    free, _ = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds)
+    held, info = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds,
+                                     anchor=100.0)
+    move = lambda p: float(np.abs(problem.to_unit(p) - problem.to_unit(start)).max())  # noqa: E731
+    assert move(held) < 0.05 < move(free)  # a strong pull keeps every parameter near the start
+    assert cal.evaluate(problem, surrogate, held[None])[0] == pytest.approx(info["cost"], abs=1e-6)  # plain cost
+    loose = np.zeros(len(start), bool)
+    loose[np.flatnonzero(problem.free)[0]] = True  # only the first free parameter pulled: the others move
+    part, _ = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds,
+                                  anchor=100.0, anchored=loose)
+    assert abs(problem.to_unit(part)[0] - 0.5) < 0.05 and move(part) > 0.05
+    with pytest.raises(cal.CalibrationError, match="anchor must be at least 0"):
+        cal.calibrate_cmaes(problem, surrogate, start=start, anchor=-1.0)
+
+
 def test_gradient_calibration_fits_too(tmp_path, surrogate):
     site = _synthetic_site(tmp_path, surrogate, _truth())
     result = cal.calibrate_site(site, surrogate, weeks=[0], method="adam", seed=0, save=False)

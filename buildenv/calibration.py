@@ -285,7 +285,9 @@ def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, ma
     ``anchor`` > 0 (with a ``start``) searches the cost plus ``anchor`` times the squared distance from
     ``start`` of the ``anchored`` parameters (boolean ``(dim,)``, default all), each measured in its range
     (the unit box): a refit then moves a parameter only as far as the fit pays for it. The returned
-    ``cost`` is the plain cost of the best point.
+    ``cost`` is the plain cost of the best point; ``run_costs`` are the costs each run searched (pull
+    included), by which the best run is chosen. Without a ``start`` there is nothing to pull towards and
+    ``anchor`` is not used.
     """
     if restarts < 1:
         raise CalibrationError(f"restarts must be at least 1 (got {restarts})")

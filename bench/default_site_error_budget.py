@@ -68,14 +68,14 @@ def _night_term_rows(site, surrogate: sg.Surrogate, params: np.ndarray, fit_week
 
     def cost(v: np.ndarray) -> float:
         v = np.clip(v, 0.0, None)
-        return float(cal.evaluate(fit_problem, surrogate, np.r_[params, v][None])[0])
+        return float(cal.evaluate(fit_problem, surrogate, np.r_[params, v, 0.0][None])[0])
 
     best = min((minimize(cost, [g0, 0.1], method="Nelder-Mead") for g0 in (0.02, 0.1, 0.3)), key=lambda r: r.fun)
     rows = []
     for name, v in (("none (the saved calibration)", np.zeros(2)),
                     (f"cooling_k_per_wh_m2 = {max(best.x[0], 0):.3f}, reheat_share = {max(best.x[1], 0):.2f}",
                      np.clip(best.x, 0.0, None))):
-        full = np.r_[params, v]
+        full = np.r_[params, v, 0.0]  # the night hours' term only (unheated_supply_share at none)
         t, q = cal.predict(held_problem, surrogate, full)
         m = cal.score_series(held_problem, t, q, full, cal._scale(fit_problem))
         rows.append(f"| {name} | {cost(v):.4f} | {m['r2_t']:.3f} | {m['rmse_t_celsius']:.3f} | "

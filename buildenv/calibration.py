@@ -184,6 +184,8 @@ def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
     x = x.reshape(pop * weeks, *x.shape[2:])
     if problem.effects:
         em.transform_inputs(x, _effect_values(problem, params, weeks))
+    if problem.absent is not None:
+        em.absent_days_inputs(x, np.tile(problem.absent, (pop, 1)))
     return x
 
 
@@ -206,8 +208,7 @@ def simulate(problem: Problem, surrogate: sg.Surrogate,
     x = encode_candidates(problem, params)
     out = surrogate.predict_encoded(x)
     values = _effect_values(problem, params, weeks)
-    absent = None if problem.absent is None else np.tile(problem.absent, (pop, 1))
-    out = em.transform_outputs(out, x, values, absent)
+    out = em.transform_outputs(out, x, values)
     t, q = model_series(problem, out)
     t = em.sensor_temperature(t, values)
     shape = (pop, weeks, cat.HOURS_PER_WEEK)
@@ -539,10 +540,12 @@ def problem_occupancy(problem: Problem, params: np.ndarray) -> np.ndarray:
 def calibrated_parameters(calibration: dict, effects: tuple[str, ...] = ()) -> np.ndarray:
     """The parameter vector (problem order: free theta_build, occupancy hours, then the parameters of
     ``effects``) of a saved calibration (``calibration.json``'s ``theta`` in catalogue units, ``occupancy`` in h
-    and ``effects`` in the effects' units)."""
+    and ``effects`` in the effects' units). A parameter an effect gained after the calibration was saved takes
+    its "no effect" value."""
     return np.array([calibration["theta"][n] for n in _free_theta()]
                     + list(np.asarray(calibration["occupancy"], float).ravel())
-                    + [calibration["effects"][e][p.name] for e in effects for p in get_effect(e).parameters])
+                    + [calibration["effects"][e].get(p.name, p.none) for e in effects
+                       for p in get_effect(e).parameters])
 
 
 def load_calibration(site_path: str | Path) -> dict:

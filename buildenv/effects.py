@@ -220,10 +220,10 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
            "energyplus", "absent weekdays in the measured period", (1.0, 3.0), 2.0, ("consumption", "temperature"),
            (),
-           "absent days: for each weekday the share of its occupied-hours lighting and plug loads that did not "
-           "happen is fitted to its measured consumption; days where it is at least half and the day's "
-           "standardised squared error falls by more than 15 % are predicted (partly) unoccupied; they are "
-"estimated from the data like the occupancy hours", 1.0,
+           "absent days: for each weekday the share of its occupants who did not come is fitted to its measured "
+           "temperature and consumption; days where it is at least half and the day's standardised squared "
+           "error falls by more than 15 % are simulated with that much less occupancy; they are estimated from "
+           "the data like the occupancy hours", 1.0,
            smallest_reason="a candidate that flags no fit-week day has estimated nothing from the fit weeks"),
 
     Effect("night_plug_loads", "plug loads left on at night",
@@ -267,15 +267,21 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "(about 13 degC) whenever its fans run. Out of hours its night cycle starts the fans as soon as one "
            "zone needs heat: the zones that need none (cores) get cold air at their boxes' minimum flow and cool "
            "down, the others reheat it. Cold nights are colder than a model with zone heating says, and cost "
-           "more heat.",
+           "more heat. When the ventilation runs on after the heating period, the air comes in at the cooling "
+           "supply temperature too, not warmed by the air handling unit: those hours are colder and cheaper.",
            "energyplus", "points of maximum air flow added to the VAV boxes' minimum out of hours", (10.0, 30.0),
            20.0, ("temperature", "consumption"),
            (ModelParameter("cooling_k_per_wh_m2", "K per Wh/m2", 0.0, 0.5, 0.0,
                            "temperature lost per Wh/m2 of the model's heating in hours its ventilation is off"),
             ModelParameter("reheat_share", "-", 0.0, 1.0, 0.0,
-                           "heat consumption added, as a share of the model's heating in those hours")),
+                           "heat consumption added, as a share of the model's heating in those hours"),
+            ModelParameter("unheated_supply_share", "-", 0.0, 1.0, 0.0,
+                           "share of the air handling unit's heating not spent in the hours the ventilation "
+                           "runs outside the heating period")),
            "in the hours the ventilation is off, the predicted temperature falls by cooling_k_per_wh_m2 x the "
-           "predicted heating and the consumption rises by reheat_share x the same heating", 0.02,
+           "predicted heating and the consumption rises by reheat_share x the same heating; in the hours it runs "
+           "outside the heating period, the temperature falls by the same coefficient x the predicted heating "
+           "and the air handling unit's heating by unheated_supply_share", 0.02,
            smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)"),
     Effect("evening_departure", "occupants leaving gradually in the evening",
            "Offices do not empty at one hour: after the main working day part of the occupants stay on, with their "

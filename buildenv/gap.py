@@ -24,10 +24,13 @@ significant gain, stop when none is significant):
    the blind cases of ``bench/results/gap_check_capacity_seed1.md``: a plant at 46 % and 40 % of its design
    capacity gains 42 % and 32 % of the held-out error over an unlimited one (the model-side cap on top of the
    absorbed limit: 6 %), the clean twin of the first 1.4 %.
-   ``holidays`` is estimated differently: for each weekday, the share of its occupied-hours lighting and plug
-   loads that did not happen is fitted by least squares to the day's measured consumption, and the days
-   where it is at least half and the day's standardised squared error falls by more than
-   :data:`ABSENCE_THRESHOLD` are kept as absent; the held-out weeks' days are found the same way.
+   ``holidays`` is estimated differently: for each weekday, the share of its occupants who did not come is
+   fitted by least squares to the day's measured temperature and consumption (the model simulates the day
+   with nobody in: no people, lights or plug loads, the BMS schedule unchanged), and the days where it is at
+   least half and the day's standardised squared error falls by more than :data:`ABSENCE_THRESHOLD` are kept
+   as absent; the held-out weeks' days are found the same way. (Until November 2026 only the lighting and
+   plug loads were taken off, on the consumption outputs, and only the consumption was fitted: the
+   temperature of an absent day, up to 2 K lower in the stand-in's evening, stayed unexplained.)
 3. Each candidate is judged on the **held-out weeks** only. The residuals of both series are standardised
    by the base model's residual standard deviations on the fit weeks and pooled; ``SSE_before`` and
    ``SSE_after`` are their sums of squares. The score is the held-out gain ``1 - SSE_after / SSE_before``.
@@ -244,33 +247,43 @@ def _standardised_residuals(ctx: _Context, weeks: list[int], t: np.ndarray, q: n
             "consumption": (ctx.site.consumption_wh_m2()[weeks] - q) / ctx.sigma[1]}
 
 
-def _standardised_errors(ctx: _Context, weeks: list[int], t: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """``(weeks, 7)`` sums of squared standardised residuals per day (both series, measured hours only)."""
-    sq = sum(np.nan_to_num(r ** 2) for r in _standardised_residuals(ctx, weeks, t, q).values())
-    return sq.reshape(len(weeks), 7, cat.HOURS_PER_DAY).sum(-1)
-
-
 def detect_absent_days(ctx: _Context, fit: ModelFit, weeks: list[int]) -> np.ndarray:
-    """``(len(weeks), 7)`` absence fractions: for each weekday, the share ``f`` of its occupied-hours lighting
-    and plug loads that did not happen, fitted by least squares to the day's measured consumption; a day is
+    """``(len(weeks), 7)`` absence fractions: for each weekday, the share ``f`` of its occupancy that did not
+    come, fitted by least squares to the day's measured temperature and consumption (standardised residuals,
+    both series) from what the model predicts for the day with nobody in (:func:`buildenv.effects_model.
+    absent_days_inputs`; one batched call: the model as it is and with each weekday absent in turn); a day is
     kept (``f > 0``) when ``f >= 0.5`` and its standardised squared error falls by more than
     :data:`ABSENCE_THRESHOLD`, else 0 (see the module docstring)."""
-    problem = _problem(ctx, fit, weeks, np.zeros((ctx.site.weeks, 7)))
-    out, t, q = cal.simulate(problem, ctx.surrogate, fit.params[None])
-    out, t, q = out[0], t[0], q[0]
-    days = out.reshape(len(weeks), 7, cat.HOURS_PER_DAY, -1)
-    channels = [cat.OUTPUT_NAMES.index(n) for n in ("Q_EQP", "Q_LIGHT")]
-    load = days[..., channels].sum(-1)  # (weeks, 7, 24) Wh/m2
-    dq = (load[..., :6].mean(-1, keepdims=True) - load) / ctx.sigma[1]  # an absent day's change, standardised
-    measured = ctx.site.consumption_wh_m2()[weeks].reshape(dq.shape)
-    r = np.nan_to_num((measured - q.reshape(dq.shape)) / ctx.sigma[1])
-    dq = np.where(np.isfinite(measured), dq, 0.0)
-    f = np.clip((r * dq).sum(-1) / np.maximum((dq ** 2).sum(-1), 1e-9), 0.0, 1.0)
-    before = _standardised_errors(ctx, weeks, t, q)
-    after = before - (r ** 2).sum(-1) + ((r - f[..., None] * dq) ** 2).sum(-1)
+    n_days = len(cat.WEEKDAYS)
+    variants = np.zeros((n_days + 1, ctx.site.weeks, 7))
+    for d in range(n_days):
+        variants[d + 1, :, d] = 1.0
+    problems = [_problem(ctx, fit, weeks, v) for v in variants]
+    x = np.concatenate([cal.encode_candidates(p, fit.params[None]) for p in problems])
+    out = ctx.surrogate.predict_encoded(x)
+    values = cal._effect_values(problems[0], fit.params[None], len(x))
+    t, q = cal.model_series(problems[0], em.transform_outputs(out, x, values))
+    t = em.sensor_temperature(t, values)
+    shape = (n_days + 1, len(weeks), 7, cat.HOURS_PER_DAY)
+    t, q = t.reshape(shape), q.reshape(shape)
+    days = np.arange(n_days)
+    measured = {"temperature": ctx.site.temperature_c[weeks], "consumption": ctx.site.consumption_wh_m2()[weeks]}
+    terms = []
+    for (name, y), pred, sigma in zip(measured.items(), (t, q), ctx.sigma):
+        y = y.reshape(shape[1:])
+        r = np.nan_to_num((y - pred[0]) / sigma)[:, :n_days]  # (weeks, weekdays, 24)
+        change = (pred[1 + days, :, days] - pred[0][:, :n_days].transpose(1, 0, 2)).transpose(1, 0, 2) / sigma
+        change = np.where(np.isfinite(y[:, :n_days]), change, 0.0)
+        terms.append((r, change))
+    r_d = sum((r * c).sum(-1) for r, c in terms)
+    d_sq = sum((c ** 2).sum(-1) for _, c in terms)
+    f = np.clip(r_d / np.maximum(d_sq, 1e-9), 0.0, 1.0)
+    before = sum((r ** 2).sum(-1) for r, _ in terms)
+    after = sum(((r - f[..., None] * c) ** 2).sum(-1) for r, c in terms)
     keep = (f >= 0.5) & (after < (1.0 - ABSENCE_THRESHOLD) * before)
-    keep[:, len(cat.WEEKDAYS):] = False
-    return np.where(keep, f, 0.0)
+    out_days = np.zeros((len(weeks), 7))
+    out_days[:, :n_days] = np.where(keep, f, 0.0)
+    return out_days
 
 
 def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:

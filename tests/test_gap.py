@@ -90,6 +90,7 @@ def test_effects_at_their_none_values_change_nothing(calibrated, surrogate):
 
 EVENING = np.isin(np.arange(168) % 24, [20, 21]) & (np.arange(168) < 120)  # weekdays, after the occupancy
 MORNING = np.isin(np.arange(168) % 24, [9, 10, 11])
+AFTER_HEATING = np.arange(168) % 24 == 18  # the default site's settings: heating 7-18, ventilation 7-19
 
 
 @pytest.mark.parametrize("name, values, check", [
@@ -100,8 +101,11 @@ MORNING = np.isin(np.arange(168) % 24, [9, 10, 11])
     ("solar_shading", [0.6], lambda d: d["t"].mean() < 0),
     ("heating_capacity_limit", [15.0, 0.05], lambda d: d["q"].max() <= 1e-4 and d["q"].min() < 0 and d["t"].min() < 0),
     ("heat_recovery", [0.7], lambda d: d["q"].max() <= 1e-4 and d["q"].sum() < 0),
-    ("night_cycle_cold_air", [0.1, 0.2], lambda d: d["t"].max() <= 1e-5 and d["t"].min() < -0.1
+    ("night_cycle_cold_air", [0.1, 0.2, 0.0], lambda d: d["t"].max() <= 1e-5 and d["t"].min() < -0.1
      and d["q"].min() >= -1e-4 and d["q"].max() > 0.2),
+    # the ventilation runs an hour past the heating (the default site's 18:00): cold unheated supply air
+    ("night_cycle_cold_air", [0.0, 0.0, 0.6], lambda d: np.all(d["t"] == 0) and d["q"].max() <= 1e-4
+     and d["q"][..., AFTER_HEATING].min() < -1.0 and np.all(d["q"][..., ~AFTER_HEATING] == 0)),
     ("evening_departure", [0.4, 3.0], lambda d: d["t"][..., EVENING].mean() > 0.1 and d["q"][..., EVENING].mean() > 0.5
      and np.abs(d["q"][..., MORNING]).max() < 0.5),
 ])
@@ -110,6 +114,36 @@ def test_each_effect_moves_the_prediction_the_expected_way(calibrated, surrogate
     _, t0, q0 = _predict(site, surrogate, params)
     _, t1, q1 = _predict(site, surrogate, params, [name], [np.array(values, float)])
     assert check({"t": t1 - t0, "q": q1 - q0})
+
+
+def test_an_absent_day_is_simulated_without_occupants_and_found_from_both_series(tmp_path, calibrated, surrogate):
+    from buildenv.gap import ModelFit, _context, detect_absent_days
+
+    site, params = calibrated
+    absent = np.zeros((site.weeks, 7))
+    absent[1, 1] = 1.0  # the second week's Tuesday: nobody came
+    _, t_abs, q_abs = cal.simulate(cal.build_problem(site, [0, 1], (), absent), surrogate, params[None])
+    _, t0, q0 = _predict(site, surrogate, params)
+    tuesday = slice(24 + 9, 24 + 17)  # its occupied hours: no lights, plug loads or people, a colder building
+    assert (q_abs[0, 1, tuesday] < q0[0, 1, tuesday] - 1.0).all()
+    assert t_abs[0, 1, tuesday].mean() < t0[0, 1, tuesday].mean() - 0.2
+    for a, b in ((t_abs, t0), (q_abs, q0)):  # the other week is untouched
+        np.testing.assert_array_equal(a[0, 0], b[0, 0])
+    # the Monday before barely (the metamodel attends 12 hours either way)
+    np.testing.assert_allclose(t_abs[0, 1, :24], t0[0, 1, :24], atol=0.1)
+    np.testing.assert_allclose(q_abs[0, 1, :24], q0[0, 1, :24], atol=1.0)
+    # a site measured as the model says with that day absent (plus sensor noise): that day is found, no other
+    rng = np.random.default_rng(0)
+    measured_q = q_abs[0] * (1 + 0.01 * rng.standard_normal(q_abs[0].shape))
+    write_site(tmp_path, name="absent", weather=site.weather, start=site.start, floor_area_m2=site.floor_area_m2,
+               number_of_floors=site.number_of_floors, settings=site.settings[:2],
+               temperature_c=t_abs[0] + 0.1 * rng.standard_normal(t_abs[0].shape),
+               consumption_kwh=measured_q * site.floor_area_m2 / 1000.0)
+    measured = load_site(tmp_path)
+    ctx = _context(measured, surrogate, DiagnosisSettings())
+    ctx.sigma = (0.3, 2.5)
+    found = detect_absent_days(ctx, ModelFit((), params, np.zeros((2, 7)), 0.0, 0), [0, 1])
+    assert found[1, 1] > 0.8 and np.count_nonzero(found) == 1
 
 
 def test_wind_infiltration_is_a_quarter_while_the_air_handling_unit_runs():

@@ -251,39 +251,33 @@ def detect_absent_days(ctx: _Context, fit: ModelFit, weeks: list[int]) -> np.nda
     """``(len(weeks), 7)`` absence fractions: for each weekday, the share ``f`` of its occupancy that did not
     come, fitted by least squares to the day's measured temperature and consumption (standardised residuals,
     both series) from what the model predicts for the day with nobody in (:func:`buildenv.effects_model.
-    absent_days_inputs`; one batched call: the model as it is and with each weekday absent in turn); a day is
+    absent_days_inputs`: the model as it is, and with each weekday absent in turn); a day is
     kept (``f > 0``) when ``f >= 0.5`` and its standardised squared error falls by more than
     :data:`ABSENCE_THRESHOLD`, else 0 (see the module docstring)."""
     n_days = len(cat.WEEKDAYS)
-    variants = np.zeros((n_days + 1, ctx.site.weeks, 7))
-    for d in range(n_days):
-        variants[d + 1, :, d] = 1.0
-    problems = [_problem(ctx, fit, weeks, v) for v in variants]
-    x = np.concatenate([cal.encode_candidates(p, fit.params[None]) for p in problems])
-    out = ctx.surrogate.predict_encoded(x)
-    values = cal._effect_values(problems[0], fit.params[None], len(x))
-    t, q = cal.model_series(problems[0], em.transform_outputs(out, x, values))
-    t = em.sensor_temperature(t, values)
-    shape = (n_days + 1, len(weeks), 7, cat.HOURS_PER_DAY)
-    t, q = t.reshape(shape), q.reshape(shape)
-    days = np.arange(n_days)
-    measured = {"temperature": ctx.site.temperature_c[weeks], "consumption": ctx.site.consumption_wh_m2()[weeks]}
-    terms = []
-    for (name, y), pred, sigma in zip(measured.items(), (t, q), ctx.sigma):
-        y = y.reshape(shape[1:])
-        r = np.nan_to_num((y - pred[0]) / sigma)[:, :n_days]  # (weeks, weekdays, 24)
-        change = (pred[1 + days, :, days] - pred[0][:, :n_days].transpose(1, 0, 2)).transpose(1, 0, 2) / sigma
-        change = np.where(np.isfinite(y[:, :n_days]), change, 0.0)
-        terms.append((r, change))
-    r_d = sum((r * c).sum(-1) for r, c in terms)
-    d_sq = sum((c ** 2).sum(-1) for _, c in terms)
-    f = np.clip(r_d / np.maximum(d_sq, 1e-9), 0.0, 1.0)
+    shape = (len(weeks), 7, cat.HOURS_PER_DAY)
+    runs = []  # (temperature, consumption) of the model as it is, then with weekday d absent, each (weeks, 7, 24)
+    for d in range(-1, n_days):
+        absent = np.zeros((ctx.site.weeks, 7))
+        if d >= 0:
+            absent[:, d] = 1.0
+        _, t, q = cal.simulate(_problem(ctx, fit, weeks, absent), ctx.surrogate, fit.params[None])
+        runs.append((t[0].reshape(shape), q[0].reshape(shape)))
+    measured = (ctx.site.temperature_c[weeks], ctx.site.consumption_wh_m2()[weeks])
+    terms = []  # per series: residual and an absent day's change, standardised, (weeks, weekdays, 24)
+    for j, (y, sigma) in enumerate(zip(measured, ctx.sigma)):
+        y = y.reshape(shape)[:, :n_days]
+        base = runs[0][j][:, :n_days]
+        change = np.stack([runs[1 + d][j][:, d] - base[:, d] for d in range(n_days)], axis=1)
+        terms.append((np.nan_to_num((y - base) / sigma), np.where(np.isfinite(y), change / sigma, 0.0)))
+    f = np.clip(sum((r * c).sum(-1) for r, c in terms) / np.maximum(sum((c ** 2).sum(-1) for _, c in terms), 1e-9),
+                0.0, 1.0)
     before = sum((r ** 2).sum(-1) for r, _ in terms)
     after = sum(((r - f[..., None] * c) ** 2).sum(-1) for r, c in terms)
     keep = (f >= 0.5) & (after < (1.0 - ABSENCE_THRESHOLD) * before)
-    out_days = np.zeros((len(weeks), 7))
-    out_days[:, :n_days] = np.where(keep, f, 0.0)
-    return out_days
+    found = np.zeros((len(weeks), 7))
+    found[:, :n_days] = np.where(keep, f, 0.0)
+    return found
 
 
 def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:

@@ -176,6 +176,7 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
            "ranked": [e["name"] for e in result["effects"]],
            "scores": {e["name"]: e["score"] for e in result["effects"]},
            "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
+           "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"] if "gain_vs_control" in e},
            "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
            "estimates": {e["name"]: e["parameters"] for e in result["effects"]},

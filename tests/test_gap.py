@@ -12,7 +12,8 @@ from buildenv import calibration as cal
 from buildenv import effects_model as em
 from buildenv.env import DEFAULT_SITE
 from buildenv.effects import EFFECTS, EffectError, get_effect, parse_effect
-from buildenv.gap import DiagnosisSettings, _verdict, diagnose, save_extended_model
+from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, save_extended_model, stricter_score,
+                          without_new_effect)
 from buildenv.site import load_site, write_site
 from buildenv.site_model import SiteModel
 from buildenv.surrogate import load_metamodel
@@ -190,6 +191,8 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
         (tb, ta), (qb, qa) = first["sse_by_series"]["temperature"], first["sse_by_series"]["consumption"]
         assert first["score"] == pytest.approx(1 - (ta + qa) / (tb + qb), abs=1e-3)
     assert first["heldout_after"]["rmse_t_celsius"] < 0.8 * first["heldout_before"]["rmse_t_celsius"]
+    # credited with what the bias itself adds: its refit without the bias is the worse baseline here
+    assert first["score"] == pytest.approx(min(first["gain_vs_control"], first["gain_vs_own_refit"]), abs=1e-4)
     assert {"localisation", "effects", "selected", "verdict"} <= set(result)
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
     saved = save_extended_model(site, result)
@@ -197,6 +200,24 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     json.dumps(result, default=float)
     calibration = json.loads(saved.read_text())
     assert calibration["effects"]["temperature_sensor_bias"]["bias_k"] == first["parameters"]["bias_k"]
+
+
+def test_a_candidate_is_credited_only_with_what_its_own_parameters_add():
+    # a refit that found better building parameters than the control, with the effect itself adding nothing
+    n = len(cal.parameter_names())
+    absent = np.zeros((4, 7))
+    current = ModelFit(("holidays",), np.zeros(n), absent)
+    flagged = absent.copy()
+    flagged[0, 2] = 1.0
+    trial = ModelFit(("holidays", "night_plug_loads"), np.arange(n + 1.0), flagged)
+    alone = without_new_effect(current, trial)
+    assert alone.effects == ("holidays",) and np.array_equal(alone.params, np.arange(float(n)))
+    assert not alone.absent.any() and trial.absent.any()
+    against_control, against_own = {"gain": 0.20, "sse_before": 10.0}, {"gain": -0.09, "sse_before": 7.3}
+    score = stricter_score(against_control, against_own)
+    assert score["gain"] == -0.09 and score["baseline"] == "own refit without the effect"
+    assert (score["gain_vs_control"], score["gain_vs_own_refit"]) == (0.2, -0.09)
+    assert stricter_score(against_control | {"gain": 0.1}, against_own | {"gain": 0.3})["baseline"] == "control"
 
 
 def test_diagnosis_names_the_default_sites_cold_night_air(tmp_path, surrogate):

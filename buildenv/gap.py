@@ -494,7 +494,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
                 without = without_carried_effect(ctx, current, name)
                 if current is base:
                     without_base[name] = without
-                score = heldout_score(ctx, without, trial, 1, series)
+                score = heldout_score(ctx, without, trial, 1, series) | {
+                    "baseline": "model without the carried effect"}
             else:
                 trial = refit(ctx, current, name)
                 k = len(em.none_parameters(name))
@@ -587,7 +588,7 @@ def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: 
             "series_made_worse": worse,
             "qualifies": bool(qualifies),
             "parameters": parameters,
-            "baseline": score.get("baseline", "control"),
+            "baseline": score.get("baseline", "control"),  # what the gain is measured against
             **{key: score[key] for key in ("gain_vs_control", "gain_vs_own_refit") if key in score},
             "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"]}
 

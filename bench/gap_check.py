@@ -122,6 +122,9 @@ def main() -> None:
              f"(footprint >= {VISIBLE_NOISE_MULTIPLE * TEMPERATURE_NOISE_K:g} K or "
              f"{VISIBLE_NOISE_MULTIPLE * 100 * CONSUMPTION_NOISE_FRACTION:g} %) | "
              f"{_pct(s.get('top1_accuracy_visible'))} | |",
+             f"| top-1 among the {s.get('gap_left_cases') if s.get('gap_left_cases') is not None else '-'} cases "
+             f"whose effect left >= {100 * settings.min_gain:.0f} % of the calibrated model's held-out error "
+             f"(gap left) | {_pct(s.get('top1_accuracy_gap_left'))} | |",
              f"| no-effect cases recognised | {_pct(s['none_recognised'])} | >= 90 % |",
              f"| false-alarm rate | {_pct(s['false_alarm_rate'])} | |",
              "| mean shrinkage of the effect's gap (held-out, found cases) | "
@@ -137,8 +140,8 @@ def main() -> None:
     for t in labels:
         lines.append(f"| {t} | " + " | ".join(str(s["confusion"][t].get(n, 0)) for n in named) + " |")
     lines += ["", "## Cases", "", "| case | injected | magnitude | first Monday | named | selected | "
-              "footprint K, % | gain of the injected effect | shrinkage of its gap | "
-              "significant, estimate implausible | seconds |", "|---|---|---|---|---|---|---|---|---|---|---|"]
+              "footprint K, % | gap left: T, Q, pooled | gain of the injected effect | shrinkage of its gap | "
+              "significant, estimate implausible | seconds |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in result["cases"]:
         gain = r["scores"].get(r["true"])
         sh = r.get("shrinkage", {}).get("of_effect_gap") if r.get("shrinkage") else None
@@ -146,8 +149,12 @@ def main() -> None:
         fp = r.get("footprint")
         fp_text = "-" if not fp else (f"{fp['temperature_k']:.2f}, {fp['consumption_percent']:.1f}"
                                       + ("" if fp["visible"] else " (not visible)"))
+        gl = r.get("gap_left")
+        gl_text = "-" if not gl else (f"{_pct(gl['by_series']['temperature'])}, {_pct(gl['by_series']['consumption'])}"
+                                      f", {_pct(gl['share'])}" + ("" if gl["left"] else " (none left)"))
         lines.append(f"| {r['case']} | {r['true']} | {mag} | {r['start']} | {r['named']} | "
-                     f"{', '.join(r['selected']) or '-'} | {fp_text} | {'-' if gain is None else f'{gain:.3f}'} | "
+                     f"{', '.join(r['selected']) or '-'} | {fp_text} | {gl_text} | "
+                     f"{'-' if gain is None else f'{gain:.3f}'} | "
                      f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r, settings.alpha)} | "
                      f"{r['seconds']} |")
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")

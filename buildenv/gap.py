@@ -436,13 +436,28 @@ def _context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> _Con
     return ctx
 
 
-def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
-    """Held-out metrics (:func:`buildenv.calibration.site_metrics`) of a site's base model: calibrated on its
-    fit weeks, with the settings' ``base_effects`` and no other effect."""
+def residual_sigma(ctx: _Context, fit: ModelFit) -> tuple[float, float]:
+    """Standard deviations of a model's residuals on the fit weeks: temperature (K), consumption (Wh/m2); the
+    units the diagnosis standardises every residual in (1 where a series has no spread)."""
+    t, q = predict(ctx, fit, ctx.fit_weeks)
+    return (float(np.nanstd(ctx.site.temperature_c[ctx.fit_weeks] - t)) or 1.0,
+            float(np.nanstd(ctx.site.consumption_wh_m2()[ctx.fit_weeks] - q)) or 1.0)
+
+
+def base_model_gap(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
+    """A site's base model (calibrated on its fit weeks, with the settings' ``base_effects`` and no other effect):
+    ``{"heldout": metrics on the held-out weeks (:func:`buildenv.calibration.site_metrics`), "residual_sigma":
+    [K, Wh/m2] (:func:`residual_sigma`)}``, as :func:`diagnose` reports them under ``heldout_base`` and
+    ``residual_sigma``."""
     ctx = _context(site, surrogate, with_declared_effects(site, settings or DiagnosisSettings()))
     fit = base_fit(ctx)
     t, q = predict(ctx, fit, ctx.heldout)
-    return _metrics(ctx, fit, ctx.heldout, t, q)
+    return {"heldout": _metrics(ctx, fit, ctx.heldout, t, q), "residual_sigma": list(residual_sigma(ctx, fit))}
+
+
+def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
+    """Held-out metrics (:func:`buildenv.calibration.site_metrics`) of a site's base model (:func:`base_model_gap`)."""
+    return base_model_gap(site, surrogate, settings)["heldout"]
 
 
 def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None,
@@ -458,8 +473,10 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
         plot: PNG path of the localisation heatmaps (none if ``None``).
     Returns:
         ``{"localisation", "effects": [...] ranked best first, "selected", "verdict", "steps", "model",
-        "fit_weeks", "heldout_weeks", "seconds"}``; each effect entry has ``name, score, significance,
-        heldout_before, heldout_after, parameters, selected``.
+        "fit_weeks", "heldout_weeks", "heldout_base", "residual_sigma", "seconds"}``; each effect entry has
+        ``name, score, significance, heldout_before, heldout_after, parameters, selected``; ``heldout_base``
+        holds the base model's held-out metrics and ``residual_sigma`` its fit-week residual standard deviations
+        ([K, Wh/m2], the units every residual is standardised in).
     """
     from tqdm import tqdm
 
@@ -474,9 +491,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     ctx = _context(site, surrogate, settings)
     fit_weeks, heldout = ctx.fit_weeks, ctx.heldout
     current = base_fit(ctx, progress)
-    t, q = predict(ctx, current, fit_weeks)
-    ctx.sigma = (float(np.nanstd(site.temperature_c[fit_weeks] - t)) or 1.0,
-                 float(np.nanstd(site.consumption_wh_m2()[fit_weeks] - q)) or 1.0)
+    ctx.sigma = residual_sigma(ctx, current)
     base = current
     steps: list[dict] = []
     remaining = [e for e in settings.candidates if e not in settings.base_effects]
@@ -524,6 +539,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     result = {"site": str(site.path), "fit_weeks": fit_weeks, "heldout_weeks": heldout,
               "base_effects": list(settings.base_effects),
               "effects": first_step, "selected": selected, "steps": steps,
+              "heldout_base": _metrics(ctx, base, heldout, *predict(ctx, base, heldout)),
+              "residual_sigma": list(ctx.sigma),
               "verdict": _verdict(selected, first_step, settings.min_gain),
               "model": {"effects": current.effect_parameters(), "absent_days": _absent_dates(site, current),
                         "parameters": current.params.tolist()},

@@ -34,6 +34,16 @@ footprint reaches :data:`VISIBLE_NOISE_MULTIPLE` times the sensor noise on eithe
 a heating capacity limit in a mild October week, which never binds, leaves nothing any diagnosis could
 find, and the summary gives the top-1 accuracy over visible cases beside the one over all.
 
+**Gap left after calibration.** A footprint in the data is not yet a gap: the base calibration may absorb an
+effect into theta_build (excess infiltration into a higher air change rate, a night plug load into a higher
+plug-load density), and what it absorbed the calibrated model predicts on the held-out weeks as well as it
+predicts the clean twin. Every effect case therefore also calibrates its clean twin's base model the same
+way, and the share of the case's held-out error the effect added is
+``1 - SSE_twin / SSE_case``, both series standardised by the case's fit-week residual standard deviations and
+pooled, as the diagnosis scores a candidate (:func:`gap_left`). When that share is under the diagnosis'
+``min_gain``, even an extension that removed all the effect added could not gain what naming it takes, so the
+summary also gives the top-1 accuracy over the cases whose effect left a gap.
+
 Each case's result is written as ``case_NNN.json`` in ``out``; a rerun skips
 finished cases (a long check resumes) and reuses the sites already made, after checking that each was made for
 its case: the plan depends on the known effects, so a check whose known effects changed would otherwise
@@ -51,7 +61,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv.effects import EFFECTS, get_effect
-from buildenv.gap import DiagnosisSettings, base_heldout_metrics, diagnose
+from buildenv.gap import SERIES, DiagnosisSettings, base_model_gap, diagnose
 
 NONE = "none"
 FIRST_MONDAYS = (dt.date(2019, 10, 7), dt.date(2019, 12, 2))
@@ -159,6 +169,39 @@ def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
     return {"temperature_k": round(t_rms, 4), "consumption_percent": round(q_percent, 3), "visible": bool(visible)}
 
 
+def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], min_gain: float) -> dict:
+    """The share of a case's held-out error its injected effect added, as the calibrated base models see it
+    (module docstring): ``{"share", "by_series": {series: share}, "left": share >= min_gain}``.
+
+    Args:
+        case_heldout, twin_heldout: held-out metrics of the base models of the case and of its clean twin
+            (:func:`buildenv.gap.base_model_gap`), with ``rmse_t_celsius`` (K) and ``rmse_q_wh_m2`` (Wh/m2).
+        sigma: the case's fit-week residual standard deviations [K, Wh/m2].
+        min_gain: the diagnosis' smallest held-out gain to name an effect.
+    """
+    def standardised(m: dict) -> list[float]:
+        return [m["rmse_t_celsius"] ** 2 / sigma[0] ** 2, m["rmse_q_wh_m2"] ** 2 / sigma[1] ** 2]
+
+    case, twin = standardised(case_heldout), standardised(twin_heldout)
+    share = 1.0 - sum(twin) / sum(case) if sum(case) > 0 else 0.0
+    by_series = {s: round(1.0 - b / a, 4) if a > 0 else 0.0 for s, a, b in zip(SERIES, case, twin)}
+    return {"share": round(share, 4), "by_series": by_series, "left": bool(share >= min_gain)}
+
+
+def _gap_left_row(out: Path, case: dict, row: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn
+                  ) -> dict:
+    """``row`` with ``gap_left`` and the base models' held-out metrics: the case's from its diagnosis (calibrated
+    again for a case finished before they were recorded), its clean twin's calibrated here."""
+    from buildenv.site import load_site
+
+    if "heldout_base" not in row:
+        base = base_model_gap(load_site(_site(out, case, stand_in, inject=True)), surrogate, settings)
+        row = {**row, "heldout_base": base["heldout"], "residual_sigma": base["residual_sigma"]}
+    twin = base_model_gap(load_site(_site(out, case, stand_in, inject=False)), surrogate, settings)["heldout"]
+    return {**row, "twin_heldout_base": twin,
+            "gap_left": gap_left(row["heldout_base"], twin, row["residual_sigma"], settings.min_gain)}
+
+
 def _mse(metrics: dict, series: str) -> float:
     return metrics["rmse_t_celsius"] ** 2 if series == "temperature" else metrics["rmse_q_wh_m2"] ** 2
 
@@ -181,11 +224,13 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
            "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
            "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
-           "verdict": result["verdict"]}
+           "verdict": result["verdict"], "heldout_base": result["heldout_base"],
+           "residual_sigma": result["residual_sigma"]}
+    if case["true"] != NONE:
+        row = _gap_left_row(out, case, row, surrogate, settings, stand_in)
     if case["true"] != NONE and case["true"] in result["selected"]:
         series = get_effect(case["true"]).series[0]
-        twin = load_site(_site(out, case, stand_in, inject=False))
-        twin_mse = _mse(base_heldout_metrics(twin, surrogate, settings), series)
+        twin_mse = _mse(row["twin_heldout_base"], series)
         entry = next(e for e in result["effects"] if e["name"] == case["true"])
         b, a = _mse(result["heldout_before"], series), _mse(result["heldout_after"], series)
         row["shrinkage"] = {"series": series, "mse_before": b, "mse_after": a, "mse_twin": twin_mse,
@@ -225,6 +270,7 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
               if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])]
     total = [r["shrinkage"]["of_total_gap"] for r in effect_rows if r.get("shrinkage")]
     visible = [r for r in effect_rows if r.get("footprint", {}).get("visible")]
+    left = [r for r in effect_rows if r.get("gap_left", {}).get("left")]
     return {"cases": len(rows), "effect_cases": len(effect_rows), "none_cases": len(none_rows),
             "top1_accuracy": float(np.mean([r["correct"] for r in effect_rows])) if effect_rows else None,
             "none_recognised": float(np.mean([r["named"] == NONE for r in none_rows])) if none_rows else None,
@@ -234,6 +280,10 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
             "mean_shrinkage_of_total_gap": float(np.mean(total)) if total else None,
             "visible_effect_cases": len(visible),
             "top1_accuracy_visible": float(np.mean([r["correct"] for r in visible])) if visible else None,
+            "gap_left_cases": len(left) if any("gap_left" in r for r in effect_rows) else None,
+            "top1_accuracy_gap_left": float(np.mean([r["correct"] for r in left])) if left else None,
+            "named_where_no_gap_left": {r["case"]: r["named"] for r in effect_rows
+                                        if "gap_left" in r and not r["gap_left"]["left"]},
             "labels": labels, "confusion": confusion}
 
 
@@ -276,8 +326,11 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         if path.is_file():
             row = json.loads(path.read_text())
             if {k: row.get(k) for k in case} == case:
-                if case["true"] != NONE and "footprint" not in row:  # a case finished before footprints
-                    row["footprint"] = footprint(out, case, stand_in)
+                if case["true"] != NONE and ("footprint" not in row or "gap_left" not in row):
+                    # a case finished before footprints or the gap left after calibration were recorded
+                    row["footprint"] = row.get("footprint") or footprint(out, case, stand_in)
+                    if "gap_left" not in row:
+                        row = _gap_left_row(out, case, row, surrogate, settings, stand_in)
                     path.write_text(json.dumps(row, indent=1, default=float) + "\n")
                 rows.append(row)
                 continue

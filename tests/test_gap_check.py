@@ -41,11 +41,24 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     assert summary["visible_effect_cases"] == 1 and summary["top1_accuracy_visible"] == 1.0
     shrink = rows["temperature_sensor_bias"]["shrinkage"]
     assert shrink["series"] == "temperature" and shrink["mse_after"] < shrink["mse_before"]
+    # a bias is no building parameter: the calibrated base model still misses it, on the temperature only
+    left = bias["gap_left"]
+    assert left["left"] and left["by_series"]["temperature"] > left["share"] >= settings.min_gain
+    assert shrink["mse_twin"] == pytest.approx(bias["twin_heldout_base"]["rmse_t_celsius"] ** 2)
+    assert summary["gap_left_cases"] == 1 and summary["top1_accuracy_gap_left"] == 1.0
+    assert "gap_left" not in rows[NONE]
     json.dumps(result, default=float)
-    # a rerun resumes: finished cases are read back, not redone
+    # a rerun resumes: finished cases are read back, not redone; a case finished before the gap left after
+    # calibration was recorded gets it, with the case's base model calibrated again as its diagnosis did
+    case_file = tmp_path / f"case_{bias['case']:03d}.json"
+    older = {k: v for k, v in bias.items() if k not in ("gap_left", "heldout_base", "residual_sigma")}
+    case_file.write_text(json.dumps(older, default=float))
     again = run_check(tmp_path, cases=2, seed=1, settings=settings, base_effects=["night_plug_loads"],
                       effects=("temperature_sensor_bias",))
     assert [r["seconds"] for r in again["cases"]] == [r["seconds"] for r in result["cases"]]
+    refilled = next(r for r in again["cases"] if r["true"] != NONE)
+    assert refilled["gap_left"]["share"] == pytest.approx(left["share"], abs=1e-3)
+    assert json.loads(case_file.read_text())["gap_left"] == refilled["gap_left"]
 
 
 def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):

@@ -18,10 +18,11 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv.calibration import default_weeks
 from buildenv.cli_sites import add_known_argument, parse_known
 from buildenv.effects import JUDGES
 from buildenv.gap import DiagnosisSettings
-from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, run_check
+from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday, run_check
 from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
 from buildenv.surrogate import load_metamodel
 
@@ -69,6 +70,8 @@ def main() -> None:
                         help="CMA-ES runs of each base calibration, the lowest fit cost kept")
     parser.add_argument("--checkpoint", default="default",
                         help="metamodel checkpoint the diagnosis uses (default: the shipped one)")
+    parser.add_argument("--weeks", type=int, default=WEEKS,
+                        help="weeks each site measures (the first half fits, the rest is held out)")
     add_known_argument(parser)
     args = parser.parse_args()
     known = parse_known(args.known)
@@ -82,7 +85,7 @@ def main() -> None:
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
     surrogate = load_metamodel(None if args.checkpoint == "default" else args.checkpoint)
     result = run_check(args.out, args.cases, args.seed, surrogate=surrogate, settings=settings, base_effects=base,
-                       progress=True, known_parameters=known)
+                       progress=True, known_parameters=known, weeks=args.weeks)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
                f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
@@ -98,19 +101,24 @@ def main() -> None:
                + (f" --effect-first {args.effect_first}"
                   if args.effect_first != DiagnosisSettings.effect_first_evaluations else "")
                + "".join(f" --known {k}={v:g}" for k, v in known.items())
-               + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "default" else ""))
+               + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "default" else "")
+               + (f" --weeks {args.weeks}" if args.weeks != WEEKS else ""))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
                                                                                           - started, 1), **result}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     labels = s["labels"]
+    weeks = result["plan"]["weeks"]
+    fit_weeks = default_weeks(weeks)[0]
     named = sorted({n for row in s["confusion"].values() for n, c in row.items() if c} | set(labels),
                    key=lambda n: (n not in labels, labels.index(n) if n in labels else 0, n))
     lines = ["# Gap diagnosis: the withheld-effect check", "",
              f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.",
-             f"Building: {result['plan']['building']} in {result['plan']['epw']}, {result['plan']['weeks']}-week sites "
-             "(2 fit + 2 held-out weeks), first Monday drawn between 2019-10-07 and 2019-12-02, one effect (or none) "
+             f"Building: {result['plan']['building']} in {result['plan']['epw']}, {weeks}-week sites "
+             f"({len(fit_weeks)} fit + {weeks - len(fit_weeks)} held-out weeks), first Monday drawn between "
+             f"2019-10-07 and 2019-12-02 (at latest {latest_first_monday(weeks)}, so the period ends in 2019), "
+             "one effect (or none) "
              "injected at a random magnitude, diagnosed blind (`buildenv/gap_check.py` states the procedure).",
              f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
              "Building parameters every site declares known (fixed in calibration): "

@@ -2,7 +2,9 @@
 
 ``run_check(out, cases, seed)`` makes ``cases`` reference-building sites (:mod:`buildenv.reference`), each
 with one effect of :mod:`buildenv.effects` injected at a random magnitude or with none, over a random
-4-week period of the heating season (first Monday drawn between 7 October and 2 December 2019), with its
+period of the heating season (``weeks`` weeks, 4 by default; first Monday drawn between 7 October and 2 December
+2019; a check of longer sites keeps every case's label, magnitude and seeds, only a period that would run into
+the next year starts earlier: :func:`plan_cases`), with its
 own sensor-noise seed; the labels cycle through "none" and every effect in a seeded random order. Each site is
 diagnosed (:func:`buildenv.gap.diagnose`) knowing nothing of what was injected; the first selected effect
 (or "none") is the diagnosis' answer.
@@ -72,18 +74,20 @@ VISIBLE_NOISE_MULTIPLE = 2.0
 
 @dataclass(frozen=True)
 class StandIn:
-    """The building every case is made of: a reference building, its weather, and the building parameters its
-    sites declare known (``site.toml``'s ``[known]``, catalogue units; none by default)."""
+    """The building every case is made of: a reference building, its weather, the building parameters its
+    sites declare known (``site.toml``'s ``[known]``, catalogue units; none by default) and the weeks each site
+    measures (the first half fits, the rest is held out)."""
 
     building: str = "medium_office"
     epw: str = "usa_il_chicago"
     known: dict[str, float] = field(default_factory=dict)
+    weeks: int = WEEKS
 
     def make(self, path: Path, start: dt.date, seed: int, effects: list | None = None, effect_seed: int = 0) -> Path:
-        """Run the stand-in over :data:`WEEKS` weeks from ``start`` and write the site folder ``path``."""
+        """Run the stand-in over :attr:`weeks` weeks from ``start`` and write the site folder ``path``."""
         from buildenv.reference import make_reference_site
 
-        return make_reference_site(path, self.building, self.epw, start, WEEKS, seed=seed, effects=effects,
+        return make_reference_site(path, self.building, self.epw, start, self.weeks, seed=seed, effects=effects,
                                    effect_seed=effect_seed, known=self.known)
 
 
@@ -98,10 +102,19 @@ def draw_magnitude(name: str, rng: np.random.Generator) -> float:
     return float(rng.uniform(lo, hi))
 
 
-def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tuple[str, ...] | None = None
-               ) -> list[dict]:
+def latest_first_monday(weeks: int) -> dt.date:
+    """The last first Monday from which ``weeks`` weeks end within :data:`FIRST_MONDAYS`' year (the stand-in does
+    not run across a new year): 2 December 2019 for 4 weeks, 4 November for 8."""
+    latest = dt.date(FIRST_MONDAYS[1].year, 12, 31) - dt.timedelta(days=7 * weeks - 1)
+    return min(FIRST_MONDAYS[1], latest - dt.timedelta(days=latest.weekday()))
+
+
+def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tuple[str, ...] | None = None,
+               weeks: int = WEEKS) -> list[dict]:
     """The cases of a check: label, magnitude, first Monday and seeds, all from ``seed``; labels cycle through
-    "none" and ``effects`` (default: the whole catalogue) less ``exclude``."""
+    "none" and ``effects`` (default: the whole catalogue) less ``exclude``. A first Monday from which ``weeks``
+    weeks would run into the next year is moved back to :func:`latest_first_monday` (never for 4 weeks), and
+    every other draw stays as it is, so longer sites keep the cases' labels, magnitudes and seeds."""
     rng = np.random.default_rng(seed)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in exclude]
     order = list(rng.permutation(labels))
@@ -112,7 +125,7 @@ def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tu
         if i and i % len(order) == 0:
             order = list(rng.permutation(labels))
             label = str(order[0])
-        start = FIRST_MONDAYS[0] + dt.timedelta(weeks=int(rng.integers(mondays)))
+        start = min(FIRST_MONDAYS[0] + dt.timedelta(weeks=int(rng.integers(mondays))), latest_first_monday(weeks))
         plan.append({"case": i, "true": label, "magnitude": None if label == NONE else draw_magnitude(label, rng),
                      "start": start.isoformat(), "noise_seed": int(rng.integers(1_000_000)),
                      "effect_seed": int(rng.integers(1_000_000))})
@@ -123,15 +136,16 @@ def _site(out: Path, case: dict, stand_in: StandIn, inject: bool) -> Path:
     effects = [(case["true"], case["magnitude"])] if inject and case["true"] != NONE else []
     path = out / (f"case_{case['case']:03d}" if inject else f"case_{case['case']:03d}_twin")
     if (path / "site.toml").is_file():
-        _check_site_matches(path, case, effects, stand_in.known)
+        _check_site_matches(path, case, effects, stand_in)
     else:
         stand_in.make(path, dt.date.fromisoformat(case["start"]), case["noise_seed"], effects, case["effect_seed"])
     return path
 
 
-def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]], known: dict[str, float]) -> None:
+def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]], stand_in: StandIn) -> None:
     """Raise when a site folder left by an earlier run was made for another case (another plan: other seed or
-    other known effects) or declares other known parameters, instead of diagnosing it under the wrong label."""
+    other known effects), declares other known parameters or measures another number of weeks, instead of
+    diagnosing it under the wrong label."""
     from buildenv.site import load_site
 
     site = load_site(path)
@@ -144,9 +158,12 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
         raise ValueError(f"{path}: this site was made for another case ({made or 'no effect'}, from "
                          f"{site.start}), not case {case['case']} ({effects or 'no effect'}, from {case['start']}); "
                          "give the check a fresh --out folder")
-    if site.known != dict(known):
+    if site.known != dict(stand_in.known):
         raise ValueError(f"{path}: this site declares known parameters {site.known or 'none'}, the check "
-                         f"{dict(known) or 'none'}; give the check a fresh --out folder")
+                         f"{dict(stand_in.known) or 'none'}; give the check a fresh --out folder")
+    if site.weeks != stand_in.weeks:
+        raise ValueError(f"{path}: this site measures {site.weeks} weeks, the check {stand_in.weeks}; give the "
+                         "check a fresh --out folder")
 
 
 def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
@@ -249,7 +266,7 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
 
     path, cache = out / "reference", out / "reference_diagnosis.json"
     if (path / "site.toml").is_file():
-        _check_site_matches(path, {"case": "reference", "start": REFERENCE_START.isoformat()}, [], stand_in.known)
+        _check_site_matches(path, {"case": "reference", "start": REFERENCE_START.isoformat()}, [], stand_in)
         if cache.is_file():
             return json.loads(cache.read_text())["selected"]
     else:
@@ -290,7 +307,7 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
 def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: DiagnosisSettings | None = None,
               building: str = "medium_office", epw: str = "usa_il_chicago", base_effects: str | list[str] = "auto",
               effects: tuple[str, ...] | None = None, progress: bool = False,
-              known_parameters: dict[str, float] | None = None) -> dict:
+              known_parameters: dict[str, float] | None = None, weeks: int = WEEKS) -> dict:
     """Run (or resume) a blind check and summarise it.
 
     Args:
@@ -304,6 +321,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         effects: the effects injected (default: the whole catalogue).
         progress: progress bar over cases.
         known_parameters: building parameters every site declares known (:class:`StandIn`).
+        weeks: weeks each site measures (the first half fits, the rest is held out).
     Returns:
         ``{"summary": ..., "cases": [...], "base_effects": [...], "plan": {...}}``.
     """
@@ -315,11 +333,11 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
     out.mkdir(parents=True, exist_ok=True)
     surrogate = surrogate or load_metamodel()
     settings = settings or DiagnosisSettings()
-    stand_in = StandIn(building, epw, dict(known_parameters or {}))
+    stand_in = StandIn(building, epw, dict(known_parameters or {}), weeks)
     known = (known_effects(out, surrogate, settings, stand_in) if base_effects == "auto"
              else [get_effect(e).name for e in base_effects])
     settings = DiagnosisSettings(**{**settings.__dict__, "base_effects": tuple(known)})
-    plan = plan_cases(cases, seed, tuple(known), effects)
+    plan = plan_cases(cases, seed, tuple(known), effects, weeks)
     rows = []
     for case in tqdm(plan, desc="blind cases", disable=not progress):
         path = out / f"case_{case['case']:03d}.json"
@@ -339,6 +357,6 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         rows.append(row)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]
     return {"summary": summarise(rows, labels), "cases": rows, "base_effects": known,
-            "plan": {"cases": cases, "seed": seed, "building": building, "epw": epw, "weeks": WEEKS,
+            "plan": {"cases": cases, "seed": seed, "building": building, "epw": epw, "weeks": weeks,
                      "known_parameters": stand_in.known,
                      "settings": {k: v for k, v in settings.__dict__.items() if k != "candidates"}}}

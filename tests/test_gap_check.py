@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import shutil
 
@@ -10,7 +11,7 @@ import pytest
 from buildenv.cli import main
 from buildenv.env import DEFAULT_SITE
 from buildenv.gap import DiagnosisSettings
-from buildenv.gap_check import NONE, StandIn, _site, plan_cases, run_check
+from buildenv.gap_check import NONE, StandIn, _site, latest_first_monday, plan_cases, run_check
 
 
 def test_plan_is_seeded_and_cycles_through_the_labels():
@@ -18,6 +19,12 @@ def test_plan_is_seeded_and_cycles_through_the_labels():
     assert a == b and a != plan_cases(9, 1)
     assert len({c["true"] for c in a}) == 9  # "none" and the 8 effects, each once
     assert all(c["magnitude"] is None for c in a if c["true"] == NONE)
+    # longer sites keep every draw; a period that would run into the next year starts early enough to end in it
+    longer = plan_cases(9, 0, weeks=8)
+    assert [{**c, "start": None} for c in longer] == [{**c, "start": None} for c in a]
+    assert all(dt.date.fromisoformat(c["start"]) + dt.timedelta(weeks=8) <= dt.date(2020, 1, 1) for c in longer)
+    assert any(c["start"] != d["start"] for c, d in zip(a, longer))
+    assert latest_first_monday(4) == dt.date(2019, 12, 2) and latest_first_monday(8) == dt.date(2019, 11, 4)
 
 
 def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site(tmp_path):
@@ -70,12 +77,14 @@ def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):
     shutil.copytree(DEFAULT_SITE, tmp_path / "case_000")  # a clean site from 2019-11-04
     case = {"case": 0, "true": NONE, "magnitude": None, "start": "2019-11-04", "noise_seed": 0, "effect_seed": 0}
-    stand_in = StandIn("medium_office", "usa_il_chicago")
+    stand_in = StandIn("medium_office", "usa_il_chicago", weeks=6)  # the default site measures 6 weeks
     assert _site(tmp_path, case, stand_in, inject=True) == tmp_path / "case_000"
+    with pytest.raises(ValueError, match="measures 6 weeks, the check 4"):
+        _site(tmp_path, case, StandIn("medium_office", "usa_il_chicago"), inject=True)
     with pytest.raises(ValueError, match="made for another case"):
         _site(tmp_path, {**case, "true": "temperature_sensor_bias", "magnitude": 1.5}, stand_in, inject=True)
     with pytest.raises(ValueError, match="made for another case"):
         _site(tmp_path, {**case, "start": "2019-10-07"}, stand_in, inject=True)
-    declaring = StandIn("medium_office", "usa_il_chicago", {"pc_night_percent": 44.4})
+    declaring = StandIn("medium_office", "usa_il_chicago", {"pc_night_percent": 44.4}, weeks=6)
     with pytest.raises(ValueError, match="declares known parameters none"):
         _site(tmp_path, case, declaring, inject=True)

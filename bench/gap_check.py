@@ -18,10 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.calibration import default_weeks
 from buildenv.cli_sites import add_known_argument, parse_known
-from buildenv.effects import JUDGES
-from buildenv.gap import DiagnosisSettings
+from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES
+from buildenv.gap import DiagnosisSettings, split_weeks
 from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday, run_check
 from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
 from buildenv.surrogate import load_metamodel
@@ -70,6 +69,8 @@ def main() -> None:
                         help="CMA-ES runs of each base calibration, the lowest fit cost kept")
     parser.add_argument("--checkpoint", default="default",
                         help="metamodel checkpoint the diagnosis uses (default: the shipped one)")
+    parser.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=DiagnosisSettings.split,
+                        help="fit weeks: the first half, or every other week (buildenv.gap.split_weeks)")
     parser.add_argument("--weeks", type=int, default=WEEKS,
                         help="weeks each site measures (the first half fits, the rest is held out)")
     add_known_argument(parser)
@@ -79,7 +80,7 @@ def main() -> None:
     settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge,
                                  base_restarts=args.base_restarts, refit_step=args.refit_step,
                                  effect_first_evaluations=args.effect_first, refit_restarts=args.refit_restarts,
-                                 refit_anchor=args.refit_anchor)
+                                 refit_anchor=args.refit_anchor, split=args.split)
     base: str | list[str] = args.base_effects
     if base != "auto":
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
@@ -102,7 +103,8 @@ def main() -> None:
                   if args.effect_first != DiagnosisSettings.effect_first_evaluations else "")
                + "".join(f" --known {k}={v:g}" for k, v in known.items())
                + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "default" else "")
-               + (f" --weeks {args.weeks}" if args.weeks != WEEKS else ""))
+               + (f" --weeks {args.weeks}" if args.weeks != WEEKS else "")
+               + (f" --split {args.split}" if args.split != DiagnosisSettings.split else ""))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
                                                                                           - started, 1), **result}
@@ -110,13 +112,14 @@ def main() -> None:
     (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     labels = s["labels"]
     weeks = result["plan"]["weeks"]
-    fit_weeks = default_weeks(weeks)[0]
+    fit_weeks = split_weeks(weeks, args.split)[0]
     named = sorted({n for row in s["confusion"].values() for n, c in row.items() if c} | set(labels),
                    key=lambda n: (n not in labels, labels.index(n) if n in labels else 0, n))
     lines = ["# Gap diagnosis: the withheld-effect check", "",
              f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.",
              f"Building: {result['plan']['building']} in {result['plan']['epw']}, {weeks}-week sites "
-             f"({len(fit_weeks)} fit + {weeks - len(fit_weeks)} held-out weeks), first Monday drawn between "
+             f"({len(fit_weeks)} fit + {weeks - len(fit_weeks)} held-out weeks, split {args.split}), first Monday "
+             "drawn between "
              f"2019-10-07 and 2019-12-02 (at latest {latest_first_monday(weeks)}, so the period ends in 2019), "
              "one effect (or none) "
              "injected at a random magnitude, diagnosed blind (`buildenv/gap_check.py` states the procedure).",

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from buildenv.effects import JUDGES
+from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES
 
 
 def _settings(args: argparse.Namespace):
@@ -24,7 +24,7 @@ def _settings(args: argparse.Namespace):
         step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
-                             base_restarts=args.base_restarts,
+                             base_restarts=args.base_restarts, split=args.split,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
 
 
@@ -74,6 +74,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--refit-anchor", type=float, default=None,
                    help="pull of every refit towards the model it starts from: weight of the squared move of "
                         "its parameters, in units of their ranges, added to the fit cost (default 0: none)")
+    p.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=DIAGNOSIS_SPLITS[0],
+                   help="fit weeks: the first half (held out: the rest) or every other week from the first "
+                        "(held out: the others), so both see the whole season's weather")
     p.add_argument("--base-restarts", type=int, default=1,
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
                         "lowest fit cost kept")

@@ -145,7 +145,7 @@ class InjectedEffect:
 
 
 def plan_effects(effects: Sequence[tuple[str | Effect, float | None] | InjectedEffect] | None, start: dt.date,
-                 weeks: int, seed: int = 0) -> list[InjectedEffect]:
+                 weeks: int, seed: int = 0, fit_weeks: Sequence[int] | None = None) -> list[InjectedEffect]:
     """Check the requested effects and fix their random choices.
 
     Args:
@@ -154,6 +154,7 @@ def plan_effects(effects: Sequence[tuple[str | Effect, float | None] | InjectedE
         start: Monday of the first measured week.
         weeks: number of measured weeks.
         seed: seed of the random choices (the holiday dates).
+        fit_weeks: the weeks a diagnosis will fit (:func:`choose_holidays`; default: the first half).
 
     Returns:
         One :class:`InjectedEffect` per effect, in the order given. Raises :class:`EffectError` for an
@@ -172,7 +173,7 @@ def plan_effects(effects: Sequence[tuple[str | Effect, float | None] | InjectedE
         details: dict[str, Any] = {}
         if effect.name == "holidays":
             details["dates"] = [d.isoformat() for d in choose_holidays(int(_whole(value, effect)), start, weeks,
-                                                                        seed)]
+                                                                        seed, fit_weeks)]
         planned.append(InjectedEffect(effect.name, float(value), details))
     names = [p.name for p in planned]
     repeated = sorted({n for n in names if names.count(n) > 1})
@@ -187,12 +188,13 @@ def _whole(value: float, effect: Effect) -> float:
     return value
 
 
-def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0) -> list[dt.date]:
+def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0,
+                    fit_weeks: Sequence[int] | None = None) -> list[dt.date]:
     """``count`` distinct measured weekdays drawn with ``seed`` (sorted).
 
-    With ``count >= 2`` and ``weeks >= 2`` one lies in the first ``ceil(weeks / 2)`` weeks (the default
-    calibration weeks) and one in the later weeks. Raises :class:`EffectError` if ``count`` exceeds the
-    ``5 x weeks`` measured weekdays.
+    With ``count >= 2`` and ``weeks >= 2`` one lies in the ``fit_weeks`` (default: the first ``ceil(weeks / 2)``
+    weeks, the default calibration weeks) and one in the other weeks. Raises :class:`EffectError` if ``count``
+    exceeds the ``5 x weeks`` measured weekdays.
     """
     days = [start + dt.timedelta(days=7 * w + d) for w in range(weeks) for d in range(WEEKDAYS_PER_WEEK)]
     if count > len(days):
@@ -201,10 +203,12 @@ def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0) -> li
     if count <= 0:
         return []
     rng = np.random.default_rng(seed)
-    half = math.ceil(weeks / 2) * WEEKDAYS_PER_WEEK
+    fit = set(range(math.ceil(weeks / 2)) if fit_weeks is None else fit_weeks)
+    in_fit = [i for i in range(len(days)) if i // WEEKDAYS_PER_WEEK in fit]
+    others = [i for i in range(len(days)) if i // WEEKDAYS_PER_WEEK not in fit]
     chosen: list[int] = []
-    if count >= 2 and weeks >= 2:
-        chosen = [int(rng.integers(half)), int(half + rng.integers(len(days) - half))]
+    if count >= 2 and in_fit and others:
+        chosen = [in_fit[int(rng.integers(len(in_fit)))], others[int(rng.integers(len(others)))]]
     rest = [i for i in range(len(days)) if i not in chosen]
     chosen += [int(i) for i in rng.choice(rest, size=count - len(chosen), replace=False)]
     return sorted(days[i] for i in chosen)

@@ -3,7 +3,8 @@
 **Procedure** (forward selection, after grey-box modelling practice: add the extension with the most
 significant gain, stop when none is significant):
 
-1. The site's weeks are split into fit weeks (the first half, as calibration does) and held-out weeks.
+1. The site's weeks are split into fit weeks (the first half, as calibration does, or every other week:
+   ``DiagnosisSettings.split``, :func:`split_weeks`) and held-out weeks.
    The base model (theta_build + occupancy) is calibrated on the fit weeks (or the site's own calibration is
    reused when it was made on the same weeks, without effects or with the effects it was declared to have:
    ``buildenv calibrate --effect``, which are then base effects, not candidates).
@@ -78,11 +79,24 @@ from buildenv import calibration as cal
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import EFFECTS, JUDGES, get_effect
+from buildenv.effects import DIAGNOSIS_SPLITS, EFFECTS, JUDGES, get_effect
 
 ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"
 SERIES = ("temperature", "consumption")
+
+
+def split_weeks(n_weeks: int, split: str = "first_half") -> tuple[list[int], list[int]]:
+    """Fit and held-out weeks of a site of ``n_weeks`` weeks: ``"first_half"`` fits the first half (rounded up,
+    :func:`buildenv.calibration.default_weeks`) and holds out the rest; ``"alternate"`` fits weeks 0, 2, 4, ...
+    and holds out 1, 3, 5, ..., so both see the season's whole range of weather (an autumn site's first half
+    is milder than its second, and an effect that only shows in the cold, such as an undersized heating plant,
+    cannot be estimated from mild fit weeks)."""
+    if split == "first_half":
+        return cal.default_weeks(n_weeks)
+    if split == "alternate":
+        return list(range(0, n_weeks, 2)), list(range(1, n_weeks, 2))
+    raise ValueError(f"unknown split {split!r}; choose {' or '.join(DIAGNOSIS_SPLITS)}")
 
 
 @dataclass
@@ -140,6 +154,7 @@ class DiagnosisSettings:
             with it), not candidates.
         judge: ``"pooled"``: each candidate is scored on both series; ``"effect_series"``: on the series it
             shows in (:attr:`buildenv.effects.Effect.series`).
+        split: how the site's weeks are split into fit and held-out weeks (:func:`split_weeks`).
         own_refit_baseline: judge each candidate also against its own refit with the effect taken out
             (:func:`without_new_effect`) and keep the smaller gain (:func:`stricter_score`). Why: a refit moves
             the building parameters as well as the new effect's, and when the control's CMA-ES run lands worse
@@ -166,6 +181,7 @@ class DiagnosisSettings:
     base_effects: tuple[str, ...] = ()
     judge: str = "pooled"
     own_refit_baseline: bool = True
+    split: str = "first_half"
 
 
 @dataclass
@@ -429,8 +445,8 @@ def _metrics(ctx: _Context, fit: ModelFit, weeks: list[int], t: np.ndarray, q: n
 
 
 def _context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> _Context:
-    """The fit / held-out split of a site (:func:`buildenv.calibration.default_weeks`) and its metric scales."""
-    fit_weeks, heldout = cal.default_weeks(site.weeks)
+    """The fit / held-out split of a site (:func:`split_weeks`) and its metric scales."""
+    fit_weeks, heldout = split_weeks(site.weeks, settings.split)
     ctx = _Context(site, surrogate, fit_weeks, heldout, settings)
     ctx.scale = cal._scale(cal.build_problem(site, fit_weeks))
     return ctx

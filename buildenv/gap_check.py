@@ -82,13 +82,23 @@ class StandIn:
     epw: str = "usa_il_chicago"
     known: dict[str, float] = field(default_factory=dict)
     weeks: int = WEEKS
+    split: str = "first_half"
+
+    def plan(self, start: dt.date, effects: list | None, effect_seed: int) -> list:
+        """The effects' random choices fixed (:func:`buildenv.effects_inject.plan_effects`): holidays with one
+        absent day in the weeks the diagnosis fits (:attr:`split`) and one in those it holds out."""
+        from buildenv.effects_inject import plan_effects
+        from buildenv.gap import split_weeks
+
+        return plan_effects(effects, start, self.weeks, effect_seed, split_weeks(self.weeks, self.split)[0])
 
     def make(self, path: Path, start: dt.date, seed: int, effects: list | None = None, effect_seed: int = 0) -> Path:
         """Run the stand-in over :attr:`weeks` weeks from ``start`` and write the site folder ``path``."""
         from buildenv.reference import make_reference_site
 
-        return make_reference_site(path, self.building, self.epw, start, self.weeks, seed=seed, effects=effects,
-                                   effect_seed=effect_seed, known=self.known)
+        return make_reference_site(path, self.building, self.epw, start, self.weeks, seed=seed,
+                                   effects=self.plan(start, effects, effect_seed), effect_seed=effect_seed,
+                                   known=self.known)
 
 
 def draw_magnitude(name: str, rng: np.random.Generator) -> float:
@@ -154,6 +164,10 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
     made = [(e["name"], float(e["magnitude"])) for e in truth["effects"]]
     same = (site.start.isoformat() == case["start"] and len(made) == len(effects)
             and all(a == b and abs(m - n) < 1e-9 for (a, m), (b, n) in zip(made, effects)))
+    if same and effects:  # the same planned choices too (holiday dates depend on the split)
+        planned = stand_in.plan(site.start, effects, case["effect_seed"])
+        same = all({k: e.get("details", {}).get(k) for k in p.details} == p.details
+                   for e, p in zip(truth["effects"], planned))
     if not same:
         raise ValueError(f"{path}: this site was made for another case ({made or 'no effect'}, from "
                          f"{site.start}), not case {case['case']} ({effects or 'no effect'}, from {case['start']}); "
@@ -169,13 +183,13 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
 def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
     """What the injected effect changed in a case's held-out measurements (see the module docstring):
     ``{"temperature_k", "consumption_percent", "visible"}``."""
-    from buildenv.calibration import default_weeks
+    from buildenv.gap import split_weeks
     from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
     from buildenv.site import load_site
 
     site = load_site(_site(out, case, stand_in, inject=True))
     twin = load_site(_site(out, case, stand_in, inject=False))
-    weeks = default_weeks(site.weeks)[1]
+    weeks = split_weeks(site.weeks, stand_in.split)[1]
     dt_k = site.temperature_c[weeks] - twin.temperature_c[weeks]
     twin_q = twin.consumption_wh_m2()[weeks]
     dq = site.consumption_wh_m2()[weeks] - twin_q
@@ -333,7 +347,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
     out.mkdir(parents=True, exist_ok=True)
     surrogate = surrogate or load_metamodel()
     settings = settings or DiagnosisSettings()
-    stand_in = StandIn(building, epw, dict(known_parameters or {}), weeks)
+    stand_in = StandIn(building, epw, dict(known_parameters or {}), weeks, settings.split)
     known = (known_effects(out, surrogate, settings, stand_in) if base_effects == "auto"
              else [get_effect(e).name for e in base_effects])
     settings = DiagnosisSettings(**{**settings.__dict__, "base_effects": tuple(known)})

@@ -10,7 +10,8 @@ import pytest
 
 from buildenv.cli import main
 from buildenv.env import DEFAULT_SITE
-from buildenv.gap import DiagnosisSettings
+from buildenv.effects_inject import choose_holidays
+from buildenv.gap import DiagnosisSettings, split_weeks
 from buildenv.gap_check import NONE, StandIn, _site, latest_first_monday, plan_cases, run_check
 
 
@@ -88,3 +89,38 @@ def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_la
     declaring = StandIn("medium_office", "usa_il_chicago", {"pc_night_percent": 44.4}, weeks=6)
     with pytest.raises(ValueError, match="declares known parameters none"):
         _site(tmp_path, case, declaring, inject=True)
+
+
+def test_an_alternate_split_fits_every_other_week_and_the_holidays_follow_it():
+    assert split_weeks(8, "alternate") == ([0, 2, 4, 6], [1, 3, 5, 7])
+    assert split_weeks(4) == ([0, 1], [2, 3]) and split_weeks(5, "alternate") == ([0, 2, 4], [1, 3])
+    with pytest.raises(ValueError, match="unknown split"):
+        split_weeks(4, "random")
+    start = dt.date(2019, 11, 4)
+    for seed in range(5):
+        # the default draws are those of every site made so far
+        first = StandIn(weeks=8).plan(start, [("holidays", 2.0)], seed)[0].details["dates"]
+        assert first == [d.isoformat() for d in choose_holidays(2, start, 8, seed)]
+        weeks = sorted((dt.date.fromisoformat(d) - start).days // 7 for d in first)
+        assert weeks[0] < 4 <= weeks[1]
+        alternate = StandIn(weeks=8, split="alternate").plan(start, [("holidays", 2.0)], seed)[0].details["dates"]
+        parity = sorted((dt.date.fromisoformat(d) - start).days // 7 % 2 for d in alternate)
+        assert parity == [0, 1]  # one absent day in a fit week, one in a held-out week
+
+
+def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path):
+    shutil.copytree(DEFAULT_SITE, tmp_path / "case_000")  # 6 weeks from 2019-11-04
+    case = {"case": 0, "true": "holidays", "magnitude": 2.0, "start": "2019-11-04", "noise_seed": 0, "effect_seed": 3}
+    first_half, alternate = StandIn(weeks=6), StandIn(weeks=6, split="alternate")
+    planned = first_half.plan(dt.date(2019, 11, 4), [("holidays", 2.0)], 3)
+    assert planned[0].details != alternate.plan(dt.date(2019, 11, 4), [("holidays", 2.0)], 3)[0].details
+    (tmp_path / "case_000" / "truth.json").write_text(json.dumps({"effects": [planned[0].truth()]}))
+    assert _site(tmp_path, case, first_half, inject=True) == tmp_path / "case_000"
+    with pytest.raises(ValueError, match="made for another case"):
+        _site(tmp_path, case, alternate, inject=True)
+    # what the injection itself records beside the planned choices does not count
+    limit = {"case": 0, "true": "heating_capacity_limit", "magnitude": 40.0, "start": "2019-11-04",
+             "noise_seed": 0, "effect_seed": 0}
+    (tmp_path / "case_000" / "truth.json").write_text(json.dumps({"effects": [
+        {"name": "heating_capacity_limit", "magnitude": 40.0, "details": {"design_capacity_kw": 395.5}}]}))
+    assert _site(tmp_path, limit, alternate, inject=True) == tmp_path / "case_000"

@@ -72,7 +72,7 @@ def main() -> None:
     parser.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=DiagnosisSettings.split,
                         help="fit weeks: the first half, or every other week (buildenv.gap.split_weeks)")
     parser.add_argument("--weeks", type=int, default=WEEKS,
-                        help="weeks each site measures (the first half fits, the rest is held out)")
+                        help="weeks each site measures (fit and held-out weeks: --split)")
     add_known_argument(parser)
     args = parser.parse_args()
     known = parse_known(args.known)

@@ -113,7 +113,7 @@ def register(sub) -> None:
     p.add_argument("--building", default="medium_office")
     p.add_argument("--epw", default="usa_il_chicago")
     p.add_argument("--weeks", type=int, default=4,
-                   help="weeks each site measures (the first half fits, the rest is held out)")
+                   help="weeks each site measures (fit and held-out weeks: --split)")
     p.add_argument("--base-effects", default="auto",
                    help="'auto' (diagnose a clean site of the building first), or comma-separated known effects")
     add_known_argument(p)

@@ -76,7 +76,7 @@ VISIBLE_NOISE_MULTIPLE = 2.0
 class StandIn:
     """The building every case is made of: a reference building, its weather, the building parameters its
     sites declare known (``site.toml``'s ``[known]``, catalogue units; none by default) and the weeks each site
-    measures (the first half fits, the rest is held out)."""
+    measures, split into fit and held-out weeks by :attr:`split` (:func:`buildenv.gap.split_weeks`)."""
 
     building: str = "medium_office"
     epw: str = "usa_il_chicago"
@@ -335,7 +335,7 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         effects: the effects injected (default: the whole catalogue).
         progress: progress bar over cases.
         known_parameters: building parameters every site declares known (:class:`StandIn`).
-        weeks: weeks each site measures (the first half fits, the rest is held out).
+        weeks: weeks each site measures (split as ``settings.split`` says, :func:`buildenv.gap.split_weeks`).
     Returns:
         ``{"summary": ..., "cases": [...], "base_effects": [...], "plan": {...}}``.
     """

@@ -10,10 +10,11 @@ import pytest
 
 from buildenv import calibration as cal
 from buildenv import effects_model as em
+from buildenv.catalogue import WEATHER_NAMES
 from buildenv.env import DEFAULT_SITE
 from buildenv.effects import EFFECTS, EffectError, get_effect, parse_effect
-from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, save_extended_model, stricter_score,
-                          without_new_effect)
+from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, save_extended_model, split_weather,
+                          split_weeks, stricter_score, without_new_effect)
 from buildenv.site import load_site, write_site
 from buildenv.site_model import SiteModel
 from buildenv.surrogate import load_metamodel
@@ -193,7 +194,7 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     assert first["heldout_after"]["rmse_t_celsius"] < 0.8 * first["heldout_before"]["rmse_t_celsius"]
     # credited with what the bias itself adds: its refit without the bias is the worse baseline here
     assert first["score"] == pytest.approx(min(first["gain_vs_control"], first["gain_vs_own_refit"]), abs=1e-4)
-    assert {"localisation", "effects", "selected", "verdict"} <= set(result)
+    assert {"localisation", "effects", "selected", "verdict", "split_weather"} <= set(result)
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
     saved = save_extended_model(site, result)
     result.pop("_fit")
@@ -308,3 +309,17 @@ def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():
                              "parameters": {"heating_power_w_m2": 99.85}, "series_made_worse": [],
                              "significance": {"p_value": 2.6e-6, "threshold": 0.006}}], 0.15)
     assert "is outside what the diagnosis names: heating_power_w_m2 <= 90 (one catalogue step below" in verdict
+
+
+def test_the_diagnosis_says_when_its_held_out_weeks_are_colder_than_its_fit_weeks():
+    site = load_site(DEFAULT_SITE)  # 6 weeks from 4 November: the last three are the coldest
+    tamb = site.weather_hours()[:, :, WEATHER_NAMES.index("TAMB")]
+    first = split_weather(site)
+    assert first["fit"]["mean_c"] == pytest.approx(tamb[:3].mean(), abs=0.01)
+    assert first["heldout"]["min_c"] == pytest.approx(tamb[3:].min(), abs=0.01)
+    assert first["heldout_colder_than_fit_percent"] == pytest.approx(100 * (tamb[3:] < tamb[:3].min()).mean(),
+                                                                     abs=0.1)
+    assert first["heldout_colder_than_fit_percent"] > 20 and "--split alternate" in first["note"]
+    alternate = split_weather(site, "alternate")  # weeks 0, 2, 4 reach -7.8 degC
+    assert alternate["heldout_colder_than_fit_percent"] < first["heldout_colder_than_fit_percent"]
+    assert alternate["note"] is None

@@ -21,7 +21,7 @@ import numpy as np
 from buildenv.cli_sites import add_known_argument, parse_known
 from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES
 from buildenv.gap import DiagnosisSettings, split_weeks
-from buildenv.gap_check import VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday, run_check
+from buildenv.gap_check import FIRST_MONDAYS, VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday, run_check
 from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
 from buildenv.surrogate import load_metamodel
 
@@ -119,10 +119,9 @@ def main() -> None:
              f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.",
              f"Building: {result['plan']['building']} in {result['plan']['epw']}, {weeks}-week sites "
              f"({len(fit_weeks)} fit + {weeks - len(fit_weeks)} held-out weeks, split {args.split}), first Monday "
-             "drawn between "
-             f"2019-10-07 and 2019-12-02 (at latest {latest_first_monday(weeks)}, so the period ends in 2019), "
-             "one effect (or none) "
-             "injected at a random magnitude, diagnosed blind (`buildenv/gap_check.py` states the procedure).",
+             f"drawn between {FIRST_MONDAYS[0]} and {FIRST_MONDAYS[1]} (at latest {latest_first_monday(weeks)}, so "
+             f"the period ends in {FIRST_MONDAYS[1].year}), one effect (or none) injected at a random magnitude, "
+             "diagnosed blind (`buildenv/gap_check.py` states the procedure).",
              f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
              "Building parameters every site declares known (fixed in calibration): "
              + (", ".join(f"{k} = {v:g}" for k, v in known.items()) or "none") + ".", "",

@@ -48,13 +48,14 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
 
 def _cmd_diagnose_check(args: argparse.Namespace) -> int:
     from buildenv.cli_sites import parse_known
-    from buildenv.gap_check import run_check
+    from buildenv.gap_check import WEEKS, run_check
     from buildenv.surrogate import load_metamodel
 
     base = "auto" if args.base_effects == "auto" else [e for e in args.base_effects.split(",") if e]
     result = run_check(args.out, args.cases, args.seed, load_metamodel(args.checkpoint), _settings(args),
                        args.building, args.epw, base, progress=not args.quiet,
-                       known_parameters=parse_known(args.known), weeks=args.weeks)
+                       known_parameters=parse_known(args.known),
+                       weeks=WEEKS if args.weeks is None else args.weeks)
     (Path(args.out) / "check.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
     print(json.dumps(result if args.json else result["summary"], indent=None if args.json else 2, default=float))
     return 0
@@ -112,8 +113,9 @@ def register(sub) -> None:
     p.add_argument("--out", default="out/diagnose-check", help="folder of the cases (a rerun resumes)")
     p.add_argument("--building", default="medium_office")
     p.add_argument("--epw", default="usa_il_chicago")
-    p.add_argument("--weeks", type=int, default=4,
-                   help="weeks each site measures (fit and held-out weeks: --split)")
+    p.add_argument("--weeks", type=int, default=None,
+                   help="weeks each site measures (default: buildenv.gap_check.WEEKS; fit and held-out weeks: "
+                        "--split)")
     p.add_argument("--base-effects", default="auto",
                    help="'auto' (diagnose a clean site of the building first), or comma-separated known effects")
     add_known_argument(p)

@@ -71,7 +71,8 @@ from buildenv.errors import BuildenvError
 # How a gap diagnosis scores a candidate effect (buildenv.gap.DiagnosisSettings.judge): on both measured series
 # pooled, or on the series the effect shows in (Effect.series).
 JUDGES = ("pooled", "effect_series")
-# How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.gap.split_weeks).
+# How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.gap.split_weeks); the first is
+# the default.
 DIAGNOSIS_SPLITS = ("first_half", "alternate")
 
 

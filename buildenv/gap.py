@@ -88,7 +88,7 @@ SERIES = ("temperature", "consumption")
 COLDER_HELDOUT_NOTE_PERCENT = 20.0
 
 
-def split_weeks(n_weeks: int, split: str = "first_half") -> tuple[list[int], list[int]]:
+def split_weeks(n_weeks: int, split: str = DIAGNOSIS_SPLITS[0]) -> tuple[list[int], list[int]]:
     """Fit and held-out weeks of a site of ``n_weeks`` weeks: ``"first_half"`` fits the first half (rounded up,
     :func:`buildenv.calibration.default_weeks`) and holds out the rest; ``"alternate"`` fits weeks 0, 2, 4, ...
     and holds out 1, 3, 5, ..., so both see the season's whole range of weather (an autumn site's first half
@@ -101,7 +101,7 @@ def split_weeks(n_weeks: int, split: str = "first_half") -> tuple[list[int], lis
     raise ValueError(f"unknown split {split!r}; choose {' or '.join(DIAGNOSIS_SPLITS)}")
 
 
-def split_weather(site, split: str = "first_half") -> dict:
+def split_weather(site, split: str = DIAGNOSIS_SPLITS[0]) -> dict:
     """The outdoor temperature (degC) the fit and the held-out weeks of ``site`` saw under ``split``
     (:func:`split_weeks`): ``{"fit": {"mean_c", "min_c"}, "heldout": {...}, "heldout_colder_than_fit_percent",
     "note"}``.
@@ -212,7 +212,7 @@ class DiagnosisSettings:
     base_effects: tuple[str, ...] = ()
     judge: str = "pooled"
     own_refit_baseline: bool = True
-    split: str = "first_half"
+    split: str = DIAGNOSIS_SPLITS[0]
 
 
 @dataclass

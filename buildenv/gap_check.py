@@ -62,7 +62,7 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.effects import EFFECTS, get_effect
+from buildenv.effects import DIAGNOSIS_SPLITS, EFFECTS, get_effect
 from buildenv.gap import SERIES, DiagnosisSettings, base_model_gap, diagnose
 
 NONE = "none"
@@ -82,7 +82,7 @@ class StandIn:
     epw: str = "usa_il_chicago"
     known: dict[str, float] = field(default_factory=dict)
     weeks: int = WEEKS
-    split: str = "first_half"
+    split: str = DIAGNOSIS_SPLITS[0]
 
     def plan(self, start: dt.date, effects: list | None, effect_seed: int) -> list:
         """The effects' random choices fixed (:func:`buildenv.effects_inject.plan_effects`): holidays with one

@@ -119,6 +119,13 @@ def latest_first_monday(weeks: int) -> dt.date:
     return min(FIRST_MONDAYS[1], latest - dt.timedelta(days=latest.weekday()))
 
 
+def reference_start(weeks: int) -> dt.date:
+    """First Monday of the clean reference site whose diagnosis names the stand-in's own effects
+    (``--base-effects auto``): :data:`REFERENCE_START`, moved back like the cases' (:func:`latest_first_monday`)
+    when ``weeks`` weeks from it would cross the new year (9 weeks or more)."""
+    return min(REFERENCE_START, latest_first_monday(weeks))
+
+
 def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tuple[str, ...] | None = None,
                weeks: int = WEEKS) -> list[dict]:
     """The cases of a check: label, magnitude, first Monday and seeds, all from ``seed``; labels cycle through
@@ -279,12 +286,13 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
     from buildenv.site import load_site
 
     path, cache = out / "reference", out / "reference_diagnosis.json"
+    start = reference_start(stand_in.weeks)
     if (path / "site.toml").is_file():
-        _check_site_matches(path, {"case": "reference", "start": REFERENCE_START.isoformat()}, [], stand_in)
+        _check_site_matches(path, {"case": "reference", "start": start.isoformat()}, [], stand_in)
         if cache.is_file():
             return json.loads(cache.read_text())["selected"]
     else:
-        stand_in.make(path, REFERENCE_START, seed=0)
+        stand_in.make(path, start, seed=0)
     result = diagnose(load_site(path), surrogate, settings, localisation=False)
     result.pop("_fit", None)
     cache.write_text(json.dumps(result, indent=1, default=float) + "\n")

@@ -12,7 +12,8 @@ from buildenv.cli import main
 from buildenv.env import DEFAULT_SITE
 from buildenv.effects_inject import choose_holidays
 from buildenv.gap import DiagnosisSettings, split_weeks
-from buildenv.gap_check import NONE, StandIn, _site, latest_first_monday, plan_cases, run_check
+from buildenv.gap_check import (NONE, REFERENCE_START, StandIn, _site, latest_first_monday, plan_cases,
+                                reference_start, run_check)
 
 
 def test_plan_is_seeded_and_cycles_through_the_labels():
@@ -26,6 +27,12 @@ def test_plan_is_seeded_and_cycles_through_the_labels():
     assert all(dt.date.fromisoformat(c["start"]) + dt.timedelta(weeks=8) <= dt.date(2020, 1, 1) for c in longer)
     assert any(c["start"] != d["start"] for c, d in zip(a, longer))
     assert latest_first_monday(4) == dt.date(2019, 12, 2) and latest_first_monday(8) == dt.date(2019, 11, 4)
+    # the clean reference site of --base-effects auto moves back the same way (it crossed the new year from 9 weeks)
+    assert reference_start(4) == reference_start(8) == REFERENCE_START
+    for weeks in (9, 12):
+        start = reference_start(weeks)
+        assert start.weekday() == 0 and start + dt.timedelta(weeks=weeks) <= dt.date(2020, 1, 1) < start + dt.timedelta(
+            weeks=weeks + 1)
 
 
 def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site(tmp_path):

@@ -36,6 +36,14 @@ with ``night_cycle_cold_air``, together gave fit cost 0.198 but held-out R2_T 0.
 CV(RMSE) 13.6 % (without the effect: 0.850 and 13.7 %). The saved calibration lists them under
 ``declared_effects`` with their parameters under ``effects``, which BuildingWeek-v0 and the optimisers
 simulate with and the gap diagnosis takes as known (not as candidates).
+
+**Parameters at a bound** (:func:`parameters_at_bounds`, ``at_bounds`` in the result): the estimated building
+parameters within :data:`AT_BOUND_SHARE` of their range from one end of it. The metamodel was trained inside
+the catalogue's ranges and calibration cannot go further, so a parameter there is one the fit wanted to take
+further: the building may lie outside the range, or the parameter is standing in for something the model
+lacks (an unmodelled effect, another HVAC structure), or the cost is flat along it. On the default site 11 of
+the 17 estimated parameters calibrate at a bound; README.md ("Parameters at a bound") says which of them the
+EnergyPlus shoebox confirms.
 """
 
 from __future__ import annotations
@@ -60,6 +68,8 @@ SITE_CONSUMPTION_OUTPUTS = cat.HEAT_CONSUMPTION_OUTPUTS
 GUIDELINE14_P = 1
 RAMP_HOURS = 0.5
 KNOWN_GEOMETRY = ("floor_area_m2", "number_of_floors")
+#: A parameter this share of its catalogue range (or less) from one end of it is reported at that bound.
+AT_BOUND_SHARE = 0.02
 SIGMA0 = 0.3  # CMA-ES initial step, in units of the unit box's side
 CMAES_TOLFUN = 1e-6
 
@@ -111,14 +121,16 @@ class Problem:
         return len(self.names)
 
 
-def _free_theta() -> list[str]:
+def free_theta() -> list[str]:
+    """theta_build names calibration can estimate, in catalogue order (all but the known geometry; a site's
+    ``[known]`` ones stay in the list, fixed by their bounds)."""
     return [n for n in cat.THETA_NAMES if n not in KNOWN_GEOMETRY]
 
 
 def parameter_names() -> list[str]:
     """Names of the calibrated parameters, in vector order."""
     occ = [f"{name}_{day}" for day in cat.WEEKDAYS for name in (v.name for v in cat.GROUPS["occupancy"])]
-    return _free_theta() + occ
+    return free_theta() + occ
 
 
 def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None) -> Problem:
@@ -146,7 +158,7 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
     occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
     x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather[idx],
                         (site.settings[prev], occ, weather[prev]), has_prev)
-    free = _free_theta()
+    free = free_theta()
     lo = np.array([known.get(v, cat.get(v).min) for v in free]
                   + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
     hi = np.array([known.get(v, cat.get(v).max) for v in free]
@@ -159,7 +171,7 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
 
 def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Physical ``(pop, 19)`` theta and ``(pop, 5, 2)`` occupancy from ``(pop, dim)`` physical parameters."""
-    free = _free_theta()
+    free = free_theta()
     theta = np.empty((len(params), len(cat.THETA_NAMES)))
     for j, name in enumerate(cat.THETA_NAMES):
         theta[:, j] = problem.theta_known[name] if name in KNOWN_GEOMETRY else params[:, free.index(name)]
@@ -408,7 +420,8 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
         ``{"fit": metrics, "heldout": metrics, "parameters": {...}, "occupancy": [[start, end] x 5], "method",
         "seconds", "evaluations", "cost", "fit_weeks", "heldout_weeks", "guideline14_p"}``, and with
         ``effects``: ``"declared_effects": [names]``, ``"effects": {effect: {parameter: value}}`` and
-        ``"cost_without_effects"``.
+        ``"cost_without_effects"``. ``"at_bounds"`` lists the estimated parameters at a bound of their range
+        (:func:`parameters_at_bounds`).
     """
     effects = check_declared_effects(effects)
     started = time.perf_counter()
@@ -441,6 +454,7 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
               "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
               "known": sorted(site.known),
               "occupancy": np.round(occ[0], 3).tolist(),
+              "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known),
               "metamodel": _metamodel_name(surrogate),
               "catalogue_hash": cat.catalogue_hash(), **declared}
     scale = _scale(problem)
@@ -453,6 +467,28 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
 
         save_calibration(site.path, result)
     return result
+
+
+def parameters_at_bounds(theta: dict[str, float], known=()) -> list[dict]:
+    """The estimated building parameters that calibrated at a bound of their catalogue range.
+
+    Args:
+        theta: calibrated theta_build ``{name: value}`` in catalogue units (``calibration.json``'s ``theta``).
+        known: names the site fixed (its ``[known]`` table); they and the known geometry are not estimates.
+    Returns:
+        ``[{"name", "value", "bound": "min" | "max", "limit"}]`` in catalogue order, for each estimated
+        parameter within :data:`AT_BOUND_SHARE` of its range from that end.
+    """
+    out = []
+    for name, value in theta.items():
+        if name in KNOWN_GEOMETRY or name in known:
+            continue
+        var = cat.get(name)
+        tol = AT_BOUND_SHARE * (var.max - var.min)
+        for bound, limit in (("min", var.min), ("max", var.max)):
+            if abs(float(value) - limit) <= tol:
+                out.append({"name": name, "value": round(float(value), 5), "bound": bound, "limit": limit})
+    return out
 
 
 def check_declared_effects(effects) -> tuple[str, ...]:
@@ -542,7 +578,7 @@ def calibrated_parameters(calibration: dict, effects: tuple[str, ...] = ()) -> n
     ``effects``) of a saved calibration (``calibration.json``'s ``theta`` in catalogue units, ``occupancy`` in h
     and ``effects`` in the effects' units). A parameter an effect gained after the calibration was saved takes
     its "no effect" value."""
-    return np.array([calibration["theta"][n] for n in _free_theta()]
+    return np.array([calibration["theta"][n] for n in free_theta()]
                     + list(np.asarray(calibration["occupancy"], float).ravel())
                     + [calibration["effects"][e].get(p.name, p.none) for e in effects
                        for p in get_effect(e).parameters])

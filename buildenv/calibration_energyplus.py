@@ -121,7 +121,7 @@ def schedule_rows(theta: dict[str, float], run: SiteRun, occupancy: np.ndarray) 
 
 
 def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
-                      workdir: Path | None = None) -> np.ndarray:
+                      workdir: Path | None = None, within_catalogue: bool = True) -> np.ndarray:
     """Simulate one candidate with EnergyPlus over a site run.
 
     Args:
@@ -129,6 +129,8 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
         theta: theta_build ``(19,)``, catalogue order, physical units (geometry included).
         occupancy: weekday occupancy ``(5, 2)`` (start hour, end hour), used in every week.
         workdir: where EnergyPlus runs (a temporary directory, removed afterwards, if ``None``).
+        within_catalogue: refuse a theta_build outside the catalogue's ranges (``False`` runs it, for
+            sensitivity studies past them: ``bench/calibration_bounds.py``).
     Returns:
         outputs of the requested weeks, ``(len(run.keep), 168, 8)``, catalogue output order (Wh/m2 in the
         hour; degC for T_INT_OFFICE).
@@ -144,7 +146,7 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
     from buildenv.energyplus.simulate import read_outputs
     from buildenv.weather import load_weather
 
-    t = theta_dict(np.asarray(theta, float))
+    t = theta_dict(np.asarray(theta, float), check=within_catalogue)
     cat.check_values("occupancy", np.asarray(occupancy, float), "occupancy")
     weather = load_weather(run.weather)
     with tempfile.TemporaryDirectory(prefix="buildenv-calib-") as tmp:
@@ -153,7 +155,7 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
         csv = work / "schedules.csv"
         np.savetxt(csv, schedule_rows(t, run, occupancy), delimiter=",", fmt="%.4f",
                    header=",".join(SCHEDULE_COLUMNS), comments="")
-        model = build_epjson(t, weather, csv, 0, run.weeks, run.zoning)
+        model = build_epjson(t, weather, csv, 0, run.weeks, run.zoning, check=within_catalogue)
         first = dt.date(_EPW_YEAR, 1, 1) + dt.timedelta(days=run.first_day)
         last = first + dt.timedelta(days=7 * run.weeks - 1)
         model["RunPeriod"]["weeks"].update(begin_month=first.month, begin_day_of_month=first.day,
@@ -321,8 +323,8 @@ def score_energyplus(site, params: np.ndarray, fit_weeks: list[int], heldout: li
 def parameters_of(result: dict) -> np.ndarray:
     """Physical parameter vector ``(dim,)`` (:func:`buildenv.calibration.parameter_names` order) of a
     calibration result (``calibration.json`` or a :func:`calibrate_energyplus_cmaes` result)."""
-    from buildenv.calibration import _free_theta
+    from buildenv.calibration import free_theta
 
-    theta = [float(result["theta"][name]) for name in _free_theta()]
+    theta = [float(result["theta"][name]) for name in free_theta()]
     occupancy = np.asarray(result["occupancy"], float).reshape(-1)
     return np.concatenate([theta, occupancy])

@@ -19,7 +19,7 @@ from buildenv.calibration import (
     SITE_CONSUMPTION_OUTPUTS,
     WEIGHTS,
     Problem,
-    _free_theta,
+    free_theta,
     evaluate,
 )
 
@@ -46,7 +46,7 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
     lo, hi = torch.tensor(problem.lo, dtype=torch.float32), torch.tensor(problem.hi, dtype=torch.float32)
     x_base = torch.tensor(problem.x_base, dtype=torch.float32)
     weeks = x_base.shape[0]
-    free = _free_theta()
+    free = free_theta()
     theta_const = torch.tensor([problem.theta_known.get(n, 0.0) for n in cat.THETA_NAMES], dtype=torch.float32)
     theta_cols = [j for j, n in enumerate(cat.THETA_NAMES) if n not in KNOWN_GEOMETRY]
     t0 = sg.INPUT_CHANNELS.index(cat.THETA_NAMES[0])

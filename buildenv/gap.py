@@ -588,6 +588,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
               "effects": first_step, "selected": selected, "steps": steps,
               "heldout_base": _metrics(ctx, base, heldout, *predict(ctx, base, heldout)),
               "residual_sigma": list(ctx.sigma),
+              "base_at_bounds": cal.parameters_at_bounds(
+                  dict(zip(cal.free_theta(), base.params[:len(cal.free_theta())].tolist())), site.known),
               "split_weather": split_weather(site, settings.split),
               "verdict": _verdict(selected, first_step, settings.min_gain),
               "model": {"effects": current.effect_parameters(), "absent_days": _absent_dates(site, current),

@@ -71,7 +71,7 @@ def _truth() -> np.ndarray:
              "roof_insulation_m": 0.1, "window_to_wall_north_percent": 40, "window_to_wall_east_percent": 40,
              "window_to_wall_south_percent": 40, "window_to_wall_west_percent": 40}
     occupancy = [8, 18] * len(cat.WEEKDAYS)
-    return np.array([theta[n] for n in cal._free_theta()] + occupancy, float)
+    return np.array([theta[n] for n in cal.free_theta()] + occupancy, float)
 
 
 @pytest.fixture(scope="module")
@@ -94,6 +94,21 @@ def test_calibration_recovers_known_parameters(tmp_path, surrogate):
     assert got["infiltration_ach"] == pytest.approx(0.5, abs=0.1)
     assert got["capacitance_kj_per_k_m3"] == pytest.approx(120, abs=30)
     assert (tmp_path / "calibration.json").is_file() and load_site(tmp_path).calibration["method"] == "cmaes"
+    for entry in result["at_bounds"]:  # estimates only, each within its tolerance of the bound it names
+        var = cat.get(entry["name"])
+        assert entry["name"] not in cal.KNOWN_GEOMETRY and entry["limit"] == getattr(var, entry["bound"])
+        assert abs(result["theta"][entry["name"]] - entry["limit"]) <= cal.AT_BOUND_SHARE * (var.max - var.min) + 1e-5
+
+
+def test_parameters_at_a_bound_of_the_catalogue_are_reported():
+    theta = {n: (cat.get(n).min + cat.get(n).max) / 2 for n in cat.THETA_NAMES}
+    theta.update(capacitance_kj_per_k_m3=54.0,  # 4 of a 250 range from its minimum: at it (2 % = 5)
+                 heating_power_w_m2=97.0,  # 3 of a 90 range from its maximum: not (2 % = 1.8)
+                 pc_night_percent=70.0, light_night_percent=0.0, floor_area_m2=1000.0)
+    found = cal.parameters_at_bounds(theta, known={"light_night_percent": 0.0})  # known: not an estimate
+    assert [(e["name"], e["bound"], e["limit"]) for e in found] == [
+        ("capacitance_kj_per_k_m3", "min", 50.0), ("pc_night_percent", "max", 70.0)]  # geometry is not either
+    assert found[0]["value"] == 54.0
 
 
 def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, surrogate):

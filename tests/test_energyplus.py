@@ -17,7 +17,7 @@ from buildenv.energyplus.shoebox import (
     write_schedule_file,
 )
 from buildenv.energyplus.simulate import simulate_weeks
-from buildenv.errors import SimulationError
+from buildenv.errors import CatalogueError, SimulationError
 from buildenv.schedules import hourly_schedules
 from buildenv.weather import load_weather
 
@@ -135,6 +135,19 @@ def test_energyplus_severe_error_is_reported_with_err_lines(tmp_path):
     assert "broken.epJSON" in message
     assert "Severe" in message or "Fatal" in message
     assert "PLASTERBOARD" in message.upper()
+
+
+def test_a_building_outside_the_catalogue_is_refused_unless_asked_for(tmp_path):
+    # bench/calibration_bounds.py runs the shoebox past the catalogue's ranges; by default they are enforced
+    settings, occupancy = default_week()
+    weather = load_weather("usa_il_chicago")
+    csv = write_schedule_file(tmp_path / "schedules.csv", DEFAULT_THETA, settings, occupancy, 0)
+    thin = {**DEFAULT_THETA, "capacitance_kj_per_k_m3": 25.0}
+    with pytest.raises(CatalogueError, match="capacitance_kj_per_k_m3=25 .* outside its range"):
+        build_epjson(thin, weather, csv, 0, 1)
+    mass = {c: build_epjson({**DEFAULT_THETA, "capacitance_kj_per_k_m3": c}, weather, csv, 0, 1, check=c >= 50)[
+        "Material"]["Internal mass concrete"]["thickness"] for c in (25.0, 50.0)}
+    assert mass[25.0] == pytest.approx(mass[50.0] / 2)
 
 
 WARMUP_SEVERE = [

@@ -220,13 +220,16 @@ def _horizontal_outlines(g: Geometry, zoning: str) -> dict[str, tuple[str, list[
     return outlines
 
 
-def theta_dict(theta: np.ndarray | dict[str, float]) -> dict[str, float]:
-    """theta_build as ``{name: value}``, validated against the catalogue."""
+def theta_dict(theta: np.ndarray | dict[str, float], check: bool = True) -> dict[str, float]:
+    """theta_build as ``{name: value}``, validated against the catalogue (``check=False``: a vector outside its
+    ranges is kept, for sensitivity studies past them; the metamodel knows nothing there)."""
     if isinstance(theta, dict):
-        vector = cat.from_mapping("theta_build", theta, where="theta_build")
+        vector = cat.from_mapping("theta_build", theta, where="theta_build") if check else np.array(
+            [float(theta[name]) for name in cat.THETA_NAMES])
     else:
         vector = np.asarray(theta, dtype=float)
-        cat.check_values("theta_build", vector, "theta_build")
+        if check:
+            cat.check_values("theta_build", vector, "theta_build")
     return dict(zip(cat.THETA_NAMES, (float(x) for x in vector)))
 
 
@@ -295,7 +298,7 @@ def write_schedule_file(path: Path, theta: dict[str, float], settings: np.ndarra
 
 
 def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedule_csv: Path,
-                 start_week: int, n_weeks: int, zoning: str = DEFAULT_ZONING) -> dict:
+                 start_week: int, n_weeks: int, zoning: str = DEFAULT_ZONING, check: bool = True) -> dict:
     """Generate the shoebox as an epJSON document.
 
     Args:
@@ -305,10 +308,11 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
         start_week: week of year of the first simulated week (weeks start on Mondays; Jan 1st is a Monday).
         n_weeks: number of consecutive weeks to simulate.
         zoning: ``single`` (one zone, the paper's) or ``core_perimeter`` (see the module docstring).
+        check: refuse a theta outside the catalogue's ranges (:func:`theta_dict`).
     Returns:
         The epJSON model as a dict (``json.dump`` it to a ``.epJSON`` file).
     """
-    t = theta_dict(theta)
+    t = theta_dict(theta, check)
     g = Geometry.from_theta(t)
     check_zoning(zoning)
     csv = str(Path(schedule_csv).resolve())

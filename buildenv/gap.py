@@ -520,10 +520,12 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
         plot: PNG path of the localisation heatmaps (none if ``None``).
     Returns:
         ``{"localisation", "effects": [...] ranked best first, "selected", "verdict", "steps", "model",
-        "fit_weeks", "heldout_weeks", "heldout_base", "residual_sigma", "seconds"}``; each effect entry has
-        ``name, score, significance, heldout_before, heldout_after, parameters, selected``; ``heldout_base``
-        holds the base model's held-out metrics and ``residual_sigma`` its fit-week residual standard deviations
-        ([K, Wh/m2], the units every residual is standardised in).
+        "fit_weeks", "heldout_weeks", "heldout_base", "residual_sigma", "base_at_bounds", "split_weather",
+        "seconds"}``; each effect entry has ``name, score, significance, heldout_before, heldout_after,
+        parameters, selected``; ``heldout_base`` holds the base model's held-out metrics, ``residual_sigma`` its
+        fit-week residual standard deviations ([K, Wh/m2], the units every residual is standardised in) and
+        ``base_at_bounds`` its building parameters at a bound of their range
+        (:func:`buildenv.calibration.parameters_at_bounds`).
     """
     from tqdm import tqdm
 

@@ -4,7 +4,7 @@ Calibrating the metamodel to the default site leaves many building parameters at
 range (``at_bounds`` of ``buildenv calibrate``, :func:`buildenv.calibration.parameters_at_bounds`). The
 metamodel knows nothing past those ranges, but the EnergyPlus shoebox it imitates does: this script runs the
 shoebox on the site's fit and held-out weeks with the saved calibration, then with each parameter at a bound
-moved past it by 10 % and 20 % of its range (never below zero), then with all of them moved by 10 %. A
+moved past it by 10 % and 20 % of its range (never below zero), then with those moves of 10 % made together. A
 parameter whose move improves the held-out weeks is one the range holds back; one whose move changes nothing
 sits on a flat direction of the cost; one whose move makes it worse was at its best at the bound.
 Writes ``bench/results/calibration_bounds.{md,json}``.
@@ -83,7 +83,7 @@ def main() -> None:
             plan.append((entry["name"], f"{entry['limit']:g} -> {value:g}", moved))
             if share == MOVES[0]:
                 together[j] = value
-    plan.append(("all of them, 10 % past", "-", together))
+    plan.append(("all that can move, 10 % past", "-", together))
     rows = []
     for name, change, p in tqdm(plan, desc="EnergyPlus shoebox runs"):
         rows.append({"parameter": name, "change": change, **shoebox_scores(site, calibration, p)})
@@ -107,7 +107,7 @@ def markdown(data: dict) -> str:
              f"{len(free_theta())} estimated building parameters at a bound: "
              + ", ".join(f"{e['name']} at its {e['bound']} ({e['limit']:g})" for e in data["at_bounds"]) + ".", "",
              "The EnergyPlus shoebox run with those parameters, then with one of them moved past its bound "
-             "(by 10 % and 20 % of its range, never below zero), then all of them by 10 %:", "",
+             "(by 10 % and 20 % of its range, never below zero), then all that can move by 10 %:", "",
              "| parameter | change | fit R2_T | fit R2_Q | held-out R2_T | held-out RMSE_T K | held-out R2_Q | "
              "held-out CV(RMSE)_Q % |", "|---|---|---|---|---|---|---|---|"]
     for r in data["rows"]:

@@ -491,6 +491,18 @@ def parameters_at_bounds(theta: dict[str, float], known=()) -> list[dict]:
     return out
 
 
+def at_bounds_note(result: dict) -> str | None:
+    """One line for the user about a calibration's parameters at a bound (``result["at_bounds"]``), or None."""
+    found = result.get("at_bounds") or []
+    if not found:
+        return None
+    estimated = len([n for n in free_theta() if n not in result.get("known", [])])
+    listed = ", ".join(f"{e['name']} at its {e['bound']} {e['limit']:g}" for e in found)
+    return (f"note: {len(found)} of {estimated} estimated building parameters calibrated at a bound of the "
+            f"catalogue's range ({listed}); the metamodel cannot go past them, so each is a value the fit wanted "
+            "further, one standing in for something the model lacks, or one the fit does not depend on")
+
+
 def check_declared_effects(effects) -> tuple[str, ...]:
     """The declared effects as a tuple of catalogue names; raises :class:`CalibrationError` for a name that is
     not in the catalogue, given twice, or ``holidays`` (its absent days are dates of the measured period, which

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import datetime as dt
 import json
+import sys
 from pathlib import Path
 
 from buildenv.errors import BuildenvError
@@ -113,7 +114,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from buildenv.calibration import calibrate_site
+    from buildenv.calibration import at_bounds_note, calibrate_site
     from buildenv.calibration_plot import plot_calibration
     from buildenv.site import load_site
     from buildenv.surrogate import load_metamodel
@@ -126,6 +127,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     result["plot"] = str(plot_calibration(load_site(args.site), load_metamodel(args.checkpoint), result,
                                           Path(args.site) / "calibration.png"))
     print(json.dumps(result, indent=None if args.json else 2))
+    note = at_bounds_note(result)
+    if note:
+        print(note, file=sys.stderr)
     return 0
 
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import json
 
 import numpy as np
 import pytest
@@ -109,6 +110,24 @@ def test_parameters_at_a_bound_of_the_catalogue_are_reported():
     assert [(e["name"], e["bound"], e["limit"]) for e in found] == [
         ("capacitance_kj_per_k_m3", "min", 50.0), ("pc_night_percent", "max", 70.0)]  # geometry is not either
     assert found[0]["value"] == 54.0
+    note = cal.at_bounds_note({"at_bounds": found, "known": ["light_night_percent"]})
+    assert "\n" not in note and note.startswith("note: 2 of 16 estimated building parameters")
+    assert "capacitance_kj_per_k_m3 at its min 50" in note and "pc_night_percent at its max 70" in note
+    assert cal.at_bounds_note({"at_bounds": [], "known": []}) is None
+
+
+def test_calibrate_command_prints_its_parameters_at_a_bound(tmp_path, surrogate, capsys):
+    from buildenv.cli import main
+
+    _synthetic_site(tmp_path, surrogate, _truth(), weeks=1)
+    assert main(["calibrate", "--site", str(tmp_path), "--evaluations", "200", "--quiet", "--json"]) == 0
+    out, err = capsys.readouterr()
+    result = json.loads(out)
+    assert {e["name"] for e in result["at_bounds"]} <= set(cal.free_theta())
+    if result["at_bounds"]:
+        assert err.strip().splitlines()[-1] == cal.at_bounds_note(result)
+    else:
+        assert "note:" not in err
 
 
 def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, surrogate):

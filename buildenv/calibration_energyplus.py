@@ -165,8 +165,9 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
     return outputs[list(run.keep)]
 
 
-def _simulate_task(task: tuple[SiteRun, np.ndarray, np.ndarray]) -> np.ndarray:
-    return simulate_site_run(*task)
+def _simulate_task(task: tuple[SiteRun, np.ndarray, np.ndarray, bool]) -> np.ndarray:
+    run, theta, occupancy, within_catalogue = task
+    return simulate_site_run(run, theta, occupancy, within_catalogue=within_catalogue)
 
 
 def _warm(_: int = 0) -> int:
@@ -189,11 +190,14 @@ class ShoeboxPool:
     Args:
         workers: number of processes (default: all cores); 1 runs in the calling process.
         tasks_per_worker: EnergyPlus runs after which a worker process is replaced.
+        within_catalogue: refuse candidates outside the catalogue's ranges (:func:`simulate_site_run`).
     """
 
-    def __init__(self, workers: int | None = None, tasks_per_worker: int = TASKS_PER_WORKER):
+    def __init__(self, workers: int | None = None, tasks_per_worker: int = TASKS_PER_WORKER,
+                 within_catalogue: bool = True):
         self.workers = max(1, workers or os.cpu_count() or 1)
         self.tasks_per_worker = tasks_per_worker
+        self.within_catalogue = within_catalogue
         self._pool = None
 
     def __enter__(self) -> ShoeboxPool:
@@ -213,7 +217,7 @@ class ShoeboxPool:
 
     def simulate(self, run: SiteRun, theta: np.ndarray, occupancy: np.ndarray) -> np.ndarray:
         """Outputs ``(pop, len(run.keep), 168, 8)`` of candidates ``theta (pop, 19)``, ``occupancy (pop, 5, 2)``."""
-        tasks = [(run, th, oc) for th, oc in zip(theta, occupancy)]
+        tasks = [(run, th, oc, self.within_catalogue) for th, oc in zip(theta, occupancy)]
         if self._pool is None:
             return np.stack([_simulate_task(t) for t in tasks])
         return np.stack(self._pool.map(_simulate_task, tasks, chunksize=1))

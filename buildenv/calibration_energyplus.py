@@ -2,7 +2,9 @@
 
 The same problem as :mod:`buildenv.calibration` (free parameters, bounds, cost, metrics: every one of them
 is taken from there), but each candidate is simulated by EnergyPlus, the simulator the metamodel imitates,
-instead of predicted by the metamodel; CMA-ES runs until a wall-clock budget is used.
+instead of predicted by the metamodel; CMA-ES runs until a wall-clock budget is used. For studies of the
+shoebox itself, a search can start from given parameters (a saved metamodel calibration) and search ranges
+other than the catalogue's, past it too (``bench/shoebox_wider_ranges.py``).
 
 **One candidate, one EnergyPlus run.** A candidate (theta_build with the site's known geometry, and the
 weekly occupancy) is run over the requested site weeks with the site's settings and weather. The run
@@ -28,10 +30,12 @@ two more EnergyPlus runs) is timed separately.
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import os
 import tempfile
 import time
+from collections.abc import Mapping
 from contextlib import nullcontext
 from dataclasses import dataclass
 from multiprocessing import get_context
@@ -42,6 +46,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.calibration import (
     GUIDELINE14_P,
+    SIGMA0,
     CalibrationError,
     _scale,
     _split,
@@ -231,7 +236,9 @@ def evaluate_energyplus(problem, run: SiteRun, pool: ShoeboxPool, params: np.nda
 
 def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int = 0, wall_seconds: float = 60.0,
                                workers: int | None = None, progress: bool = False,
-                               zoning: str = DEFAULT_ZONING) -> dict:
+                               zoning: str = DEFAULT_ZONING, start: np.ndarray | None = None,
+                               sigma0: float = SIGMA0,
+                               ranges: Mapping[str, tuple[float, float]] | None = None) -> dict:
     """Calibrate the EnergyPlus shoebox to a site with CMA-ES under a wall-clock budget, and score it.
 
     Same free parameters, bounds, start point, step size and cost as
@@ -247,13 +254,20 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
         workers: worker processes (default: all cores).
         progress: progress bar (generations).
         zoning: the shoebox's zoning (:data:`buildenv.energyplus.shoebox.ZONINGS`).
+        start: physical parameters ``(dim,)`` (:func:`buildenv.calibration.parameter_names` order) the search
+            starts from, e.g. a saved calibration's (:func:`parameters_of`); default the centre of the bounds.
+        sigma0: initial step size, in units of each parameter's range.
+        ranges: ``{building parameter: (low, high)}`` replacing the catalogue's range of those parameters,
+            for studies of what the shoebox reaches past the catalogue (candidates outside it are simulated:
+            ``ShoeboxPool(within_catalogue=False)``); the metamodel cannot follow such a calibration.
     Returns:
         ``{"method": "cmaes-energyplus", "seconds" (loop, s), "wall_seconds" (budget, s), "evaluations",
         "generations", "cost", "history": [[s, evaluations, best cost] per generation], "scoring_seconds",
         "workers", "fit_weeks", "heldout_weeks", "guideline14_p", "theta", "occupancy", "fit": metrics,
         "heldout": metrics}`` (metrics as :func:`buildenv.calibration.site_metrics`).
     Raises:
-        CalibrationError: a non-positive budget, or weeks EnergyPlus cannot run (see :func:`plan_site_run`).
+        CalibrationError: a non-positive budget, weeks EnergyPlus cannot run (see :func:`plan_site_run`), a
+            start of the wrong length, or a range that is not a free building parameter's or is empty.
     """
     from tqdm import tqdm
 
@@ -261,13 +275,16 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
         raise CalibrationError(f"wall_seconds must be positive (got {wall_seconds})")
     fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
         sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
-    problem = build_problem(site, fit_weeks)
+    problem = with_ranges(build_problem(site, fit_weeks), ranges or {})
+    if start is not None and np.shape(start) != (problem.dim,):
+        raise CalibrationError(f"start has shape {np.shape(start)}; the problem has {problem.dim} parameters")
     run = plan_site_run(site, fit_weeks, zoning)
     if heldout:
         plan_site_run(site, heldout, zoning)  # refuse weeks EnergyPlus cannot score before spending the budget
     history: list[list[float]] = []
-    with ShoeboxPool(workers) as pool:
-        es = cmaes_strategy(int(problem.free.sum()), seed)
+    x0 = None if start is None else problem.to_unit(np.clip(start, problem.lo, problem.hi))
+    with ShoeboxPool(workers, within_catalogue=not ranges) as pool:
+        es = cmaes_strategy(int(problem.free.sum()), seed, sigma0=sigma0, x0=x0)
         bar = tqdm(desc="CMA-ES (EnergyPlus)", unit="generation", disable=not progress, leave=False)
         started = time.perf_counter()
         last = 0.0
@@ -294,6 +311,8 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
               "evaluations": int(es.result.evaluations), "generations": len(history),
               "cost": float(es.result.fbest), "history": history, "scoring_seconds": round(scoring_seconds, 2),
               "workers": pool.workers, "zoning": zoning, "fit_weeks": fit_weeks, "heldout_weeks": heldout,
+              "start": "centre" if start is None else "given", "sigma0": sigma0,
+              "ranges": {name: list(map(float, r)) for name, r in (ranges or {}).items()},
               "guideline14_p": GUIDELINE14_P,
               "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
               "known": sorted(site.known), "occupancy": np.round(occ[0], 3).tolist(),
@@ -301,6 +320,21 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
     for key, metrics in scores.items():
         result[key] = {**metrics, "seconds": result["seconds"], "evaluations": result["evaluations"]}
     return result
+
+
+def with_ranges(problem, ranges: Mapping[str, tuple[float, float]]):
+    """``problem`` (:class:`buildenv.calibration.Problem`) with the bounds of some free building parameters
+    replaced, ``{name: (low, high)}``; raises :class:`CalibrationError` for a name that is not a free building
+    parameter of the problem or an empty range."""
+    lo, hi = problem.lo.copy(), problem.hi.copy()
+    for name, (low, high) in ranges.items():
+        if name not in cat.THETA_NAMES or name not in problem.names or not problem.free[problem.names.index(name)]:
+            raise CalibrationError(f"range given for {name!r}, which is not a free building parameter of this site")
+        if not low < high:
+            raise CalibrationError(f"range of {name}: low {low} is not below high {high}")
+        j = problem.names.index(name)
+        lo[j], hi[j] = float(low), float(high)
+    return dataclasses.replace(problem, lo=lo, hi=hi)
 
 
 def score_energyplus(site, params: np.ndarray, fit_weeks: list[int], heldout: list[int],

@@ -104,3 +104,22 @@ def test_budgeted_cmaes_runs_one_generation_and_scores_both_sets(tmp_path):
     np.testing.assert_allclose(ce.parameters_of(result)[-10:], np.ravel(result["occupancy"]))
     with pytest.raises(cal.CalibrationError, match="positive"):
         ce.calibrate_energyplus_cmaes(site, weeks=[0], wall_seconds=0)
+
+
+def test_warm_start_past_the_catalogue_range(tmp_path):
+    site = _site(tmp_path, 2)
+    problem = cal.build_problem(site, [0])
+    start = _params(problem)
+    j = problem.names.index("capacitance_kj_per_k_m3")
+    start[j] = 30.0  # under the catalogue's 50: only simulated with the range widened
+    result = ce.calibrate_energyplus_cmaes(site, weeks=[0], seed=0, wall_seconds=0.01, workers=2, start=start,
+                                           sigma0=1e-6, ranges={"capacitance_kj_per_k_m3": (10.0, 300.0)})
+    assert result["start"] == "given" and result["ranges"] == {"capacitance_kj_per_k_m3": [10.0, 300.0]}
+    assert result["theta"]["capacitance_kj_per_k_m3"] == pytest.approx(30.0, abs=1e-3)
+    np.testing.assert_allclose(ce.parameters_of(result), start, atol=1e-3)
+    assert np.isfinite(result["heldout"]["r2_t"])
+    for kwargs, match in (({"ranges": {"floor_area_m2": (100.0, 200.0)}}, "not a free building parameter"),
+                          ({"ranges": {"roof_insulation_m": (0.2, 0.1)}}, "not below"),
+                          ({"start": start[:-1]}, "shape")):
+        with pytest.raises(cal.CalibrationError, match=match):
+            ce.calibrate_energyplus_cmaes(site, weeks=[0], wall_seconds=1, **kwargs)

@@ -10,7 +10,7 @@ with the ranges of :data:`WIDER` (:func:`buildenv.calibration_energyplus.calibra
 the catalogue itself is unchanged (the shipped metamodel is tied to it by its hash).
 Writes ``bench/results/{name}.md`` and ``.json``.
 
-    .venv/bin/python bench/shoebox_wider_ranges.py [--site DIR] [--seconds 600] [--name shoebox_wider_ranges]
+    .venv/bin/python bench/shoebox_wider_ranges.py [--site DIR] [--seconds 600] [--seed 0] [--name shoebox_wider_ranges]
 """
 
 from __future__ import annotations
@@ -64,6 +64,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--site", type=Path, default=DEFAULT_SITE)
     parser.add_argument("--seconds", type=float, default=600.0, help="CMA-ES wall-clock budget of each run, s")
+    parser.add_argument("--seed", type=int, default=0, help="seed of both CMA-ES runs")
     parser.add_argument("--name", default="shoebox_wider_ranges")
     args = parser.parse_args()
     load = os.getloadavg()[0]
@@ -74,25 +75,27 @@ def main() -> None:
         "cost": None, "evaluations": None, **score_energyplus(site, start, fit, heldout)}}
     runs = {}
     for label, ranges in (("shoebox calibrated, catalogue ranges", None), ("shoebox calibrated, wider ranges", WIDER)):
-        r = calibrate_energyplus_cmaes(site, weeks=fit, seed=0, wall_seconds=args.seconds, workers=2,
+        r = calibrate_energyplus_cmaes(site, weeks=fit, seed=args.seed, wall_seconds=args.seconds, workers=2,
                                        progress=True, start=start, sigma0=SIGMA0, ranges=ranges)
         runs[label] = r
         rows[label] = {"cost": r["cost"], "evaluations": r["evaluations"], "fit": r["fit"], "heldout": r["heldout"]}
     command = "python bench/shoebox_wider_ranges.py" + (f" --site {args.site}" if args.site != DEFAULT_SITE else "") \
         + (f" --seconds {args.seconds:g}" if args.seconds != 600.0 else "") \
+        + (f" --seed {args.seed}" if args.seed else "") \
         + (f" --name {args.name}" if args.name != "shoebox_wider_ranges" else "")
     wide = runs["shoebox calibrated, wider ranges"]["theta"]
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "site": str(args.site), "fit_weeks": fit,
-              "heldout_weeks": heldout, "sigma0": SIGMA0, "wider": WIDER, "rows": rows,
+              "heldout_weeks": heldout, "seed": args.seed, "sigma0": SIGMA0, "wider": WIDER, "rows": rows,
               "theta": {label: r["theta"] for label, r in runs.items()}, "outside_catalogue": outside_catalogue(wide)}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     lines = [f"# The EnergyPlus shoebox calibrated within and past the catalogue's ranges ({args.site.name})", "",
              f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.", "",
-             f"CMA-ES (seed 0, step {SIGMA0} of each range) on the EnergyPlus shoebox, started from the site's saved "
-             f"metamodel calibration, {args.seconds:g} s of wall clock each; fit weeks {fit}, held-out weeks "
-             f"{heldout}. Wider ranges: {', '.join(f'{k} {a:g}-{b:g}' for k, (a, b) in WIDER.items())}.", "",
+             f"CMA-ES (seed {args.seed}, step {SIGMA0} of each range) on the EnergyPlus shoebox, started from the "
+             f"site's saved metamodel calibration, {args.seconds:g} s of wall clock each; fit weeks {fit}, "
+             f"held-out weeks {heldout}. Wider ranges: "
+             + ", ".join(f"{k} {a:g}-{b:g}" for k, (a, b) in WIDER.items()) + ".", "",
              "| model | fit cost | evaluations | fit r2_t | " + " | ".join(f"held-out {m}" for m in METRICS) + " |",
              "|---" * (len(METRICS) + 4) + "|"]
     for label, row in rows.items():

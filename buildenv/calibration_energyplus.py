@@ -241,7 +241,7 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
                                ranges: Mapping[str, tuple[float, float]] | None = None) -> dict:
     """Calibrate the EnergyPlus shoebox to a site with CMA-ES under a wall-clock budget, and score it.
 
-    Same free parameters, bounds, start point, step size and cost as
+    By default the same free parameters, bounds, start point, step size and cost as
     :func:`buildenv.calibration.calibrate_site` with ``method="cmaes"``; fit and held-out weeks are scored
     with the same metrics on EnergyPlus outputs.
 
@@ -263,8 +263,9 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
     Returns:
         ``{"method": "cmaes-energyplus", "seconds" (loop, s), "wall_seconds" (budget, s), "evaluations",
         "generations", "cost", "history": [[s, evaluations, best cost] per generation], "scoring_seconds",
-        "workers", "fit_weeks", "heldout_weeks", "guideline14_p", "theta", "occupancy", "fit": metrics,
-        "heldout": metrics}`` (metrics as :func:`buildenv.calibration.site_metrics`).
+        "workers", "fit_weeks", "heldout_weeks", "start" ("centre" or "given"), "sigma0", "ranges",
+        "guideline14_p", "theta", "occupancy", "fit": metrics, "heldout": metrics}`` (metrics as
+        :func:`buildenv.calibration.site_metrics`).
     Raises:
         CalibrationError: a non-positive budget, weeks EnergyPlus cannot run (see :func:`plan_site_run`), a
             start of the wrong length, or a range that is not a free building parameter's or is empty.
@@ -328,11 +329,11 @@ def with_ranges(problem, ranges: Mapping[str, tuple[float, float]]):
     parameter of the problem or an empty range."""
     lo, hi = problem.lo.copy(), problem.hi.copy()
     for name, (low, high) in ranges.items():
-        if name not in cat.THETA_NAMES or name not in problem.names or not problem.free[problem.names.index(name)]:
+        j = problem.names.index(name) if name in cat.THETA_NAMES and name in problem.names else None
+        if j is None or not problem.free[j]:
             raise CalibrationError(f"range given for {name!r}, which is not a free building parameter of this site")
         if not low < high:
             raise CalibrationError(f"range of {name}: low {low} is not below high {high}")
-        j = problem.names.index(name)
         lo[j], hi[j] = float(low), float(high)
     return dataclasses.replace(problem, lo=lo, hi=hi)
 

@@ -75,7 +75,7 @@ def _night_term_rows(site, surrogate: sg.Surrogate, params: np.ndarray, fit_week
     for name, v in (("none (the saved calibration)", np.zeros(2)),
                     (f"cooling_k_per_wh_m2 = {max(best.x[0], 0):.3f}, reheat_share = {max(best.x[1], 0):.2f}",
                      np.clip(best.x, 0.0, None))):
-        full = np.r_[params, v, 0.0]  # the night hours' term only (unheated_supply_share at none)
+        full = np.r_[params, v, 0.0]  # the night hours' term only (supply_shortfall_k at none)
         t, q = cal.predict(held_problem, surrogate, full)
         m = cal.score_series(held_problem, t, q, full, cal._scale(fit_problem))
         rows.append(f"| {name} | {cost(v):.4f} | {m['r2_t']:.3f} | {m['rmse_t_celsius']:.3f} | "

@@ -275,16 +275,18 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "points of maximum air flow added to the VAV boxes' minimum out of hours", (10.0, 30.0),
            20.0, ("temperature", "consumption"),
            (ModelParameter("cooling_k_per_wh_m2", "K per Wh/m2", 0.0, 0.5, 0.0,
-                           "temperature lost per Wh/m2 of the model's heating in hours its ventilation is off"),
+                           "temperature lost per Wh/m2 of the model's heating in hours its ventilation is off, "
+                           "and per Wh/m2 the supply air brings less after the heating period"),
             ModelParameter("reheat_share", "-", 0.0, 1.0, 0.0,
                            "heat consumption added, as a share of the model's heating in those hours"),
-            ModelParameter("unheated_supply_share", "-", 0.0, 1.0, 0.0,
-                           "share of the air handling unit's heating not spent in the hours the ventilation "
-                           "runs outside the heating period")),
+            ModelParameter("supply_shortfall_k", "K", 0.0, 20.0, 0.0,
+                           "how much colder than supply_air_c the air comes in when the ventilation runs outside "
+                           "the heating period, times the supply flow over the model's fresh-air flow")),
            "in the hours the ventilation is off, the predicted temperature falls by cooling_k_per_wh_m2 x the "
            "predicted heating and the consumption rises by reheat_share x the same heating; in the hours it runs "
-           "outside the heating period, the temperature falls by the same coefficient x the predicted heating "
-           "and the air handling unit's heating by unheated_supply_share", 0.02,
+           "outside the heating period, the supply air brings D = supply_shortfall_k x the air handling unit's "
+           "heating per K of lift less heat: the temperature falls by the same coefficient x D and the air "
+           "handling unit's heating by D (at most all of it)", 0.02,
            smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)"),
     Effect("evening_departure", "occupants leaving gradually in the evening",
            "Offices do not empty at one hour: after the main working day part of the occupants stay on, with their "

@@ -209,7 +209,7 @@ def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model
     from buildenv.site_model import SiteModel
 
     effect = ("night_cycle_cold_air",)
-    site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), 0.15, 0.3, 0.5], effects=effect)
+    site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), 0.15, 0.3, 5.0], effects=effect)
     result = cal.calibrate_site(site, surrogate, weeks=[0], seed=0, max_evaluations=2500, effects=effect)
     fitted = result["effects"]["night_cycle_cold_air"]
     assert result["declared_effects"] == list(effect) and result["cost"] < result["cost_without_effects"]

@@ -106,7 +106,7 @@ AFTER_HEATING = np.arange(168) % 24 == 18  # the default site's settings: heatin
     ("night_cycle_cold_air", [0.1, 0.2, 0.0], lambda d: d["t"].max() <= 1e-5 and d["t"].min() < -0.1
      and d["q"].min() >= -1e-4 and d["q"].max() > 0.2),
     # the ventilation runs an hour past the heating (the default site's 18:00): cold unheated supply air
-    ("night_cycle_cold_air", [0.0, 0.0, 0.6], lambda d: np.all(d["t"] == 0) and d["q"].max() <= 1e-4
+    ("night_cycle_cold_air", [0.0, 0.0, 6.0], lambda d: np.all(d["t"] == 0) and d["q"].max() <= 1e-4
      and d["q"][..., AFTER_HEATING].min() < -1.0 and np.all(d["q"][..., ~AFTER_HEATING] == 0)),
     ("evening_departure", [0.4, 3.0], lambda d: d["t"][..., EVENING].mean() > 0.1 and d["q"][..., EVENING].mean() > 0.5
      and np.abs(d["q"][..., MORNING]).max() < 0.5),
@@ -160,6 +160,27 @@ def test_wind_infiltration_is_a_quarter_while_the_air_handling_unit_runs():
     x[0, :2, ch["ventilation_on"]] = 1.0
     out = em.transform_inputs(x.copy(), {"wind_infiltration": np.array([[0.05]])})[0, :, ch["infiltration_ach"]]
     np.testing.assert_allclose(out, [0.2 + 0.25 * 0.2, 0.2 + 0.25 * 0.2, 0.4, 0.4])
+
+
+def test_unheated_supply_air_saves_less_heat_on_a_cold_evening_than_on_a_mild_one():
+    # after the heating period the supply air comes in supply_shortfall_k colder: the air handling unit's heating
+    # per K of lift times the shortfall is heat the zones do not get, and the air handling unit does not spend
+    from buildenv import catalogue as cat
+    from buildenv.surrogate import CONTEXT_HOURS, INPUT_CHANNELS
+
+    ch, q_ahu, t_int = ({n: i for i, n in enumerate(INPUT_CHANNELS)}, cat.OUTPUT_NAMES.index("Q_AHU_H"),
+                        cat.OUTPUT_NAMES.index("T_INT_OFFICE"))
+    x = np.zeros((2, CONTEXT_HOURS + 168, len(INPUT_CHANNELS)))
+    x[..., ch["ventilation_on"]] = 1.0  # ventilation on, heating period over: every hour is "after heating"
+    x[..., ch["supply_air_c"]] = 19.0
+    x[0, :, ch["TAMB"]], x[1, :, ch["TAMB"]] = -5.0, 13.0  # lift 24 K and 6 K
+    outputs = np.zeros((2, 168, len(cat.OUTPUT_NAMES)), np.float32)
+    outputs[..., q_ahu], outputs[..., t_int] = 12.0, 20.0
+    out = em.transform_outputs(outputs, x, {"night_cycle_cold_air": np.array([[0.05, 0.0, 6.0]])})
+    np.testing.assert_allclose(out[0, :, q_ahu], 12.0 - 6.0 * 12.0 / 24.0)  # still heats from -5 to 13 degC
+    np.testing.assert_allclose(out[1, :, q_ahu], 0.0)  # at most all of it
+    np.testing.assert_allclose(out[0, :, t_int], 20.0 - 0.05 * 3.0, rtol=1e-6)
+    np.testing.assert_allclose(out[1, :, t_int], 20.0 - 0.05 * 12.0, rtol=1e-6)
 
 
 def _biased_site(tmp_path, bias_k: float, weeks: int = 2):

@@ -54,8 +54,8 @@ candidates (``N`` weeks, each with its own parameter values):
   lowered the temperature by ``cooling_k_per_wh_m2 x H``: fitted on the default site's mild fit weeks (share
   0.68) it saved too much and cooled too much in the colder held-out weeks (at 18:00, 0.2 K too cold on
   weekdays and 0.4-0.9 K on weekends, consumption 6-11 Wh/m2 short in the coldest week). With three
-  effects declared the held-out R2_T went from 0.943-0.949 with it to 0.957-0.959 with this form over CMA-ES
-  seeds 0-2, CV(RMSE)_Q from 10.1-10.8 % to 9.4-10.3 % (shortfall estimated at 10.2-11.7 K;
+  effects declared the held-out R2_T went from 0.943-0.948 with it to 0.954-0.957 with this form over CMA-ES
+  seeds 0-2, CV(RMSE)_Q from 10.1-10.8 % to 9.5-10.2 % (shortfall estimated at 10.2-11.3 K;
   ``bench/results/declared_effects_*.md``).
 - **sensor readings** (:func:`sensor_temperature`, the measured-temperature model; the building's own
   temperature is untouched, so comfort is judged on the true air temperature): ``temperature_sensor_bias``

@@ -209,8 +209,7 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
     eff = _column(params, "heat_recovery", 0, n)
     if eff is not None:
         t_in, t_out = out[..., _OUT["T_INT_OFFICE"]], week[..., _CH["TAMB"]]
-        lift = np.maximum(week[..., _CH["supply_air_c"]] - t_out, 0.5)
-        share = np.clip(eff * (t_in - t_out) / lift, 0.0, 1.0)
+        share = np.clip(eff * (t_in - t_out) / _supply_lift(week), 0.0, 1.0)
         ahu = out[..., _OUT["Q_AHU_H"]]
         out[..., _OUT["Q_AHU_H"]] = ahu - (share * np.maximum(ahu, 0.0)).astype(np.float32)
     if "night_cycle_cold_air" in active:
@@ -218,17 +217,17 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
         heat = np.maximum(out[..., _OUT["Q_HEAT_OFFICE"]] + out[..., _OUT["Q_AHU_H"]], 0.0)
         fans_off = week[..., _CH["ventilation_on"]] <= 0
         after_heating = ~fans_off & (week[..., _CH["heating_comfort_on"]] <= 0)
-        # heat (Wh/m2) the supply air brings less than the model's, in the hours after the heating period: the
-        # model's air handling unit heating per K of lift (its fresh-air flow) times the shortfall in K
-        ahu = np.maximum(out[..., _OUT["Q_AHU_H"]], 0.0)
-        lift = np.maximum(week[..., _CH["supply_air_c"]] - week[..., _CH["TAMB"]], 0.5)
-        deficit = 0.0 if shortfall is None else shortfall * ahu / lift * after_heating
+        deficit = 0.0
+        if shortfall is not None:
+            # heat (Wh/m2) the supply air brings less than the model's, in the hours after the heating period:
+            # the model's air handling unit heating per K of lift (its fresh-air flow) times the shortfall in K
+            ahu = np.maximum(out[..., _OUT["Q_AHU_H"]], 0.0)
+            deficit = shortfall * ahu / _supply_lift(week) * after_heating
+            out[..., _OUT["Q_AHU_H"]] -= np.minimum(deficit, ahu).astype(np.float32)
         if cool is not None:
             out[..., _OUT["T_INT_OFFICE"]] -= (cool * (heat * fans_off + deficit)).astype(np.float32)
         if reheat is not None:
             out[..., _OUT["Q_HEAT_OFFICE"]] += (reheat * heat * fans_off).astype(np.float32)
-        if shortfall is not None:
-            out[..., _OUT["Q_AHU_H"]] -= np.minimum(deficit, ahu).astype(np.float32)
     if "heating_capacity_limit" in active:
         cap = _column(params, "heating_capacity_limit", 0, n)
         sag = _column(params, "heating_capacity_limit", 1, n)
@@ -245,6 +244,12 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
             drop = drop * decay + sag[:, 0] * excess[:, h]
             out[:, h, _OUT["T_INT_OFFICE"]] -= drop.astype(np.float32)
     return out
+
+
+def _supply_lift(week: np.ndarray) -> np.ndarray:
+    """``(N, 168)`` K the model's air handling unit lifts the outdoor air to ``supply_air_c`` (at least 0.5 K,
+    so that a share of its heating per K stays finite) from the week's encoded inputs ``(N, 168, C)``."""
+    return np.maximum(week[..., _CH["supply_air_c"]] - week[..., _CH["TAMB"]], 0.5)
 
 
 def sensor_temperature(temperature_c: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndarray:

@@ -147,7 +147,7 @@ def run(seed: int, long_factor: float, long_cap: float, workers: int | None, eva
         found = {}
         for method, label in (("cmaes", "metamodel, CMA-ES"), ("adam", "metamodel, Adam (8 starts x 150 steps)")):
             result = calibrate_site(site, surrogate, method=method, seed=seed, max_evaluations=evaluations,
-                                    save=False)
+                                    save=False, effects=())  # the plain model: the shoebox has no effects
             found[method] = result
             rows.append(row(label, "metamodel", None, result, result["fit"], result["heldout"]))
         budget = found["cmaes"]["seconds"]

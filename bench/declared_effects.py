@@ -3,13 +3,15 @@
 The default site is the DOE medium office, a VAV system with terminal reheat; its night cycle sends the cooling
 supply air (12.8 degC) to every zone whenever one needs heat, which our model lacks
 (``bench/results/default_site_error_budget.md``). ``buildenv calibrate --effect night_cycle_cold_air`` adds the
-effect's model side in a second calibration stage (:func:`buildenv.calibration.fit_declared_effects`). This
-script calibrates a copy of the site that way, scores both models on the held-out weeks, then lets NSGA-II
+effect's model side in a second calibration stage (:func:`buildenv.calibration.fit_declared_effects`); the
+shipped site declares its effects in ``site.toml`` (``effects``). This script calibrates two copies of the site,
+one plain (``--no-site-effects``), one with the declared effects (``--effect``, by default the site's own),
+scores both models on the held-out weeks, then lets NSGA-II
 choose each model's equal-comfort settings for some weeks and runs both choices on the site's EnergyPlus
 reference: how close predicted savings, comfort and energy come to what the building realises.
 Writes ``bench/results/{name}.md`` and ``.json``.
 
-    .venv/bin/python bench/declared_effects.py [--effect night_cycle_cold_air] [--weeks 44,45,46,47]
+    .venv/bin/python bench/declared_effects.py [--effect night_cycle_cold_air ...] [--weeks 44,45,46,47]
 """
 
 from __future__ import annotations
@@ -42,17 +44,18 @@ def main() -> None:
     parser.add_argument("--weeks", default="44,45,46,47", help="weeks of the year optimised and verified")
     parser.add_argument("--name", default="declared_effects")
     args = parser.parse_args()
-    effects = tuple(args.effect or ["night_cycle_cold_air"])
+    effects = tuple(args.effect or load_site(DEFAULT_SITE).effects)
     weeks = [int(w) for w in args.weeks.split(",")]
     out = Path("out") / args.name.replace("_", "-")
     if out.exists():
         shutil.rmtree(out)
-    shutil.copytree(DEFAULT_SITE, out)
     load = os.getloadavg()[0]
-    declared = calibrate_site(load_site(out), load_metamodel(), effects=effects)
-    shipped = load_site(DEFAULT_SITE).calibration
-    models = {"as shipped (no declared effect)": (str(DEFAULT_SITE), shipped),
-              f"declared {', '.join(effects)}": (str(out), declared)}
+    models = {}
+    for label, folder, declare in (("plain (no declared effect)", out / "plain", ()),
+                                   (f"declared {', '.join(effects)}", out / "declared", effects)):
+        shutil.copytree(DEFAULT_SITE, folder, ignore=shutil.ignore_patterns("calibration.*"))
+        models[label] = (str(folder), calibrate_site(load_site(folder), load_metamodel(), effects=declare))
+    plain = next(iter(models.values()))[1]
     checks: dict[str, dict] = {label: {} for label in models}
     for label, (site, _) in models.items():
         env = make_env(site)
@@ -72,8 +75,8 @@ def main() -> None:
     (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     lines = [f"# Declared effects on the default site: {', '.join(effects)}", "",
              f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.", "",
-             f"Calibration (CMA-ES, seed 0) on the fit weeks {shipped['fit_weeks']}, scored on the held-out weeks "
-             f"{shipped['heldout_weeks']}; the declared effects' parameters are fitted after the building's "
+             f"Calibration (CMA-ES, seed 0) on the fit weeks {plain['fit_weeks']}, scored on the held-out weeks "
+             f"{plain['heldout_weeks']}; the declared effects' parameters are fitted after the building's "
              "(`buildenv.calibration`, declared effects):", "",
              "| model | fit cost | " + " | ".join(f"held-out {k}" for k in HELDOUT) + " | estimated |",
              "|---" * (len(HELDOUT) + 3) + "|"]

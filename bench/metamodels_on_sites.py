@@ -59,7 +59,7 @@ def main() -> None:
     for label, checkpoint in models.items():
         surrogate = sg.load_metamodel(None if checkpoint == "default" else checkpoint)
         for site_label, path in sites(Path(args.out)).items():
-            result = cal.calibrate_site(load_site(path), surrogate, save=False)
+            result = cal.calibrate_site(load_site(path), surrogate, save=False, effects=())  # plain model
             rows.append({"model": label, "checkpoint": checkpoint, "site": site_label, "cost": result["cost"],
                          "seconds": result["seconds"], **{k: result["heldout"][k] for k in METRICS}})
             print(json.dumps(rows[-1]), flush=True)

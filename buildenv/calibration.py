@@ -59,7 +59,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import EffectError, get_effect
+from buildenv.effects import EffectError, check_declarable, get_effect
 from buildenv.errors import BuildenvError
 from buildenv.schedules import hourly_schedules
 
@@ -401,7 +401,7 @@ def default_weeks(n_weeks: int) -> tuple[list[int], list[int]]:
 
 def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None, method: str = "cmaes",
                    seed: int = 0, max_evaluations: int = 6000, progress: bool = False, save: bool = True,
-                   restarts: int = 1, effects: tuple[str, ...] = ()) -> dict:
+                   restarts: int = 1, effects: tuple[str, ...] | None = None) -> dict:
     """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
 
     Args:
@@ -415,7 +415,8 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
         restarts: independent CMA-ES runs, the best kept (:func:`calibrate_cmaes`).
         progress: progress bar.
         save: write ``calibration.json`` into the site folder.
-        effects: declared effects (module docstring), fitted after the building and occupancy.
+        effects: declared effects (module docstring), fitted after the building and occupancy; None (default)
+            takes the site's own (``site.toml``'s ``effects``, :attr:`buildenv.site.Site.effects`), ``()`` none.
     Returns:
         ``{"fit": metrics, "heldout": metrics, "parameters": {...}, "occupancy": [[start, end] x 5], "method",
         "seconds", "evaluations", "cost", "fit_weeks", "heldout_weeks", "guideline14_p"}``, and with
@@ -423,7 +424,7 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
         ``"cost_without_effects"``. ``"at_bounds"`` lists the estimated parameters at a bound of their range
         (:func:`parameters_at_bounds`).
     """
-    effects = check_declared_effects(effects)
+    effects = check_declared_effects(site.effects if effects is None else effects)
     started = time.perf_counter()
     fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
         sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
@@ -504,21 +505,12 @@ def at_bounds_note(result: dict) -> str | None:
 
 
 def check_declared_effects(effects) -> tuple[str, ...]:
-    """The declared effects as a tuple of catalogue names; raises :class:`CalibrationError` for a name that is
-    not in the catalogue, given twice, or ``holidays`` (its absent days are dates of the measured period, which
-    the gap diagnosis detects from the data: ``buildenv diagnose``)."""
-    out = tuple(effects)
-    for name in out:
-        try:
-            get_effect(name)
-        except EffectError as exc:
-            raise CalibrationError(f"--effect: {exc}") from None
-        if name == "holidays":
-            raise CalibrationError(f"effect {name!r} cannot be declared in calibration (its days are found from "
-                                   "the data: run `buildenv diagnose`)")
-    if len(set(out)) < len(out):
-        raise CalibrationError(f"an effect is declared twice: {', '.join(out)}")
-    return out
+    """The declared effects as a tuple of catalogue names (:func:`buildenv.effects.check_declarable`); raises
+    :class:`CalibrationError` for a name that is not in the catalogue, given twice, or ``holidays``."""
+    try:
+        return check_declarable(effects)
+    except EffectError as exc:
+        raise CalibrationError(f"--effect: {exc}") from None
 
 
 #: Cost evaluations of the declared effects' stage (:func:`fit_declared_effects`, CMA-ES whichever method

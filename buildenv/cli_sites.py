@@ -103,7 +103,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
     site = load_site(args.site)
     info = {"site": str(site.path), "name": site.name, "weather": site.weather, "start": str(site.start),
             "weeks": site.weeks, "floor_area_m2": site.floor_area_m2, "number_of_floors": site.number_of_floors,
-            "known": site.known,
+            "known": site.known, "effects": list(site.effects),
             "temperature_hours": int(site.temperature_mask.sum()),
             "consumption_hours": int(site.consumption_mask.sum()),
             "mean_temperature_c": round(float(np.nanmean(site.temperature_c)), 2),
@@ -123,7 +123,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     weeks = [int(w) for w in args.weeks.split(",")] if args.weeks else None
     result = calibrate_site(site, load_metamodel(args.checkpoint), weeks, method=args.method, seed=args.seed,
                             max_evaluations=args.evaluations, progress=not args.quiet, restarts=args.restarts,
-                            effects=tuple(args.effect))
+                            effects=declared_for_calibration(site, args.effect, args.no_site_effects))
     result["plot"] = str(plot_calibration(load_site(args.site), load_metamodel(args.checkpoint), result,
                                           Path(args.site) / "calibration.png"))
     print(json.dumps(result, indent=None if args.json else 2))
@@ -131,6 +131,13 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     if note:
         print(note, file=sys.stderr)
     return 0
+
+
+def declared_for_calibration(site, extra: list[str], no_site_effects: bool = False) -> tuple[str, ...]:
+    """The effects ``buildenv calibrate`` models: the site's own (``site.toml``'s ``effects``) unless
+    ``no_site_effects``, then the ``--effect`` ones not already among them."""
+    own = () if no_site_effects else site.effects
+    return own + tuple(e for e in extra if e not in own)
 
 
 def add_known_argument(p: argparse.ArgumentParser) -> None:
@@ -179,7 +186,10 @@ def register(sub) -> None:
     p.add_argument("--effect", action="append", default=[], metavar="NAME",
                    help="an effect the building is known to have (repeatable; `buildenv effects` lists them), "
                         "e.g. night_cycle_cold_air for a VAV system with terminal reheat: its parameters are "
-                        "fitted after the building's, and the site's model keeps it")
+                        "fitted after the building's, and the site's model keeps it; added to the effects site.toml "
+                        "declares")
+    p.add_argument("--no-site-effects", action="store_true",
+                   help="leave out the effects site.toml declares (calibrate the plain model, for comparison)")
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")

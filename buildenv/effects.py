@@ -123,9 +123,11 @@ class Effect:
             ``buildenv effects``).
         building_parameter: the theta_build variable through which the metamodel already carries the effect,
             or None. Calibration then absorbs the effect into it, so an addition on top finds nothing left to
-            explain; the diagnosis instead tests whether the building needs that parameter short of the top of
-            its catalogue range, where the effect vanishes (:mod:`buildenv.gap`). When the site declares the
+            explain; the diagnosis instead tests whether the building needs that parameter away from the end of
+            its catalogue range where the effect vanishes (:mod:`buildenv.gap`). When the site declares the
             parameter known, the model-side addition (:attr:`parameters`) is tried as for any other effect.
+        vanishes_at: the end of :attr:`building_parameter`'s range where the effect vanishes: ``max`` (an
+            unlimited heating power) or ``min`` (no lighting left on at night).
     """
 
     name: str
@@ -141,6 +143,7 @@ class Effect:
     smallest: float | None = None
     smallest_reason: str = ""
     building_parameter: str | None = None
+    vanishes_at: str = "max"
 
     @property
     def size_name(self) -> str:
@@ -149,22 +152,30 @@ class Effect:
         return self.parameters[0].name if self.parameters else "absent_days"
 
     def carried_limit(self) -> float | None:
-        """The largest calibrated value of :attr:`building_parameter` that names a carried effect: one catalogue
-        step below the top of its range, where the effect vanishes (None for an effect not carried). Closer to
-        the top, the calibrated model and the model it is judged against are the same building at the
-        catalogue's resolution, and a held-out gain between them is the two recalibrations' own spread
-        (measured: seed 0 case 5 of the blind check, a heat exchanger, calibrated its heating power at 99.9
-        W/m2 and its pinned test still gained 28 %)."""
+        """The calibrated value of :attr:`building_parameter` from which a carried effect is named: one catalogue
+        step inside the end of its range where the effect vanishes (:attr:`vanishes_at`; None for an effect not
+        carried). Closer to that end, the calibrated model and the model it is judged against are the same
+        building at the catalogue's resolution, and a held-out gain between them is the two recalibrations' own
+        spread (measured: seed 0 case 5 of the blind check, a heat exchanger, calibrated its heating power at
+        99.9 W/m2 and its pinned test still gained 28 %)."""
         if self.building_parameter is None:
             return None
         var = cat.get(self.building_parameter)
-        return var.max - var.step
+        return var.max - var.step if self.vanishes_at == "max" else var.min + var.step
+
+    def vanishing_value(self) -> float | None:
+        """The value of :attr:`building_parameter` at which the effect vanishes (None for an effect not carried)."""
+        if self.building_parameter is None:
+            return None
+        var = cat.get(self.building_parameter)
+        return var.max if self.vanishes_at == "max" else var.min
 
     def named_from(self) -> str:
         """The smallest estimate a diagnosis names, with its unit and where it comes from ("" when any is)."""
         limit = self.carried_limit()
         if limit is not None:
-            return (f"{self.building_parameter} <= {limit:g} (one catalogue step below the top of its range, "
+            side, end = ("<=", "below the top") if self.vanishes_at == "max" else (">=", "above the bottom")
+            return (f"{self.building_parameter} {side} {limit:g} (one catalogue step {end} of its range, "
                     "where the effect vanishes)")
         if self.smallest is None:
             return ""
@@ -175,10 +186,12 @@ class Effect:
 
     def plausible(self, values: dict[str, float]) -> bool:
         """Whether calibrated parameter values ``{name: value}`` describe an effect of a size seen in practice
-        (a carried effect's building parameter: at most :meth:`carried_limit`)."""
+        (a carried effect's building parameter: at least a step away from where it vanishes,
+        :meth:`carried_limit`)."""
         limit = self.carried_limit()
         if limit is not None and self.building_parameter in values:
-            return values[self.building_parameter] <= limit
+            value = values[self.building_parameter]
+            return value <= limit if self.vanishes_at == "max" else value >= limit
         if self.smallest is None:
             return True
         return abs(values[self.size_name]) >= self.smallest
@@ -235,8 +248,11 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "W/m2 added outside occupied hours", (1.0, 5.0), 3.0, ("consumption",),
            (ModelParameter("night_w_m2", "W/m2", 0.0, 8.0, 0.0,
                            "electric load added in every unoccupied hour"),),
-           "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied", 0.5,
-           smallest_reason="one standby monitor per 10 m2"),
+           "the metamodel's night share of the lighting (building parameter light_night_percent) is calibrated, "
+           "and the diagnosis tests it against no lighting at night; with light_night_percent declared known, "
+           "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied",
+           0.5, smallest_reason="one standby monitor per 10 m2",
+           building_parameter="light_night_percent", vanishes_at="min"),
     Effect("solar_shading", "solar shading / blinds",
            "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
            "hours are colder and need more heat than the model says.",
@@ -329,6 +345,23 @@ def get_effect(name: str) -> Effect:
     close = difflib.get_close_matches(name, list(EFFECTS), n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
     raise EffectError(f"unknown effect {name!r}{hint} (known: {', '.join(EFFECTS)})")
+
+
+def check_declarable(names) -> tuple[str, ...]:
+    """Effects a building may be declared to have (``site.toml``'s ``effects``, ``buildenv calibrate --effect``),
+    as a tuple of catalogue names; raises :class:`EffectError` (one line) for a name that is not in the
+    catalogue, one given twice, or ``holidays`` (its absent days are dates of the measured period, which the gap
+    diagnosis detects from the data: ``buildenv diagnose``)."""
+    out = tuple(names)
+    for name in out:
+        get_effect(name)
+        if name == "holidays":
+            raise EffectError(f"effect {name!r} cannot be declared (its days are found from the data: run "
+                              "`buildenv diagnose`)")
+    twice = sorted({name for name in out if out.count(name) > 1})
+    if twice:
+        raise EffectError(f"effect {', '.join(twice)} declared twice")
+    return out
 
 
 def parse_effect(text: str) -> tuple[Effect, float]:

@@ -18,10 +18,12 @@ significant gain, stop when none is significant):
    (:attr:`buildenv.effects.Effect.building_parameter`: an undersized heating plant is a low calibrated heating
    power) has been absorbed by the base calibration, so an addition on top finds nothing left to explain.
    It is judged the other way round: the control is the candidate, and the model it is compared with has that
-   parameter pinned at the top of its catalogue range, where the effect vanishes, recalibrated with the same
-   budget (``k = 1``); it must also make none of its series worse (:func:`series_made_worse`), and its
-   calibrated parameter must lie a catalogue step below the top (:meth:`buildenv.effects.Effect.carried_limit`:
-   nearer, the two models are the same building and a gain is the refits' own spread). Measured on
+   parameter pinned at the end of its catalogue range where the effect vanishes (the top of the heating
+   power, the bottom of the lights' night share: :attr:`buildenv.effects.Effect.vanishes_at`), recalibrated
+   with the same budget (``k = 1``); it must also make none of its series worse (:func:`series_made_worse`),
+   and its calibrated parameter must lie a catalogue step inside that end
+   (:meth:`buildenv.effects.Effect.carried_limit`: nearer, the two models are the same building and a gain is
+   the refits' own spread). Measured on
    the blind cases of ``bench/results/gap_check_capacity_seed1.md``: a plant at 46 % and 40 % of its design
    capacity gains 42 % and 32 % of the held-out error over an unlimited one (the model-side cap on top of the
    absorbed limit: 6 %), the clean twin of the first 1.4 %.
@@ -285,14 +287,14 @@ def carried_by(ctx: _Context, effect: str) -> str | None:
 
 
 def without_carried_effect(ctx: _Context, current: ModelFit, effect: str) -> ModelFit:
-    """``current`` with the building parameter that carries ``effect`` pinned at the top of its catalogue
-    range, where the effect vanishes (an unlimited heating power), recalibrated like the control: the model
-    a carried effect is judged against."""
+    """``current`` with the building parameter that carries ``effect`` pinned at the end of its catalogue
+    range where the effect vanishes (an unlimited heating power, no lighting at night), recalibrated like the
+    control: the model a carried effect is judged against."""
     name = carried_by(ctx, effect)
-    top = cat.get(name).max
+    end = get_effect(effect).vanishing_value()
     params = current.params.copy()
-    params[cal.parameter_names().index(name)] = top
-    pinned = dataclasses.replace(current, params=params, pinned={**current.pinned, name: top})
+    params[cal.parameter_names().index(name)] = end
+    pinned = dataclasses.replace(current, params=params, pinned={**current.pinned, name: end})
     return refit(ctx, pinned, None)
 
 
@@ -410,8 +412,10 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
 
 
 def declared_effects(site) -> tuple[str, ...]:
-    """The effects the site's calibration was declared to have (``buildenv calibrate --effect``)."""
-    return tuple((site.calibration or {}).get("declared_effects") or ())
+    """The effects the site declares (``site.toml``'s ``effects``) and those its calibration was declared to
+    have (``buildenv calibrate --effect``)."""
+    saved = tuple((site.calibration or {}).get("declared_effects") or ())
+    return tuple(site.effects) + tuple(e for e in saved if e not in site.effects)
 
 
 def with_declared_effects(site, settings: DiagnosisSettings) -> DiagnosisSettings:

@@ -2,7 +2,8 @@
 
 A site folder holds (format for users: ``docs/site-format.md``)::
 
-    site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional [known], [source]
+    site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional effects, [known],
+                       [source]
     measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
     settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
     calibration.json   optional, written by calibration (:func:`save_calibration`); not interpreted here
@@ -44,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.effects import EffectError, check_declarable
 from buildenv.errors import CatalogueError, SiteError
 from buildenv.weather import epw_day_of_year
 
@@ -61,7 +63,8 @@ DEFAULT_MEASUREMENTS = "measurements.csv"
 DEFAULT_SETTINGS = "settings.csv"
 MEASUREMENT_COLUMNS: tuple[str, ...] = ("timestamp", "indoor_temperature_c", "heat_consumption_kwh")
 SETTINGS_COLUMNS: tuple[str, ...] = ("date", *cat.SETTING_NAMES)
-TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "geometry", "known", "source")
+TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "effects", "geometry", "known",
+                                   "source")
 GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
 #: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
 KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
@@ -102,6 +105,10 @@ class Site:
         source: the free ``[source]`` table of ``site.toml`` (what produced the data), not interpreted.
         known: the ``[known]`` table: building parameters the owner knows (design documents, BMS), in catalogue
             units, ``{theta_build name: value}``; calibration keeps them fixed like the geometry.
+        effects: the ``effects`` list: effects of :mod:`buildenv.effects` the owner knows the building has (a
+            VAV system whose night cycle supplies unheated air, occupants leaving over the evening); every
+            calibration models them (declared effects, :func:`buildenv.calibration.calibrate_site`) and the gap
+            diagnosis takes them as part of the base model, not as candidates.
         calibration: parsed ``calibration.json`` or None.
         truth: parsed ``truth.json`` (true parameters of a synthetic site) or None.
     """
@@ -117,6 +124,7 @@ class Site:
     consumption_kwh: np.ndarray
     source: dict = field(default_factory=dict)
     known: dict[str, float] = field(default_factory=dict)
+    effects: tuple[str, ...] = ()
     calibration: dict | None = None
     truth: dict | None = None
 
@@ -239,6 +247,7 @@ def load_site(path: str | os.PathLike) -> Site:
         consumption_kwh=consumption,
         source=desc["source"],
         known=desc["known"],
+        effects=desc["effects"],
         calibration=_read_json(folder / CALIBRATION_FILE),
         truth=_read_json(folder / TRUTH_FILE),
     )
@@ -332,6 +341,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
 
     return {
         "known": _read_known(descriptor, text, data.get("known", {})),
+        "effects": _read_effects(descriptor, text, data.get("effects", [])),
         "name": data["name"].strip(),
         "weather": _resolve_weather(descriptor, text, data["weather"]),
         "floor_area_m2": float(area),
@@ -371,6 +381,18 @@ def _read_known(descriptor: Path, text: str, table: Mapping[str, Any]) -> dict[s
         except SiteError as exc:
             raise SiteError(f"{_where(descriptor, text, key, 'known')}: {exc}") from exc
     return known
+
+
+def _read_effects(descriptor: Path, text: str, value: Any) -> tuple[str, ...]:
+    """Validate ``effects`` (:func:`buildenv.effects.check_declarable`), errors located at the key's line."""
+    where = _where(descriptor, text, "effects")
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise SiteError(f"{where}: 'effects' must be a list of effect names (`buildenv effects` lists them), "
+                        f"got {value!r}")
+    try:
+        return check_declarable(value)
+    except EffectError as exc:
+        raise SiteError(f"{where}: {exc}") from None
 
 
 def _resolve_weather(descriptor: Path, text: str, weather: str) -> str:
@@ -758,6 +780,7 @@ def write_site(
     source: Mapping[str, Any] | None = None,
     truth: Mapping[str, Any] | None = None,
     known: Mapping[str, float] | None = None,
+    effects: tuple[str, ...] = (),
 ) -> Path:
     """Write a site folder that :func:`load_site` reads back, then validate it by loading it.
 
@@ -778,6 +801,7 @@ def write_site(
         consumption_kwh: ``(weeks, 168)`` hourly heat consumption, kWh, NaN where missing.
         source: free ``[source]`` table (strings, numbers, booleans, lists, nested tables).
         known: ``[known]`` table, ``{theta_build name: value}`` in catalogue units (see :attr:`Site.known`).
+        effects: effects the building is known to have (see :attr:`Site.effects`).
         truth: true parameters of a synthetic site, written as ``truth.json``.
 
     Returns:
@@ -804,8 +828,10 @@ def write_site(
                         f"expected ({weeks}, 7, {len(cat.SETTINGS)})")
 
     folder.mkdir(parents=True, exist_ok=True)
-    lines = [f"name = {_toml_string(str(name))}", f"weather = {_toml_string(str(weather))}", "",
-             "[geometry]", f"floor_area_m2 = {_toml_number(floor_area_m2)}",
+    lines = [f"name = {_toml_string(str(name))}", f"weather = {_toml_string(str(weather))}"]
+    if effects:
+        lines.append("effects = [" + ", ".join(_toml_string(e) for e in effects) + "]")
+    lines += ["", "[geometry]", f"floor_area_m2 = {_toml_number(floor_area_m2)}",
              f"number_of_floors = {int(number_of_floors)}"]
     if known:
         lines += ["", *_toml_table("known", {k: float(v) for k, v in known.items()})]

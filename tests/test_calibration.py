@@ -45,9 +45,9 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
 
 
-def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=()):
+def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=(), declared=()):
     """A site whose 'measurements' are the metamodel's own prediction for known parameters (those of
-    ``effects`` follow theta and occupancy in ``params``)."""
+    ``effects`` follow theta and occupancy in ``params``); its site.toml declares ``declared``."""
     settings = historical_settings(weeks)
     write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
                number_of_floors=3, settings=settings, temperature_c=np.full((weeks, 168), 20.0),
@@ -60,7 +60,8 @@ def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None,
         t, q_kwh = t.copy(), q_kwh.copy()
         t[gaps], q_kwh[gaps] = np.nan, np.nan
     write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
-               number_of_floors=3, settings=settings, temperature_c=t, consumption_kwh=q_kwh, known=known)
+               number_of_floors=3, settings=settings, temperature_c=t, consumption_kwh=q_kwh, known=known,
+               effects=declared)
     return load_site(tmp_path)
 
 
@@ -209,8 +210,8 @@ def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model
     from buildenv.site_model import SiteModel
 
     effect = ("night_cycle_cold_air",)
-    site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), 0.15, 0.3, 5.0], effects=effect)
-    result = cal.calibrate_site(site, surrogate, weeks=[0], seed=0, max_evaluations=2500, effects=effect)
+    site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), 0.15, 0.3, 5.0], effects=effect, declared=effect)
+    result = cal.calibrate_site(site, surrogate, weeks=[0], seed=0, max_evaluations=2500)  # site.toml's effect
     fitted = result["effects"]["night_cycle_cold_air"]
     assert result["declared_effects"] == list(effect) and result["cost"] < result["cost_without_effects"]
     assert fitted["cooling_k_per_wh_m2"] > 0.05 and fitted["reheat_share"] > 0.1

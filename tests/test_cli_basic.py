@@ -172,6 +172,19 @@ def test_known_parameters_parse_from_the_command_line():
         "pc_night_percent": 44.4, "occupant_density_per_m2": 0.0538}
 
 
+def test_calibrate_models_the_sites_declared_effects_and_the_extra_ones_unless_told_not_to():
+    from buildenv.cli_sites import declared_for_calibration
+    from buildenv.env import DEFAULT_SITE
+    from buildenv.site import load_site
+
+    site = load_site(DEFAULT_SITE)
+    own = ("night_cycle_cold_air", "evening_departure", "temperature_sensor_bias")
+    assert declared_for_calibration(site, []) == own
+    assert declared_for_calibration(site, ["heat_recovery", "evening_departure"]) == (*own, "heat_recovery")
+    assert declared_for_calibration(site, ["heat_recovery"], no_site_effects=True) == ("heat_recovery",)
+    assert declared_for_calibration(site, [], no_site_effects=True) == ()
+
+
 def test_site_show_lists_what_the_site_declares_known(tmp_path, capsys):
     from buildenv.env import DEFAULT_SITE
 
@@ -181,3 +194,4 @@ def test_site_show_lists_what_the_site_declares_known(tmp_path, capsys):
     assert main(["site", "show", str(tmp_path / "s")]) == 0
     info = json.loads(capsys.readouterr().out)
     assert info["known"] == {"pc_night_percent": 44.4} and info["weeks"] == 6
+    assert info["effects"] == ["night_cycle_cold_air", "evening_departure", "temperature_sensor_bias"]

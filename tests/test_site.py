@@ -168,7 +168,7 @@ number_of_floors = 3
 def test_unknown_top_level_key(site_dir: Path):
     _toml(site_dir, GOOD_TOML.replace('weather = "usa_il_chicago"', 'weather = "usa_il_chicago"\nwether = 1'))
     with pytest.raises(SiteError, match=r"site\.toml:3: unknown key 'wether'.*allowed: name, weather, "
-                                        r"measurements, settings, geometry, known, source"):
+                                        r"measurements, settings, effects, geometry, known, source"):
         load_site(site_dir)
 
 
@@ -185,6 +185,24 @@ def test_known_parameters_round_trip_and_join_the_fixed_theta(tmp_path: Path):
     assert site.theta_known() == {"floor_area_m2": AREA, "number_of_floors": 3.0, "pc_night_percent": 44.4,
                                   "window_to_wall_south_percent": 33.0}
     assert load_site(_write(tmp_path / "plain")).known == {}
+
+
+def test_declared_effects_round_trip(tmp_path: Path):
+    site = load_site(_write(tmp_path / "s", effects=("night_cycle_cold_air", "temperature_sensor_bias")))
+    assert site.effects == ("night_cycle_cold_air", "temperature_sensor_bias")
+    assert load_site(_write(tmp_path / "plain")).effects == ()
+
+
+@pytest.mark.parametrize("line, error", [
+    ('effects = ["draughts"]', r"site\.toml:3: unknown effect 'draughts'"),
+    ('effects = "heat_recovery"', r"site\.toml:3: 'effects' must be a list of effect names"),
+    ('effects = ["heat_recovery", "heat_recovery"]', r"site\.toml:3: effect heat_recovery declared twice"),
+    ('effects = ["holidays"]', r"site\.toml:3: effect 'holidays' cannot be declared"),
+])
+def test_declared_effect_errors_name_the_line(site_dir: Path, line: str, error: str):
+    _toml(site_dir, GOOD_TOML.replace('weather = "usa_il_chicago"\n', 'weather = "usa_il_chicago"\n' + line + "\n"))
+    with pytest.raises(SiteError, match=error):
+        load_site(site_dir)
 
 
 @pytest.mark.parametrize("line, error", [

@@ -28,7 +28,8 @@ significant gain, stop when none is significant):
    capacity gains 42 % and 32 % of the held-out error over an unlimited one (the model-side cap on top of the
    absorbed limit: 6 %), the clean twin of the first 1.4 %. Loads left on at night are carried by the lights'
    night share (pinned at 0 %): a 4.7 W/m2 night load gains 31.5 % that way against 6.5 % as a meter-only
-   addition, the clean sites of the same check 2.6 % and -7 % (``bench/results/gap_check_nightcarried_seed0.md``).
+   addition, the clean sites of the same check 2.6 % and -7 %; seed 0's blind check names 11 of 14 effects
+   first, 10 before (``bench/results/gap_check_nightcarried_seed0.md``).
    ``holidays`` is estimated differently: for each weekday, the share of its occupants who did not come is
    fitted by least squares to the day's measured temperature and consumption (the model simulates the day
    with nobody in: no people, lights or plug loads, the BMS schedule unchanged), and the days where it is at

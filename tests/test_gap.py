@@ -297,23 +297,29 @@ def test_site_model_simulates_the_building_effects_found(calibrated, surrogate, 
     np.testing.assert_allclose(extended[..., t], plain[..., t], atol=1e-4)  # a sensor effect is not the building
 
 
+def _diagnose_synthetic(tmp_path, surrogate, candidate: str, theta: dict[str, float]):
+    """A site the metamodel itself produced with building parameters ``theta`` (the rest as
+    ``test_calibration._truth``), diagnosed with one candidate; returns the site, the result and its entry."""
+    from test_calibration import _synthetic_site, _truth
+
+    truth = _truth()
+    for name, value in theta.items():
+        truth[cal.parameter_names().index(name)] = value
+    site = _synthetic_site(tmp_path, surrogate, truth)
+    settings = DiagnosisSettings(candidates=(candidate,), evaluations=300, base_evaluations=800, max_effects=1)
+    result = diagnose(site, surrogate, settings, localisation=False)
+    (entry,) = result["effects"]
+    return site, result, entry
+
+
 @pytest.mark.parametrize("light_night_percent, named", [(60.0, True), (0.0, False)])
 def test_loads_left_on_at_night_past_the_plug_loads_night_share_are_named_against_dark_nights(
         tmp_path, surrogate, light_night_percent, named):
     # the metamodel carries a night load through the night shares of its lights and plug loads; with the plug
     # loads' share at the top of its range, what is left on beyond it can only be lighting, so the diagnosis
     # judges night_plug_loads against the model with no lighting at night
-    from test_calibration import _synthetic_site, _truth
-
-    truth = _truth()
-    names = cal.parameter_names()
-    truth[names.index("pc_night_percent")] = 70.0
-    truth[names.index("light_night_percent")] = light_night_percent
-    site = _synthetic_site(tmp_path, surrogate, truth)
-    settings = DiagnosisSettings(candidates=("night_plug_loads",), evaluations=300, base_evaluations=800,
-                                 max_effects=1)
-    result = diagnose(site, surrogate, settings, localisation=False)
-    (entry,) = result["effects"]
+    _, result, entry = _diagnose_synthetic(tmp_path, surrogate, "night_plug_loads",
+                                           {"pc_night_percent": 70.0, "light_night_percent": light_night_percent})
     assert result["selected"] == (["night_plug_loads"] if named else [])
     assert set(entry["parameters"]) == {"light_night_percent"}
     if named:
@@ -325,15 +331,8 @@ def test_a_heating_plant_short_of_power_is_named_against_an_unlimited_one(tmp_pa
                                                                           named):
     # the metamodel carries a capacity limit through its heating power, so the base calibration absorbs it; the
     # diagnosis judges it against the model with the heating power pinned at the top of the catalogue range
-    from test_calibration import _synthetic_site, _truth
-
-    truth = _truth()
-    truth[cal.parameter_names().index("heating_power_w_m2")] = heating_power_w_m2
-    site = _synthetic_site(tmp_path, surrogate, truth)
-    settings = DiagnosisSettings(candidates=("heating_capacity_limit",), evaluations=300, base_evaluations=800,
-                                 max_effects=1)
-    result = diagnose(site, surrogate, settings, localisation=False)
-    (entry,) = result["effects"]
+    site, result, entry = _diagnose_synthetic(tmp_path, surrogate, "heating_capacity_limit",
+                                              {"heating_power_w_m2": heating_power_w_m2})
     assert result["selected"] == (["heating_capacity_limit"] if named else [])
     assert set(entry["parameters"]) == {"heating_power_w_m2"}
     if named:

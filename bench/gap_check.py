@@ -128,6 +128,8 @@ def main() -> None:
              "| | value | target |", "|---|---|---|",
              f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
              f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",
+             "| injected effect ranked first (best held-out gain, named or not: attribution alone) | "
+             f"{_pct(s.get('ranked_first_accuracy'))} | |",
              f"| top-1 among the {s.get('visible_effect_cases', '-')} cases whose effect shows in the data "
              f"(footprint >= {VISIBLE_NOISE_MULTIPLE * TEMPERATURE_NOISE_K:g} K or "
              f"{VISIBLE_NOISE_MULTIPLE * 100 * CONSUMPTION_NOISE_FRACTION:g} %) | "

@@ -26,7 +26,8 @@ design documents would; calibration then keeps them fixed, and an effect that re
 absorbed (extra night plug loads against a known night share) stays in the residual, where it can be named.
 
 **Scores**: confusion matrix (true x named), top-1 accuracy over effect cases, false-alarm rate over "none"
-cases, and the shrinkage of the gap on the effect's main series over held-out weeks:
+cases, the share of effect cases whose injected effect the diagnosis ranked first (best held-out gain, named or
+not: :func:`ranked_first`), and the shrinkage of the gap on the effect's main series over held-out weeks:
 ``(MSE_before - MSE_after) / (MSE_before - MSE_twin)``, where MSE_twin is the base model's held-out error on
 the same site without the injection (same period, same noise): the share of the gap *the effect caused* that
 the extended model removes. **Footprint**: every effect case also gets its clean twin (same period, same
@@ -299,6 +300,15 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
     return result["selected"]
 
 
+def ranked_first(row: dict) -> bool:
+    """Whether the diagnosis ranked a case's injected effect first with a positive held-out gain, named or not:
+    the attribution alone. A candidate with the best gain may still fail the naming rules (significance, the
+    ``min_gain`` bar, a plausible estimate), and one with no gain ranks first only among candidates that all
+    made the held-out error worse."""
+    ranked = row.get("ranked") or []
+    return bool(ranked) and ranked[0] == row["true"] and row["scores"].get(row["true"], 0.0) > 0.0
+
+
 def summarise(rows: list[dict], labels: list[str]) -> dict:
     """Confusion matrix, top-1 accuracy, false-alarm rate and mean shrinkage of finished cases."""
     names = labels + [n for n in sorted({r["named"] for r in rows}) if n not in labels]
@@ -312,6 +322,7 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
     left = [r for r in effect_rows if r.get("gap_left", {}).get("left")]
     return {"cases": len(rows), "effect_cases": len(effect_rows), "none_cases": len(none_rows),
             "top1_accuracy": float(np.mean([r["correct"] for r in effect_rows])) if effect_rows else None,
+            "ranked_first_accuracy": float(np.mean([ranked_first(r) for r in effect_rows])) if effect_rows else None,
             "none_recognised": float(np.mean([r["named"] == NONE for r in none_rows])) if none_rows else None,
             "false_alarm_rate": float(np.mean([r["named"] != NONE for r in none_rows])) if none_rows else None,
             "mean_shrinkage_of_effect_gap": float(np.mean(shrink)) if shrink else None,

@@ -14,8 +14,8 @@ from buildenv import effects_model as em
 from buildenv.catalogue import WEATHER_NAMES
 from buildenv.env import DEFAULT_SITE
 from buildenv.effects import EFFECTS, EffectError, get_effect, parse_effect
-from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, save_extended_model, split_weather,
-                          split_weeks, stricter_score, with_declared_effects, without_new_effect)
+from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, joint_calibration_tests, save_extended_model,
+                          split_weather, split_weeks, stricter_score, with_declared_effects, without_new_effect)
 from buildenv.site import load_site, write_site
 from buildenv.site_model import SiteModel
 from buildenv.surrogate import load_metamodel
@@ -310,6 +310,27 @@ def _diagnose_synthetic(tmp_path, surrogate, candidate: str, theta: dict[str, fl
     result = diagnose(site, surrogate, settings, localisation=False)
     (entry,) = result["effects"]
     return site, result, entry
+
+
+@pytest.mark.parametrize("ach_per_m_s", [0.08, 0.0])
+def test_a_joint_calibration_with_wind_infiltration_gains_only_where_the_wind_drives_the_infiltration(
+        tmp_path, surrogate, ach_per_m_s):
+    # the building parameters and the wind term calibrated together from scratch, the model without it likewise
+    from test_calibration import _synthetic_site, _truth
+
+    site = _synthetic_site(tmp_path, surrogate, np.concatenate([_truth(), [ach_per_m_s]]),
+                           effects=("wind_infiltration",))
+    (test,) = joint_calibration_tests(site, surrogate, ("wind_infiltration",), DiagnosisSettings(base_evaluations=800))
+    estimate = test["estimate"]["ach_per_m_s"]
+    if ach_per_m_s:
+        assert test["gain"] > 0.3 and test["p_value"] < 1e-3 and 0.04 < estimate < 0.15
+    else:
+        assert test["gain"] < 0.15 and estimate < 0.02
+    with pytest.raises(ValueError, match="base effect"):
+        joint_calibration_tests(site, surrogate, ("wind_infiltration",),
+                                DiagnosisSettings(base_effects=("wind_infiltration",)))
+    with pytest.raises(ValueError, match="holidays"):
+        joint_calibration_tests(site, surrogate, ("holidays",))
 
 
 @pytest.mark.parametrize("light_night_percent, named", [(60.0, True), (0.0, False)])

@@ -13,7 +13,7 @@ from buildenv.env import DEFAULT_SITE
 from buildenv.effects_inject import choose_holidays
 from buildenv.gap import DiagnosisSettings, split_weeks
 from buildenv.gap_check import (NONE, REFERENCE_START, StandIn, _site, latest_first_monday, plan_cases,
-                                reference_start, run_check)
+                                ranked_first, reference_start, run_check, summarise)
 
 
 def test_plan_is_seeded_and_cycles_through_the_labels():
@@ -74,6 +74,21 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     refilled = next(r for r in again["cases"] if r["true"] != NONE)
     assert refilled["gap_left"]["share"] == pytest.approx(left["share"], abs=1e-3)
     assert json.loads(case_file.read_text())["gap_left"] == refilled["gap_left"]
+
+
+def test_ranked_first_counts_the_attribution_whether_or_not_the_effect_was_named():
+    def row(true, named, scores):
+        ranked = sorted(scores, key=lambda n: -scores[n])
+        return {"true": true, "named": named, "correct": named == true, "ranked": ranked, "scores": scores}
+
+    rows = [row("wind_infiltration", NONE, {"wind_infiltration": 0.06, "solar_shading": 0.04}),  # ranked, not named
+            row("solar_shading", NONE, {"temperature_sensor_bias": 0.10, "solar_shading": 0.01}),  # another first
+            row("wind_infiltration", NONE, {"holidays": 0.0, "wind_infiltration": -0.003}),  # nothing gained
+            row("holidays", "holidays", {"holidays": 0.18, "wind_infiltration": 0.01}),  # ranked and named
+            row(NONE, NONE, {"holidays": 0.0})]
+    assert [ranked_first(r) for r in rows[:4]] == [True, False, False, True]
+    summary = summarise(rows, [NONE, "wind_infiltration", "solar_shading", "holidays"])
+    assert summary["ranked_first_accuracy"] == 0.5 and summary["top1_accuracy"] == 0.25
 
 
 def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):

@@ -37,6 +37,7 @@ from buildenv.surrogate import load_metamodel
 RESULTS = Path(__file__).parent / "results"
 KNOWN_EFFECTS = ("night_cycle_cold_air", "evening_departure")
 LARGEST = 3
+JOINT_RESTARTS = 3  # CMA-ES runs of each --joint calibration, as the blind checks' base calibrations
 
 
 def calibrated(source: Path, work: Path, split: str, surrogate) -> dict:
@@ -56,7 +57,7 @@ def joint_tests(source: Path, work: Path, split: str, candidates: tuple[str, ...
     declared, 3 CMA-ES restarts): ``{candidate: test}``, kept in ``work`` and reused."""
     path = work / f"joint_{source.name}_{'+'.join(candidates)}_{split}.json"
     if not path.is_file():
-        settings = DiagnosisSettings(base_effects=KNOWN_EFFECTS, base_restarts=3, split=split)
+        settings = DiagnosisSettings(base_effects=KNOWN_EFFECTS, base_restarts=JOINT_RESTARTS, split=split)
         work.mkdir(parents=True, exist_ok=True)
         tests = joint_calibration_tests(load_site(source), surrogate, candidates, settings)
         path.write_text(json.dumps({t["candidate"]: t for t in tests}, indent=1, default=float) + "\n")
@@ -118,8 +119,9 @@ def joint_markdown(data: dict, args: argparse.Namespace) -> str:
              f"{data['date']}, {data['machine']}; `python bench/absorbed_effects.py --check {args.check} --cases "
              f"{args.cases} --split {args.split} --joint {args.joint} --name {args.name}`. Every site is calibrated "
              f"from scratch with the known effects ({', '.join(data['known_effects'])}), and again with each "
-             "candidate added (building parameters, occupancy and effects searched together; 6,000 evaluations x "
-             f"3 CMA-ES restarts each, fit weeks of the {data['split']} split); each candidate's model is judged "
+             "candidate added (building parameters, occupancy and effects searched together; "
+             f"{DiagnosisSettings.base_evaluations:,} evaluations x {JOINT_RESTARTS} CMA-ES restarts each, fit weeks "
+             f"of the {data['split']} split); each candidate's model is judged "
              "against the first on the held-out weeks like a diagnosis candidate (standardised pooled squared "
              "error; `buildenv.gap.joint_calibration_tests`). A candidate a diagnosis names must gain at least "
              "15 %.", "",

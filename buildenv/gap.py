@@ -403,10 +403,7 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
             and calib.get("catalogue_hash") == cat.catalogue_hash():
         fit = ModelFit(declared, cal.calibrated_parameters(calib, declared), none, float(calib.get("cost", np.nan)), 0)
     else:
-        problem = cal.build_problem(ctx.site, ctx.fit_weeks)
-        params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
-                                           progress=progress, restarts=ctx.settings.base_restarts)
-        fit = ModelFit((), params, none, info["cost"], info["evaluations"])
+        fit = joint_fit(ctx, (), progress)
     unanchored = dataclasses.replace(ctx, settings=dataclasses.replace(ctx.settings, refit_anchor=0.0))
     for effect in ctx.settings.base_effects:  # known effects: part of the calibration, searched unanchored
         if effect not in fit.effects:
@@ -414,16 +411,17 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
     return fit
 
 
-def joint_fit(ctx: _Context, effects: tuple[str, ...]) -> ModelFit:
+def joint_fit(ctx: _Context, effects: tuple[str, ...], progress: bool = False) -> ModelFit:
     """A calibration from scratch on the fit weeks with ``effects`` in the model from the start: the building
     parameters, the occupancy and the effects' parameters searched together (``base_evaluations`` per CMA-ES run,
     ``base_restarts`` runs, the lowest fit cost kept), where :func:`base_fit` calibrates the building first and
-    refits with each effect after. ``holidays`` is not calibrated this way (its days are detected, not fitted)."""
+    refits with each effect after (its plain calibration is this with no effect). ``holidays`` is not calibrated
+    this way (its days are detected, not fitted)."""
     if HOLIDAYS in effects:
         raise ValueError("holidays are detected day by day, not calibrated jointly")
     problem = cal.build_problem(ctx.site, ctx.fit_weeks, tuple(effects))
     params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
-                                       restarts=ctx.settings.base_restarts)
+                                       progress=progress, restarts=ctx.settings.base_restarts)
     return ModelFit(tuple(effects), params, np.zeros((ctx.site.weeks, 7)), info["cost"], info["evaluations"])
 
 

@@ -84,7 +84,7 @@ from buildenv import calibration as cal
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import DIAGNOSIS_SPLITS, EFFECTS, JUDGES, get_effect
+from buildenv.effects import DIAGNOSIS_SPLITS, EFFECTS, JUDGES, EffectError, get_effect
 
 ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"
@@ -439,7 +439,8 @@ def joint_calibration_tests(site, surrogate: sg.Surrogate, candidates: tuple[str
     (``bench/results/absorbed_effects_joint_seed{0,1}.md``): where the diagnosis' refits gained 6 %, -0.3 %,
     -7 % and -11 %, this test gains 4.8 %, 14.0 %, 14.9 % and -29.9 % (the last fits the fit weeks better and
     the held-out weeks worse), the twins -3.9 %, -0.9 %, -0.4 % and -6.0 %. It is not a step of
-    :func:`diagnose`: two more calibrations from scratch per step, and gains at or under the naming bar.
+    :func:`diagnose`: two more calibrations from scratch per step, and gains at or under the naming bar;
+    ``buildenv diagnose --joint-test NAME`` runs it after the diagnosis (JSON ``joint_tests``).
 
     Returns:
         one ``{"candidate", "gain", "gain_by_series", "p_value", "estimate", "cost_without", "cost_with",
@@ -447,12 +448,7 @@ def joint_calibration_tests(site, surrogate: sg.Surrogate, candidates: tuple[str
         models).
     """
     settings = with_declared_effects(site, settings or DiagnosisSettings())
-    for name in candidates:
-        get_effect(name)
-        if name in settings.base_effects:
-            raise ValueError(f"{name} is a base effect of this site: it is in both models")
-        if name == HOLIDAYS:
-            raise ValueError("holidays are detected day by day, not calibrated jointly")
+    check_joint_candidates(candidates, settings)
     ctx = _context(site, surrogate, settings)
     without = joint_fit(ctx, settings.base_effects)
     ctx.sigma = residual_sigma(ctx, without)
@@ -465,6 +461,18 @@ def joint_calibration_tests(site, surrogate: sg.Surrogate, candidates: tuple[str
                       "cost_without": without.cost, "cost_with": with_candidate.cost,
                       "heldout_without": score["metrics_before"], "heldout_with": score["metrics_after"]})
     return tests
+
+
+def check_joint_candidates(candidates: tuple[str, ...], settings: DiagnosisSettings) -> None:
+    """Raise :class:`buildenv.effects.EffectError` (one line) for a candidate :func:`joint_calibration_tests`
+    cannot test: unknown, a base effect of the site (``settings`` with the site's declared effects), or
+    holidays."""
+    for name in candidates:
+        get_effect(name)
+        if name in settings.base_effects:
+            raise EffectError(f"{name} is a base effect of this site: it is in both models of a joint test")
+        if name == HOLIDAYS:
+            raise EffectError("holidays are detected day by day, not calibrated jointly: no joint test")
 
 
 def declared_effects(site) -> tuple[str, ...]:

@@ -97,6 +97,21 @@ def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
     assert len(err) == 1 and "unknown effect 'wind'" in err[0]
 
 
+@pytest.mark.parametrize("effect, message", [("temperature_sensor_bias", "base effect of this site"),
+                                             ("holidays", "not calibrated jointly")])
+def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monkeypatch, capsys, effect, message):
+    # the default site declares a sensor bias: it is in both models of a joint test, so there is nothing to test
+    import buildenv.gap
+
+    def no_diagnosis(*args, **kwargs):
+        raise AssertionError("the joint test was refused only after a diagnosis of minutes")
+
+    monkeypatch.setattr(buildenv.gap, "diagnose", no_diagnosis)
+    assert main(["diagnose", "--site", str(DEFAULT_SITE), "--joint-test", effect, "--no-save", "--quiet"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0] and effect in err[0]
+
+
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):
     shutil.copytree(DEFAULT_SITE, tmp_path / "case_000")  # a clean site from 2019-11-04
     case = {"case": 0, "true": NONE, "magnitude": None, "start": "2019-11-04", "noise_seed": 0, "effect_seed": 0}

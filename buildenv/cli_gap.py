@@ -29,7 +29,6 @@ def _settings(args: argparse.Namespace):
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from buildenv.effects import get_effect
     from buildenv.gap import (check_joint_candidates, diagnose, joint_calibration_tests, save_extended_model,
                               with_declared_effects)
     from buildenv.site import load_site
@@ -38,8 +37,8 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     site = load_site(args.site)
     plot = Path(args.plot) if args.plot else Path(args.site) / "diagnosis.png"
     settings = _settings(args)
-    joint = tuple(get_effect(name).name for name in args.joint_test)
-    check_joint_candidates(joint, with_declared_effects(site, settings))  # before the long diagnosis
+    joint = tuple(args.joint_test)
+    check_joint_candidates(joint, with_declared_effects(site, settings))  # names checked before the long diagnosis
     surrogate = load_metamodel(args.checkpoint)
     result = diagnose(site, surrogate, settings, progress=not args.quiet, plot=plot)
     saved = None if args.no_save else save_extended_model(site, result)

@@ -45,8 +45,8 @@ parameters within :data:`AT_BOUND_SHARE` of their range from one end of it. The 
 the catalogue's ranges and calibration cannot go further, so a parameter there is one the fit wanted to take
 further: the building may lie outside the range, or the parameter is standing in for something the model
 lacks (an unmodelled effect, another HVAC structure), or the cost is flat along it. On the default site 11 of
-the 17 estimated parameters calibrate at a bound; README.md ("Sites and calibration", ``at_bounds``) says which of
-them the EnergyPlus shoebox confirms.
+the 17 estimated parameters calibrate at a bound; docs/calibration.md ("Parameters at the catalogue's bounds")
+says which of them the EnergyPlus shoebox confirms.
 """
 
 from __future__ import annotations

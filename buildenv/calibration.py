@@ -85,7 +85,7 @@ class CalibrationError(BuildenvError):
 class Problem:
     """What calibration fits: the site's weeks, encoded once, and the parameters' bounds."""
 
-    x_base: np.ndarray  # (weeks, 192, C) encoded inputs with placeholder theta/occupancy
+    x_base: np.ndarray  # (weeks, context + 168, C) encoded inputs with placeholder theta/occupancy
     temperature_c: np.ndarray  # (weeks, 168) measured, NaN where missing
     consumption_wh_m2: np.ndarray  # (weeks, 168) measured, NaN where missing
     has_previous: np.ndarray  # (weeks,) the site has the week before (context = its last day)
@@ -136,7 +136,8 @@ def parameter_names() -> list[str]:
     return free_theta() + occ
 
 
-def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None) -> Problem:
+def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None,
+                  context_hours: int = sg.CONTEXT_HOURS) -> Problem:
     """Encode a site's weeks (each with its preceding week as context where the site has it).
 
     Args:
@@ -144,6 +145,7 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
         weeks: the site's weeks (0-based).
         effects: model-side effects (:mod:`buildenv.effects_model`) whose parameters are calibrated too.
         absent: ``(site weeks, 7)`` absence shares of the days (rows of ``weeks`` are used).
+        context_hours: the metamodel's (:attr:`buildenv.surrogate.Surrogate.context_hours`).
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
@@ -160,7 +162,7 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
     known = site.theta_known()
     occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
     x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather[idx],
-                        (site.settings[prev], occ, weather[prev]), has_prev)
+                        (site.settings[prev], occ, weather[prev]), has_prev, context_hours)
     free = free_theta()
     lo = np.array([known.get(v, cat.get(v).min) for v in free]
                   + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
@@ -183,18 +185,19 @@ def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray
 
 
 def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
-    """Encoded inputs ``(pop * weeks, 192, C)`` of every candidate on every calibration week."""
+    """Encoded inputs ``(pop * weeks, context + 168, C)`` of every candidate on every calibration week."""
     theta, occ = _split(problem, params)
     pop, weeks = len(params), len(problem.x_base)
-    x = np.repeat(problem.x_base[None], pop, axis=0)  # (pop, weeks, 192, C)
+    x = np.repeat(problem.x_base[None], pop, axis=0)  # (pop, weeks, context + 168, C)
     t0 = sg.INPUT_CHANNELS.index(cat.THETA_NAMES[0])
     x[..., t0:t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
     occ_fraction = hourly_schedules(np.zeros((pop, 7, len(cat.GROUPS["settings"]))), occ)["occupancy_fraction"]
     c = sg.INPUT_CHANNELS.index("occupancy_fraction")
-    ctx = sg.CONTEXT_HOURS
+    ctx = sg.context_of(problem.x_base)
     x[:, :, ctx:, c] = occ_fraction[:, None, :]
-    # context day: the previous week's Sunday where there is one, else the week's own Monday (see surrogate)
-    context = np.where(problem.has_previous[None, :, None], occ_fraction[:, None, -ctx:], occ_fraction[:, None, :ctx])
+    # context: the previous week's last days where there is one, else the week's own Monday repeated (see surrogate)
+    context = np.where(problem.has_previous[None, :, None], occ_fraction[:, None, -ctx:],
+                       sg.first_day_repeated(occ_fraction, ctx)[:, None])
     x[:, :, :ctx, c] = context
     x = x.reshape(pop * weeks, *x.shape[2:])
     if problem.effects:
@@ -431,7 +434,7 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     started = time.perf_counter()
     fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
         sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
-    problem = build_problem(site, fit_weeks)
+    problem = build_problem(site, fit_weeks, context_hours=surrogate.context_hours)
     if method == "cmaes":
         best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
     elif method == "adam":
@@ -443,7 +446,7 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     declared: dict = {}
     if effects:
         declared["cost_without_effects"] = info["cost"]
-        problem = build_problem(site, fit_weeks, effects)
+        problem = build_problem(site, fit_weeks, effects, context_hours=surrogate.context_hours)
         best, stage = fit_declared_effects(problem, surrogate, best, seed)
         info = {**info, "evaluations": info["evaluations"] + stage["evaluations"], "cost": stage["cost"]}
         values = em.split_parameters(effects, best[None, problem.n_base:])
@@ -555,7 +558,7 @@ def score_weeks(site, surrogate: sg.Surrogate, weeks: list[int], params: np.ndar
                 absent: np.ndarray | None = None) -> dict[str, float]:
     """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks (with the
     model-side ``effects`` whose parameters follow in ``params``, and the ``absent`` days of the site)."""
-    problem = build_problem(site, weeks, effects, absent)
+    problem = build_problem(site, weeks, effects, absent, surrogate.context_hours)
     return score_series(problem, *predict(problem, surrogate, params), params, scale)
 
 

@@ -51,7 +51,7 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
     theta_cols = [j for j, n in enumerate(cat.THETA_NAMES) if n not in KNOWN_GEOMETRY]
     t0 = sg.INPUT_CHANNELS.index(cat.THETA_NAMES[0])
     c_occ = sg.INPUT_CHANNELS.index("occupancy_fraction")
-    ctx = sg.CONTEXT_HOURS
+    ctx = sg.context_of(x_base)
     hour = torch.arange(cat.HOURS_PER_DAY, dtype=torch.float32) + 0.5
     in_mean = torch.as_tensor(ck.input_norm.mean, dtype=torch.float32)
     in_std = torch.as_tensor(ck.input_norm.std, dtype=torch.float32)
@@ -75,7 +75,8 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
         x = x_base.expand(len(params), *x_base.shape).clone()
         x[..., t0:t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
         x[:, :, ctx:, c_occ] = week[:, None, :]
-        x[:, :, :ctx, c_occ] = torch.where(has_prev[None, :, None], week[:, None, -ctx:], week[:, None, :ctx])
+        x[:, :, :ctx, c_occ] = torch.where(has_prev[None, :, None], week[:, None, -ctx:],
+                                           sg.first_day_repeated(week, ctx)[:, None])
         y = model(((x - in_mean) / in_std).reshape(-1, *x.shape[2:]))[:, ctx:] * out_std + out_mean
         y = y.reshape(len(params), weeks, cat.HOURS_PER_WEEK, -1)
         return (WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t))

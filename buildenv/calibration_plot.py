@@ -22,7 +22,8 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
     import matplotlib.pyplot as plt
 
     weeks = list(range(site.weeks))
-    problem = build_problem(site, weeks, tuple(result.get("declared_effects", ())))
+    problem = build_problem(site, weeks, tuple(result.get("declared_effects", ())),
+                            context_hours=surrogate.context_hours)
     params = calibrated_parameters(result, problem.effects)
     t, q = predict(problem, surrogate, params)
     occupied = problem_occupancy(problem, params).reshape(-1).astype(float)

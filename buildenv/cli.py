@@ -30,6 +30,7 @@ from buildenv.campaign import MAX_FAILED_SHARE
 from buildenv.dataset import SPLITS
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
+from buildenv.surrogate import CONTEXT_HOURS
 
 
 def _parse_assignments(items: list[str]) -> dict[str, float]:
@@ -152,7 +153,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     config = json.loads(args.model_config) if args.model_config else None
     result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
                              model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
-                             progress=not args.quiet, epochs=args.epochs,
+                             progress=not args.quiet, context_hours=args.context_hours, epochs=args.epochs,
                              batch_size=args.batch_size, lr=args.lr, schedule=args.schedule, patience=args.patience,
                              device=args.device)
     print(json.dumps(result, indent=None if args.json else 2))
@@ -220,6 +221,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--holdout-climate", action="append", default=None, metavar="WEATHER",
                    help="keep this climate's weeks out of training and score them apart (repeatable)")
     p.add_argument("--model-config", default=None, help='JSON keyword arguments of the model, e.g. \'{"layers": 2}\'')
+    p.add_argument("--context-hours", type=int, default=CONTEXT_HOURS,
+                   help=f"hours before each week the model sees, whole days (default {CONTEXT_HOURS}: the day before)")
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate of Adam")

@@ -3,7 +3,7 @@
 Every effect of :mod:`buildenv.effects` acts at one of three places of a simulated week, vectorised over
 candidates (``N`` weeks, each with its own parameter values):
 
-- **inputs** (:func:`transform_inputs`, physical encoded inputs ``(N, 192, C)`` before the metamodel):
+- **inputs** (:func:`transform_inputs`, physical encoded inputs ``(N, context + 168, C)`` before the metamodel):
   ``wind_infiltration`` makes the infiltration input hourly, ``calibrated + ach_per_m_s x wind speed``, with
   the wind term at :data:`VENTILATED_WIND_SHARE` in the hours the ventilation input is on (a running air
   handling unit pressurises the building: the DOE reference buildings schedule their infiltration at 25 %
@@ -132,7 +132,7 @@ def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndar
     """Apply the input effects to encoded inputs.
 
     Args:
-        x: ``(N, CONTEXT_HOURS + 168, C)`` physical inputs of :func:`buildenv.surrogate.encode_weeks` (modified
+        x: ``(N, context + 168, C)`` physical inputs of :func:`buildenv.surrogate.encode_weeks` (modified
             in place and returned).
         params: ``{effect: (N, k)}`` (or ``(1, k)``, broadcast).
     """
@@ -170,21 +170,21 @@ def hours_since_occupied(occupied: np.ndarray) -> np.ndarray:
 
 def occupied_hours(x: np.ndarray) -> np.ndarray:
     """``(N, 168)`` booleans: hours of the week the encoded inputs mark occupied (above :data:`OCCUPIED_LEVEL`)."""
-    return x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]] > OCCUPIED_LEVEL
+    return x[:, sg.context_of(x):, _CH["occupancy_fraction"]] > OCCUPIED_LEVEL
 
 
 def absent_days_inputs(x: np.ndarray, absent: np.ndarray) -> np.ndarray:
     """Lower each day's occupancy input by its absence share (``holidays``).
 
     Args:
-        x: ``(N, CONTEXT_HOURS + 168, C)`` physical inputs (modified in place and returned).
+        x: ``(N, context + 168, C)`` physical inputs (modified in place and returned).
         absent: ``(N, 7)`` absence shares of the week's days (1 = nobody came, 0 = a normal day).
     """
     share = np.asarray(absent, float)
     if not np.any(share):
         return x
-    occ = x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]].reshape(len(x), 7, cat.HOURS_PER_DAY)
-    x[:, sg.CONTEXT_HOURS:, _CH["occupancy_fraction"]] = (occ * (1.0 - share[..., None])).reshape(len(x), -1)
+    occ = x[:, sg.context_of(x):, _CH["occupancy_fraction"]].reshape(len(x), 7, cat.HOURS_PER_DAY)
+    x[:, sg.context_of(x):, _CH["occupancy_fraction"]] = (occ * (1.0 - share[..., None])).reshape(len(x), -1)
     return x
 
 
@@ -193,7 +193,8 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
 
     Args:
         outputs: ``(N, 168, 8)`` metamodel outputs (a modified copy is returned).
-        x: the encoded inputs the outputs were simulated from ``(N, 192, C)`` (occupancy, weather, supply air).
+        x: the encoded inputs the outputs were simulated from ``(N, context + 168, C)`` (occupancy, weather,
+            supply air).
         params: ``{effect: (N, k)}``.
     """
     n = len(outputs)
@@ -202,7 +203,7 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
     if not active:
         return outputs
     out = np.array(outputs, dtype=np.float32, copy=True)
-    week = x[:, sg.CONTEXT_HOURS:]
+    week = x[:, sg.context_of(x):]
     p = _column(params, "night_plug_loads", 0, n)
     if p is not None:
         out[..., _OUT["Q_EQP"]] += (p * ~occupied_hours(x)).astype(np.float32)

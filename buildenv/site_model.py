@@ -145,7 +145,7 @@ class SiteModel:
         for start in range(0, n, INFERENCE_BATCH):  # the extended model: effects act on inputs and outputs
             part = slice(start, start + INFERENCE_BATCH)
             x = encode_weeks(theta[part], settings[part], occ[part], weather[part],
-                             tuple(a[part] for a in previous_week))
+                             tuple(a[part] for a in previous_week), context_hours=self.surrogate.context_hours)
             x = em.transform_inputs(x, self.effects)
             out[part] = em.transform_outputs(self.surrogate.predict_encoded(x), x, self.effects)
         return out

@@ -1,6 +1,6 @@
 """The metamodel as "simulate a week fast": catalogue data in, hourly outputs in physical units out.
 
-Encoding (one row per hour, ``CONTEXT_HOURS + 168`` rows per week):
+Encoding (one row per hour, ``context_hours + 168`` rows per week):
 
 - weather: the W_k channels of :data:`WEATHER_INPUTS` (the paper's seven plus wind speed);
 - the hourly schedules of :mod:`buildenv.schedules` (setpoints in force, comfort masks, ventilation on and
@@ -9,10 +9,11 @@ Encoding (one row per hour, ``CONTEXT_HOURS + 168`` rows per week):
 - theta_build, the same on every hour;
 - ``is_context``: 1 on the context hours, 0 on the week.
 
-The context is the day before the week (its weather and schedules): a week cut from a longer simulation
-starts from the state the previous days left, and the model needs to see them. When the previous week is
-unknown (a simulation's first week, which EnergyPlus warms up by repeating its first day) the week's own
-first day stands in for it, as EnergyPlus's warm-up does.
+The context is the hours before the week (their weather and schedules; :data:`CONTEXT_HOURS`, the day
+before, unless a checkpoint was trained with another ``context_hours``, a whole number of days): a week cut
+from a longer simulation starts from the state the previous days left, and the model needs to see them.
+When the previous week is unknown (a simulation's first week, which EnergyPlus warms up by repeating its
+first day) the week's own first day, repeated, stands in for it, as EnergyPlus's warm-up does.
 
 Outputs are the 8 catalogue outputs, standardised per channel with statistics of the training split only
 (saved in the checkpoint). The checkpoint's metadata carries the catalogue hash and the channel names;
@@ -32,6 +33,7 @@ from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
 from buildenv.schedules import HOURLY_CHANNELS, hourly_encoding
 
+#: Hours before the week the model sees by default (a checkpoint records its own, ``metadata["context_hours"]``)
 CONTEXT_HOURS = 24
 WEATHER_INPUTS: tuple[str, ...] = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H", "RHUM", "TAMB", "WIND_SPEED")
 CALENDAR_INPUTS: tuple[str, ...] = ("hour_sin", "hour_cos")
@@ -70,24 +72,47 @@ def _fill_rows(out: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, wea
     out[..., _SCHEDULES] = hourly_encoding(settings, occupancy)[:, hours]
 
 
+def check_context_hours(hours: int) -> int:
+    """``hours`` of context as an int; a whole number of days (1 to 6) or :class:`CheckpointError`."""
+    if int(hours) != hours or hours % cat.HOURS_PER_DAY or not 0 < hours < cat.HOURS_PER_WEEK:
+        raise CheckpointError(f"context_hours must be a whole number of days from 24 to 144, got {hours}")
+    return int(hours)
+
+
+def context_of(x) -> int:
+    """Context hours of encoded inputs ``(N, context + 168, C)`` (numpy or torch)."""
+    return int(x.shape[-2]) - cat.HOURS_PER_WEEK
+
+
+def first_day_repeated(week, hours: int, axis: int = 1):
+    """The first 24 hours of ``week`` (hours along ``axis``) repeated to ``hours``: the context of a week whose
+    preceding week is unknown, as EnergyPlus's warm-up repeats the first day (numpy or torch)."""
+    day = week[(slice(None),) * (axis % week.ndim) + (slice(0, cat.HOURS_PER_DAY),)]
+    reps = [1] * week.ndim
+    reps[axis % week.ndim] = hours // cat.HOURS_PER_DAY
+    return np.tile(day, reps) if isinstance(day, np.ndarray) else day.repeat(*reps)
+
+
 def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                  previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                 has_previous: np.ndarray | None = None) -> np.ndarray:
+                 has_previous: np.ndarray | None = None, context_hours: int = CONTEXT_HOURS) -> np.ndarray:
     """Model inputs of weeks, physical units (not yet standardised).
 
     Args:
         theta: ``(N, 19)``; settings: ``(N, 7, 12)``; occupancy: ``(N, 5, 2)``; weather: ``(N, 168, 9)``.
         previous: settings, occupancy and weather of each week's preceding week (same shapes), or ``None``.
         has_previous: ``(N,)`` booleans, False where ``previous`` holds no real preceding week.
+        context_hours: hours before the week, a whole number of days (the checkpoint's:
+            :attr:`Surrogate.context_hours`).
     Returns:
-        ``(N, CONTEXT_HOURS + 168, len(INPUT_CHANNELS))`` float32.
+        ``(N, context_hours + 168, len(INPUT_CHANNELS))`` float32.
     """
-    n, ctx = len(theta), CONTEXT_HOURS
+    n, ctx = len(theta), check_context_hours(context_hours)
     x = np.empty((n, ctx + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS)), dtype=np.float32)
     _fill_rows(x[:, ctx:], settings, occupancy, weather, slice(None))
     x[:, ctx:, _CALENDAR] = _calendar(cat.HOURS_PER_WEEK)
     x[:, :, _THETA] = np.asarray(theta, dtype=np.float32)[:, None, :]
-    x[:, :ctx, :_CALENDAR.stop] = x[:, ctx:2 * ctx, :_CALENDAR.stop]  # the week's first day, as EnergyPlus's warm-up
+    x[:, :ctx, :_CALENDAR.stop] = first_day_repeated(x[:, ctx:, :_CALENDAR.stop], ctx)  # EnergyPlus's warm-up
     if previous is not None:
         use = np.ones(n, bool) if has_previous is None else np.asarray(has_previous, bool)
         if use.any():
@@ -106,9 +131,10 @@ def _read(ds, name: str, ids: np.ndarray) -> np.ndarray:
     return getattr(ds, name)[unique][back]
 
 
-def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048) -> tuple[np.ndarray, np.ndarray]:
-    """Inputs ``(n, 192, C)`` and outputs ``(n, 168, 8)`` of dataset weeks (in ``indices`` order), each with
-    its real preceding day as context where the dataset has it."""
+def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048,
+                   context_hours: int = CONTEXT_HOURS) -> tuple[np.ndarray, np.ndarray]:
+    """Inputs ``(n, context_hours + 168, C)`` and outputs ``(n, 168, 8)`` of dataset weeks (in ``indices``
+    order), each with its real preceding hours as context where the dataset has them."""
     indices = np.asarray(indices)
     previous = ds.previous_week()
     xs, ys = [], []
@@ -118,15 +144,16 @@ def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048) -> tuple[np.ndarr
         prev_idx = np.where(has, previous[idx], idx)
         prev = tuple(_read(ds, name, prev_idx) for name in ("settings", "occupancy", "weather"))
         week = [_read(ds, name, idx) for name in ("theta", "settings", "occupancy", "weather")]
-        xs.append(encode_weeks(*week, prev, has))
+        xs.append(encode_weeks(*week, prev, has, context_hours))
         ys.append(_read(ds, "outputs", idx))
     return np.concatenate(xs), np.concatenate(ys).astype(np.float32)
 
 
-def metadata() -> dict:
-    """What a checkpoint must agree on with this buildenv to be usable."""
+def metadata(context_hours: int = CONTEXT_HOURS) -> dict:
+    """What a checkpoint records about its encoding: the catalogue and channels it must share with this
+    buildenv to be usable, and its context length."""
     return {"catalogue_hash": cat.catalogue_hash(), "input_channels": list(INPUT_CHANNELS),
-            "output_channels": list(cat.OUTPUT_NAMES), "context_hours": CONTEXT_HOURS}
+            "output_channels": list(cat.OUTPUT_NAMES), "context_hours": check_context_hours(context_hours)}
 
 
 @dataclass
@@ -148,19 +175,24 @@ class Surrogate:
         choice existed); EnergyPlus runs that stand for this metamodel use the same."""
         return str(self.checkpoint.metadata.get("zoning", "single"))
 
+    @property
+    def context_hours(self) -> int:
+        """Hours before each week this metamodel sees (:func:`encode_weeks`' ``context_hours``)."""
+        return int(self.checkpoint.metadata.get("context_hours", CONTEXT_HOURS))
+
     def _inference_model(self):
         """The module ``predict_encoded`` calls: physical inputs ``(N, 192, C)`` -> physical outputs of the week
-        ``(N, 168, 8)``, standardisation included (traced once, on first use)."""
+        ``(N, 168, 8)``, standardisation included (traced once, on first use): inputs ``(N, context + 168, C)``."""
         if self._runner is None:
             import torch
 
             from metamodels.normalisation import StandardisedModel
 
             ck = self.checkpoint
-            model = StandardisedModel(ck.model.eval(), ck.input_norm, ck.output_norm, CONTEXT_HOURS).eval()
+            model = StandardisedModel(ck.model.eval(), ck.input_norm, ck.output_norm, self.context_hours).eval()
             self._runner = model
             if self.jit:
-                example = torch.zeros(2, CONTEXT_HOURS + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS))
+                example = torch.zeros(2, self.context_hours + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS))
                 try:
                     with torch.no_grad(), warnings.catch_warnings():
                         warnings.simplefilter("ignore")  # tracer warnings about shape-dependent Python checks
@@ -184,17 +216,21 @@ class Surrogate:
             part = slice(start, start + batch_size)
             prev = None if previous is None else tuple(a[part] for a in previous)
             has = None if has_previous is None else np.asarray(has_previous)[part]
-            x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has)
+            x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has,
+                             self.context_hours)
             out[part] = self.predict_encoded(x, batch_size)
         return out
 
     def predict_encoded(self, x: np.ndarray, batch_size: int = INFERENCE_BATCH) -> np.ndarray:
-        """Outputs ``(N, 168, 8)`` in physical units from already encoded inputs ``(N, 192, C)``.
+        """Outputs ``(N, 168, 8)`` in physical units from inputs ``(N, context_hours + 168, C)`` encoded for it.
 
         ``batch_size`` weeks go through the model at a time (:data:`INFERENCE_BATCH`); any N is accepted.
         """
         import torch
 
+        if context_of(x) != self.context_hours:
+            raise CheckpointError(f"inputs carry {context_of(x)} context hours, this metamodel was trained with "
+                                  f"{self.context_hours}: encode them with context_hours={self.context_hours}")
         model = self._inference_model()
         out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         with torch.inference_mode():
@@ -216,7 +252,10 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
     if not path.is_file():
         raise CheckpointError(f"metamodel checkpoint not found: {path}")
     ck = load_checkpoint(path)
-    expected = metadata()
+    try:
+        expected = metadata(ck.metadata.get("context_hours", CONTEXT_HOURS))
+    except CheckpointError as exc:
+        raise CheckpointError(f"{path}: {exc}") from None
     for key, value in expected.items():
         if ck.metadata.get(key) != value:
             found = ck.metadata.get(key)

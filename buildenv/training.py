@@ -22,14 +22,15 @@ from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metric
 def _tensors(x: np.ndarray, y: np.ndarray, ck):
     import torch
 
-    pad = np.zeros((len(y), sg.CONTEXT_HOURS, y.shape[-1]), np.float32)
+    pad = np.zeros((len(y), sg.context_of(x), y.shape[-1]), np.float32)
     y_full = np.concatenate([pad, ck.output_norm.transform(y)], axis=1)
     return torch.from_numpy(ck.input_norm.transform(x)), torch.from_numpy(y_full)
 
 
 def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = "weather_weeks",
                     max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
-                    holdout_climates: list[str] | None = None, progress: bool = True, **train_options) -> dict:
+                    holdout_climates: list[str] | None = None, progress: bool = True,
+                    context_hours: int = sg.CONTEXT_HOURS, **train_options) -> dict:
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
@@ -42,6 +43,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         seed: seed of the split, the subset, the weights and the batch order.
         holdout_climates: climates kept out of training altogether and scored apart (``"holdout_climate"``).
         progress: progress bars.
+        context_hours: hours before each week the model sees (a whole number of days; recorded in the checkpoint).
         train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
     Returns:
         ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
@@ -54,6 +56,15 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     from metamodels.train import TrainConfig, fit
 
     started = time.perf_counter()
+    ctx = sg.check_context_hours(context_hours)
+    last = Path(out).with_name(Path(out).name + ".last")
+    if last.exists():  # a resumed run keeps the encoding it started with
+        from metamodels.checkpoint import load_checkpoint
+
+        was = load_checkpoint(last).metadata.get("context_hours", sg.CONTEXT_HOURS)
+        if was != ctx:
+            raise BuildenvError(f"{last} was trained with --context-hours {was}, not {ctx}: rerun with {was} to "
+                                "resume it, or remove it to start over")
     rng = np.random.default_rng(seed)
     with open_dataset(data) as ds:
         parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
@@ -61,20 +72,20 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         train_idx = parts["train"]
         if max_weeks is not None and max_weeks < len(train_idx):
             train_idx = np.sort(rng.choice(train_idx, size=max_weeks, replace=False))
-        x_tr, y_tr = sg.encode_dataset(ds, train_idx)
-        x_va, y_va = sg.encode_dataset(ds, parts["val"])
-        x_te, y_te = sg.encode_dataset(ds, parts["test"])
-        apart = sg.encode_dataset(ds, parts["holdout_climate"]) if holdout_climates else None
+        x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx)
+        x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx)
+        x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx)
+        apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx) if holdout_climates else None
     torch.manual_seed(seed)
     config = dict(model_config or {})
     net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
-    metadata = {**sg.metadata(), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
+    metadata = {**sg.metadata(ctx), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
                 "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx)),
                 "zoning": ds_zoning}
     ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
-    hour_mask = torch.tensor([False] * sg.CONTEXT_HOURS + [True] * cat.HOURS_PER_WEEK)
+    hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
     history = fit(ck, *_tensors(x_tr, y_tr, ck), *_tensors(x_va, y_va, ck), hour_mask, cfg, Path(out), progress)
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
@@ -89,7 +100,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
 def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, float]:
     """Metrics (mean and std over weeks) of a surrogate on encoded weeks ``x`` with true outputs ``y``."""
     pred = surrogate.predict_encoded(x)
-    occupied = x[:, sg.CONTEXT_HOURS:, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
+    occupied = x[:, sg.context_of(x):, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
     norm = surrogate.checkpoint.output_norm
     return {**summarise(week_metrics(y, pred, occupied, norm.mean, norm.std)),
             **pooled_scores(y, pred, norm.mean, norm.std), **daily_errors(y, pred, norm.mean, norm.std)}
@@ -115,7 +126,7 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
             idx = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=holdout)["test"]
         else:
             idx = np.arange(len(ds))
-        x, y = sg.encode_dataset(ds, idx)
+        x, y = sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours)
     result = score(surrogate, x, y)
     result["subset"] = subset if subset == "holdout_climate" or (subset == "test" and same) else "all"
     return result

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 
@@ -10,6 +11,7 @@ import pytest
 
 from buildenv import calibration as cal
 from buildenv import catalogue as cat
+from buildenv import surrogate as sg
 from buildenv.energyplus.idf import read_idf
 from buildenv.reference import (
     REFERENCE_BUILDINGS,
@@ -53,7 +55,7 @@ def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None,
                number_of_floors=3, settings=settings, temperature_c=np.full((weeks, 168), 20.0),
                consumption_kwh=np.full((weeks, 168), 10.0))
     site = load_site(tmp_path)
-    problem = cal.build_problem(site, list(range(weeks)), effects)
+    problem = cal.build_problem(site, list(range(weeks)), effects, context_hours=surrogate.context_hours)
     t, q = cal.predict(problem, surrogate, params)
     q_kwh = q * site.floor_area_m2 / 1000.0
     if gaps is not None:
@@ -183,6 +185,22 @@ def test_gradient_calibration_fits_too(tmp_path, surrogate):
     site = _synthetic_site(tmp_path, surrogate, _truth())
     result = cal.calibrate_site(site, surrogate, weeks=[0], method="adam", seed=0, save=False)
     assert result["fit"]["r2_t"] > 0.95 and result["fit"]["r2_q"] > 0.95
+
+
+@pytest.mark.parametrize("method", ["cmaes", "adam"])
+def test_calibration_encodes_the_context_its_metamodel_was_trained_with(tmp_path, surrogate, method):
+    """A metamodel that sees two days before each week (``buildenv train --context-hours 48``; here the
+    default's weights, which take any length) is calibrated on inputs encoded with two days."""
+    checkpoint = dataclasses.replace(surrogate.checkpoint, metadata={**surrogate.checkpoint.metadata,
+                                                                     "context_hours": 48})
+    two_days = sg.Surrogate(checkpoint)
+    site = _synthetic_site(tmp_path, two_days, _truth())
+    problem = cal.build_problem(site, [0, 1], context_hours=48)
+    assert problem.x_base.shape[1] == 48 + 168
+    with pytest.raises(sg.CheckpointError, match="48"):
+        cal.predict(cal.build_problem(site, [0, 1]), two_days, _truth())
+    result = cal.calibrate_site(site, two_days, weeks=[0], method=method, seed=0, max_evaluations=1500, save=False)
+    assert result["fit"]["r2_t"] > 0.9 and result["fit"]["r2_q"] > 0.9
 
 
 def test_masked_gaps_change_nothing_else(tmp_path, surrogate):

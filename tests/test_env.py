@@ -124,3 +124,18 @@ def test_energyplus_backend_runs_the_reference_building():
     assert scores["savings_percent"][0] == pytest.approx(0.0, abs=1e-6)
     assert 18.0 < scores["mean_temperature_occupied_c"][0] < 26.0
     assert scores["energy_kwh"][0] > 0
+
+
+def test_a_metamodel_with_a_longer_context_runs_the_environment(tmp_path):
+    """A checkpoint trained with two days of context (``buildenv train --context-hours 48``; here the default's
+    weights, which take any length) simulates the site's weeks with its site effects, encoded with two days."""
+    from buildenv.surrogate import load_metamodel
+
+    checkpoint = load_metamodel().checkpoint
+    checkpoint.metadata = {**checkpoint.metadata, "context_hours": 48}
+    path = checkpoint.save(tmp_path / "two_days.pt")
+    env = gym.make("BuildingWeek-v0", metamodel=str(path))
+    assert env.unwrapped.site_model.surrogate.context_hours == 48
+    env.reset(seed=0, options={"week": 2})
+    _, reward, *_, info = env.step(env.unwrapped.historical_action)
+    assert info["energy_term"] == pytest.approx(1.0) and np.isfinite(reward)

@@ -9,6 +9,7 @@ import torch
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.errors import BuildenvError
 from buildenv.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.loss import paper_loss
@@ -127,6 +128,55 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
     monkeypatch.setattr(cat, "catalogue_hash", lambda: "0000000000000000")
     with pytest.raises(sg.CheckpointError, match="catalogue"):
         sg.load_metamodel(ckpt)
+
+
+def test_a_longer_context_carries_the_previous_days_or_repeats_the_first_day(tiny_dataset):
+    from buildenv.dataset import open_dataset
+
+    with open_dataset(tiny_dataset) as ds:
+        previous = ds.previous_week()
+        i = int(np.flatnonzero(previous >= 0)[0])  # a week with a real preceding week, and that week
+        week = [a[[i]] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
+        prev = tuple(a[[previous[i]]] for a in (ds.settings, ds.occupancy, ds.weather))
+    one_day = sg.encode_weeks(*week, prev, np.array([True]))
+    three_days = sg.encode_weeks(*week, prev, np.array([True]), context_hours=72)
+    assert three_days.shape == (1, 72 + 168, len(sg.INPUT_CHANNELS))
+    np.testing.assert_array_equal(three_days[:, 48:], one_day)  # the last day before the week, then the week
+    w = [sg.INPUT_CHANNELS.index(c) for c in sg.WEATHER_INPUTS]
+    np.testing.assert_array_equal(three_days[0, :72, w], prev[2][0, -72:][:, [cat.WEATHER_NAMES.index(c)
+                                                                           for c in sg.WEATHER_INPUTS]].T)
+    assert (three_days[0, :72, -1] == 1).all() and (three_days[0, 72:, -1] == 0).all()
+    # no preceding week: the week's first day, repeated, as EnergyPlus's warm-up
+    cold = sg.encode_weeks(*week, context_hours=48)
+    np.testing.assert_array_equal(cold[:, :24, :-1], cold[:, 48:72, :-1])
+    np.testing.assert_array_equal(cold[:, 24:48, :-1], cold[:, 48:72, :-1])
+    np.testing.assert_array_equal(cold[:, 24:], sg.encode_weeks(*week))
+    for bad in (0, 30, 168):
+        with pytest.raises(sg.CheckpointError, match="whole number of days"):
+            sg.encode_weeks(*week, context_hours=bad)
+
+
+def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, tmp_path):
+    ckpt = tmp_path / "ctx48.pt"
+    config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
+    result = train_metamodel(tiny_dataset, "transformer", ckpt, split="random", model_config=config, epochs=1,
+                             batch_size=4, progress=False, context_hours=48)
+    assert np.isfinite(result["test"]["loss"])
+    surrogate = sg.load_metamodel(ckpt)
+    assert surrogate.context_hours == 48 and surrogate.checkpoint.metadata["context_hours"] == 48
+    from buildenv.dataset import open_dataset
+
+    with open_dataset(tiny_dataset) as ds:
+        week = [a[:3] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
+        evaluated = evaluate_metamodel(ckpt, tiny_dataset)
+    pred = surrogate.predict(*week)
+    np.testing.assert_array_equal(pred, surrogate.predict_encoded(sg.encode_weeks(*week, context_hours=48)))
+    assert evaluated["loss"] == pytest.approx(result["test"]["loss"], rel=1e-5)
+    with pytest.raises(sg.CheckpointError, match="48"):  # inputs encoded for the default one-day context
+        surrogate.predict_encoded(sg.encode_weeks(*week))
+    with pytest.raises(BuildenvError, match="--context-hours 48"):  # resuming it with another context
+        train_metamodel(tiny_dataset, "transformer", ckpt, split="random", model_config=config, epochs=2,
+                        batch_size=4, progress=False, context_hours=72)
 
 
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),

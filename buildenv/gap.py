@@ -628,7 +628,8 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
                 if current is base:
                     without_base[name] = without
                 score = heldout_score(ctx, without, trial, 1, series) | {
-                    "baseline": "model without the carried effect"}
+                    "baseline": "model without the carried effect",
+                    "fit_cost": {"candidate": trial.cost, "model_without_it": without.cost}}
             else:
                 trial = refit(ctx, current, name)
                 k = len(em.none_parameters(name))
@@ -636,6 +637,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
                 if settings.own_refit_baseline:
                     score = stricter_score(score, heldout_score(ctx, without_new_effect(current, trial), trial, k,
                                                                 series))
+                score["fit_cost"] = {"candidate": trial.cost, "control": control.cost}
             trials.append((name, trial, score))
             bar.update(1)
         threshold = settings.alpha / len(trials)
@@ -728,7 +730,10 @@ def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: 
             "parameters": parameters,
             "baseline": score.get("baseline", "control"),  # what the gain is measured against
             **{key: score[key] for key in ("gain_vs_control", "gain_vs_own_refit") if key in score},
-            "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"]}
+            "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"],
+            # the calibration cost on the fit weeks, (1 - R2_T) + (1 - R2_Q), of the candidate's refit and of the
+            # control (for a carried effect: of the model without it), what the searches themselves minimised
+            "fit_cost": {key: round(float(value), 6) for key, value in score["fit_cost"].items()}}
 
 
 def _verdict(selected: list[str], entries: list[dict], min_gain: float) -> str:

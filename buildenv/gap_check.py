@@ -262,6 +262,7 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
            "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
            "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
+           "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
            "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
            "verdict": result["verdict"], "heldout_base": result["heldout_base"],
            "residual_sigma": result["residual_sigma"]}

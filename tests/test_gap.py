@@ -216,6 +216,8 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     assert first["heldout_after"]["rmse_t_celsius"] < 0.8 * first["heldout_before"]["rmse_t_celsius"]
     # credited with what the bias itself adds: its refit without the bias is the worse baseline here
     assert first["score"] == pytest.approx(min(first["gain_vs_control"], first["gain_vs_own_refit"]), abs=1e-4)
+    # recorded for criteria judged on the fit weeks: the bias lowers the cost the searches minimised
+    assert 0 < first["fit_cost"]["candidate"] < first["fit_cost"]["control"]
     assert {"localisation", "effects", "selected", "verdict", "split_weather", "base_at_bounds"} <= set(result)
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
     saved = save_extended_model(site, result)

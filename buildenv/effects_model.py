@@ -183,8 +183,9 @@ def absent_days_inputs(x: np.ndarray, absent: np.ndarray) -> np.ndarray:
     share = np.asarray(absent, float)
     if not np.any(share):
         return x
-    occ = x[:, sg.context_of(x):, _CH["occupancy_fraction"]].reshape(len(x), 7, cat.HOURS_PER_DAY)
-    x[:, sg.context_of(x):, _CH["occupancy_fraction"]] = (occ * (1.0 - share[..., None])).reshape(len(x), -1)
+    ctx = sg.context_of(x)
+    occ = x[:, ctx:, _CH["occupancy_fraction"]].reshape(len(x), 7, cat.HOURS_PER_DAY)
+    x[:, ctx:, _CH["occupancy_fraction"]] = (occ * (1.0 - share[..., None])).reshape(len(x), -1)
     return x
 
 

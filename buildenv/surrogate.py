@@ -84,12 +84,11 @@ def context_of(x) -> int:
     return int(x.shape[-2]) - cat.HOURS_PER_WEEK
 
 
-def first_day_repeated(week, hours: int, axis: int = 1):
-    """The first 24 hours of ``week`` (hours along ``axis``) repeated to ``hours``: the context of a week whose
+def first_day_repeated(week, hours: int):
+    """The first 24 hours of ``week`` (hours on axis 1) repeated to ``hours``: the context of a week whose
     preceding week is unknown, as EnergyPlus's warm-up repeats the first day (numpy or torch)."""
-    day = week[(slice(None),) * (axis % week.ndim) + (slice(0, cat.HOURS_PER_DAY),)]
-    reps = [1] * week.ndim
-    reps[axis % week.ndim] = hours // cat.HOURS_PER_DAY
+    day = week[:, :cat.HOURS_PER_DAY]
+    reps = [1, hours // cat.HOURS_PER_DAY] + [1] * (week.ndim - 2)
     return np.tile(day, reps) if isinstance(day, np.ndarray) else day.repeat(*reps)
 
 
@@ -181,8 +180,8 @@ class Surrogate:
         return int(self.checkpoint.metadata.get("context_hours", CONTEXT_HOURS))
 
     def _inference_model(self):
-        """The module ``predict_encoded`` calls: physical inputs ``(N, 192, C)`` -> physical outputs of the week
-        ``(N, 168, 8)``, standardisation included (traced once, on first use): inputs ``(N, context + 168, C)``."""
+        """The module ``predict_encoded`` calls: physical inputs ``(N, context_hours + 168, C)`` -> physical
+        outputs of the week ``(N, 168, 8)``, standardisation included (traced once, on first use)."""
         if self._runner is None:
             import torch
 

@@ -73,3 +73,12 @@ def mean_std(result: dict, key: str, scale: float = 1.0, digits: int = 3) -> str
     """``"mean (std)"`` of a metric of a result's test block."""
     test = result["test"]
     return f"{test[key] * scale:.{digits}f} ({test[key + '_std'] * scale:.{digits}f})"
+
+
+def speed_lines(speed: dict, eplus: float, label: str = "model") -> list[str]:
+    """Markdown lines of a speed table: ``speed`` ``{name: weeks/s}`` of ``load_metamodel(CKPT).predict``
+    against the core + perimeter EnergyPlus shoebox's ``eplus`` weeks/s, timed in the same run."""
+    lines = ["", "Speed in the same run, `load_metamodel(CKPT).predict` of 4,096 weeks from catalogue arrays "
+             "(encoding included, traced, batches of 128, best of 3), against the core + perimeter EnergyPlus "
+             f"shoebox ({eplus:.1f} weeks/s):", "", f"| {label} | weeks/s | x EnergyPlus |", "|---|---|---|"]
+    return lines + [f"| {name} | {value:,.0f} | {value / eplus:.0f} |" for name, value in speed.items()]

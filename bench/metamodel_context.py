@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from _training_runs import RESULTS, shipped_transformer, trained
+from _training_runs import RESULTS, speed_lines, shipped_transformer, trained
 from metamodel_speed import energyplus_weeks_per_second, surrogate_weeks_per_second
 
 METRICS = ("loss", "r2_t_pooled", "r2_t", "rmse_t_celsius", "cv_rmse_q_percent")
@@ -91,10 +91,7 @@ def _page(result: dict, contexts: list[int], seeds: list[int], speed: dict, eplu
         lines.append(f"| {r['context_hours']} | {r['seed']} | {r['loss']:.4f} | {r['r2_t_pooled']:.4f} | "
                      f"{r['r2_t']:.4f} | {r['rmse_t_celsius']:.4f} | {day[0]:.3f} | {rest:.3f} "
                      f"| {r['cv_rmse_q_percent']:.2f} | {r['seconds']:.0f} |")
-    lines += ["", f"Speed in the same run, `load_metamodel(CKPT).predict` of 4,096 weeks from catalogue arrays "
-              f"(encoding included, traced, batches of 128, best of 3), against the core + perimeter EnergyPlus "
-              f"shoebox ({eplus:.1f} weeks/s):", "", "| context h | weeks/s | x EnergyPlus |", "|---|---|---|"]
-    lines += [f"| {c} | {speed[c]:,.0f} | {speed[c] / eplus:.0f} |" for c in contexts]
+    lines += speed_lines(speed, eplus, "context h")
     return "\n".join(lines) + "\n"
 
 

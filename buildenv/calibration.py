@@ -88,7 +88,7 @@ class Problem:
     x_base: np.ndarray  # (weeks, context + 168, C) encoded inputs with placeholder theta/occupancy
     temperature_c: np.ndarray  # (weeks, 168) measured, NaN where missing
     consumption_wh_m2: np.ndarray  # (weeks, 168) measured, NaN where missing
-    has_previous: np.ndarray  # (weeks,) the site has the week before (context = its last day)
+    has_previous: np.ndarray  # (weeks,) context from the week before (else the week's Monday repeated)
     theta_known: dict[str, float]
     names: list[str]  # free parameters: theta names, occupancy "occupancy_<day>_<start|end>", then effects
     lo: np.ndarray
@@ -138,7 +138,15 @@ def parameter_names() -> list[str]:
 
 def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None,
                   context_hours: int = sg.CONTEXT_HOURS) -> Problem:
-    """Encode a site's weeks (each with its preceding week as context where the site has it).
+    """Encode a site's weeks, each with the days before it as context.
+
+    The context of a week is the last days of the week before: its settings, the calibrated occupancy and the
+    weather file's hours before the week. Before the first measured week the building ran too, under
+    settings the site does not record; they are taken to be the first week's own (its last days), as
+    :class:`buildenv.site_model.SiteModel` does for every week and as the reference-building stand-in's
+    warm-up week runs them. (A metamodel that sees several days before Monday reads a weekend there; the
+    week's Monday repeated, what EnergyPlus's warm-up gives a run's first week, would tell it the building
+    was heated all weekend.)
 
     Args:
         site: a :class:`buildenv.site.Site`.
@@ -152,17 +160,21 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
     bad = [w for w in weeks if not 0 <= w < site.weeks]
     if bad:
         raise CalibrationError(f"week(s) {bad} not in {site.path} (it has weeks 0..{site.weeks - 1})")
-    weather = site.weather_hours()
+    from buildenv.weather import load_weather
+
+    hourly = np.asarray(load_weather(site.weather).hourly)
     idx = np.asarray(weeks)
-    prev = np.maximum(idx - 1, 0)
-    has_prev = idx > 0
+    rows = site.epw_hours()[idx]
+    weather, weather_before = hourly[rows], hourly[(rows - cat.HOURS_PER_WEEK) % len(hourly)]
+    prev = np.maximum(idx - 1, 0)  # the first week's settings stand for the unrecorded week before it
+    has_prev = np.ones(len(idx), bool)
     n = len(idx)
     lo_t, hi_t = cat.bounds("theta_build")
     theta = (lo_t + hi_t) / 2.0
     known = site.theta_known()
     occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
-    x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather[idx],
-                        (site.settings[prev], occ, weather[prev]), has_prev, context_hours)
+    x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather,
+                        (site.settings[prev], occ, weather_before), has_prev, context_hours)
     free = free_theta()
     lo = np.array([known.get(v, cat.get(v).min) for v in free]
                   + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])

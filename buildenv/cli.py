@@ -153,9 +153,9 @@ def _cmd_train(args: argparse.Namespace) -> int:
     config = json.loads(args.model_config) if args.model_config else None
     result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
                              model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
-                             progress=not args.quiet, context_hours=args.context_hours, epochs=args.epochs,
-                             batch_size=args.batch_size, lr=args.lr, schedule=args.schedule, patience=args.patience,
-                             device=args.device)
+                             progress=not args.quiet, context_hours=args.context_hours, init=args.init,
+                             epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
+                             patience=args.patience, device=args.device)
     print(json.dumps(result, indent=None if args.json else 2))
     return 0
 
@@ -223,6 +223,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model-config", default=None, help='JSON keyword arguments of the model, e.g. \'{"layers": 2}\'')
     p.add_argument("--context-hours", type=int, default=CONTEXT_HOURS,
                    help=f"hours before each week the model sees, whole days (default {CONTEXT_HOURS}: the day before)")
+    p.add_argument("--init", default=None, metavar="CKPT",
+                   help="start from this checkpoint's weights and normalisation ('default': the shipped one), "
+                        "e.g. to fine-tune it with a longer --context-hours")
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate of Adam")

@@ -30,7 +30,8 @@ def _tensors(x: np.ndarray, y: np.ndarray, ck):
 def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = "weather_weeks",
                     max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
                     holdout_climates: list[str] | None = None, progress: bool = True,
-                    context_hours: int = sg.CONTEXT_HOURS, **train_options) -> dict:
+                    context_hours: int = sg.CONTEXT_HOURS, init: str | Path | None = None,
+                    **train_options) -> dict:
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
@@ -44,6 +45,10 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         holdout_climates: climates kept out of training altogether and scored apart (``"holdout_climate"``).
         progress: progress bars.
         context_hours: hours before each week the model sees (a whole number of days; recorded in the checkpoint).
+        init: a checkpoint (or ``"default"``) to start from: its weights and normalisation statistics are kept
+            and trained further (fine-tuning, e.g. with a longer context). It must be a ``model`` with the same
+            configuration, trained with the same split kind, split seed and held-out climates, so that the
+            test weeks of ``data`` stay unseen when ``data`` covers the same weather files.
         train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
     Returns:
         ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
@@ -78,11 +83,18 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx) if holdout_climates else None
     torch.manual_seed(seed)
     config = dict(model_config or {})
-    net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
     metadata = {**sg.metadata(ctx), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
                 "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx)),
                 "zoning": ds_zoning}
-    ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
+    if init is not None:
+        start = _initial_checkpoint(init, model, model_config, split, seed, holdout_climates, ds_zoning)
+        metadata["initialised_from"] = {"checkpoint": str(init), "dataset": start.metadata.get("dataset"),
+                                        "train_weeks": start.metadata.get("train_weeks"),
+                                        "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS)}
+        ck = Checkpoint(model, dict(start.config), start.model, start.input_norm, start.output_norm, metadata)
+    else:
+        net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
+        ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
@@ -91,10 +103,29 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     test = score(surrogate, x_te, y_te)
     extra = {"holdout_climate": {"climates": list(holdout_climates), "weeks": int(len(apart[0])),
                                  **score(surrogate, *apart)}} if apart else {}
-    return {"model": model, "config": config, "train": asdict(cfg), "train_weeks": int(len(train_idx)),
+    return {"model": model, "config": ck.config, "train": asdict(cfg), "train_weeks": int(len(train_idx)),
             "val_weeks": int(len(parts["val"])), "test_weeks": int(len(parts["test"])),
             "seconds": round(time.perf_counter() - started, 1),
             "fit": {k: v for k, v in history.items() if k != "history"}, "test": test, **extra}
+
+
+def _initial_checkpoint(init: str | Path, model: str, model_config: dict | None, split: str, seed: int,
+                        holdout_climates: list[str] | None, zoning: str):
+    """The checkpoint a fine-tuning run starts from, refused where it would not fit the run (see ``init``)."""
+    start = sg.load_metamodel(init).checkpoint
+    meta = start.metadata
+    held = sorted(meta.get("holdout_climates") or [])
+    if start.name != model:
+        raise BuildenvError(f"--init {init} is a {start.name}, not a {model}: pass --model {start.name}")
+    if model_config and dict(model_config) != start.config:
+        raise BuildenvError(f"--init {init} has --model-config {start.config}; leave --model-config out")
+    if meta.get("zoning", "core_perimeter") != zoning:
+        raise BuildenvError(f"--init {init} was trained on {meta.get('zoning')} buildings, this dataset is {zoning}")
+    if (meta.get("split"), meta.get("split_seed"), held) != (split, seed, sorted(holdout_climates or [])):
+        raise BuildenvError(f"--init {init} was trained with --split {meta.get('split')} --seed "
+                            f"{meta.get('split_seed')} and held-out climates {held or 'none'}: use the same, or "
+                            "its test weeks may be trained on")
+    return start
 
 
 def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, float]:

@@ -132,7 +132,10 @@ class Transformer(nn.Module):
         else:
             self.readout = nn.Linear(d_model, outputs * patch_hours)
 
-    def forward(self, x: torch.Tensor) -> torch.Tensor:
+    def forward(self, x: torch.Tensor, skip_hours: int = 0) -> torch.Tensor:
+        """``(batch, hours, inputs)`` -> ``(batch, hours - skip_hours, outputs)``: the outputs of the hours
+        from ``skip_hours`` on (the first hours, a context, are still read); with the hourly head the
+        skipped hours' read-out is not computed, and the outputs are those of the full pass."""
         batch, hours, _ = x.shape
         if hours % self.patch:
             raise ValueError(f"{hours} hours do not split into patches of {self.patch}")
@@ -145,8 +148,8 @@ class Transformer(nn.Module):
         for layer in self.decoder:
             y = layer(y, mask, memory)
         if hasattr(self, "head"):
-            return self.head(x, y)
-        return self.readout(y).reshape(batch, hours, self.outputs)
+            return self.head(x, y, skip_hours)
+        return self.readout(y).reshape(batch, hours, self.outputs)[:, skip_hours:]
 
 
 class ThermalStates(nn.Module):
@@ -227,26 +230,37 @@ class HourlyHead(nn.Module):
         self.state = state
         self.out = nn.Linear(2 * gru if gru else hidden, outputs)
 
-    def forward(self, x: torch.Tensor, latent: torch.Tensor) -> torch.Tensor:
-        """``x`` ``(batch, hours, inputs)``, ``latent`` ``(batch, tokens, d_model)`` -> ``(batch, hours, outputs)``."""
+    def forward(self, x: torch.Tensor, latent: torch.Tensor, skip_hours: int = 0) -> torch.Tensor:
+        """``x`` ``(batch, hours, inputs)``, ``latent`` ``(batch, tokens, d_model)`` -> ``(batch, hours -
+        skip_hours, outputs)``. The skipped first hours feed the forward states; their read-out, and the
+        backward states and mix of the last stage there, are not computed (later hours do not depend on them)."""
         batch, tokens, _ = latent.shape
         h = self.from_inputs(x).view(batch, tokens, self.patch, -1)
         h = torch.relu(h + self.from_latent(latent)[:, :, None, :] + self.position)
         h = h.reshape(batch, tokens * self.patch, -1)
         if self.rnn is not None:
-            h = self.rnn(h)[0]
+            h = self.rnn(h)[0][:, skip_hours:]
         elif self.state:
-            h = _filtered_features(self, h)
-            for stage in self.stages:
-                h = h + _filtered_features(stage, h)
+            stages = [self, *self.stages]
+            for i, stage in enumerate(stages):
+                last = i == len(stages) - 1
+                features = _filtered_features(stage, h, skip_hours if last else 0)
+                h = features if i == 0 else (h[:, skip_hours:] if last else h) + features
+        else:
+            h = h[:, skip_hours:]
         return self.out(h)
 
 
-def _filtered_features(stage: nn.Module, h: torch.Tensor) -> torch.Tensor:
+def _filtered_features(stage: nn.Module, h: torch.Tensor, skip_hours: int = 0) -> torch.Tensor:
     """``ReLU(mix(h, past states, future states))`` of one thermal-state stage (its ``drive``, ``past``,
-    ``future``, ``mix`` and ``state``), ``(batch, hours, hidden) -> (batch, hours, hidden)``."""
+    ``future``, ``mix`` and ``state``), ``(batch, hours, hidden) -> (batch, hours - skip_hours, hidden)``.
+
+    The past states need every hour; the future states of the kept hours only the kept hours (they look
+    forward), so they are filtered from ``skip_hours`` on: the same values as over the whole sequence."""
     past, future = stage.drive(h).split(stage.state, dim=-1)
-    return torch.relu(stage.mix(torch.cat([h, stage.past(past), stage.future(future)], dim=-1)))
+    past = stage.past(past)[:, skip_hours:]
+    future = stage.future(future[:, skip_hours:])
+    return torch.relu(stage.mix(torch.cat([h[:, skip_hours:], past, future], dim=-1)))
 
 
 class _StateStage(nn.Module):

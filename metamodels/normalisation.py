@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,11 +62,16 @@ class StandardisedModel(torch.nn.Module):
         super().__init__()
         self.model = model
         self.skip_steps = int(skip_steps)
+        self.skips_inside = "skip_hours" in inspect.signature(model.forward).parameters
         for name, value in (("in_mean", inputs.mean), ("in_std", inputs.std), ("out_mean", outputs.mean),
                             ("out_std", outputs.std)):
             self.register_buffer(name, torch.as_tensor(np.asarray(value, dtype=np.float32)))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
         """``(batch, steps, inputs)`` physical -> ``(batch, steps - skip_steps, outputs)`` physical."""
-        y = self.model((x - self.in_mean) / self.in_std)
-        return y[:, self.skip_steps:] * self.out_std + self.out_mean
+        x = (x - self.in_mean) / self.in_std
+        if self.skips_inside:  # the model does not compute the dropped steps' outputs at all
+            y = self.model(x, self.skip_steps)
+        else:
+            y = self.model(x)[:, self.skip_steps:]
+        return y * self.out_std + self.out_mean

@@ -136,7 +136,7 @@ def test_calibrate_command_prints_its_parameters_at_a_bound(tmp_path, surrogate,
 def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, surrogate):
     known = {"pc_night_percent": 25.0, "window_to_wall_south_percent": 40.0, "heating_power_w_m2": 50.0}
     site = _synthetic_site(tmp_path, surrogate, _truth(), known=known)
-    problem = cal.build_problem(site, [0])
+    problem = cal.build_problem(site, [0], context_hours=surrogate.context_hours)
     fixed = [problem.names.index(n) for n in known]
     assert problem.free.sum() == problem.dim - len(known) and not problem.free[fixed].any()
     z = np.random.default_rng(0).random((4, problem.free.sum()))
@@ -150,7 +150,7 @@ def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, sur
 
 def test_restarts_keep_the_best_of_independent_runs(tmp_path, surrogate):
     site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=1)
-    problem = cal.build_problem(site, [0])
+    problem = cal.build_problem(site, [0], context_hours=surrogate.context_hours)
     _, single = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=120)
     best, info = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=120, restarts=3)
     assert len(info["run_costs"]) == 3 and info["run_costs"][0] == single["cost"]  # run 0 is the single run
@@ -163,19 +163,19 @@ def test_restarts_keep_the_best_of_independent_runs(tmp_path, surrogate):
 def test_anchored_refit_stays_near_its_start_unless_the_fit_pays(tmp_path, surrogate):
     truth = _truth()
     site = _synthetic_site(tmp_path, surrogate, truth, weeks=1)
-    problem = cal.build_problem(site, [0])
+    problem = cal.build_problem(site, [0], context_hours=surrogate.context_hours)
     start = problem.from_unit(np.full(int(problem.free.sum()), 0.5))[0]  # far from the truth
     stds = np.full(len(start), 0.25)
     free, _ = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds)
     held, info = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds,
-                                     anchor=100.0)
+                                     anchor=300.0)
     move = lambda p: float(np.abs(problem.to_unit(p) - problem.to_unit(start)).max())  # noqa: E731
     assert move(held) < 0.05 < move(free)  # a strong pull keeps every parameter near the start
     assert cal.evaluate(problem, surrogate, held[None])[0] == pytest.approx(info["cost"], abs=1e-6)  # plain cost
     loose = np.zeros(len(start), bool)
     loose[np.flatnonzero(problem.free)[0]] = True  # only the first free parameter pulled: the others move
     part, _ = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds,
-                                  anchor=100.0, anchored=loose)
+                                  anchor=300.0, anchored=loose)
     assert abs(problem.to_unit(part)[0] - 0.5) < 0.05 and move(part) > 0.05
     with pytest.raises(cal.CalibrationError, match="anchor must be at least 0"):
         cal.calibrate_cmaes(problem, surrogate, start=start, anchor=-1.0)
@@ -189,17 +189,19 @@ def test_gradient_calibration_fits_too(tmp_path, surrogate):
 
 @pytest.mark.parametrize("method", ["cmaes", "adam"])
 def test_calibration_encodes_the_context_its_metamodel_was_trained_with(tmp_path, surrogate, method):
-    """A metamodel that sees two days before each week (``buildenv train --context-hours 48``; here the
-    default's weights, which take any length) is calibrated on inputs encoded with two days."""
+    """A metamodel that sees three days before each week (``buildenv train --context-hours 72``; here the
+    default's weights, which take any length) is calibrated on inputs encoded with three days."""
+    assert surrogate.context_hours != 72
     checkpoint = dataclasses.replace(surrogate.checkpoint, metadata={**surrogate.checkpoint.metadata,
-                                                                     "context_hours": 48})
-    two_days = sg.Surrogate(checkpoint)
-    site = _synthetic_site(tmp_path, two_days, _truth())
-    problem = cal.build_problem(site, [0, 1], context_hours=48)
-    assert problem.x_base.shape[1] == 48 + 168
-    with pytest.raises(sg.CheckpointError, match="48"):
-        cal.predict(cal.build_problem(site, [0, 1]), two_days, _truth())
-    result = cal.calibrate_site(site, two_days, weeks=[0], method=method, seed=0, max_evaluations=1500, save=False)
+                                                                     "context_hours": 72})
+    three_days = sg.Surrogate(checkpoint)
+    site = _synthetic_site(tmp_path, three_days, _truth())
+    problem = cal.build_problem(site, [0, 1], context_hours=72)
+    assert problem.x_base.shape[1] == 72 + 168
+    with pytest.raises(sg.CheckpointError, match="72"):
+        cal.predict(cal.build_problem(site, [0, 1]), three_days, _truth())
+    result = cal.calibrate_site(site, three_days, weeks=[0], method=method, seed=0, max_evaluations=1500,
+                                save=False)
     assert result["fit"]["r2_t"] > 0.9 and result["fit"]["r2_q"] > 0.9
 
 
@@ -211,7 +213,8 @@ def test_masked_gaps_change_nothing_else(tmp_path, surrogate):
     gapped = _synthetic_site(tmp_path / "gapped", surrogate, truth, gaps=gaps)
     assert not gapped.temperature_mask[gaps].any() and gapped.temperature_mask[~gaps].all()
     rng = np.random.default_rng(0)
-    problem_full, problem_gap = cal.build_problem(full, [0, 1]), cal.build_problem(gapped, [0, 1])
+    problem_full, problem_gap = (cal.build_problem(site, [0, 1], context_hours=surrogate.context_hours)
+                                 for site in (full, gapped))
     params = problem_full.lo + rng.random((6, problem_full.dim)) * (problem_full.hi - problem_full.lo)
     out = load_metamodel().predict_encoded(cal.encode_candidates(problem_full, params)).reshape(6, 2, 168, -1)
     # the cost over the gapped site equals the cost over the full site restricted to the measured hours
@@ -234,7 +237,7 @@ def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model
     assert result["declared_effects"] == list(effect) and result["cost"] < result["cost_without_effects"]
     assert fitted["cooling_k_per_wh_m2"] > 0.05 and fitted["reheat_share"] > 0.1
     # the held-out week is scored with the effect: better than the same building without it
-    problem = cal.build_problem(site, [1], effect)
+    problem = cal.build_problem(site, [1], effect, context_hours=surrogate.context_hours)
     params = cal.calibrated_parameters(result, effect)
     without = cal.score_series(problem, *cal.predict(problem, surrogate, np.r_[params[:-3], 0.0, 0.0, 0.0]), params,
                                cal._scale(problem))
@@ -250,7 +253,7 @@ def test_declared_effects_stage_keeps_the_building(tmp_path, surrogate, bias_k):
     # one free parameter: a bounded scalar search (pycma fails in one dimension; see _minimise_one)
     effect = ("temperature_sensor_bias",)
     site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), bias_k], weeks=1, effects=effect)
-    problem = cal.build_problem(site, [0], effect)
+    problem = cal.build_problem(site, [0], effect, context_hours=surrogate.context_hours)
     base = _truth()
     params, info = cal.fit_declared_effects(problem, surrogate, base, seed=0, max_evaluations=200)
     np.testing.assert_array_equal(params[:problem.n_base], base)

@@ -36,7 +36,7 @@ def calibrated():
 
 
 def _predict(site, surrogate, params, effects=(), values=()):
-    problem = cal.build_problem(site, [0, 1], tuple(effects))
+    problem = cal.build_problem(site, [0, 1], tuple(effects), context_hours=surrogate.context_hours)
     return cal.simulate(problem, surrogate, np.concatenate([params, *values])[None])
 
 
@@ -125,7 +125,8 @@ def test_an_absent_day_is_simulated_without_occupants_and_found_from_both_series
     site, params = calibrated
     absent = np.zeros((site.weeks, 7))
     absent[1, 1] = 1.0  # the second week's Tuesday: nobody came
-    _, t_abs, q_abs = cal.simulate(cal.build_problem(site, [0, 1], (), absent), surrogate, params[None])
+    problem = cal.build_problem(site, [0, 1], (), absent, context_hours=surrogate.context_hours)
+    _, t_abs, q_abs = cal.simulate(problem, surrogate, params[None])
     _, t0, q0 = _predict(site, surrogate, params)
     tuesday = slice(24 + 9, 24 + 17)  # its occupied hours: no lights, plug loads or people, a colder building
     assert (q_abs[0, 1, tuesday] < q0[0, 1, tuesday] - 1.0).all()
@@ -322,7 +323,8 @@ def test_a_joint_calibration_with_wind_infiltration_gains_only_where_the_wind_dr
 
     site = _synthetic_site(tmp_path, surrogate, np.concatenate([_truth(), [ach_per_m_s]]),
                            effects=("wind_infiltration",))
-    (test,) = joint_calibration_tests(site, surrogate, ("wind_infiltration",), DiagnosisSettings(base_evaluations=800))
+    # converged enough (1,500 evaluations each) that the two fits' own spread does not pass for a gain
+    (test,) = joint_calibration_tests(site, surrogate, ("wind_infiltration",), DiagnosisSettings(base_evaluations=1500))
     estimate = test["estimate"]["ach_per_m_s"]
     if ach_per_m_s:
         assert test["gain"] > 0.3 and test["p_value"] < 1e-3 and 0.04 < estimate < 0.15

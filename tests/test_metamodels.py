@@ -179,6 +179,34 @@ def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, 
                         batch_size=4, progress=False, context_hours=72)
 
 
+def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny_dataset, tmp_path):
+    config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
+    base = tmp_path / "base.pt"
+    train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1,
+                    batch_size=4, progress=False)
+    start = sg.load_metamodel(base).checkpoint
+    tuned = tmp_path / "tuned72.pt"
+    # lr 0: the run starts from the base's weights and its normalisation, so nothing moves but the context
+    train_metamodel(tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False,
+                    context_hours=72, init=base, lr=0.0)
+    ck = sg.load_metamodel(tuned).checkpoint
+    assert ck.config == config and ck.metadata["context_hours"] == 72
+    assert ck.metadata["initialised_from"] == {"checkpoint": str(base), "dataset": start.metadata["dataset"],
+                                               "train_weeks": start.metadata["train_weeks"], "context_hours": 24}
+    np.testing.assert_array_equal(ck.input_norm.mean, start.input_norm.mean)
+    np.testing.assert_array_equal(ck.output_norm.std, start.output_norm.std)
+    for name, value in start.model.state_dict().items():
+        torch.testing.assert_close(ck.model.state_dict()[name], value, rtol=0, atol=0)
+    with pytest.raises(BuildenvError, match="is a transformer, not a lstm"):
+        train_metamodel(tiny_dataset, "lstm", tmp_path / "x.pt", split="random", init=base, progress=False)
+    with pytest.raises(BuildenvError, match="--split random --seed 0"):  # its test weeks could be trained on
+        train_metamodel(tiny_dataset, "transformer", tmp_path / "y.pt", split="random", seed=1, init=base,
+                        progress=False)
+    with pytest.raises(BuildenvError, match="leave --model-config out"):
+        train_metamodel(tiny_dataset, "transformer", tmp_path / "z.pt", split="random", init=base,
+                        model_config={**config, "layers": 2}, progress=False)
+
+
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
                                          ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
                                                           "hourly_gru": 8}),
@@ -213,6 +241,26 @@ def test_standardised_model_is_the_numpy_chain_in_one_module():
         wrapped = StandardisedModel(net, inputs, outputs, skip_steps=6)(torch.from_numpy(x)).numpy()
     assert wrapped.shape == (5, 24, 3)
     np.testing.assert_allclose(wrapped, chain, rtol=1e-6, atol=1e-5)
+
+
+@pytest.mark.parametrize("config", [{"patch_hours": 8, "layers": 1},
+                                    {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_gru": 4},
+                                    {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 3},
+                                    {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 3,
+                                     "hourly_state_layers": 2}])
+def test_a_transformer_skipping_the_context_outputs_gives_the_week_of_the_full_pass(config):
+    # inference leaves out the context hours' read-out (and the last stage's backward states there): the week's
+    # outputs must be those of the full pass, which training computes
+    torch.manual_seed(0)
+    net = build("transformer", 5, 3, **config).eval()
+    x = torch.randn(4, 72 + 168, 5) * 3
+    with torch.no_grad():
+        full, skipped = net(x)[:, 72:], net(x, 72)
+    assert skipped.shape == (4, 168, 3)
+    torch.testing.assert_close(skipped, full, rtol=1e-5, atol=1e-5)
+    norm_in, norm_out = Standardiser.fit(x.reshape(-1, 5).numpy()), Standardiser.fit(np.ones((2, 3)))
+    assert StandardisedModel(net, norm_in, norm_out, skip_steps=72).skips_inside
+    assert not StandardisedModel(build("lstm", 5, 3, layers=1), norm_in, norm_out, skip_steps=72).skips_inside
 
 
 def test_hourly_head_sees_each_hour():

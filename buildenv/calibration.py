@@ -88,7 +88,6 @@ class Problem:
     x_base: np.ndarray  # (weeks, context + 168, C) encoded inputs with placeholder theta/occupancy
     temperature_c: np.ndarray  # (weeks, 168) measured, NaN where missing
     consumption_wh_m2: np.ndarray  # (weeks, 168) measured, NaN where missing
-    has_previous: np.ndarray  # (weeks,) context from the week before (else the week's Monday repeated)
     theta_known: dict[str, float]
     names: list[str]  # free parameters: theta names, occupancy "occupancy_<day>_<start|end>", then effects
     lo: np.ndarray
@@ -160,28 +159,24 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
     bad = [w for w in weeks if not 0 <= w < site.weeks]
     if bad:
         raise CalibrationError(f"week(s) {bad} not in {site.path} (it has weeks 0..{site.weeks - 1})")
-    from buildenv.weather import load_weather
-
-    hourly = np.asarray(load_weather(site.weather).hourly)
     idx = np.asarray(weeks)
-    rows = site.epw_hours()[idx]
-    weather, weather_before = hourly[rows], hourly[(rows - cat.HOURS_PER_WEEK) % len(hourly)]
+    weather = site.weather_hours()[idx]
+    weather_before = site.weather_hours(shift_hours=-cat.HOURS_PER_WEEK)[idx]
     prev = np.maximum(idx - 1, 0)  # the first week's settings stand for the unrecorded week before it
-    has_prev = np.ones(len(idx), bool)
     n = len(idx)
     lo_t, hi_t = cat.bounds("theta_build")
     theta = (lo_t + hi_t) / 2.0
     known = site.theta_known()
     occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
     x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather,
-                        (site.settings[prev], occ, weather_before), has_prev, context_hours)
+                        (site.settings[prev], occ, weather_before), context_hours=context_hours)
     free = free_theta()
     lo = np.array([known.get(v, cat.get(v).min) for v in free]
                   + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
     hi = np.array([known.get(v, cat.get(v).max) for v in free]
                   + [v.max for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
     e_lo, e_hi = em.bounds(effects)
-    return Problem(x, site.temperature_c[idx], site.consumption_wh_m2()[idx], has_prev, known,
+    return Problem(x, site.temperature_c[idx], site.consumption_wh_m2()[idx], known,
                    parameter_names() + em.parameter_names(effects), np.concatenate([lo, e_lo]),
                    np.concatenate([hi, e_hi]), tuple(effects), None if absent is None else np.asarray(absent)[idx])
 
@@ -207,10 +202,7 @@ def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
     c = sg.INPUT_CHANNELS.index("occupancy_fraction")
     ctx = sg.context_of(problem.x_base)
     x[:, :, ctx:, c] = occ_fraction[:, None, :]
-    # context: the previous week's last days where there is one, else the week's own Monday repeated (see surrogate)
-    context = np.where(problem.has_previous[None, :, None], occ_fraction[:, None, -ctx:],
-                       sg.first_day_repeated(occ_fraction, ctx)[:, None])
-    x[:, :, :ctx, c] = context
+    x[:, :, :ctx, c] = occ_fraction[:, None, -ctx:]  # context: the last days of the week before (build_problem)
     x = x.reshape(pop * weeks, *x.shape[2:])
     if problem.effects:
         em.transform_inputs(x, _effect_values(problem, params, weeks))

@@ -61,7 +61,6 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
     y_q = torch.tensor(np.nan_to_num(problem.consumption_wh_m2), dtype=torch.float32)
     m_t = torch.tensor(np.isfinite(problem.temperature_c))
     m_q = torch.tensor(np.isfinite(problem.consumption_wh_m2))
-    has_prev = torch.tensor(problem.has_previous)
     t_idx = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
     q_idx = [cat.OUTPUT_NAMES.index(n) for n in SITE_CONSUMPTION_OUTPUTS]
     optimiser = torch.optim.Adam([z], lr=lr)
@@ -75,8 +74,7 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
         x = x_base.expand(len(params), *x_base.shape).clone()
         x[..., t0:t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
         x[:, :, ctx:, c_occ] = week[:, None, :]
-        x[:, :, :ctx, c_occ] = torch.where(has_prev[None, :, None], week[:, None, -ctx:],
-                                           sg.first_day_repeated(week, ctx)[:, None])
+        x[:, :, :ctx, c_occ] = week[:, None, -ctx:]  # context: the last days of the week before (build_problem)
         y = model(((x - in_mean) / in_std).reshape(-1, *x.shape[2:]))[:, ctx:] * out_std + out_mean
         y = y.reshape(len(params), weeks, cat.HOURS_PER_WEEK, -1)
         return (WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t))

@@ -177,8 +177,9 @@ class Site:
         hours = days[:, :, None] * cat.HOURS_PER_DAY + np.arange(cat.HOURS_PER_DAY)
         return hours.reshape(self.weeks, cat.HOURS_PER_WEEK)
 
-    def weather_hours(self) -> np.ndarray:
-        """The site's weather over the measured weeks, ``(weeks, 168, len(catalogue.WEATHER_NAMES))``.
+    def weather_hours(self, shift_hours: int = 0) -> np.ndarray:
+        """The site's weather over the measured weeks, ``(weeks, 168, len(catalogue.WEATHER_NAMES))``
+        (``shift_hours`` later; -168: the week before each, the context of a site's first week included).
 
         Taken from ``buildenv.weather.load_weather(self.weather).hourly`` (catalogue channels and units) at
         :meth:`epw_hours`: week ``k`` starts at :meth:`start_hour_of_year` and wraps to the start of the EPW
@@ -189,7 +190,8 @@ class Site:
         """
         from buildenv.weather import load_weather
 
-        return np.asarray(load_weather(self.weather).hourly)[self.epw_hours()]
+        hourly = np.asarray(load_weather(self.weather).hourly)
+        return hourly[(self.epw_hours() + shift_hours) % len(hourly)]
 
     def theta_known(self) -> dict[str, float]:
         """The building parameters the site fixes, catalogue units: the geometry (``floor_area_m2`` in m2,

@@ -241,11 +241,10 @@ class HourlyHead(nn.Module):
         if self.rnn is not None:
             h = self.rnn(h)[0][:, skip_hours:]
         elif self.state:
-            stages = [self, *self.stages]
-            for i, stage in enumerate(stages):
-                last = i == len(stages) - 1
-                features = _filtered_features(stage, h, skip_hours if last else 0)
-                h = features if i == 0 else (h[:, skip_hours:] if last else h) + features
+            h = _filtered_features(self, h, 0 if self.stages else skip_hours)  # only the last stage skips
+            for i, stage in enumerate(self.stages):
+                skip = skip_hours if i == len(self.stages) - 1 else 0
+                h = h[:, skip:] + _filtered_features(stage, h, skip)
         else:
             h = h[:, skip_hours:]
         return self.out(h)

@@ -103,7 +103,7 @@ def main() -> None:
     result = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "command": "bench/metamodel_finetune_context.py " + " ".join(f"--{k.replace('_', '-')} {v}"
                                                                            for k, v in vars(args).items()),
-              "weather_week_pairs": pairs, "runs": rows, "energyplus_weeks_per_second": round(eplus, 2),
+              "init": args.init, "weather_week_pairs": pairs, "runs": rows, "energyplus_weeks_per_second": round(eplus, 2),
               "weeks_per_second": {c: round(v, 1) for c, v in speed.items()}}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=2) + "\n")
@@ -115,9 +115,10 @@ def _page(result: dict, speed: dict, eplus: float) -> str:
     tuned = rows[1]
     lines = [f"# Fine-tuning the default with a longer context ({result['date']})", "",
              f"{result['machine']}. Command: `python {result['command']}`.", "",
-             f"Each fine-tuned run starts from the shipped weights and normalisation (`buildenv train --init "
-             f"default`) and trains on {tuned['train_weeks']:,} weeks of a new campaign; the 24-hour run is the "
-             f"control. Test: {tuned['test_weeks']:,} weeks of held-out weather weeks (the default's, all "
+             f"Each fine-tuned run starts from the weights and normalisation of `{result['init']}` (`buildenv "
+             f"train --init {result['init']}`) and trains on {tuned['train_weeks']:,} weeks of a new campaign"
+             + ("; the 24-hour run is the control" if any(r["context_hours"] == 24 for r in rows[1:]) else "")
+             + f". Test: {tuned['test_weeks']:,} weeks of held-out weather weeks (the default's, all "
              f"{result['weather_week_pairs']} (climate, week) pairs present) on buildings new to every model; "
              f"Newark: the climate none of them trained on. RMSE_T in degC, day 1 the Monday.", "",
              "| run | test loss | R2_T pooled | R2_Q pooled | RMSE_T | day 1 | days 2-7 | CV(RMSE)_Q % "

@@ -70,6 +70,10 @@ def main() -> None:
     parser.add_argument("--name", help="results file stem (default metamodels_table1[_batchN])")
     parser.add_argument("--split", default="weather_weeks", choices=["weather_weeks", "buildings"],
                         help="buildings: test weeks come from buildings never seen in training")
+    parser.add_argument("--trained-on", help="where the runs were trained, when not on this machine (stated "
+                        "in the table; training times are then that machine's)")
+    parser.add_argument("--train-only", action="store_true",
+                        help="train the runs and stop (e.g. on a lent GPU, the table written here afterwards)")
     args = parser.parse_args()
     columns = [m.strip() for m in args.models.split(",")]
     results = {}
@@ -81,9 +85,13 @@ def main() -> None:
         print(f"== {label}: {model} {json.dumps(config)}", flush=True)
         result = trained(tag, Path(args.runs), args.data, model, config, max_weeks=args.weeks, epochs=args.epochs,
                          patience=args.epochs, batch_size=args.batch_size, split=args.split, progress=False)
+        if args.train_only:
+            continue
         result["inference_weeks_per_second"] = round(inference_speed(model, config), 1)
         result["fastest_epoch_seconds"] = fastest_epoch(Path(args.runs) / f"{tag}.pt.csv")
         results[label] = result
+    if args.train_only:
+        return
     first = results[columns[0]]
     header = ["| metric | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]
     body = [f"| {name} | " + " | ".join(mean_std(results[c], key, scale, 3 if scale == 1000.0 else 2)
@@ -105,7 +113,8 @@ def main() -> None:
              f"--weeks {args.weeks} --epochs {args.epochs} --batch-size {args.batch_size} "
              f"--models '{','.join(columns)}'" + (f" --name {args.name}" if args.name else "")
              + (f" --runs {args.runs}" if args.runs != "data/bench-runs/table1" else "")
-             + (f" --split {args.split}" if args.split != "weather_weeks" else "") + "`.", "",
+             + (f" --split {args.split}" if args.split != "weather_weeks" else "")
+             + (f" --trained-on '{args.trained_on}'" if args.trained_on else "") + "`.", "",
              f"Every model: {first['train_weeks']} training weeks, {first['val_weeks']} validation and "
              f"{first['test_weeks']} test weeks (split `{args.split}`, seed 0: " + SPLIT_MEANING[args.split]
              + f"), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch "
@@ -115,6 +124,9 @@ def main() -> None:
              "pooled R2 over all test hours). Training time is the run's wall clock (it grows when other jobs "
              "share the 2 cores); the fastest epoch is the least disturbed measure of a model's training cost; "
              "inference is measured when the table is written.", "", *header, *body, ""]
+    if args.trained_on:
+        lines[2:2] = [f"Trained on {args.trained_on}; the training times are that machine's, the inference speed "
+                      "this one's.", ""]
     lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
     RESULTS.mkdir(exist_ok=True)
     stem = args.name or "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")

@@ -70,13 +70,10 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         if was != ctx:
             raise BuildenvError(f"{last} was trained with --context-hours {was}, not {ctx}: rerun with {was} to "
                                 "resume it, or remove it to start over")
-    rng = np.random.default_rng(seed)
     with open_dataset(data) as ds:
-        parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
+        parts = training_split(ds, split, seed, holdout_climates, max_weeks)
         ds_zoning = ds.zoning
         train_idx = parts["train"]
-        if max_weeks is not None and max_weeks < len(train_idx):
-            train_idx = np.sort(rng.choice(train_idx, size=max_weeks, replace=False))
         x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx)
         x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx)
         x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx)
@@ -107,6 +104,17 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
             "val_weeks": int(len(parts["val"])), "test_weeks": int(len(parts["test"])),
             "seconds": round(time.perf_counter() - started, 1),
             "fit": {k: v for k, v in history.items() if k != "history"}, "test": test, **extra}
+
+
+def training_split(ds, split: str, seed: int, holdout_climates: list[str] | None = None,
+                   max_weeks: int | None = None) -> dict[str, np.ndarray]:
+    """The weeks a training run uses: :meth:`buildenv.dataset.Dataset.split`, its training part cut to a
+    seeded random ``max_weeks`` subset when given (the subset :func:`train_metamodel` draws)."""
+    parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
+    if max_weeks is not None and max_weeks < len(parts["train"]):
+        rng = np.random.default_rng(seed)
+        parts["train"] = np.sort(rng.choice(parts["train"], size=max_weeks, replace=False))
+    return parts
 
 
 def _initial_checkpoint(init: str | Path, model: str, model_config: dict | None, split: str, seed: int,

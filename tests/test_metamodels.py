@@ -207,6 +207,43 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
                         model_config={**config, "layers": 2}, progress=False)
 
 
+def test_a_carried_campaign_trains_on_the_same_weeks_and_is_rescored_on_the_full_one(tiny_dataset, tmp_path):
+    import importlib.util
+    import json
+    from pathlib import Path
+
+    from buildenv.dataset import open_dataset
+    from buildenv.training import training_split
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "carry_dataset.py"
+    spec = importlib.util.spec_from_file_location("carry_dataset", path)
+    carry = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(carry)
+    summary = carry.pack(tiny_dataset, tmp_path / "pack.npz", split="random", max_weeks=4)
+    copy = carry.unpack(tmp_path / "pack.npz", tmp_path / "copy")
+    with open_dataset(tiny_dataset) as full, open_dataset(copy) as carried:
+        parts, again = training_split(full, "random", 0, max_weeks=4), training_split(carried, "random", 0, max_weeks=4)
+        for name in parts:
+            np.testing.assert_array_equal(parts[name], again[name])
+        used = np.union1d(parts["train"], parts["val"])
+        assert summary["outputs_carried"] == len(used) and len(used) < len(full)
+        for name in ("theta", "settings", "occupancy", "weather", "run_id", "week_in_run"):
+            np.testing.assert_array_equal(full._h5[name][:], carried._h5[name][:])
+        np.testing.assert_array_equal(full.outputs[:][used], carried.outputs[:][used])
+        assert np.isnan(carried.outputs[:][parts["test"]]).all()  # never read by training, never scored there
+    ckpt = tmp_path / "ffn.pt"
+    run = train_metamodel(copy, "ffn", ckpt, split="random", max_weeks=4, model_config={"layers": 1}, epochs=1,
+                          batch_size=4, progress=False)
+    assert np.isfinite(run["fit"]["best_val_loss"]) and np.isnan(run["test"]["loss"])
+    (tmp_path / "ffn.json").write_text(json.dumps(run))
+    rescored = carry.rescore(tiny_dataset, tmp_path / "ffn.json")
+    here = train_metamodel(tiny_dataset, "ffn", tmp_path / "here.pt", split="random", max_weeks=4,
+                           model_config={"layers": 1}, epochs=1, batch_size=4, progress=False)
+    assert rescored["test"]["loss"] == pytest.approx(here["test"]["loss"], rel=1e-5)
+    rounded = carry._rounded(np.array([20.123456, -3.3e-4, 0.0], np.float32), 14)
+    np.testing.assert_allclose(rounded, [20.123456, -3.3e-4, 0.0], rtol=2**-15)
+
+
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
                                          ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
                                                           "hourly_gru": 8}),

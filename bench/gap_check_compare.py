@@ -23,9 +23,11 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def paired_rows(a: dict, b: dict) -> list[dict]:
-    """One row per case of two results of the same plan (raises when the plans differ)."""
+    """One row per case of two results of the same plan (raises when the plans differ). A check of N cases holds
+    the first N cases of a longer one with the same seed: the cases both hold are compared."""
     rows = []
-    for ra, rb in zip(a["cases"], b["cases"], strict=True):
+    common = min(len(a["cases"]), len(b["cases"]))
+    for ra, rb in zip(a["cases"][:common], b["cases"][:common]):
         if (ra["true"], ra["magnitude"], ra["start"]) != (rb["true"], rb["magnitude"], rb["start"]):
             raise SystemExit(f"case {ra['case']}: the two results were not made on the same sites")
         rows.append({"case": ra["case"], "true": ra["true"], "magnitude": ra["magnitude"], "a": ra["named"],

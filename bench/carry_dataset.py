@@ -23,7 +23,7 @@ import numpy as np
 
 from buildenv import surrogate as sg
 from buildenv.dataset import ARRAYS, open_dataset
-from buildenv.training import score, training_split
+from buildenv.training import checkpoint_split, score, training_split
 
 SMALL = ("theta", "settings", "occupancy", "run_id", "week_in_run", "week_of_year", "weather_index")
 
@@ -39,7 +39,7 @@ def pack(data: str | Path, out: str | Path, split: str = "weather_weeks", seed: 
         carried = np.union1d(parts["train"], parts["val"])
         arrays = {name: ds._h5[name][:] for name in SMALL}
         key = arrays["weather_index"].astype(np.int64) * 100 + arrays["week_of_year"]
-        keys, first, weather_row = np.unique(key, return_index=True, return_inverse=True)
+        _, first, weather_row = np.unique(key, return_index=True, return_inverse=True)
         weather_table = np.stack([ds.weather[int(i)] for i in first])
         outputs = _rounded(ds.outputs[:][carried], mantissa_bits)
         manifest = (Path(data) / "manifest.json").read_text()
@@ -90,7 +90,7 @@ def rescore(data: str | Path, result: str | Path) -> dict:
     surrogate = sg.load_metamodel(result.with_suffix(".pt"))
     meta = surrogate.checkpoint.metadata
     with open_dataset(data) as ds:
-        parts = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=meta["holdout_climates"] or None)
+        parts = checkpoint_split(ds, meta)
         scores = {name: score(surrogate, *sg.encode_dataset(ds, parts[name], context_hours=surrogate.context_hours))
                   for name in ("test", "holdout_climate") if name in parts}
     run.setdefault("scored_where_trained", {"test": run["test"], "holdout_climate": run.get("holdout_climate")})

@@ -19,14 +19,12 @@ import numpy as np
 
 from buildenv import surrogate as sg
 from buildenv.dataset import open_dataset
-from buildenv.metrics import week_metrics
+from buildenv.training import checkpoint_split, week_scores
 
 
 def week_losses(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> np.ndarray:
     """The paper's loss of each week, ``(weeks,)``, in the checkpoint's own standardised units."""
-    occupied = x[:, sg.context_of(x):, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
-    norm = surrogate.checkpoint.output_norm
-    return week_metrics(y, surrogate.predict_encoded(x), occupied, norm.mean, norm.std)["loss"]
+    return week_scores(surrogate, x, y, surrogate.predict_encoded(x))["loss"]
 
 
 def main() -> None:
@@ -39,9 +37,8 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=0)
     args = parser.parse_args()
     models = [sg.load_metamodel(path) for path in (args.a, args.b)]
-    meta = models[0].checkpoint.metadata
     with open_dataset(args.data) as ds:
-        test = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=meta["holdout_climates"] or None)
+        test = checkpoint_split(ds, models[0].checkpoint.metadata)
         losses = [week_losses(m, *sg.encode_dataset(ds, test["test"], context_hours=m.context_hours))
                   for m in models]
     diff = losses[0] - losses[1]

@@ -136,12 +136,25 @@ def _initial_checkpoint(init: str | Path, model: str, model_config: dict | None,
     return start
 
 
+def checkpoint_split(ds, meta: dict) -> dict[str, np.ndarray]:
+    """The split a checkpoint was trained with (its metadata's split kind, seed and held-out climates), drawn
+    again on ``ds``: its test weeks when ``ds`` is its dataset or a copy of it."""
+    return ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=meta.get("holdout_climates") or None)
+
+
+def week_scores(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray, pred: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-week metrics (:func:`buildenv.metrics.week_metrics`, in the surrogate's standardised units) of its
+    predictions ``pred`` of encoded weeks ``x`` with true outputs ``y``."""
+    occupied = x[:, sg.context_of(x):, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
+    norm = surrogate.checkpoint.output_norm
+    return week_metrics(y, pred, occupied, norm.mean, norm.std)
+
+
 def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, float]:
     """Metrics (mean and std over weeks) of a surrogate on encoded weeks ``x`` with true outputs ``y``."""
     pred = surrogate.predict_encoded(x)
-    occupied = x[:, sg.context_of(x):, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
     norm = surrogate.checkpoint.output_norm
-    return {**summarise(week_metrics(y, pred, occupied, norm.mean, norm.std)),
+    return {**summarise(week_scores(surrogate, x, y, pred)),
             **pooled_scores(y, pred, norm.mean, norm.std), **daily_errors(y, pred, norm.mean, norm.std)}
 
 
@@ -160,9 +173,9 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
         if subset == "holdout_climate":
             if not holdout:
                 raise BuildenvError("this checkpoint was trained with no climate held out (see --holdout-climate)")
-            idx = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=holdout)["holdout_climate"]
+            idx = checkpoint_split(ds, meta)["holdout_climate"]
         elif subset == "test" and same:
-            idx = ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=holdout)["test"]
+            idx = checkpoint_split(ds, meta)["test"]
         else:
             idx = np.arange(len(ds))
         x, y = sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours)

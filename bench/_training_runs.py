@@ -50,18 +50,27 @@ def inference_speed(model: str, config: dict, batch: int = sg.INFERENCE_BATCH, w
                     repeats: int = 3) -> float:
     """Best-of-``repeats`` weeks per second of batched inference (all cores, random encoded weeks, eager
     PyTorch) for an architecture; weights do not matter."""
+    return inference_speeds({"": (model, config)}, batch, weeks, repeats)[""]
+
+
+def inference_speeds(archs: dict[str, tuple[str, dict]], batch: int = sg.INFERENCE_BATCH, weeks: int = 4096,
+                     repeats: int = 3) -> dict[str, float]:
+    """:func:`inference_speed` of several architectures (label -> (model, config)), timed in turn within each
+    of ``repeats`` rounds, so that a slow spell of a shared machine falls on all of them alike."""
     torch.manual_seed(0)
-    net = build(model, len(sg.INPUT_CHANNELS), 8, **config).eval()
+    nets = {label: build(model, len(sg.INPUT_CHANNELS), 8, **config).eval() for label, (model, config) in archs.items()}
     x = torch.randn(weeks, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
-    best = float("inf")
+    best = dict.fromkeys(nets, float("inf"))
     with torch.inference_mode():
-        net(x[:batch])
+        for net in nets.values():
+            net(x[:batch])
         for _ in range(repeats):
-            started = time.perf_counter()
-            for start in range(0, weeks, batch):
-                net(x[start:start + batch])
-            best = min(best, time.perf_counter() - started)
-    return weeks / best
+            for label, net in nets.items():
+                started = time.perf_counter()
+                for start in range(0, weeks, batch):
+                    net(x[start:start + batch])
+                best[label] = min(best[label], time.perf_counter() - started)
+    return {label: weeks / seconds for label, seconds in best.items()}
 
 
 def machine() -> str:

@@ -9,7 +9,8 @@ test weeks. Runs are kept in ``--runs`` and reused by a rerun.
     .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10] \
         [--batch-size 64] [--split weather_weeks|buildings] [--name STEM]
 
-Writes ``bench/results/metamodels_table1.{md,json}`` (``--name``: another stem).
+Writes ``bench/results/metamodels_table1.{md,json,png}`` (``--name``: another stem); the PNG plots each model's
+test loss against its inference speed, all timed in turn in one run.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ import json
 import time
 from pathlib import Path
 
-from _training_runs import (PREVIOUS_TRANSFORMER, RESULTS, inference_speed, machine, mean_std, run_tag,
+from _training_runs import (PREVIOUS_TRANSFORMER, RESULTS, inference_speeds, machine, mean_std, run_tag,
                             shipped_transformer, trained)
 
 SHIPPED = shipped_transformer()  # loads the default checkpoint: once, not once per variant
@@ -43,6 +44,18 @@ MODELS: dict[str, tuple[str, dict]] = {
                                                                   "hourly_state_layers": 3}),
     "Transformer with 32 states": ("transformer", {**SHIPPED, "hourly_state": 32}),
     "Transformer with 4-hour tokens": ("transformer", {**SHIPPED, "patch_hours": 4}),
+    "Transformer with 12-hour tokens + head 128": ("transformer", {**SHIPPED, "patch_hours": 12, "hourly_head": 128}),
+    "Transformer with 12-hour tokens + head 96": ("transformer", {**SHIPPED, "patch_hours": 12, "hourly_head": 96}),
+    "Transformer with 12-hour tokens + 2 state stages": ("transformer", {**SHIPPED, "patch_hours": 12,
+                                                                           "hourly_state_layers": 2}),
+    "Transformer with 12-hour tokens + 3 state stages": ("transformer", {**SHIPPED, "patch_hours": 12,
+                                                                           "hourly_state_layers": 3}),
+    "Transformer with 12-hour tokens + 2 state stages + head 96": (
+        "transformer", {**SHIPPED, "patch_hours": 12, "hourly_head": 96, "hourly_state_layers": 2}),
+    "Transformer with 12-hour tokens + 3 state stages + head 128": (
+        "transformer", {**SHIPPED, "patch_hours": 12, "hourly_head": 128, "hourly_state_layers": 3}),
+    "Transformer with 24-hour tokens + 3 state stages": ("transformer", {**SHIPPED, "patch_hours": 24,
+                                                                           "hourly_state_layers": 3}),
 }
 SPLIT_MEANING = {"weather_weeks": "the test weeks' climate and week of year never occur in training",
                  "buildings": "the test weeks' buildings, i.e. EnergyPlus runs, never occur in training"}
@@ -56,6 +69,34 @@ def fastest_epoch(log: Path) -> float:
     """Shortest epoch of a run's training log (seconds): the per-epoch cost least disturbed by other jobs."""
     with log.open(newline="") as f:
         return min(float(row["seconds"]) for row in csv.DictReader(f))
+
+
+def plot_tradeoff(results: dict[str, dict], columns: list[str], title: str, path: Path) -> None:
+    """Test loss (mean over test weeks, +/- its standard error) against inference weeks per second, one point
+    per column, written to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(11, 5.5))
+    fig.subplots_adjust(left=0.08, right=0.58, bottom=0.11, top=0.92)
+    for number, label in enumerate(columns, 1):
+        test = results[label]["test"]
+        loss, error = 100 * test["loss"], 100 * test["loss_std"] / test["weeks"] ** 0.5
+        speed = results[label]["inference_weeks_per_second"]
+        transformer = MODELS[label][0] == "transformer"
+        ax.errorbar(speed, loss, yerr=error, fmt="o" if transformer else "s", color="C0" if transformer else "C3",
+                    capsize=3)
+        ax.annotate(str(number), (speed, loss), textcoords="offset points", xytext=(6, -3), fontsize=8)
+        fig.text(0.60, 0.90 - 0.05 * number, f"{number}  {label}", fontsize=8, va="top")
+    ax.set_xscale("log")
+    ax.set_xlabel("inference (weeks/s, this machine, all its cores)")
+    ax.set_ylabel("test loss (x1e-2, mean over test weeks +/- standard error)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
 
 
 def main() -> None:
@@ -87,11 +128,12 @@ def main() -> None:
                          patience=args.epochs, batch_size=args.batch_size, split=args.split, progress=False)
         if args.train_only:
             continue
-        result["inference_weeks_per_second"] = round(inference_speed(model, config), 1)
         result["fastest_epoch_seconds"] = fastest_epoch(Path(args.runs) / f"{tag}.pt.csv")
         results[label] = result
     if args.train_only:
         return
+    for label, speed in inference_speeds({label: MODELS[label] for label in columns}).items():
+        results[label]["inference_weeks_per_second"] = round(speed, 1)
     first = results[columns[0]]
     header = ["| metric | " + " | ".join(columns) + " |", "|---" * (len(columns) + 1) + "|"]
     body = [f"| {name} | " + " | ".join(mean_std(results[c], key, scale, 3 if scale == 1000.0 else 2)
@@ -106,7 +148,10 @@ def main() -> None:
              "| epochs (best) | " + " | ".join(f"{results[c]['fit']['epochs_run']} ({results[c]['fit']['best_epoch']})"
                                                for c in columns) + " |",
              "| inference (weeks/s) | " + " | ".join(f"{results[c]['inference_weeks_per_second']:.0f}"
-                                                     for c in columns) + " |"]
+                                                     for c in columns) + " |",
+             "| inference (x first column) | " + " | ".join(
+                 f"{results[c]['inference_weeks_per_second'] / first['inference_weeks_per_second']:.2f}"
+                 for c in columns) + " |"]
     date = time.strftime("%Y-%m-%d")
     lines = [f"# Table 1: metamodels compared ({date})", "",
              f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_table.py --data {args.data} "
@@ -123,13 +168,16 @@ def main() -> None:
              "`buildenv/metrics.py` (MSE in standardised units, per-week R2 as `sklearn.metrics.r2_score`, "
              "pooled R2 over all test hours). Training time is the run's wall clock (it grows when other jobs "
              "share the 2 cores); the fastest epoch is the least disturbed measure of a model's training cost; "
-             "inference is measured when the table is written.", "", *header, *body, ""]
+             "inference is measured when the table is written (the models timed in turn, best of 3 rounds).", "", *header, *body, ""]
     if args.trained_on:
         lines[2:2] = [f"Trained on {args.trained_on}; the training times are that machine's, the inference speed "
                       "this one's.", ""]
     lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
     RESULTS.mkdir(exist_ok=True)
     stem = args.name or "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
+    plot_tradeoff(results, columns, f"{first['train_weeks']} training weeks, {args.epochs} epochs, "
+                  f"{first['test_weeks']} test weeks ({args.split})", RESULTS / f"{stem}.png")
+    lines += ["", f"Loss against inference speed: `{stem}.png`."]
     (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{stem}.json").write_text(json.dumps(
         {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": args.epochs,

@@ -168,7 +168,8 @@ def main() -> None:
              "`buildenv/metrics.py` (MSE in standardised units, per-week R2 as `sklearn.metrics.r2_score`, "
              "pooled R2 over all test hours). Training time is the run's wall clock (it grows when other jobs "
              "share the 2 cores); the fastest epoch is the least disturbed measure of a model's training cost; "
-             "inference is measured when the table is written (the models timed in turn, best of 3 rounds).", "", *header, *body, ""]
+             "inference is measured when the table is written (the models timed in turn, best of 3 rounds).",
+             "", *header, *body, ""]
     if args.trained_on:
         lines[2:2] = [f"Trained on {args.trained_on}; the training times are that machine's, the inference speed "
                       "this one's.", ""]

@@ -4,10 +4,13 @@ Each model is trained by ``buildenv train`` (through :func:`buildenv.training.tr
 ``--weeks`` training weeks of a campaign, with the ``weather_weeks`` split (test weeks' weather never seen
 in training) or, with ``--split buildings``, the ``buildings`` split (test weeks' buildings never seen in
 training), the paper's loss, Adam with a cosine learning rate and ``--epochs`` epochs; then scored on the
-test weeks. Runs are kept in ``--runs`` and reused by a rerun.
+test weeks. Runs are kept in ``--runs`` and reused by a rerun. With ``--minutes M`` every model gets the same
+training time instead of the same epochs (``buildenv train --minutes``: M minutes of wall clock, validation
+included, the cosine decay spread over them): the comparison a user training on this machine faces.
+Run it alone on the machine: a budget shared with other jobs buys less.
 
     .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10] \
-        [--batch-size 64] [--split weather_weeks|buildings] [--name STEM]
+        [--minutes M] [--batch-size 64] [--split weather_weeks|buildings] [--name STEM]
 
 Writes ``bench/results/metamodels_table1.{md,json,png}`` (``--name``: another stem); the PNG plots each model's
 test loss against its inference speed, all timed in turn in one run.
@@ -65,10 +68,27 @@ ROWS = [("Loss (x1e-2)", "loss", 100.0), ("MSE_T (x1e-2)", "mse_t", 100.0), ("MS
         ("RMSE_T (degC)", "rmse_t_celsius", 1.0), ("CV(RMSE)_Q (%)", "cv_rmse_q_percent", 1.0)]
 
 
-def fastest_epoch(log: Path) -> float:
-    """Shortest epoch of a run's training log (seconds): the per-epoch cost least disturbed by other jobs."""
+def parse_columns(text: str) -> list[str]:
+    """Column labels of ``--models``, comma-separated; a label with a comma of its own (``Transformer (paper,
+    hourly tokens)``) is read whole."""
+    columns, pending = [], ""
+    for piece in text.split(","):
+        pending = f"{pending},{piece}" if pending else piece.strip()
+        if pending in MODELS:
+            columns.append(pending)
+            pending = ""
+    if pending:
+        raise SystemExit(f"--models: unknown column {pending!r}; known: {', '.join(MODELS)}")
+    return columns
+
+
+def fastest_epoch(log: Path, budget: bool = False) -> float | None:
+    """Shortest epoch of a run's training log (seconds): the per-epoch cost least disturbed by other jobs. A
+    budget run's last epoch is cut by the budget and left out (``None`` when it had no other)."""
     with log.open(newline="") as f:
-        return min(float(row["seconds"]) for row in csv.DictReader(f))
+        seconds = [float(row["seconds"]) for row in csv.DictReader(f)]
+    seconds = seconds[:-1] if budget else seconds
+    return min(seconds) if seconds else None
 
 
 def plot_tradeoff(results: dict[str, dict], columns: list[str], title: str, path: Path) -> None:
@@ -99,12 +119,42 @@ def plot_tradeoff(results: dict[str, dict], columns: list[str], title: str, path
     plt.close(fig)
 
 
+def plot_curves(logs: dict[str, Path], title: str, path: Path) -> None:
+    """Validation loss after each epoch against the training minutes spent by then (a run's CSV log), one line
+    per column, written to ``path`` (PNG)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(9, 5))
+    for label, log in logs.items():
+        with log.open(newline="") as f:
+            rows = list(csv.DictReader(f))
+        minutes, spent = [], 0.0
+        for row in rows:
+            spent += float(row["seconds"]) / 60.0
+            minutes.append(spent)
+        ax.plot(minutes, [100 * float(row["val_loss"]) for row in rows], marker=".", label=label)
+    ax.set_xlabel("training time (minutes, this machine, validation included)")
+    ax.set_ylabel("validation loss (x1e-2)")
+    ax.set_title(title, fontsize=9)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
 def main() -> None:
     """Train (or reuse) every model and write the table."""
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", required=True, help="campaign directory (buildenv simulate --out)")
     parser.add_argument("--weeks", type=int, default=10000, help="training weeks per model")
     parser.add_argument("--epochs", type=int, default=10)
+    parser.add_argument("--minutes", type=float, default=None,
+                        help="the same training time for every model instead of the same epochs (--epochs is "
+                             "then ignored)")
     parser.add_argument("--batch-size", type=int, default=64, help="training weeks per Adam step, every model")
     parser.add_argument("--runs", default="data/bench-runs/table1", help="where checkpoints are kept")
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated subset of the columns")
@@ -116,19 +166,23 @@ def main() -> None:
     parser.add_argument("--train-only", action="store_true",
                         help="train the runs and stop (e.g. on a lent GPU, the table written here afterwards)")
     args = parser.parse_args()
-    columns = [m.strip() for m in args.models.split(",")]
-    results = {}
+    columns = parse_columns(args.models)
+    budget = f"m{args.minutes:g}" if args.minutes else None
+    epochs = 100_000 if budget else args.epochs  # with a budget, time ends the run, not epochs or patience
+    results, logs = {}, {}
     for label in columns:
         model, config = MODELS[label]
-        tag = f"{model}-{run_tag(config)}-{args.weeks}-{args.epochs}" + (
+        tag = f"{model}-{run_tag(config)}-{args.weeks}-{budget or args.epochs}" + (
             f"-b{args.batch_size}" if args.batch_size != 64 else "") + (
             f"-{args.split}" if args.split != "weather_weeks" else "")
         print(f"== {label}: {model} {json.dumps(config)}", flush=True)
-        result = trained(tag, Path(args.runs), args.data, model, config, max_weeks=args.weeks, epochs=args.epochs,
-                         patience=args.epochs, batch_size=args.batch_size, split=args.split, progress=False)
+        result = trained(tag, Path(args.runs), args.data, model, config, max_weeks=args.weeks, epochs=epochs,
+                         patience=epochs, batch_size=args.batch_size, split=args.split, progress=False,
+                         minutes=args.minutes)
         if args.train_only:
             continue
-        result["fastest_epoch_seconds"] = fastest_epoch(Path(args.runs) / f"{tag}.pt.csv")
+        logs[label] = Path(args.runs) / f"{tag}.pt.csv"
+        result["fastest_epoch_seconds"] = fastest_epoch(logs[label], budget=bool(budget))
         results[label] = result
     if args.train_only:
         return
@@ -143,10 +197,14 @@ def main() -> None:
              "| R2_Q pooled | " + " | ".join(f"{results[c]['test'].get('r2_q_pooled', float('nan')):.4f}"
                                               for c in columns) + " |",
              "| training time (s) | " + " | ".join(f"{results[c]['fit']['seconds']:.0f}" for c in columns) + " |",
-             "| fastest epoch (s) | " + " | ".join(f"{results[c]['fastest_epoch_seconds']:.1f}"
-                                                   for c in columns) + " |",
+             f"| fastest {'full ' if budget else ''}epoch (s) | " + " | ".join(
+                 "-" if results[c]["fastest_epoch_seconds"] is None else f"{results[c]['fastest_epoch_seconds']:.1f}"
+                 for c in columns) + " |",
              "| epochs (best) | " + " | ".join(f"{results[c]['fit']['epochs_run']} ({results[c]['fit']['best_epoch']})"
                                                for c in columns) + " |",
+             "| training weeks drawn | " + " | ".join(
+                 f"{results[c]['fit'].get('weeks_seen', results[c]['fit']['epochs_run'] * results[c]['train_weeks']):,}"
+                 for c in columns) + " |",
              "| inference (weeks/s) | " + " | ".join(f"{results[c]['inference_weeks_per_second']:.0f}"
                                                      for c in columns) + " |",
              "| inference (x first column) | " + " | ".join(
@@ -155,19 +213,24 @@ def main() -> None:
     date = time.strftime("%Y-%m-%d")
     lines = [f"# Table 1: metamodels compared ({date})", "",
              f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_table.py --data {args.data} "
-             f"--weeks {args.weeks} --epochs {args.epochs} --batch-size {args.batch_size} "
+             f"--weeks {args.weeks} " + (f"--minutes {args.minutes:g}" if budget else f"--epochs {args.epochs}")
+             + f" --batch-size {args.batch_size} "
              f"--models '{','.join(columns)}'" + (f" --name {args.name}" if args.name else "")
              + (f" --runs {args.runs}" if args.runs != "data/bench-runs/table1" else "")
              + (f" --split {args.split}" if args.split != "weather_weeks" else "")
              + (f" --trained-on '{args.trained_on}'" if args.trained_on else "") + "`.", "",
              f"Every model: {first['train_weeks']} training weeks, {first['val_weeks']} validation and "
              f"{first['test_weeks']} test weeks (split `{args.split}`, seed 0: " + SPLIT_MEANING[args.split]
-             + f"), {args.epochs} epochs of Adam (lr 1e-3, cosine decay, batch "
-             f"{args.batch_size}) "
+             + "), " + (f"{args.minutes:g} minutes of training each on this machine (wall clock, validation "
+                        "included; the epoch running when the time is spent is cut there and still validated, so a "
+                        "slow model's last validation can overrun) with Adam (lr 1e-3, cosine decay over the "
+                        "minutes" if budget else f"{args.epochs} epochs of Adam (lr 1e-3, cosine decay")
+             + f", batch {args.batch_size}) "
              "on the paper's loss, best validation epoch kept. Mean (std) over test weeks; definitions in "
              "`buildenv/metrics.py` (MSE in standardised units, per-week R2 as `sklearn.metrics.r2_score`, "
              "pooled R2 over all test hours). Training time is the run's wall clock (it grows when other jobs "
-             "share the 2 cores); the fastest epoch is the least disturbed measure of a model's training cost; "
+             "share the 2 cores); the fastest epoch is the least disturbed measure of a model's training cost (with a "
+             "budget, the last, cut epoch is left out); "
              "inference is measured when the table is written (the models timed in turn, best of 3 rounds).",
              "", *header, *body, ""]
     if args.trained_on:
@@ -176,12 +239,18 @@ def main() -> None:
     lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
     RESULTS.mkdir(exist_ok=True)
     stem = args.name or "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
-    plot_tradeoff(results, columns, f"{first['train_weeks']} training weeks, {args.epochs} epochs, "
+    plot_tradeoff(results, columns, f"{first['train_weeks']} training weeks, "
+                  + (f"{args.minutes:g} minutes each, " if budget else f"{args.epochs} epochs, ") +
                   f"{first['test_weeks']} test weeks ({args.split})", RESULTS / f"{stem}.png")
     lines += ["", f"Loss against inference speed: `{stem}.png`."]
+    if budget:
+        plot_curves(logs, f"{first['train_weeks']} training weeks, {args.minutes:g} minutes each, cosine decay "
+                    "over the minutes", RESULTS / f"{stem}_curves.png")
+        lines += [f"Validation loss against training minutes: `{stem}_curves.png`."]
     (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{stem}.json").write_text(json.dumps(
-        {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": args.epochs,
+        {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": None if budget else args.epochs,
+         "minutes": args.minutes,
          "batch_size": args.batch_size,
          "models": {c: {"model": MODELS[c][0], "config": MODELS[c][1], **results[c]} for c in columns}},
         indent=2) + "\n")

@@ -147,6 +147,17 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _positive_minutes(text: str) -> float:
+    """``--minutes``: a positive number of minutes."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number of minutes, got {text!r}")
+    return value
+
+
 def _cmd_train(args: argparse.Namespace) -> int:
     from buildenv.training import train_metamodel
 
@@ -155,7 +166,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
                              model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
                              progress=not args.quiet, context_hours=args.context_hours, init=args.init,
                              epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
-                             patience=args.patience, device=args.device)
+                             patience=args.patience, device=args.device, minutes=args.minutes)
     print(json.dumps(result, indent=None if args.json else 2))
     return 0
 
@@ -232,6 +243,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--schedule", default="cosine", choices=["cosine", "constant"],
                    help="learning rate: cosine decay to 0 over --epochs, or constant")
     p.add_argument("--patience", type=int, default=10, help="early stopping: epochs without improvement")
+    p.add_argument("--minutes", type=_positive_minutes, default=None,
+                   help="a training-time budget (validation included): stop when it is spent, mid-epoch if need "
+                        "be, with the cosine decay spread over it instead of over --epochs")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="auto", help="auto (CUDA when present), cpu, cuda")
     p.add_argument("--json", action="store_true", help="one-line JSON")

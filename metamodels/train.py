@@ -33,6 +33,7 @@ class TrainConfig:
     weight_decay: float = 0.0
     schedule: str = "cosine"  # "cosine": lr decays to 0 over `epochs` (half a cosine); "constant"
     patience: int = 10  # epochs without validation improvement before stopping
+    minutes: float | None = None  # a training-time budget: see :func:`budget_progress`
     alpha: float = 1.0
     beta: float = 0.3
     seed: int = 0
@@ -46,6 +47,19 @@ def learning_rate(cfg: TrainConfig, epoch: int) -> float:
     if cfg.schedule == "constant":
         return cfg.lr
     return 0.5 * cfg.lr * (1.0 + math.cos(math.pi * epoch / max(cfg.epochs, 1)))
+
+
+def budget_progress(cfg: TrainConfig, seconds: float) -> float | None:
+    """Share of a run's time budget (``cfg.minutes``) spent after ``seconds`` of training, validation included;
+    ``None`` when the run has no budget.
+
+    With a budget the run stops once it is spent, in the middle of an epoch if need be (that epoch is then
+    validated and logged as the last), and the cosine schedule decays over the budget's time, step by step,
+    instead of over ``epochs``: a model whose epoch is slow gets fewer epochs, not a truncated schedule.
+    """
+    if cfg.minutes is None:
+        return None
+    return seconds / (60.0 * cfg.minutes)
 
 
 def pick_device(name: str) -> torch.device:
@@ -94,7 +108,8 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
         out: path of the best checkpoint; ``out.last`` and ``out.csv`` sit beside it.
         progress: show a progress bar per epoch.
     Returns:
-        ``{"best_val_loss", "best_epoch", "epochs_run", "seconds", "history": [...]}``.
+        ``{"best_val_loss", "best_epoch", "epochs_run", "weeks_seen", "seconds", "history": [...]}``
+        (``weeks_seen``: training weeks drawn, summed over epochs; a budget's last epoch may be partial).
     """
     from tqdm import tqdm
 
@@ -108,12 +123,17 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
     optimiser = torch.optim.Adam(model.parameters(), lr=cfg.lr, weight_decay=cfg.weight_decay)
     if cfg.schedule not in ("cosine", "constant"):
         raise ValueError(f"unknown learning-rate schedule {cfg.schedule!r}; choose cosine or constant")
-    state = {"epoch": 0, "best_val_loss": float("inf"), "best_epoch": -1, "history": [], "seconds": 0.0}
+    if cfg.minutes is not None and cfg.minutes <= 0:
+        raise ValueError(f"a training-time budget must be positive minutes, not {cfg.minutes}")
+    state = {"epoch": 0, "best_val_loss": float("inf"), "best_epoch": -1, "history": [], "seconds": 0.0,
+             "weeks_seen": 0}
     if last.exists():
         resumed = load_checkpoint(last)
         model.load_state_dict(resumed.model.state_dict())
         optimiser.load_state_dict(resumed.training["optimiser"])
-        state = {k: resumed.training[k] for k in state}
+        # a run saved before "weeks_seen" was recorded drew every training week in each of its epochs
+        state = {k: resumed.training[k] for k in state if k != "weeks_seen"}
+        state["weeks_seen"] = resumed.training.get("weeks_seen", state["epoch"] * len(x_train))
         log.info("resuming %s from epoch %d", out, state["epoch"])
     generator = torch.Generator().manual_seed(cfg.seed)
     for _ in range(state["epoch"]):  # replay the shuffles so a resumed run sees the same batches
@@ -124,7 +144,8 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
         writer = csv.writer(handle)
         if state["epoch"] == 0:
             writer.writerow(["epoch", "train_loss", "val_loss", "seconds"])
-        while state["epoch"] < cfg.epochs and state["epoch"] - state["best_epoch"] <= cfg.patience:
+        while (state["epoch"] < cfg.epochs and state["epoch"] - state["best_epoch"] <= cfg.patience
+               and (budget_progress(cfg, state["seconds"]) or 0.0) < 1.0):
             started = time.perf_counter()
             model.train()
             for group in optimiser.param_groups:
@@ -134,6 +155,13 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
             bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {state['epoch'] + 1}", leave=False,
                        disable=not progress)
             for start in bar:
+                spent = budget_progress(cfg, state["seconds"] + time.perf_counter() - started)
+                if spent is not None:
+                    if spent >= 1.0:
+                        break
+                    if cfg.schedule == "cosine":
+                        for group in optimiser.param_groups:
+                            group["lr"] = 0.5 * cfg.lr * (1.0 + math.cos(math.pi * spent))
                 idx = order[start:start + cfg.batch_size]
                 xb, yb = x_train[idx].to(device), y_train[idx].to(device)
                 loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha,
@@ -150,6 +178,7 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
             seconds = time.perf_counter() - started
             state["epoch"] += 1
             state["seconds"] += seconds
+            state["weeks_seen"] += seen
             state["history"].append({"epoch": state["epoch"], "train_loss": running / max(seen, 1),
                                      "val_loss": val_loss, "seconds": seconds})
             writer.writerow([state["epoch"], f"{running / max(seen, 1):.6f}", f"{val_loss:.6f}", f"{seconds:.1f}"])
@@ -169,5 +198,6 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
     checkpoint.model.load_state_dict(best.model.state_dict())
     checkpoint.training = best.training
     return {"best_val_loss": state["best_val_loss"], "best_epoch": state["best_epoch"],
-            "epochs_run": state["epoch"], "seconds": state["seconds"], "history": state["history"]}
+            "epochs_run": state["epoch"], "weeks_seen": state["weeks_seen"], "seconds": state["seconds"],
+            "history": state["history"]}
 

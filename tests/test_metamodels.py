@@ -80,6 +80,34 @@ def test_standardiser_fitted_in_chunks_matches_one_float64_pass(monkeypatch):
     np.testing.assert_allclose(norm.std, flat.std(0), rtol=1e-6)
 
 
+def test_a_time_budget_stops_mid_epoch_and_spreads_the_cosine_decay_over_it(tmp_path, monkeypatch):
+    from types import SimpleNamespace
+
+    import metamodels.train as training_loop
+
+    clock = iter(range(10_000))  # one second per reading of the clock: 39 steps of a 64-step epoch fit 40 s
+    monkeypatch.setattr(training_loop, "time", SimpleNamespace(perf_counter=lambda: float(next(clock))))
+    torch.manual_seed(0)
+    x, y = torch.randn(64, 24, 5), torch.randn(64, 24, 2)
+    norm_in, norm_out = Standardiser.fit(np.random.rand(10, 5)), Standardiser.fit(np.random.rand(10, 2))
+    hours = torch.ones(24, dtype=torch.bool)
+
+    def run(name: str, **options) -> dict:
+        ck = Checkpoint("ffn", {"layers": 1}, build("ffn", 5, 2, layers=1), norm_in, norm_out, sg.metadata())
+        cfg = training_loop.TrainConfig(batch_size=1, temperature_channels=[0], consumption_channels=[1], **options)
+        return training_loop.fit(ck, x, y, x[:8], y[:8], hours, cfg, tmp_path / name, progress=False)
+
+    budget = run("budget.pt", epochs=50, patience=50, minutes=40 / 60)
+    assert budget["epochs_run"] == 1 and budget["weeks_seen"] == 39  # stopped inside its first epoch
+    assert budget["seconds"] == pytest.approx(41.0)  # the budget, then the validation's reading of the clock
+    lr = load_checkpoint(tmp_path / "budget.pt.last").training["optimiser"]["param_groups"][0]["lr"]
+    assert lr == pytest.approx(0.5e-3 * (1 + np.cos(np.pi * 39 / 40)))  # the last step's rate, near 0
+    unlimited = run("epochs.pt", epochs=2, patience=2)
+    assert unlimited["epochs_run"] == 2 and unlimited["weeks_seen"] == 128
+    with pytest.raises(ValueError, match="positive minutes"):
+        run("none.pt", minutes=0)
+
+
 def test_checkpoint_round_trip_is_bit_exact(tmp_path):
     torch.manual_seed(1)
     model = build("transformer", 5, 3, layers=1)

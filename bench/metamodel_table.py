@@ -167,12 +167,12 @@ def main() -> None:
                         help="train the runs and stop (e.g. on a lent GPU, the table written here afterwards)")
     args = parser.parse_args()
     columns = parse_columns(args.models)
-    budget = f"m{args.minutes:g}" if args.minutes else None
+    budget = args.minutes is not None
     epochs = 100_000 if budget else args.epochs  # with a budget, time ends the run, not epochs or patience
     results, logs = {}, {}
     for label in columns:
         model, config = MODELS[label]
-        tag = f"{model}-{run_tag(config)}-{args.weeks}-{budget or args.epochs}" + (
+        tag = f"{model}-{run_tag(config)}-{args.weeks}-" + (f"m{args.minutes:g}" if budget else str(args.epochs)) + (
             f"-b{args.batch_size}" if args.batch_size != 64 else "") + (
             f"-{args.split}" if args.split != "weather_weeks" else "")
         print(f"== {label}: {model} {json.dumps(config)}", flush=True)
@@ -182,7 +182,7 @@ def main() -> None:
         if args.train_only:
             continue
         logs[label] = Path(args.runs) / f"{tag}.pt.csv"
-        result["fastest_epoch_seconds"] = fastest_epoch(logs[label], budget=bool(budget))
+        result["fastest_epoch_seconds"] = fastest_epoch(logs[label], budget=budget)
         results[label] = result
     if args.train_only:
         return

@@ -44,9 +44,15 @@ class TrainConfig:
 
 def learning_rate(cfg: TrainConfig, epoch: int) -> float:
     """Learning rate of epoch ``epoch`` (0-based): constant, or half a cosine from ``lr`` towards 0."""
+    return cosine_rate(cfg, epoch / max(cfg.epochs, 1))
+
+
+def cosine_rate(cfg: TrainConfig, share: float) -> float:
+    """Learning rate once ``share`` (0-1) of the schedule has passed: ``cfg.lr`` when constant, else half a
+    cosine from ``cfg.lr`` at 0 to 0 at 1."""
     if cfg.schedule == "constant":
         return cfg.lr
-    return 0.5 * cfg.lr * (1.0 + math.cos(math.pi * epoch / max(cfg.epochs, 1)))
+    return 0.5 * cfg.lr * (1.0 + math.cos(math.pi * share))
 
 
 def budget_progress(cfg: TrainConfig, seconds: float) -> float | None:
@@ -159,9 +165,8 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
                 if spent is not None:
                     if spent >= 1.0:
                         break
-                    if cfg.schedule == "cosine":
-                        for group in optimiser.param_groups:
-                            group["lr"] = 0.5 * cfg.lr * (1.0 + math.cos(math.pi * spent))
+                    for group in optimiser.param_groups:
+                        group["lr"] = cosine_rate(cfg, spent)
                 idx = order[start:start + cfg.batch_size]
                 xb, yb = x_train[idx].to(device), y_train[idx].to(device)
                 loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha,

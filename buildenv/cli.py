@@ -3,6 +3,7 @@
 Subcommands:
     catalogue   list the variable catalogue (names, units, ranges, steps, granularity)
     weather     list the shipped weather files, or summarise one
+    morph-weather  write EPW files with shifted / stretched temperature, scaled solar and wind
     week        simulate one week of a building with EnergyPlus, print a summary and plot it
     simulate    run a simulation campaign into a dataset directory (parallel, resumable, Dask-capable)
     train       train a metamodel on a campaign's dataset
@@ -74,6 +75,25 @@ def _cmd_weather(args: argparse.Namespace) -> int:
             "tamb_mean_c": round(float(tamb.mean()), 2), "tamb_min_c": float(tamb.min()),
             "tamb_max_c": float(tamb.max()), "ghi_annual_kwh_m2": round(float(w.channel("IGLOB_H").sum()) / 1000, 1)}
     print(json.dumps(info, indent=2))
+    return 0
+
+
+def _cmd_morph_weather(args: argparse.Namespace) -> int:
+    from buildenv.weather_morph import MORPH_RANGES, Morph, morph_epw, morph_many
+
+    fixed = {name: getattr(args, name) for name in MORPH_RANGES if getattr(args, name) is not None}
+    if args.out:
+        if len(args.epw) != 1:
+            raise BuildenvError("--out writes one file: give one --epw, or use --out-dir for several")
+        if args.seed is not None:
+            raise BuildenvError("--seed draws random morphs into --out-dir; with --out give the values to change")
+        records = [{"file": str(morph_epw(args.epw[0], args.out, Morph(**fixed))), "source": args.epw[0], **fixed}]
+    elif args.out_dir:
+        records = morph_many(args.epw, args.out_dir, 0 if args.seed is None else args.seed, **fixed)
+    else:
+        raise BuildenvError("give --out FILE (one morph, the values given) or --out-dir DIR (a random morph per "
+                            "--epw, values not given drawn with --seed)")
+    print(json.dumps(records, indent=2))
     return 0
 
 
@@ -193,6 +213,19 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("weather", help="list shipped weather files or summarise one")
     p.add_argument("name", nargs="?", help="short name (usa_il_chicago) or EPW path")
     p.set_defaults(func=_cmd_weather)
+
+    p = sub.add_parser("morph-weather", help="write EPW files with shifted / stretched temperature, scaled solar "
+                                             "and wind (buildenv/weather_morph.py)")
+    p.add_argument("--epw", nargs="+", required=True, help="weather short names or EPW paths to morph")
+    p.add_argument("--out", default=None, help="the morphed EPW (one --epw; values not given are left unchanged)")
+    p.add_argument("--out-dir", default=None,
+                   help="one random morph per --epw into this directory, with morphs.json; values given are fixed")
+    p.add_argument("--seed", type=int, default=None, help="seed of the random morphs (--out-dir; default 0)")
+    p.add_argument("--shift-k", dest="shift_k", type=float, default=None, help="K added to the dry bulb")
+    p.add_argument("--stretch", type=float, default=None, help="factor on departures from the monthly mean")
+    p.add_argument("--solar-scale", dest="solar_scale", type=float, default=None, help="factor on solar radiation")
+    p.add_argument("--wind-scale", dest="wind_scale", type=float, default=None, help="factor on wind speed")
+    p.set_defaults(func=_cmd_morph_weather)
 
     p = sub.add_parser("week", help="simulate one week of the default building (values overridable)")
     p.add_argument("--epw", default="usa_il_chicago", help="weather short name or EPW path")

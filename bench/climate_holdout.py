@@ -66,7 +66,7 @@ def _errors(surrogate: sg.Surrogate, ds, idx: np.ndarray) -> dict[str, np.ndarra
     return {"sq_t": per_week["rmse_t_celsius"] ** 2, "offset_t": offset, "cv_q": per_week["cv_rmse_q_percent"]}
 
 
-def _paired(a: np.ndarray, b: np.ndarray, resamples: int, seed: int) -> dict:
+def paired(a: np.ndarray, b: np.ndarray, resamples: int, seed: int) -> dict:
     """Mean of ``a - b`` over weeks with its 2.5-97.5 % bootstrap range, and the RMSE ratio sqrt(mean a / mean b)."""
     rng = np.random.default_rng(seed)
     diff = a - b
@@ -79,7 +79,7 @@ def _paired(a: np.ndarray, b: np.ndarray, resamples: int, seed: int) -> dict:
             "share_a_lower": round(float(np.mean(diff < 0)), 3)}
 
 
-def _split(errors: dict[str, np.ndarray], rows: np.ndarray) -> dict[str, float]:
+def level_and_shape(errors: dict[str, np.ndarray], rows: np.ndarray) -> dict[str, float]:
     """Mean squared temperature error (degC2) of some weeks, split into the weeks' mean offsets (their level
     missed) and what is left within the weeks (the shape missed), and the mean offset (degC)."""
     sq, offset = errors["sq_t"][rows], errors["offset_t"][rows]
@@ -126,8 +126,8 @@ def main() -> None:
         errors = {label: _errors(m, ds, test) for label, m in models.items()}
     held = climate == names.index(args.holdout)
     a, b = errors["A"]["sq_t"], errors["B"]["sq_t"]
-    pairs = {"holdout": _paired(a[held], b[held], args.resamples, 0),
-             "others": _paired(a[~held], b[~held], args.resamples, 0)}
+    pairs = {"holdout": paired(a[held], b[held], args.resamples, 0),
+             "others": paired(a[~held], b[~held], args.resamples, 0)}
     result = {"date": time.strftime("%Y-%m-%d"), "machine": machine(),
               "command": "bench/climate_holdout.py " + " ".join(f"--{k.replace('_', '-')} {v}"
                                                                 for k, v in vars(args).items()),
@@ -135,7 +135,7 @@ def main() -> None:
               "fits": {k: {"train_weeks": v["train_weeks"], "seconds": v["seconds"],
                            "best_epoch": v["fit"].get("best_epoch")} for k, v in fits.items()},
               "by_climate": {label: _by_climate(e, climate, names) for label, e in errors.items()},
-              "holdout_error_split": {label: _split(e, held) for label, e in errors.items()},
+              "holdout_error_split": {label: level_and_shape(e, held) for label, e in errors.items()},
               "newark_over_others": {label: round(float(np.sqrt(e["sq_t"][held].mean() / e["sq_t"][~held].mean())), 4)
                                      for label, e in errors.items()},
               "paired_a_minus_b": pairs}
@@ -184,8 +184,8 @@ def _morphed_arm(args, config: dict, runs: Path, a: sg.Surrogate, shipped: sg.Su
         out[part] = {"weeks": int(len(sets[part])),
                      "rmse_t": {label: round(float(np.sqrt(e["sq_t"].mean())), 4) for label, e in errs.items()},
                      "cv_q": {label: round(float(e["cv_q"].mean()), 3) for label, e in errs.items()},
-                     "error_split": {label: _split(e, slice(None)) for label, e in errs.items()},
-                     "m_minus_a": _paired(errs["M"]["sq_t"], errs["A"]["sq_t"], args.resamples, 0)}
+                     "error_split": {label: level_and_shape(e, slice(None)) for label, e in errs.items()},
+                     "m_minus_a": paired(errs["M"]["sq_t"], errs["A"]["sq_t"], args.resamples, 0)}
     return out
 
 
@@ -209,7 +209,7 @@ def _page(result: dict) -> str:
         lines.append(f"| {shown} | {first[name]['weeks']} | " + " | ".join(cells) + " |")
     lines += ["", f"Where the error on {held}'s test weeks lies: the week's mean temperature error (its level missed) "
               "and what is left within the week (its shape missed), degC2, and the mean error (degC):", ""]
-    lines += _split_rows(result["holdout_error_split"])
+    lines += level_and_shape_rows(result["holdout_error_split"])
     lines += ["", f"RMSE_T of {held}'s test weeks over the other climates' (pooled): "
               + ", ".join(f"{lab} {v:.2f}x" for lab, v in result["newark_over_others"].items()) + ".", "",
               f"Paired, A minus B, per-week squared temperature error (degC2) with its 95 % bootstrap range, and the "
@@ -242,11 +242,11 @@ def _morphed_lines(m: dict, held: str) -> list[str]:
                      f"{p['a_minus_b_range_95'][1]:+.5f} | {p['rmse_ratio']:.3f} | {p['rmse_ratio_range_95'][0]:.3f}-"
                      f"{p['rmse_ratio_range_95'][1]:.3f} | {100 * p['share_a_lower']:.0f} % |")
     lines += ["", f"The error on every week of {held} split as above (degC2; mean error degC):", ""]
-    return lines + _split_rows(m["holdout"]["error_split"])
+    return lines + level_and_shape_rows(m["holdout"]["error_split"])
 
 
-def _split_rows(splits: dict[str, dict]) -> list[str]:
-    """Markdown table of :func:`_split` results, one row per model."""
+def level_and_shape_rows(splits: dict[str, dict]) -> list[str]:
+    """Markdown table of :func:`level_and_shape` results, one row per model."""
     lines = ["| model | MSE_T | week level | within the week | mean error |", "|---|---|---|---|---|"]
     return lines + [f"| {lab} | {v['mse_t']:.4f} | {v['offset_part']:.4f} | {v['within_week_part']:.4f} | "
                     f"{v['mean_offset']:+.3f} |" for lab, v in splits.items()]

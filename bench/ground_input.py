@@ -29,13 +29,13 @@ from pathlib import Path
 import numpy as np
 import torch
 from _training_runs import RESULTS, machine, run_tag, shipped_transformer
-from climate_holdout import _paired, _split, _split_rows
+from climate_holdout import level_and_shape, level_and_shape_rows, paired
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.dataset import open_dataset
 from buildenv.energyplus.shoebox import ground_temperatures_c
-from buildenv.training import _tensors, training_split, week_scores
+from buildenv.training import standardised_tensors, training_split, week_scores
 from buildenv.weather import HOURS_PER_YEAR, load_weather
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.models import build
@@ -107,7 +107,7 @@ def main() -> None:
                               temperature_channels=sg.TEMPERATURE_CHANNELS,
                               consumption_channels=sg.CONSUMPTION_CHANNELS)
             mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-            fit(ck, *_tensors(x_tr, y_tr, ck), *_tensors(x_va, y_va, ck), mask, cfg, g_path, True)
+            fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), mask, cfg, g_path, True)
             del x_tr, y_tr, x_va, y_va
         models = {"A": sg.Surrogate(load_checkpoint(a_path), jit=False),
                   "G": sg.Surrogate(load_checkpoint(g_path), jit=False)}
@@ -122,8 +122,8 @@ def main() -> None:
         result["parts"][part] = {"weeks": int(len(sets[part])),
                                  "rmse_t": {k: round(float(np.sqrt(e["sq_t"].mean())), 4) for k, e in errs.items()},
                                  "cv_q": {k: round(float(e["cv_q"].mean()), 3) for k, e in errs.items()},
-                                 "error_split": {k: _split(e, slice(None)) for k, e in errs.items()},
-                                 "g_minus_a": _paired(errs["G"]["sq_t"], errs["A"]["sq_t"], args.resamples, 0)}
+                                 "error_split": {k: level_and_shape(e, slice(None)) for k, e in errs.items()},
+                                 "g_minus_a": paired(errs["G"]["sq_t"], errs["A"]["sq_t"], args.resamples, 0)}
     print(json.dumps({k: v["g_minus_a"] for k, v in result["parts"].items()}))
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=2) + "\n")
@@ -151,7 +151,7 @@ def _page(result: dict) -> str:
                      f"{100 * p['share_a_lower']:.0f} % |")
     lines += ["", f"The error on {labels['holdout_test']}: the weeks' level missed and their shape missed (degC2; "
               "mean error degC):", ""]
-    lines += _split_rows(result["parts"]["holdout_test"]["error_split"])
+    lines += level_and_shape_rows(result["parts"]["holdout_test"]["error_split"])
     return "\n".join(lines) + "\n"
 
 

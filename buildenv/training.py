@@ -19,7 +19,10 @@ from buildenv.errors import BuildenvError
 from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
 
 
-def _tensors(x: np.ndarray, y: np.ndarray, ck):
+def standardised_tensors(x: np.ndarray, y: np.ndarray, ck):
+    """Encoded physical inputs ``(N, context + 168, C)`` and outputs ``(N, 168, 8)`` as the float tensors
+    training takes: standardised with the checkpoint's statistics, the outputs padded with zeros over the
+    context hours (which the loss's hour mask leaves out)."""
     import torch
 
     pad = np.zeros((len(y), sg.context_of(x), y.shape[-1]), np.float32)
@@ -95,7 +98,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-    history = fit(ck, *_tensors(x_tr, y_tr, ck), *_tensors(x_va, y_va, ck), hour_mask, cfg, Path(out), progress)
+    history = fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), hour_mask, cfg, Path(out), progress)
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
     extra = {"holdout_climate": {"climates": list(holdout_climates), "weeks": int(len(apart[0])),

@@ -56,9 +56,14 @@ from buildenv.weather_morph import morph_source
 
 
 def _errors(surrogate: sg.Surrogate, ds, idx: np.ndarray) -> dict[str, np.ndarray]:
-    """Per-week squared temperature error (degC2, mean over the week's hours), its week-mean part (the square
-    of the week's mean error: the level of the week missed) and CV(RMSE)_Q (%) of a model."""
-    x, y = sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours)
+    """:func:`week_errors` of a model on dataset weeks ``idx``, encoded for it."""
+    return week_errors(surrogate, *sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours))
+
+
+def week_errors(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
+    """Per-week squared temperature error (degC2, mean over the week's hours), the week's mean temperature
+    error (degC; its square is the level of the week missed) and CV(RMSE)_Q (%) of a model on encoded weeks
+    ``x`` with true outputs ``y``."""
     pred = surrogate.predict_encoded(x)
     per_week = week_scores(surrogate, x, y, pred)
     t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
@@ -84,7 +89,8 @@ def level_and_shape(errors: dict[str, np.ndarray], rows: np.ndarray) -> dict[str
     missed) and what is left within the weeks (the shape missed), and the mean offset (degC)."""
     sq, offset = errors["sq_t"][rows], errors["offset_t"][rows]
     return {"mse_t": round(float(sq.mean()), 5), "offset_part": round(float(np.mean(offset ** 2)), 5),
-            "within_week_part": round(float(np.mean(sq - offset ** 2)), 5), "mean_offset": round(float(offset.mean()), 4)}
+            "within_week_part": round(float(np.mean(sq - offset ** 2)), 5),
+            "mean_offset": round(float(offset.mean()), 4)}
 
 
 def _by_climate(errors: dict[str, np.ndarray], climate: np.ndarray, names: list[str]) -> dict[str, dict]:
@@ -232,7 +238,8 @@ def _morphed_lines(m: dict, held: str) -> list[str]:
              f"{m['morphed_climates']} morphed copies (held out: {', '.join(m['held_out'])}), the same number of "
              f"weeks, epochs and seed as A. Scored on every week of {held} (no model saw it) and on the test weeks of "
              "the other climates whose weather M's split also kept out of its training.", "",
-             "| test weeks | weeks | RMSE_T A | RMSE_T M | RMSE_T shipped | CV_Q % A | CV_Q % M | M - A (degC2) | range "
+             "| test weeks | weeks | RMSE_T A | RMSE_T M | RMSE_T shipped | CV_Q % A | CV_Q % M | M - A (degC2) "
+             "| range "
              "| RMSE ratio M/A | range | M lower on |", "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for part, label in (("holdout", f"{held}, every week"), ("others", "other climates, weather unseen by both")):
         r, p = m[part], m[part]["m_minus_a"]

@@ -29,21 +29,18 @@ from pathlib import Path
 import numpy as np
 import torch
 from _training_runs import RESULTS, machine, run_tag, shipped_transformer
-from climate_holdout import level_and_shape, level_and_shape_rows, paired
+from climate_holdout import level_and_shape, level_and_shape_rows, paired, week_errors
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.dataset import open_dataset
 from buildenv.energyplus.shoebox import ground_temperatures_c
-from buildenv.training import standardised_tensors, training_split, week_scores
-from buildenv.weather import HOURS_PER_YEAR, load_weather
+from buildenv.training import standardised_tensors, training_split
+from buildenv.weather import HOURS_PER_YEAR, load_weather, month_of_hour
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.models import build
 from metamodels.normalisation import Standardiser
 from metamodels.train import TrainConfig, fit
-
-MONTH_OF_DAY = np.repeat(np.arange(12), [31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
-
 
 def ground_channel(ds, idx: np.ndarray, context_hours: int) -> np.ndarray:
     """``(n, context_hours + 168, 1)`` ground temperature under the slab (degC) in each encoded hour of the
@@ -53,20 +50,12 @@ def ground_channel(ds, idx: np.ndarray, context_hours: int) -> np.ndarray:
     climate = ds._h5["weather_index"][:][idx].astype(np.int64)
     week = ds._h5["week_of_year"][:][idx].astype(np.int64)
     hours = (week[:, None] * cat.HOURS_PER_WEEK + np.arange(-context_hours, cat.HOURS_PER_WEEK)) % HOURS_PER_YEAR
-    return monthly[climate[:, None], MONTH_OF_DAY[hours // 24]][..., None].astype(np.float32)
+    return monthly[climate[:, None], month_of_hour()[hours]][..., None].astype(np.float32)
 
 
 def _encode(ds, idx: np.ndarray, ctx: int, ground: bool) -> tuple[np.ndarray, np.ndarray]:
     x, y = sg.encode_dataset(ds, idx, context_hours=ctx)
     return (np.concatenate([x, ground_channel(ds, idx, ctx)], axis=-1) if ground else x), y
-
-
-def _errors(model: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:
-    pred = model.predict_encoded(x)
-    t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
-    per_week = week_scores(model, x, y, pred)
-    return {"sq_t": per_week["rmse_t_celsius"] ** 2, "offset_t": (pred[..., t] - y[..., t]).mean(1),
-            "cv_q": per_week["cv_rmse_q_percent"]}
 
 
 def main() -> None:
@@ -107,16 +96,18 @@ def main() -> None:
                               temperature_channels=sg.TEMPERATURE_CHANNELS,
                               consumption_channels=sg.CONSUMPTION_CHANNELS)
             mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-            fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), mask, cfg, g_path, True)
+            fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), mask, cfg,
+                g_path, True)
             del x_tr, y_tr, x_va, y_va
         models = {"A": sg.Surrogate(load_checkpoint(a_path), jit=False),
                   "G": sg.Surrogate(load_checkpoint(g_path), jit=False)}
         errors = {}
         for part, idx in sets.items():
             x, y = _encode(ds, idx, ctx, True)
-            errors[part] = {"A": _errors(models["A"], x[..., :-1], y), "G": _errors(models["G"], x, y)}
+            errors[part] = {"A": week_errors(models["A"], x[..., :-1], y), "G": week_errors(models["G"], x, y)}
     result = {"date": time.strftime("%Y-%m-%d"), "machine": machine(), "seconds": round(time.perf_counter() - started),
-              "command": "bench/ground_input.py " + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items()),
+              "command": "bench/ground_input.py " + " ".join(f"--{k.replace('_', '-')} {v}"
+                                                             for k, v in vars(args).items()),
               "config": config, "holdout": args.holdout, "train_weeks": int(len(parts["train"])), "parts": {}}
     for part, errs in errors.items():
         result["parts"][part] = {"weeks": int(len(sets[part])),
@@ -146,7 +137,8 @@ def _page(result: dict) -> str:
         r, p = result["parts"][part], result["parts"][part]["g_minus_a"]
         lines.append(f"| {label} | {r['weeks']} | {r['rmse_t']['A']:.3f} | {r['rmse_t']['G']:.3f} | "
                      f"{r['cv_q']['A']:.2f} | {r['cv_q']['G']:.2f} | {p['a_minus_b_degc2']:+.5f} | "
-                     f"{p['a_minus_b_range_95'][0]:+.5f} to {p['a_minus_b_range_95'][1]:+.5f} | {p['rmse_ratio']:.3f} | "
+                     f"{p['a_minus_b_range_95'][0]:+.5f} to {p['a_minus_b_range_95'][1]:+.5f} | "
+                     f"{p['rmse_ratio']:.3f} | "
                      f"{p['rmse_ratio_range_95'][0]:.3f}-{p['rmse_ratio_range_95'][1]:.3f} | "
                      f"{100 * p['share_a_lower']:.0f} % |")
     lines += ["", f"The error on {labels['holdout_test']}: the weeks' level missed and their shape missed (degC2; "

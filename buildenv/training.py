@@ -98,7 +98,8 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-    history = fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), hour_mask, cfg, Path(out), progress)
+    history = fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), hour_mask, cfg,
+                  Path(out), progress)
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
     extra = {"holdout_climate": {"climates": list(holdout_climates), "weeks": int(len(apart[0])),

@@ -24,6 +24,13 @@ from buildenv import catalogue as cat
 from buildenv.errors import WeatherError
 
 HOURS_PER_YEAR = 8760
+#: Days of each month of a 365-day EPW year.
+DAYS_PER_MONTH = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
+
+
+def month_of_hour() -> np.ndarray:
+    """``(8760,)`` month (0 = January) of each hour of a 365-day EPW year."""
+    return np.repeat(np.arange(12), DAYS_PER_MONTH * 24)
 
 
 def epw_day_of_year(day: dt.date) -> int:
@@ -91,8 +98,7 @@ class Weather:
 
     def monthly_mean_temperature_c(self) -> np.ndarray:
         """Mean outdoor dry-bulb temperature of each month, degC, shape ``(12,)``."""
-        days = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
-        edges = np.concatenate([[0], np.cumsum(days * 24)])
+        edges = np.concatenate([[0], np.cumsum(DAYS_PER_MONTH * 24)])
         tamb = self.channel("TAMB")
         return np.array([tamb[edges[m]:edges[m + 1]].mean() for m in range(12)])
 

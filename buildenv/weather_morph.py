@@ -34,7 +34,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv.errors import WeatherError
-from buildenv.weather import HOURS_PER_YEAR, resolve_epw
+from buildenv.weather import HOURS_PER_YEAR, month_of_hour, resolve_epw
 
 #: Ranges the random morphs are drawn from (uniform): +-4 K spans the mean-temperature step between neighbouring
 #: US climate zones and the warming projected for the 2080s; +-20 % stretch the spread of synoptic swings
@@ -51,7 +51,6 @@ _MISSING = {_DRY_BULB: 99.9, _DEW_POINT: 99.9, _RH: 999.0, _IR: 9999.0, 14: 9999
 _FIELDS = 35
 _HEADER_LINES = 8
 _NOTE = "COMMENTS 2,buildenv morph of "
-_DAYS = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
 
 
 @dataclass(frozen=True)
@@ -93,10 +92,6 @@ def _magnus(t_c: np.ndarray) -> np.ndarray:
     return np.exp(17.625 * t_c / (243.04 + t_c))
 
 
-def _month_of_row() -> np.ndarray:
-    return np.repeat(np.arange(12), _DAYS * 24)
-
-
 def morph_rows(rows: np.ndarray, morph: Morph) -> np.ndarray:
     """Apply a morph to the numeric fields of an EPW's 8,760 data rows.
 
@@ -109,7 +104,7 @@ def morph_rows(rows: np.ndarray, morph: Morph) -> np.ndarray:
     """
     out = rows.copy()
     t = rows[:, _DRY_BULB - 1]
-    month = _month_of_row()
+    month = month_of_hour()
     monthly = np.array([t[month == m].mean() for m in range(12)])[month]
     t_new = t + morph.shift_k + (morph.stretch - 1.0) * (t - monthly)
     dew = np.minimum(rows[:, _DEW_POINT - 1] + (t_new - t), t_new)

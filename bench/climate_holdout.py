@@ -123,7 +123,7 @@ def main() -> None:
         tag = f"{label}-{run_tag(config)}-{args.max_weeks}-e{args.epochs}-c{args.context_hours}"
         fits[label] = trained(tag, runs, args.data, "transformer", config, seed=0, holdout_climates=held,
                               max_weeks=args.max_weeks, context_hours=args.context_hours, epochs=args.epochs,
-                              patience=args.epochs, progress=True)
+                              patience=args.epochs, progress=True, ground_temperature=False)
         models[label] = sg.load_metamodel(str(runs / f"{tag}.pt"))
     with open_dataset(args.data) as ds:
         names = list(ds.weather_names)
@@ -173,7 +173,7 @@ def _morphed_arm(args, config: dict, runs: Path, a: sg.Surrogate, shipped: sg.Su
     tag = f"M-{Path(args.morphed_data).name}-{run_tag(config)}-{args.max_weeks}-e{args.epochs}-c{args.context_hours}"
     fit = trained(tag, runs, args.morphed_data, "transformer", config, seed=0, holdout_climates=held,
                   max_weeks=args.max_weeks, context_hours=args.context_hours, epochs=args.epochs,
-                  patience=args.epochs, progress=True)
+                  patience=args.epochs, progress=True, ground_temperature=False)
     m = sg.load_metamodel(str(runs / f"{tag}.pt"))
     m_seen = _pairs(args.morphed_data, np.concatenate([seen["train"], seen["val"]]))
     with open_dataset(args.data) as ds:

@@ -9,8 +9,8 @@ Newark held out) with one input channel more: the ground temperature under the s
 the campaign's weather file, as EnergyPlus had it. Both are scored on every Newark week and on the other
 climates' test weeks, paired per week.
 
-This is a measurement for a decision, not the product's encoding: G is trained here, outside ``buildenv
-train``, and is scored through its checkpoint's model directly.
+G's inputs are the product's encoding (``buildenv.surrogate.encode_dataset``, whose last channel is this
+ground temperature since this measurement made it one); A, trained without it, is given the other channels.
 
     .venv/bin/python bench/ground_input.py --data data/campaign-cp-40000-s7
         [--runs data/bench-runs/climate-holdout] [--name metamodel_ground_input]
@@ -34,28 +34,11 @@ from climate_holdout import level_and_shape, level_and_shape_rows, paired, week_
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.dataset import open_dataset
-from buildenv.energyplus.shoebox import ground_temperatures_c
 from buildenv.training import standardised_tensors, training_split
-from buildenv.weather import HOURS_PER_YEAR, load_weather, month_of_hour
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.models import build
 from metamodels.normalisation import Standardiser
 from metamodels.train import TrainConfig, fit
-
-def ground_channel(ds, idx: np.ndarray, context_hours: int) -> np.ndarray:
-    """``(n, context_hours + 168, 1)`` ground temperature under the slab (degC) in each encoded hour of the
-    weeks ``idx``: the month's value of ``ground_temperatures_c`` of the week's weather file."""
-    names = ds.weather_names
-    monthly = np.array([ground_temperatures_c(load_weather(n)) for n in names])  # (climates, 12)
-    climate = ds._h5["weather_index"][:][idx].astype(np.int64)
-    week = ds._h5["week_of_year"][:][idx].astype(np.int64)
-    hours = (week[:, None] * cat.HOURS_PER_WEEK + np.arange(-context_hours, cat.HOURS_PER_WEEK)) % HOURS_PER_YEAR
-    return monthly[climate[:, None], month_of_hour()[hours]][..., None].astype(np.float32)
-
-
-def _encode(ds, idx: np.ndarray, ctx: int, ground: bool) -> tuple[np.ndarray, np.ndarray]:
-    x, y = sg.encode_dataset(ds, idx, context_hours=ctx)
-    return (np.concatenate([x, ground_channel(ds, idx, ctx)], axis=-1) if ground else x), y
 
 
 def main() -> None:
@@ -85,12 +68,11 @@ def main() -> None:
         held = ds._h5["weather_index"][:][test] == ds.weather_names.index(args.holdout)
         sets = {"holdout_test": test[held], "holdout_all": parts["holdout_climate"], "others": test[~held]}
         if not g_path.exists():
-            x_tr, y_tr = _encode(ds, parts["train"], ctx, True)
-            x_va, y_va = _encode(ds, parts["val"], ctx, True)
+            x_tr, y_tr = sg.encode_dataset(ds, parts["train"], context_hours=ctx)
+            x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx)
             torch.manual_seed(0)
             net = build("transformer", x_tr.shape[-1], y_tr.shape[-1], **config)
-            meta = {**sg.metadata(ctx), "input_channels": [*sg.INPUT_CHANNELS, "ground_temperature_c"],
-                    "split": "weather_weeks", "split_seed": 0, "holdout_climates": [args.holdout]}
+            meta = {**sg.metadata(ctx), "split": "weather_weeks", "split_seed": 0, "holdout_climates": [args.holdout]}
             ck = Checkpoint("transformer", dict(config), net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), meta)
             cfg = TrainConfig(seed=0, epochs=args.epochs, patience=args.epochs,
                               temperature_channels=sg.TEMPERATURE_CHANNELS,
@@ -103,8 +85,8 @@ def main() -> None:
                   "G": sg.Surrogate(load_checkpoint(g_path), jit=False)}
         errors = {}
         for part, idx in sets.items():
-            x, y = _encode(ds, idx, ctx, True)
-            errors[part] = {"A": week_errors(models["A"], x[..., :-1], y), "G": week_errors(models["G"], x, y)}
+            x, y = sg.encode_dataset(ds, idx, context_hours=ctx)
+            errors[part] = {"A": week_errors(models["A"], x, y), "G": week_errors(models["G"], x, y)}
     result = {"date": time.strftime("%Y-%m-%d"), "machine": machine(), "seconds": round(time.perf_counter() - started),
               "command": "bench/ground_input.py " + " ".join(f"--{k.replace('_', '-')} {v}"
                                                              for k, v in vars(args).items()),

@@ -168,8 +168,9 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
     theta = (lo_t + hi_t) / 2.0
     known = site.theta_known()
     occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
+    ground = sg.ground_hours(sg.weather_ground_c(site.weather), site.epw_hours()[idx, 0], context_hours)
     x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather,
-                        (site.settings[prev], occ, weather_before), context_hours=context_hours)
+                        (site.settings[prev], occ, weather_before), context_hours=context_hours, ground_c=ground)
     free = free_theta()
     lo = np.array([known.get(v, cat.get(v).min) for v in free]
                   + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])

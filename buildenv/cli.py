@@ -185,7 +185,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
     result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
                              model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
                              progress=not args.quiet, context_hours=args.context_hours, init=args.init,
-                             epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
+                             ground_temperature=not args.no_ground_temperature, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
                              patience=args.patience, device=args.device, minutes=args.minutes)
     print(json.dumps(result, indent=None if args.json else 2))
     return 0
@@ -269,7 +269,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"hours before each week the model sees, whole days (default {CONTEXT_HOURS}: the day before)")
     p.add_argument("--init", default=None, metavar="CKPT",
                    help="start from this checkpoint's weights and normalisation ('default': the shipped one), "
-                        "e.g. to fine-tune it with a longer --context-hours")
+                        "e.g. to fine-tune it with a longer --context-hours (one made without the ground "
+                        "temperature gets it as a new input)")
+    p.add_argument("--no-ground-temperature", action="store_true",
+                   help="leave the ground temperature under the slab out of the inputs (as checkpoints made "
+                        "before it was one)")
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate of Adam")

@@ -27,7 +27,7 @@ from buildenv import effects_model as em
 from buildenv.effects import get_effect
 from buildenv.errors import BuildingEnvError
 from buildenv.schedules import hourly_schedules
-from buildenv.surrogate import INFERENCE_BATCH, encode_weeks
+from buildenv.surrogate import INFERENCE_BATCH, encode_weeks, weather_ground_c
 from buildenv.weather import epw_day_of_year
 
 
@@ -53,6 +53,8 @@ class SiteModel:
         historical: the site's historical settings ``(7, 12)``.
         week_starts: the Monday of every week of the year.
         weather_days: weather of every day of the year plus the week before ``(days, 24, 9)`` (catalogue units).
+        ground_days: ground temperature under the slab on the same days ``(days, 24)``, degC
+            (:func:`buildenv.surrogate.weather_ground_c`).
         floor_area_m2: conditioned floor area.
         name: the site's name.
         effects: building effects found by the gap diagnosis (:mod:`buildenv.effects_model`), ``{effect:
@@ -65,6 +67,7 @@ class SiteModel:
     historical: np.ndarray
     week_starts: list[dt.date]
     weather_days: np.ndarray
+    ground_days: np.ndarray
     floor_area_m2: float
     name: str = ""
     effects: dict = field(default_factory=dict)
@@ -93,7 +96,7 @@ class SiteModel:
                    for name, values in (calib.get("effects") or {}).items()
                    if name in em.BUILDING_EFFECTS}
         return cls(surrogate, theta, occupancy, np.asarray(site.settings[0], float), starts, hourly[rows],
-                   float(site.floor_area_m2), site.name, effects, day0)
+                   weather_ground_c(site.weather)[rows], float(site.floor_area_m2), site.name, effects, day0)
 
     @property
     def weeks(self) -> int:
@@ -125,6 +128,12 @@ class SiteModel:
         d = mondays[:, None] + np.arange(7)
         return self.weather_days[d].reshape(len(d), cat.HOURS_PER_WEEK, -1)
 
+    def ground(self, weeks: np.ndarray) -> np.ndarray:
+        """Ground temperature under the slab (degC) of weeks ``(N,)`` and the metamodel's context hours before
+        each, ``(N, context_hours + 168)``."""
+        days = self._days(weeks)[:, None] + np.arange(-self.surrogate.context_hours // cat.HOURS_PER_DAY, 7)
+        return self.ground_days[days].reshape(len(days), -1)
+
     def simulate(self, settings: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
         """Hourly outputs ``(N, 168, 8)`` (Wh/m2 per hour, degC) of settings ``(N, 7, 12)`` in weeks ``(N,)``.
 
@@ -138,14 +147,16 @@ class SiteModel:
         occ = np.broadcast_to(self.occupancy, (n, *self.occupancy.shape))
         prev_weather = self._weeks_of_days(self._days(weeks) - 7)
         previous_week = (prev_settings, occ, prev_weather)
+        ground = self.ground(weeks)
         if not self.effects:
-            return self.surrogate.predict(theta, settings, occ, self.weather(weeks), previous_week)
+            return self.surrogate.predict(theta, settings, occ, self.weather(weeks), previous_week, ground_c=ground)
         out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         weather = self.weather(weeks)
         for start in range(0, n, INFERENCE_BATCH):  # the extended model: effects act on inputs and outputs
             part = slice(start, start + INFERENCE_BATCH)
             x = encode_weeks(theta[part], settings[part], occ[part], weather[part],
-                             tuple(a[part] for a in previous_week), context_hours=self.surrogate.context_hours)
+                             tuple(a[part] for a in previous_week), context_hours=self.surrogate.context_hours,
+                             ground_c=ground[part])
             x = em.transform_inputs(x, self.effects)
             out[part] = em.transform_outputs(self.surrogate.predict_encoded(x), x, self.effects)
         return out

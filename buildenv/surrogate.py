@@ -7,7 +7,13 @@ Encoding (one row per hour, ``context_hours + 168`` rows per week):
   flow, supply temperature, occupancy);
 - calendar: sine and cosine of the hour of day;
 - theta_build, the same on every hour;
-- ``is_context``: 1 on the context hours, 0 on the week.
+- ``is_context``: 1 on the context hours, 0 on the week;
+- ``ground_temperature_c``: the temperature under the slab in each hour (degC), the month's value of the
+  weather file's ground temperatures (:func:`buildenv.energyplus.shoebox.hourly_ground_temperature_c`,
+  set by its annual and last month's mean). A week of weather does not show it, and a climate the model
+  never trained on otherwise costs it the level of its weeks (``bench/results/metamodel_ground_input.md``).
+  Checkpoints made before this channel existed (their metadata lists no ``ground_temperature_c``) are
+  given the other channels only.
 
 The context is the hours before the week (their weather and schedules; :data:`CONTEXT_HOURS`, the day
 before, unless a checkpoint was trained with another ``context_hours``, a whole number of days): a week cut
@@ -37,8 +43,12 @@ from buildenv.schedules import HOURLY_CHANNELS, hourly_encoding
 CONTEXT_HOURS = 24
 WEATHER_INPUTS: tuple[str, ...] = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H", "RHUM", "TAMB", "WIND_SPEED")
 CALENDAR_INPUTS: tuple[str, ...] = ("hour_sin", "hour_cos")
+GROUND_CHANNEL = "ground_temperature_c"
 INPUT_CHANNELS: tuple[str, ...] = (*WEATHER_INPUTS, *HOURLY_CHANNELS, *CALENDAR_INPUTS, *cat.THETA_NAMES,
-                                   "is_context")
+                                   "is_context", GROUND_CHANNEL)
+#: the channels of a metamodel without the ground temperature (checkpoints made before it was an input)
+NO_GROUND_CHANNELS: tuple[str, ...] = INPUT_CHANNELS[:-1]
+_IS_CONTEXT = INPUT_CHANNELS.index("is_context")
 TEMPERATURE_CHANNELS: list[int] = [cat.OUTPUT_NAMES.index(n) for n in cat.TEMPERATURE_OUTPUTS]
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
 log = logging.getLogger(__name__)
@@ -92,9 +102,24 @@ def first_day_repeated(week, hours: int):
     return np.tile(day, reps) if isinstance(day, np.ndarray) else day.repeat(*reps)
 
 
+def ground_hours(hourly_ground_c: np.ndarray, first_hours: np.ndarray, context_hours: int = CONTEXT_HOURS
+                 ) -> np.ndarray:
+    """``(N, context_hours + 168)`` ground temperature (degC) of weeks starting at hours ``first_hours`` ``(N,)``
+    of the year, context included, from a year of hourly values ``(8760,)`` (wrapping around the year's ends)."""
+    hourly = np.asarray(hourly_ground_c, dtype=np.float32)
+    return hourly[_week_hours(first_hours, context_hours, len(hourly))]
+
+
+def _week_hours(first_hours: np.ndarray, context_hours: int, year_hours: int) -> np.ndarray:
+    """``(N, context_hours + 168)`` hour-of-year indices of weeks starting at ``first_hours``, context included."""
+    offsets = np.arange(-check_context_hours(context_hours), cat.HOURS_PER_WEEK)
+    return (np.asarray(first_hours, dtype=np.int64)[:, None] + offsets) % year_hours
+
+
 def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                  previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                 has_previous: np.ndarray | None = None, context_hours: int = CONTEXT_HOURS) -> np.ndarray:
+                 has_previous: np.ndarray | None = None, context_hours: int = CONTEXT_HOURS,
+                 ground_c: np.ndarray | None = None) -> np.ndarray:
     """Model inputs of weeks, physical units (not yet standardised).
 
     Args:
@@ -103,6 +128,8 @@ def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray,
         has_previous: ``(N,)`` booleans, False where ``previous`` holds no real preceding week.
         context_hours: hours before the week, a whole number of days (the checkpoint's:
             :attr:`Surrogate.context_hours`).
+        ground_c: ``(N, context_hours + 168)`` ground temperature under the slab, degC (:func:`ground_hours`);
+            ``None`` leaves the channel NaN, which a metamodel without it never reads and one with it refuses.
     Returns:
         ``(N, context_hours + 168, len(INPUT_CHANNELS))`` float32.
     """
@@ -119,8 +146,9 @@ def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray,
             rows = np.empty((int(use.sum()), ctx, len(INPUT_CHANNELS)), dtype=np.float32)
             _fill_rows(rows, prev_settings, prev_occ, prev_weather, slice(cat.HOURS_PER_WEEK - ctx, None))
             x[use, :ctx, :_SCHEDULES.stop] = rows[..., :_SCHEDULES.stop]
-    x[:, :, -1] = 0.0
-    x[:, :ctx, -1] = 1.0  # is_context
+    x[:, :, _IS_CONTEXT] = 0.0
+    x[:, :ctx, _IS_CONTEXT] = 1.0
+    x[..., -1] = np.nan if ground_c is None else np.asarray(ground_c, dtype=np.float32).reshape(n, -1)
     return x
 
 
@@ -136,6 +164,8 @@ def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048,
     order), each with its real preceding hours as context where the dataset has them."""
     indices = np.asarray(indices)
     previous = ds.previous_week()
+    ground = dataset_ground_c(ds)
+    climate, week_of_year = (ds._h5[name][:].astype(np.int64) for name in ("weather_index", "week_of_year"))
     xs, ys = [], []
     for start in range(0, len(indices), chunk):
         idx = indices[start:start + chunk]
@@ -143,15 +173,40 @@ def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048,
         prev_idx = np.where(has, previous[idx], idx)
         prev = tuple(_read(ds, name, prev_idx) for name in ("settings", "occupancy", "weather"))
         week = [_read(ds, name, idx) for name in ("theta", "settings", "occupancy", "weather")]
-        xs.append(encode_weeks(*week, prev, has, context_hours))
+        hours = _week_hours(week_of_year[idx] * cat.HOURS_PER_WEEK, context_hours, ground.shape[1])
+        xs.append(encode_weeks(*week, prev, has, context_hours, ground[climate[idx][:, None], hours]))
         ys.append(_read(ds, "outputs", idx))
     return np.concatenate(xs), np.concatenate(ys).astype(np.float32)
 
 
-def metadata(context_hours: int = CONTEXT_HOURS) -> dict:
+def dataset_ground_c(ds) -> np.ndarray:
+    """``(climates, 8760)`` hourly ground temperature (degC) of each weather file of a dataset, in
+    ``ds.weather_names`` order (week ``k`` of a campaign starts at hour ``168 k`` of its file).
+
+    Raises:
+        WeatherError: a weather file of the campaign can no longer be read (the message names it).
+    """
+    return np.stack([weather_ground_c(name) for name in ds.weather_names])
+
+
+def weather_ground_c(weather: str | Path) -> np.ndarray:
+    """``(8760,)`` hourly ground temperature under the slab (degC) of a weather file (short name or EPW path),
+    as the shoebox sets it (:func:`buildenv.energyplus.shoebox.hourly_ground_temperature_c`).
+
+    Raises:
+        WeatherError: the file is missing or unreadable.
+    """
+    from buildenv.energyplus.shoebox import hourly_ground_temperature_c
+    from buildenv.weather import load_weather
+
+    return hourly_ground_temperature_c(load_weather(weather))
+
+
+def metadata(context_hours: int = CONTEXT_HOURS, ground: bool = True) -> dict:
     """What a checkpoint records about its encoding: the catalogue and channels it must share with this
-    buildenv to be usable, and its context length."""
-    return {"catalogue_hash": cat.catalogue_hash(), "input_channels": list(INPUT_CHANNELS),
+    buildenv to be usable (``ground``: whether the ground temperature is one of them), and its context length."""
+    return {"catalogue_hash": cat.catalogue_hash(),
+            "input_channels": list(INPUT_CHANNELS if ground else NO_GROUND_CHANNELS),
             "output_channels": list(cat.OUTPUT_NAMES), "context_hours": check_context_hours(context_hours)}
 
 
@@ -179,6 +234,11 @@ class Surrogate:
         """Hours before each week this metamodel sees (:func:`encode_weeks`' ``context_hours``)."""
         return int(self.checkpoint.metadata.get("context_hours", CONTEXT_HOURS))
 
+    @property
+    def uses_ground(self) -> bool:
+        """Whether the ground temperature is one of its inputs (checkpoints made before it was are not)."""
+        return GROUND_CHANNEL in self.checkpoint.metadata.get("input_channels", ())
+
     def _inference_model(self):
         """The module ``predict_encoded`` calls: physical inputs ``(N, context_hours + 168, C)`` -> physical
         outputs of the week ``(N, 168, 8)``, standardisation included (traced once, on first use)."""
@@ -191,7 +251,7 @@ class Surrogate:
             model = StandardisedModel(ck.model.eval(), ck.input_norm, ck.output_norm, self.context_hours).eval()
             self._runner = model
             if self.jit:
-                example = torch.zeros(2, self.context_hours + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS))
+                example = torch.zeros(2, self.context_hours + cat.HOURS_PER_WEEK, ck.inputs)
                 try:
                     with torch.no_grad(), warnings.catch_warnings():
                         warnings.simplefilter("ignore")  # tracer warnings about shape-dependent Python checks
@@ -204,10 +264,11 @@ class Surrogate:
 
     def predict(self, theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                has_previous: np.ndarray | None = None, batch_size: int = INFERENCE_BATCH) -> np.ndarray:
+                has_previous: np.ndarray | None = None, batch_size: int = INFERENCE_BATCH,
+                ground_c: np.ndarray | None = None) -> np.ndarray:
         """Hourly outputs ``(N, 168, 8)`` (Wh/m2, degC) of N weeks in as few model calls as the batch allows.
 
-        Arguments as :func:`encode_weeks`.
+        Arguments as :func:`encode_weeks`; ``ground_c`` is needed where :attr:`uses_ground`.
         """
         n = len(theta)
         out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
@@ -215,8 +276,9 @@ class Surrogate:
             part = slice(start, start + batch_size)
             prev = None if previous is None else tuple(a[part] for a in previous)
             has = None if has_previous is None else np.asarray(has_previous)[part]
+            ground = None if ground_c is None or not self.uses_ground else np.asarray(ground_c)[part]
             x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has,
-                             self.context_hours)
+                             self.context_hours, ground)
             out[part] = self.predict_encoded(x, batch_size)
         return out
 
@@ -230,11 +292,17 @@ class Surrogate:
         if context_of(x) != self.context_hours:
             raise CheckpointError(f"inputs carry {context_of(x)} context hours, this metamodel was trained with "
                                   f"{self.context_hours}: encode them with context_hours={self.context_hours}")
+        if x.shape[-1] != len(INPUT_CHANNELS):
+            raise CheckpointError(f"inputs carry {x.shape[-1]} channels, encode_weeks gives {len(INPUT_CHANNELS)}")
+        channels = slice(None) if self.uses_ground else slice(0, len(NO_GROUND_CHANNELS))
+        if self.uses_ground and np.isnan(x[..., -1]).any():
+            raise CheckpointError("this metamodel needs the ground temperature under the slab: pass ground_c "
+                                  "(buildenv.surrogate.ground_hours of the weather file's hourly values)")
         model = self._inference_model()
         out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         with torch.inference_mode():
             for start in range(0, len(x), batch_size):
-                xb = torch.from_numpy(np.ascontiguousarray(x[start:start + batch_size], dtype=np.float32))
+                xb = torch.from_numpy(np.ascontiguousarray(x[start:start + batch_size, :, channels], dtype=np.float32))
                 out[start:start + batch_size] = model(xb).numpy()
         return out
 
@@ -252,7 +320,8 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
         raise CheckpointError(f"metamodel checkpoint not found: {path}")
     ck = load_checkpoint(path)
     try:
-        expected = metadata(ck.metadata.get("context_hours", CONTEXT_HOURS))
+        expected = metadata(ck.metadata.get("context_hours", CONTEXT_HOURS),
+                            GROUND_CHANNEL in ck.metadata.get("input_channels", ()))
     except CheckpointError as exc:
         raise CheckpointError(f"{path}: {exc}") from None
     for key, value in expected.items():

@@ -34,7 +34,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
                     max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
                     holdout_climates: list[str] | None = None, progress: bool = True,
                     context_hours: int = sg.CONTEXT_HOURS, init: str | Path | None = None,
-                    **train_options) -> dict:
+                    ground_temperature: bool = True, **train_options) -> dict:
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
@@ -51,7 +51,11 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         init: a checkpoint (or ``"default"``) to start from: its weights and normalisation statistics are kept
             and trained further (fine-tuning, e.g. with a longer context). It must be a ``model`` with the same
             configuration, trained with the same split kind, split seed and held-out climates, so that the
-            test weeks of ``data`` stay unseen when ``data`` covers the same weather files.
+            test weeks of ``data`` stay unseen when ``data`` covers the same weather files. A checkpoint made
+            before the ground temperature was an input gets it, with zero weights (it starts out computing
+            what it did) and the channel's statistics from this training split.
+        ground_temperature: give the model the ground temperature under the slab (:mod:`buildenv.surrogate`);
+            ``False`` trains on the other channels only, as checkpoints made before it existed.
         train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
     Returns:
         ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
@@ -63,16 +67,20 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     from metamodels.normalisation import Standardiser
     from metamodels.train import TrainConfig, fit
 
+    channels = slice(None) if ground_temperature else slice(0, len(sg.NO_GROUND_CHANNELS))
     started = time.perf_counter()
     ctx = sg.check_context_hours(context_hours)
     last = Path(out).with_name(Path(out).name + ".last")
     if last.exists():  # a resumed run keeps the encoding it started with
         from metamodels.checkpoint import load_checkpoint
 
-        was = load_checkpoint(last).metadata.get("context_hours", sg.CONTEXT_HOURS)
-        if was != ctx:
-            raise BuildenvError(f"{last} was trained with --context-hours {was}, not {ctx}: rerun with {was} to "
-                                "resume it, or remove it to start over")
+        was = load_checkpoint(last).metadata
+        if was.get("context_hours", sg.CONTEXT_HOURS) != ctx:
+            raise BuildenvError(f"{last} was trained with --context-hours {was.get('context_hours')}, not {ctx}: "
+                                "rerun with that to resume it, or remove it to start over")
+        if (sg.GROUND_CHANNEL in was.get("input_channels", ())) != ground_temperature:
+            raise BuildenvError(f"{last} was trained {'with' if not ground_temperature else 'without'} the ground "
+                                "temperature: rerun as it was to resume it, or remove it to start over")
     with open_dataset(data) as ds:
         parts = training_split(ds, split, seed, holdout_climates, max_weeks)
         ds_zoning = ds.zoning
@@ -83,7 +91,7 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx) if holdout_climates else None
     torch.manual_seed(seed)
     config = dict(model_config or {})
-    metadata = {**sg.metadata(ctx), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
+    metadata = {**sg.metadata(ctx, ground_temperature), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
                 "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx)),
                 "zoning": ds_zoning}
     if init is not None:
@@ -92,14 +100,19 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
                                         "train_weeks": start.metadata.get("train_weeks"),
                                         "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS)}
         ck = Checkpoint(model, dict(start.config), start.model, start.input_norm, start.output_norm, metadata)
+        if ground_temperature and sg.GROUND_CHANNEL not in start.metadata.get("input_channels", ()):
+            ck = _with_ground(ck, x_tr)
+            metadata["initialised_from"]["added_inputs"] = [sg.GROUND_CHANNEL]
+        elif not ground_temperature and sg.GROUND_CHANNEL in start.metadata.get("input_channels", ()):
+            raise BuildenvError(f"--init {init} reads the ground temperature: leave --no-ground-temperature out")
     else:
-        net = build(model, x_tr.shape[-1], y_tr.shape[-1], **config)
-        ck = Checkpoint(model, config, net, Standardiser.fit(x_tr), Standardiser.fit(y_tr), metadata)
+        net = build(model, x_tr[..., channels].shape[-1], y_tr.shape[-1], **config)
+        ck = Checkpoint(model, config, net, Standardiser.fit(x_tr[..., channels]), Standardiser.fit(y_tr), metadata)
     cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
                       consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-    history = fit(ck, *standardised_tensors(x_tr, y_tr, ck), *standardised_tensors(x_va, y_va, ck), hour_mask, cfg,
-                  Path(out), progress)
+    history = fit(ck, *standardised_tensors(x_tr[..., channels], y_tr, ck),
+                  *standardised_tensors(x_va[..., channels], y_va, ck), hour_mask, cfg, Path(out), progress)
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
     extra = {"holdout_climate": {"climates": list(holdout_climates), "weeks": int(len(apart[0])),
@@ -108,6 +121,19 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
             "val_weeks": int(len(parts["val"])), "test_weeks": int(len(parts["test"])),
             "seconds": round(time.perf_counter() - started, 1),
             "fit": {k: v for k, v in history.items() if k != "history"}, "test": test, **extra}
+
+
+def _with_ground(ck, x_tr: np.ndarray):
+    """Checkpoint ``ck`` (made without the ground temperature) given it as one more input: zero weights,
+    standardised with its mean and deviation over the training inputs ``x_tr``."""
+    from metamodels.checkpoint import Checkpoint
+    from metamodels.models import with_more_inputs
+    from metamodels.normalisation import Standardiser
+
+    ground = Standardiser.fit(x_tr[..., -1:])
+    norm = Standardiser(np.concatenate([ck.input_norm.mean, ground.mean]), np.concatenate([ck.input_norm.std, ground.std]))
+    net = with_more_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, 1)
+    return Checkpoint(ck.name, ck.config, net, norm, ck.output_norm, ck.metadata)
 
 
 def training_split(ds, split: str, seed: int, holdout_climates: list[str] | None = None,

@@ -115,6 +115,9 @@ class _Block(nn.Module):
 class Transformer(nn.Module):
     """The paper's encoder-decoder Transformer with local attention (see module docstring)."""
 
+    #: a patch's inputs are flattened hour by hour (all channels of its first hour, then of the next)
+    hour_major_inputs = True
+
     def __init__(self, inputs: int, outputs: int, d_model: int = 64, heads: int = 8, head_dim: int = 8,
                  layers: int = 4, window: int = 12, d_ff: int = 256, dropout: float = 0.0, patch_hours: int = 1,
                  hourly_head: int = 0, hourly_gru: int = 0, hourly_state: int = 0, hourly_state_layers: int = 1,
@@ -345,3 +348,41 @@ def build(name: str, inputs: int, outputs: int, **config) -> nn.Module:
     if name not in MODELS:
         raise ValueError(f"unknown model {name!r}; choose one of {', '.join(MODELS)}")
     return MODELS[name](inputs, outputs, **config)
+
+
+def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, outputs: int, extra: int) -> nn.Module:
+    """A copy of ``model`` (``build(name, inputs, outputs, **config)``) that takes ``extra`` more input channels,
+    appended after the others, with zero weights: it computes what ``model`` did whatever they hold, and
+    training then learns their use (fine-tuning a trained model with a new input).
+
+    Every weight whose second axis reads the inputs is widened: ``k x inputs`` columns (``k`` hours of a patch
+    or lags, flattened hour by hour where the class sets ``hour_major_inputs``, channel by channel otherwise).
+    """
+    old = model.state_dict()
+    try:
+        build(name, inputs, outputs, **config).load_state_dict(old)
+    except RuntimeError as exc:
+        raise ValueError(f"{name}: cannot widen a model that is not build({name!r}, {inputs}, {outputs}, "
+                         f"**config): {str(exc).splitlines()[0]}") from None
+    wide = build(name, inputs + extra, outputs, **config)
+    state = wide.state_dict()
+    hour_major = getattr(type(model), "hour_major_inputs", False)
+    for key, target in state.items():
+        source = old[key]
+        if source.shape == target.shape:
+            state[key] = source.clone()
+            continue
+        k = source.shape[1] // inputs
+        if source.shape[0] != target.shape[0] or source.shape[1] != k * inputs or target.shape[1] != k * (inputs + extra):
+            raise ValueError(f"{name}: cannot widen {key} from {tuple(source.shape)} to {tuple(target.shape)}")
+        rest = tuple(source.shape[2:])
+        grown = torch.zeros_like(target)
+        if hour_major:
+            grown.view(target.shape[0], k, inputs + extra, *rest)[:, :, :inputs] = source.view(source.shape[0], k,
+                                                                                              inputs, *rest)
+        else:
+            grown.view(target.shape[0], inputs + extra, k, *rest)[:, :inputs] = source.view(source.shape[0], inputs,
+                                                                                           k, *rest)
+        state[key] = grown
+    wide.load_state_dict(state)
+    return wide.train(model.training)

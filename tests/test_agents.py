@@ -32,8 +32,9 @@ def test_nsga2_front_is_non_dominated_and_beats_historical(env):
     assert front.history == sorted(front.history)  # the front only improves
     hist = env.unwrapped.evaluate(env.unwrapped.historical_action[None], week=WEEK)
     i = equal_comfort_choice(front, float(hist["comfort_k"][0]))
-    assert front.comfort_k[i] <= hist["comfort_k"][0] + 1e-9
-    assert front.energy_term[i] <= 1.0 + 1e-9  # the historical point is in the first population
+    # the historical point is in the first population (evaluated there in a batch: float32 rounding apart)
+    assert front.comfort_k[i] <= hist["comfort_k"][0] + 1e-6
+    assert front.energy_term[i] <= 1.0 + 1e-6
 
 
 def test_hypervolume_of_the_reference_corner_is_zero():

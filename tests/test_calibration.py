@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -15,6 +16,7 @@ from buildenv import surrogate as sg
 from buildenv.energyplus.idf import read_idf
 from buildenv.reference import (
     REFERENCE_BUILDINGS,
+    add_sensor_noise,
     detect_schedule_map,
     historical_settings,
     make_reference_site,
@@ -47,9 +49,11 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
 
 
-def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=(), declared=()):
+def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=(), declared=(),
+                    noise_seed=None):
     """A site whose 'measurements' are the metamodel's own prediction for known parameters (those of
-    ``effects`` follow theta and occupancy in ``params``); its site.toml declares ``declared``."""
+    ``effects`` follow theta and occupancy in ``params``); its site.toml declares ``declared``. With
+    ``noise_seed`` they carry the reference stand-in's sensor noise and meter resolution (0.1 K, 1 %)."""
     settings = historical_settings(weeks)
     write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
                number_of_floors=3, settings=settings, temperature_c=np.full((weeks, 168), 20.0),
@@ -58,6 +62,8 @@ def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None,
     problem = cal.build_problem(site, list(range(weeks)), effects, context_hours=surrogate.context_hours)
     t, q = cal.predict(problem, surrogate, params)
     q_kwh = q * site.floor_area_m2 / 1000.0
+    if noise_seed is not None:
+        t, q_kwh = add_sensor_noise(SimpleNamespace(temperature_c=t, consumption_kwh=q_kwh), noise_seed)
     if gaps is not None:
         t, q_kwh = t.copy(), q_kwh.copy()
         t[gaps], q_kwh[gaps] = np.nan, np.nan

@@ -9,7 +9,7 @@ from buildenv import catalogue as cat
 from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.metrics import r2_score
 from buildenv.sampling import sample_group, sample_weeks
-from buildenv.surrogate import DEFAULT_CHECKPOINT, load_metamodel
+from buildenv.surrogate import DEFAULT_CHECKPOINT, ground_hours, load_metamodel, weather_ground_c
 
 # Stated in README ("The default metamodel"): on fresh EnergyPlus weeks of random buildings.
 MIN_R2_T_POOLED, MIN_R2_Q_POOLED, MAX_RMSE_T_C = 0.93, 0.97, 0.6
@@ -33,7 +33,9 @@ def test_default_metamodel_predicts_fresh_energyplus_weeks(epw, start_week, seed
     # week 2 with week 1 as its context, as in a campaign; week 1 with its own first day
     pred = surrogate.predict(np.repeat(theta[None], 2, 0), settings, occupancy, sim.weather,
                              previous=(settings[[0, 0]], occupancy[[0, 0]], sim.weather[[0, 0]]),
-                             has_previous=np.array([False, True]))
+                             has_previous=np.array([False, True]),
+                             ground_c=ground_hours(weather_ground_c(epw), (start_week + np.arange(2)) * 168,
+                                                   surrogate.context_hours))
     t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
     q = [i for i in range(len(cat.OUTPUT_NAMES)) if i != t]
     std = surrogate.checkpoint.output_norm.std

@@ -13,7 +13,7 @@ from buildenv.errors import BuildenvError
 from buildenv.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.loss import paper_loss
-from metamodels.models import MODELS, band_mask, build
+from metamodels.models import MODELS, band_mask, build, with_more_inputs
 from metamodels.normalisation import StandardisedModel, Standardiser
 
 SMALL_CONFIGS = {"transformer": {"layers": 1}, "bigru": {"layers": 1}, "lstm": {"layers": 1},
@@ -151,8 +151,11 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
     with open_dataset(tiny_dataset) as ds:
         x, y = sg.encode_dataset(ds, np.arange(3))
         assert x.shape == (3, sg.CONTEXT_HOURS + 168, len(sg.INPUT_CHANNELS))
-        pred = surrogate.predict(ds.theta[:3], ds.settings[:3], ds.occupancy[:3], ds.weather[:3])
+        week = [a[:3] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
+    pred = surrogate.predict(*week, ground_c=x[..., -1])
     assert pred.shape == (3, 168, len(cat.OUTPUT_NAMES)) and np.isfinite(pred).all()
+    with pytest.raises(sg.CheckpointError, match="ground temperature"):
+        surrogate.predict(*week)
     monkeypatch.setattr(cat, "catalogue_hash", lambda: "0000000000000000")
     with pytest.raises(sg.CheckpointError, match="catalogue"):
         sg.load_metamodel(ckpt)
@@ -173,15 +176,90 @@ def test_a_longer_context_carries_the_previous_days_or_repeats_the_first_day(tin
     w = [sg.INPUT_CHANNELS.index(c) for c in sg.WEATHER_INPUTS]
     np.testing.assert_array_equal(three_days[0, :72, w], prev[2][0, -72:][:, [cat.WEATHER_NAMES.index(c)
                                                                            for c in sg.WEATHER_INPUTS]].T)
-    assert (three_days[0, :72, -1] == 1).all() and (three_days[0, 72:, -1] == 0).all()
+    is_context = sg.INPUT_CHANNELS.index("is_context")
+    assert (three_days[0, :72, is_context] == 1).all() and (three_days[0, 72:, is_context] == 0).all()
     # no preceding week: the week's first day, repeated, as EnergyPlus's warm-up
     cold = sg.encode_weeks(*week, context_hours=48)
-    np.testing.assert_array_equal(cold[:, :24, :-1], cold[:, 48:72, :-1])
-    np.testing.assert_array_equal(cold[:, 24:48, :-1], cold[:, 48:72, :-1])
+    np.testing.assert_array_equal(cold[:, :24, :is_context], cold[:, 48:72, :is_context])
+    np.testing.assert_array_equal(cold[:, 24:48, :is_context], cold[:, 48:72, :is_context])
     np.testing.assert_array_equal(cold[:, 24:], sg.encode_weeks(*week))
     for bad in (0, 30, 168):
         with pytest.raises(sg.CheckpointError, match="whole number of days"):
             sg.encode_weeks(*week, context_hours=bad)
+
+
+@pytest.mark.parametrize("name", sorted(MODELS))
+def test_a_model_widened_by_an_input_computes_what_it_did_and_can_learn_its_use(name):
+    torch.manual_seed(0)
+    config = {**SMALL_CONFIGS[name], **({"patch_hours": 4, "hourly_head": 8} if name == "transformer" else {})}
+    model = build(name, 6, 2, **config).eval()
+    wide = with_more_inputs(model, name, config, 6, 2, 1).eval()
+    x = torch.randn(3, 48, 7)
+    torch.testing.assert_close(wide(x), model(x[..., :6]), rtol=0, atol=1e-6)
+    wide(x).square().sum().backward()  # the new input's weights get a gradient: training can use it
+    grads = [p.grad for p in wide.parameters() if p.grad is not None and p.grad.ndim >= 2]
+    assert any(g.abs().sum() > 0 for g in grads)
+    with pytest.raises(ValueError, match="cannot widen"):
+        with_more_inputs(model, name, config, 5, 2, 1)  # not the input count it was built with
+
+
+def test_the_ground_temperature_is_the_weather_files_monthly_value_in_every_encoded_hour(tiny_dataset):
+    from buildenv.dataset import open_dataset
+    from buildenv.energyplus.shoebox import ground_temperatures_c
+    from buildenv.weather import load_weather, month_of_hour
+
+    with open_dataset(tiny_dataset) as ds:
+        x, _ = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=48)
+        names, climate, week = ds.weather_names, ds.weather_index[:], ds.week_of_year[:]
+    for i in range(len(x)):
+        monthly = ground_temperatures_c(load_weather(names[climate[i]]))
+        hours = (int(week[i]) * 168 + np.arange(-48, 168)) % 8760
+        np.testing.assert_allclose(x[i, :, -1], np.array(monthly)[month_of_hour()[hours]], rtol=1e-6)
+    assert len(np.unique(x[:, 0, -1])) > 1  # two climates, several months
+    # a week starting on January 1st takes its context from the end of December
+    year = np.arange(8760.0)
+    np.testing.assert_array_equal(sg.ground_hours(year, [0], 24)[0], np.r_[np.arange(8736, 8760), np.arange(168)])
+    assert sg.INPUT_CHANNELS[-1] == sg.GROUND_CHANNEL and sg.NO_GROUND_CHANNELS == sg.INPUT_CHANNELS[:-1]
+    assert np.isnan(sg.encode_weeks(*(a[None] for a in _one_week(tiny_dataset)))[..., -1]).all()
+
+
+def _one_week(dataset) -> list[np.ndarray]:
+    from buildenv.dataset import open_dataset
+
+    with open_dataset(dataset) as ds:
+        return [a[0] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
+
+
+def test_a_checkpoint_without_the_ground_temperature_is_fine_tuned_with_it(tiny_dataset, tmp_path):
+    from buildenv.dataset import open_dataset
+
+    config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
+    base, tuned = tmp_path / "noground.pt", tmp_path / "ground.pt"
+    train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1,
+                    batch_size=4, progress=False, ground_temperature=False)
+    old = sg.load_metamodel(base)
+    assert not old.uses_ground and old.checkpoint.inputs == len(sg.NO_GROUND_CHANNELS)
+    train_metamodel(tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False,
+                    init=base, lr=0.0)
+    new = sg.load_metamodel(tuned)
+    assert new.uses_ground and new.checkpoint.inputs == len(sg.INPUT_CHANNELS)
+    assert new.checkpoint.metadata["initialised_from"]["added_inputs"] == [sg.GROUND_CHANNEL]
+    with open_dataset(tiny_dataset) as ds:
+        x, _ = sg.encode_dataset(ds, np.arange(6))
+    np.testing.assert_allclose(new.predict_encoded(x), old.predict_encoded(x), rtol=0, atol=1e-4)  # zero weights
+    unknown = x.copy()
+    unknown[..., -1] = np.nan
+    np.testing.assert_array_equal(old.predict_encoded(unknown), old.predict_encoded(x))  # never read by it
+    with pytest.raises(sg.CheckpointError, match="ground temperature"):
+        new.predict_encoded(unknown)
+    with pytest.raises(sg.CheckpointError, match="channels"):
+        new.predict_encoded(x[..., :-1])
+    with pytest.raises(BuildenvError, match="reads the ground temperature"):
+        train_metamodel(tiny_dataset, "transformer", tmp_path / "back.pt", split="random", epochs=1, init=tuned,
+                        progress=False, ground_temperature=False)
+    with pytest.raises(BuildenvError, match="without the ground temperature"):  # resuming it another way
+        train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=2,
+                        batch_size=4, progress=False)
 
 
 def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, tmp_path):
@@ -196,12 +274,14 @@ def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, 
 
     with open_dataset(tiny_dataset) as ds:
         week = [a[:3] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
+        ground = sg.encode_dataset(ds, np.arange(3), context_hours=48)[0][..., -1]
         evaluated = evaluate_metamodel(ckpt, tiny_dataset)
-    pred = surrogate.predict(*week)
-    np.testing.assert_array_equal(pred, surrogate.predict_encoded(sg.encode_weeks(*week, context_hours=48)))
+    pred = surrogate.predict(*week, ground_c=ground)
+    np.testing.assert_array_equal(pred, surrogate.predict_encoded(sg.encode_weeks(*week, context_hours=48,
+                                                                                  ground_c=ground)))
     assert evaluated["loss"] == pytest.approx(result["test"]["loss"], rel=1e-5)
     with pytest.raises(sg.CheckpointError, match="48"):  # inputs encoded for the default one-day context
-        surrogate.predict_encoded(sg.encode_weeks(*week))
+        surrogate.predict_encoded(sg.encode_weeks(*week, ground_c=ground[:, 24:]))
     with pytest.raises(BuildenvError, match="--context-hours 48"):  # resuming it with another context
         train_metamodel(tiny_dataset, "transformer", ckpt, split="random", model_config=config, epochs=2,
                         batch_size=4, progress=False, context_hours=72)

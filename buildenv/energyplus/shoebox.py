@@ -62,7 +62,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.schedules import hourly_schedules, usage_fraction
-from buildenv.weather import Weather
+from buildenv.weather import Weather, month_of_hour
 
 FLOOR_HEIGHT_M = 3.5
 WALL_CONCRETE_M = 0.20
@@ -256,6 +256,12 @@ def ground_temperatures_c(weather: Weather) -> list[float]:
     monthly = weather.monthly_mean_temperature_c()
     lagged = np.roll(monthly, 1)
     return [round(float(monthly.mean() + GROUND_SWING * (t - monthly.mean())), 2) for t in lagged]
+
+
+def hourly_ground_temperature_c(weather: Weather) -> np.ndarray:
+    """``(8760,)`` temperature under the slab in each hour of the year (degC): the month's
+    :func:`ground_temperatures_c` value, as EnergyPlus applies it."""
+    return np.asarray(ground_temperatures_c(weather), dtype=np.float32)[month_of_hour()]
 
 
 def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray,

@@ -139,8 +139,9 @@ def main() -> None:
               f"{r['speedup_vs_energyplus']} |" for r in rows]
     for d in result["product_path"]:
         lines += ["", f"The product path, {d['label']}: `buildenv.load_metamodel({d['checkpoint']!r}).predict(theta, "
-                  f"settings, occupancy, weather, ground_c=ground)` (`{json.dumps(d['config'])}`), {args.weeks} weeks from catalogue "
-                  f"arrays, encoding and standardisation included, traced model: **{d['weeks_per_second']} weeks/s, "
+                  f"settings, occupancy, weather, ground_c=ground)` (`{json.dumps(d['config'])}`), {args.weeks} weeks "
+                  "from catalogue arrays, encoding and standardisation included, traced model: "
+                  f"**{d['weeks_per_second']} weeks/s, "
                   f"{d['speedup_vs_energyplus']}x the {d['zoning']} EnergyPlus shoebox it was trained on** "
                   f"({d['weeks_per_second'] / eplus:.1f}x the single zone)."]
     (RESULTS / "metamodel_speed.md").write_text("\n".join(lines) + "\n")

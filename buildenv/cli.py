@@ -185,7 +185,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
                              model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
                              progress=not args.quiet, context_hours=args.context_hours, init=args.init,
-                             ground_temperature=not args.no_ground_temperature, epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
+                             ground_temperature=not args.no_ground_temperature, epochs=args.epochs,
+                             batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
                              patience=args.patience, device=args.device, minutes=args.minutes)
     print(json.dumps(result, indent=None if args.json else 2))
     return 0

@@ -91,9 +91,9 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx) if holdout_climates else None
     torch.manual_seed(seed)
     config = dict(model_config or {})
-    metadata = {**sg.metadata(ctx, ground_temperature), "dataset": str(Path(data).resolve()), "split": split, "split_seed": seed,
-                "holdout_climates": list(holdout_climates or []), "train_weeks": int(len(train_idx)),
-                "zoning": ds_zoning}
+    metadata = {**sg.metadata(ctx, ground_temperature), "dataset": str(Path(data).resolve()), "split": split,
+                "split_seed": seed, "holdout_climates": list(holdout_climates or []),
+                "train_weeks": int(len(train_idx)), "zoning": ds_zoning}
     if init is not None:
         start = _initial_checkpoint(init, model, model_config, split, seed, holdout_climates, ds_zoning)
         metadata["initialised_from"] = {"checkpoint": str(init), "dataset": start.metadata.get("dataset"),
@@ -131,7 +131,8 @@ def _with_ground(ck, x_tr: np.ndarray):
     from metamodels.normalisation import Standardiser
 
     ground = Standardiser.fit(x_tr[..., -1:])
-    norm = Standardiser(np.concatenate([ck.input_norm.mean, ground.mean]), np.concatenate([ck.input_norm.std, ground.std]))
+    norm = Standardiser(np.concatenate([ck.input_norm.mean, ground.mean]),
+                        np.concatenate([ck.input_norm.std, ground.std]))
     net = with_more_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, 1)
     return Checkpoint(ck.name, ck.config, net, norm, ck.output_norm, ck.metadata)
 

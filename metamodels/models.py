@@ -373,7 +373,8 @@ def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, out
             state[key] = source.clone()
             continue
         k = source.shape[1] // inputs
-        if source.shape[0] != target.shape[0] or source.shape[1] != k * inputs or target.shape[1] != k * (inputs + extra):
+        fits = source.shape[1] == k * inputs and target.shape[1] == k * (inputs + extra)
+        if source.shape[0] != target.shape[0] or not fits:
             raise ValueError(f"{name}: cannot widen {key} from {tuple(source.shape)} to {tuple(target.shape)}")
         rest = tuple(source.shape[2:])
         grown = torch.zeros_like(target)

@@ -250,8 +250,18 @@ def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model
     assert result["heldout"]["r2_t"] > without["r2_t"]
     saved = load_site(tmp_path)
     assert saved.calibration["effects"] == result["effects"]
-    assert set(SiteModel.from_site(saved, surrogate).effects) == set(effect)  # BuildingWeek-v0 simulates it
+    model = SiteModel.from_site(saved, surrogate)
+    assert set(model.effects) == set(effect)  # BuildingWeek-v0 simulates it
     assert plot_calibration(saved, surrogate, saved.calibration, tmp_path / "c.png").is_file()
+    # both give the metamodel the ground temperature of the site's weather file in the site's calendar hours
+    ctx = surrogate.context_hours
+    expected = sg.weather_ground_c(saved.weather)[(saved.epw_hours()[:, :1] + np.arange(-ctx, 168)) % 8760]
+    np.testing.assert_array_equal(cal.build_problem(saved, [0, 1], context_hours=ctx).x_base[..., -1], expected)
+    np.testing.assert_array_equal(model.ground(np.array([model.week_of(START), model.week_of(START) + 1])), expected)
+    from buildenv.energyplus.shoebox import ground_temperatures_c
+    from buildenv.weather import load_weather
+
+    np.testing.assert_allclose(expected, ground_temperatures_c(load_weather(saved.weather))[10])  # November's
 
 
 @pytest.mark.parametrize("bias_k", [0.0, 1.2])

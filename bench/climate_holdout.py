@@ -218,7 +218,7 @@ def _page(result: dict) -> str:
     lines += level_and_shape_rows(result["holdout_error_split"])
     lines += ["", f"RMSE_T of {held}'s test weeks over the other climates' (pooled): "
               + ", ".join(f"{lab} {v:.2f}x" for lab, v in result["newark_over_others"].items()) + ".", "",
-              f"Paired, A minus B, per-week squared temperature error (degC2) with its 95 % bootstrap range, and the "
+              "Paired, A minus B, per-week squared temperature error (degC2) with its 95 % bootstrap range, and the "
               "RMSE_T ratio A/B:", "", "| test weeks | weeks | A - B | range | RMSE ratio A/B | range | A lower on |",
               "|---|---|---|---|---|---|---|"]
     for part, label in (("holdout", f"{held} (unseen by A)"), ("others", "other climates (seen by both)")):

@@ -25,7 +25,6 @@ from __future__ import annotations
 import argparse
 import json
 import time
-from pathlib import Path
 
 import numpy as np
 from _training_runs import RESULTS, machine
@@ -67,8 +66,9 @@ def main() -> None:
     if len(contexts) != 1:
         raise SystemExit(f"the models see different context hours ({sorted(contexts)}): compare like with like")
     sets = test_sets(args.data, args.fresh, models[first].checkpoint.metadata)
-    result = {"date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": "bench/ground_default.py "
-              + " ".join(f"--data {args.data} --fresh {args.fresh}".split() + [f"--model {m}" for m in args.model]),
+    command = f"bench/ground_default.py --data {args.data} --fresh {args.fresh} " + " ".join(
+        f"--model {m}" for m in args.model)
+    result = {"date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": command,
               "models": {label: {"path": str(m.path), "uses_ground": m.uses_ground,
                                  "initialised_from": m.checkpoint.metadata.get("initialised_from")}
                          for label, m in models.items()}, "sets": {}}

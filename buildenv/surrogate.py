@@ -165,7 +165,7 @@ def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048,
     indices = np.asarray(indices)
     previous = ds.previous_week()
     ground = dataset_ground_c(ds)
-    climate, week_of_year = (ds._h5[name][:].astype(np.int64) for name in ("weather_index", "week_of_year"))
+    climate, week_of_year = (getattr(ds, name)[:].astype(np.int64) for name in ("weather_index", "week_of_year"))
     xs, ys = [], []
     for start in range(0, len(indices), chunk):
         idx = indices[start:start + chunk]

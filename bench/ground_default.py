@@ -58,6 +58,7 @@ def main() -> None:
     parser.add_argument("--model", action="append", required=True, metavar="LABEL=CHECKPOINT")
     parser.add_argument("--resamples", type=int, default=2000)
     parser.add_argument("--name", default="metamodel_ground_default")
+    parser.add_argument("--title", default="The default with the ground temperature as an input")
     args = parser.parse_args()
     started = time.perf_counter()
     models = {label: sg.load_metamodel(path) for label, path in (m.split("=", 1) for m in args.model)}
@@ -67,8 +68,8 @@ def main() -> None:
         raise SystemExit(f"the models see different context hours ({sorted(contexts)}): compare like with like")
     sets = test_sets(args.data, args.fresh, models[first].checkpoint.metadata)
     command = f"bench/ground_default.py --data {args.data} --fresh {args.fresh} " + " ".join(
-        f"--model {m}" for m in args.model)
-    result = {"date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": command,
+        f"--model {m}" for m in args.model) + f" --name {args.name}"
+    result = {"title": args.title, "date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": command,
               "models": {label: {"path": str(m.path), "uses_ground": m.uses_ground,
                                  "initialised_from": m.checkpoint.metadata.get("initialised_from")}
                          for label, m in models.items()}, "sets": {}}
@@ -89,7 +90,8 @@ def main() -> None:
 def page(result: dict) -> str:
     """The Markdown page of a result."""
     first = next(iter(result["models"]))
-    lines = [f"# The default with the ground temperature as an input ({result['date']})", "",
+    title = result.get("title", "The default with the ground temperature as an input")
+    lines = [f"# {title} ({result['date']})", "",
              f"{result['machine']}. Command: `{result['command']}` ({result['seconds']} s).", "",
              "Models:", ""]
     for label, m in result["models"].items():

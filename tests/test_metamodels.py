@@ -343,6 +343,8 @@ def test_a_carried_campaign_trains_on_the_same_weeks_and_is_rescored_on_the_full
     run = train_metamodel(copy, "ffn", ckpt, split="random", max_weeks=4, model_config={"layers": 1}, epochs=1,
                           batch_size=4, progress=False)
     assert np.isfinite(run["fit"]["best_val_loss"]) and np.isnan(run["test"]["loss"])
+    with pytest.raises(BuildenvError, match="training weeks have outputs that are not finite"):
+        train_metamodel(copy, "ffn", tmp_path / "all.pt", split="random", epochs=1, progress=False)  # uncarried
     (tmp_path / "ffn.json").write_text(json.dumps(run))
     rescored = carry.rescore(tiny_dataset, tmp_path / "ffn.json")
     here = train_metamodel(tiny_dataset, "ffn", tmp_path / "here.pt", split="random", max_weeks=4,
@@ -350,6 +352,10 @@ def test_a_carried_campaign_trains_on_the_same_weeks_and_is_rescored_on_the_full
     assert rescored["test"]["loss"] == pytest.approx(here["test"]["loss"], rel=1e-5)
     rounded = carry._rounded(np.array([20.123456, -3.3e-4, 0.0], np.float32), 14)
     np.testing.assert_allclose(rounded, [20.123456, -3.3e-4, 0.0], rtol=2**-15)
+    carry.pack(tiny_dataset, tmp_path / "small.npz", split="random", max_weeks=4, lzma_outputs=True)
+    with open_dataset(carry.unpack(tmp_path / "small.npz", tmp_path / "small")) as small, \
+            open_dataset(copy) as carried:
+        np.testing.assert_array_equal(small.outputs[:], carried.outputs[:])  # NaN where not carried, as there
 
 
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),

@@ -127,8 +127,11 @@ def pareto_front(env, week: int, population: int = 100, generations: int = 1000,
 
 def equal_comfort_choice(front: ParetoResult, comfort_reference_k: float) -> int:
     """Index of the front point that uses least energy with comfort no worse than ``comfort_reference_k``
-    (the paper's "point of closest equivalent comfort"); the most comfortable point if none is as good."""
-    ok = np.flatnonzero(front.comfort_k <= comfort_reference_k + 1e-9)
+    (the paper's "point of closest equivalent comfort"); the most comfortable point if none is as good.
+
+    The metamodel evaluates in float32: the same settings give comfort values a few 1e-8 K apart alone and
+    inside a batch, so a point within 1e-6 K of the reference counts as equally comfortable."""
+    ok = np.flatnonzero(front.comfort_k <= comfort_reference_k + 1e-6)
     if ok.size == 0:
         return int(np.argmin(front.comfort_k))
     return int(ok[np.argmin(front.energy_term[ok])])

@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shlex
 import time
 
 import numpy as np
@@ -68,7 +69,7 @@ def main() -> None:
         raise SystemExit(f"the models see different context hours ({sorted(contexts)}): compare like with like")
     sets = test_sets(args.data, args.fresh, models[first].checkpoint.metadata)
     command = f"bench/ground_default.py --data {args.data} --fresh {args.fresh} " + " ".join(
-        f"--model {m}" for m in args.model) + f" --name {args.name}"
+        f"--model {shlex.quote(m)}" for m in args.model) + f" --name {args.name} --title {shlex.quote(args.title)}"
     result = {"title": args.title, "date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": command,
               "models": {label: {"path": str(m.path), "uses_ground": m.uses_ground,
                                  "initialised_from": m.checkpoint.metadata.get("initialised_from")}

@@ -93,7 +93,8 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         missing = ~np.isfinite(y).all(axis=(1, 2))
         if missing.any():
             raise BuildenvError(f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that are "
-                                "not finite (missing from the dataset): train on a dataset with them")
+                                "not finite (NaN or inf): the dataset lacks them or is damaged; simulate it again or "
+                                "train on a subset that has them (--max-weeks of a carried pack)")
     torch.manual_seed(seed)
     config = dict(model_config or {})
     metadata = {**sg.metadata(ctx, ground_temperature), "dataset": str(Path(data).resolve()), "split": split,

@@ -9,6 +9,8 @@ weather as that table), the outputs of the training and validation weeks of one 
 the test scores a run writes there are NaN: ``rescore`` scores its checkpoint again on the full campaign here.
 
     python bench/carry_dataset.py pack data/campaign-cp-40000-s7 .gpu/pack.npz --max-weeks 3000
+    python bench/carry_dataset.py pack data/campaign-cp-160000-r13 .gpu/pack.npz --holdout-climate usa_nj_newark \
+        --mantissa-bits 10 --lzma-outputs   # 134,759 weeks' outputs in 80 MB (4.5 min); split it over two calls
     python bench/carry_dataset.py unpack .gpu/pack.npz /tmp/ds        # on the other machine
     python bench/carry_dataset.py rescore data/campaign-cp-40000-s7 RUNS/*.json   # back here
 """

@@ -87,14 +87,14 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         train_idx = parts["train"]
         x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx)
         x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx)
+        for name, y in (("training", y_tr), ("validation", y_va)):
+            missing = ~np.isfinite(y).all(axis=(1, 2))
+            if missing.any():
+                raise BuildenvError(f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that "
+                                    "are not finite (NaN or inf): the dataset lacks them or is damaged; simulate it "
+                                    "again or train on a subset that has them (--max-weeks of a carried pack)")
         x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx)
         apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx) if holdout_climates else None
-    for name, y in (("training", y_tr), ("validation", y_va)):
-        missing = ~np.isfinite(y).all(axis=(1, 2))
-        if missing.any():
-            raise BuildenvError(f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that are "
-                                "not finite (NaN or inf): the dataset lacks them or is damaged; simulate it again or "
-                                "train on a subset that has them (--max-weeks of a carried pack)")
     torch.manual_seed(seed)
     config = dict(model_config or {})
     metadata = {**sg.metadata(ctx, ground_temperature), "dataset": str(Path(data).resolve()), "split": split,

@@ -12,7 +12,10 @@ weeks, seed 0, Newark held out). Each is scored, with the shipped default, on
 - ``fresh buildings``: every week of an independent campaign (``--fresh``, seed 1; Newark included).
 
 The paired columns are per-week RMSE_T ratios against the first ``--model`` (sqrt of the mean squared error
-ratio), with 2.5-97.5 % bootstrap ranges over the weeks.
+ratio), with 2.5-97.5 % bootstrap ranges over the weeks. The weeks carry the temperature before the week (the
+previous week's simulated one, unknown on a run's first week), which only a model trained with it reads; such a
+model is also scored with it unknown everywhere (``LABEL, temperature before unknown``), as where nothing was
+measured before the week.
 
     .venv/bin/python bench/ground_default.py --data data/campaign-cp-40000-s7 --fresh data/campaign-cp-fresh-seed1 \
         --model shipped=default --model ground=CKPT [--model ...] [--name metamodel_ground_default]
@@ -40,15 +43,27 @@ COLUMNS = (("loss", "loss", 4), ("R2_T pooled", "r2_t_pooled", 4), ("R2_Q pooled
 
 
 def test_sets(data: str, fresh: str, meta: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Encoded inputs (48 context hours, every channel) and outputs of the three test sets."""
+    """Encoded inputs (the models' context hours, every channel, the temperature before the week included) and
+    outputs of the three test sets."""
     sets = {}
+    ctx = meta["context_hours"]
     with open_dataset(data) as ds:
         parts = checkpoint_split(ds, meta)
         for name, idx in (("held-out weather weeks", parts["test"]), ("Newark", parts["holdout_climate"])):
-            sets[name] = sg.encode_dataset(ds, idx, context_hours=meta["context_hours"])
+            sets[name] = sg.encode_dataset(ds, idx, context_hours=ctx, temperature_before=True)
     with open_dataset(fresh) as ds:
-        sets["fresh buildings"] = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=meta["context_hours"])
+        sets["fresh buildings"] = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=ctx,
+                                                    temperature_before=True)
     return sets
+
+
+def scored_variants(models: dict[str, sg.Surrogate]) -> dict[str, tuple[sg.Surrogate, bool]]:
+    """``{label: (model, whether it is given the temperature before the week)}``: every model as it is, and
+    those that read the temperature before the week once more without it."""
+    variants = {label: (m, True) for label, m in models.items()}
+    variants.update({f"{label}, temperature before unknown": (m, False)
+                     for label, m in models.items() if m.uses_temperature_before})
+    return variants
 
 
 def main() -> None:
@@ -72,15 +87,19 @@ def main() -> None:
         f"--model {shlex.quote(m)}" for m in args.model) + f" --name {args.name} --title {shlex.quote(args.title)}"
     result = {"title": args.title, "date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": command,
               "models": {label: {"path": str(m.path), "uses_ground": m.uses_ground,
+                                 "uses_temperature_before": m.uses_temperature_before,
                                  "initialised_from": m.checkpoint.metadata.get("initialised_from")}
                          for label, m in models.items()}, "sets": {}}
+    variants = scored_variants(models)
     for name, (x, y) in sets.items():
-        errors = {label: week_errors(m, x, y) for label, m in models.items()}
+        without = x[..., :len(sg.INPUT_CHANNELS)]
+        inputs = {label: x if given else without for label, (_, given) in variants.items()}
+        errors = {label: week_errors(m, inputs[label], y) for label, (m, _) in variants.items()}
         result["sets"][name] = {
             "weeks": int(len(x)),
-            "scores": {label: score(m, x, y) for label, m in models.items()},
+            "scores": {label: score(m, inputs[label], y) for label, (m, _) in variants.items()},
             "paired": {label: paired(errors[label]["sq_t"], errors[first]["sq_t"], args.resamples, 0)
-                       for label in models if label != first}}
+                       for label in variants if label != first}}
     result["seconds"] = round(time.perf_counter() - started)
     print(json.dumps({n: {k: v["rmse_ratio"] for k, v in s["paired"].items()} for n, s in result["sets"].items()}))
     RESULTS.mkdir(exist_ok=True)
@@ -99,6 +118,7 @@ def page(result: dict) -> str:
         init = m["initialised_from"] or {}
         lines.append(f"- **{label}**: `{m['path']}`, ground temperature "
                      f"{'an input' if m['uses_ground'] else 'not an input'}"
+                     + (", temperature before the week an input" if m.get("uses_temperature_before") else "")
                      + (f", fine-tuned from `{init.get('checkpoint')}`" if init else "") + ".")
     lines += ["", f"RMSE_T ratio: per-week paired against {first}, sqrt(mean squared error ratio), 2.5-97.5 % "
               "bootstrap range over the weeks. Day 1 / days 2-7: RMSE_T of the Monday against the rest (degC).", ""]

@@ -136,7 +136,7 @@ def parameter_names() -> list[str]:
 
 
 def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None,
-                  context_hours: int = sg.CONTEXT_HOURS) -> Problem:
+                  context_hours: int = sg.CONTEXT_HOURS, temperature_before: bool = False) -> Problem:
     """Encode a site's weeks, each with the days before it as context.
 
     The context of a week is the last days of the week before: its settings, the calibrated occupancy and the
@@ -153,6 +153,10 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
         effects: model-side effects (:mod:`buildenv.effects_model`) whose parameters are calibrated too.
         absent: ``(site weeks, 7)`` absence shares of the days (rows of ``weeks`` are used).
         context_hours: the metamodel's (:attr:`buildenv.surrogate.Surrogate.context_hours`).
+        temperature_before: encode the temperature measured over each week's context hours (the end of the
+            site's previous measured week; unknown before its first), for a metamodel that reads it
+            (:attr:`buildenv.surrogate.Surrogate.uses_temperature_before`). The sensor's bias, where the model
+            has one, is taken off it (:func:`buildenv.effects_model.transform_inputs`).
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
@@ -169,8 +173,14 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
     known = site.theta_known()
     occ = np.broadcast_to(np.array([v.min for v in cat.GROUPS["occupancy"]]), (n, len(cat.WEEKDAYS), 2))
     ground = sg.ground_hours(sg.weather_ground_c(site.weather), site.epw_hours()[idx, 0], context_hours)
+    before = None
+    if temperature_before:
+        before = np.full((n, context_hours), np.nan, dtype=np.float32)
+        after_first = idx >= 1
+        before[after_first] = np.asarray(site.temperature_c)[idx[after_first] - 1, -context_hours:]
     x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather,
-                        (site.settings[prev], occ, weather_before), context_hours=context_hours, ground_c=ground)
+                        (site.settings[prev], occ, weather_before), context_hours=context_hours, ground_c=ground,
+                        temperature_before_c=before)
     free = free_theta()
     lo = np.array([known.get(v, cat.get(v).min) for v in free]
                   + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
@@ -439,7 +449,8 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     started = time.perf_counter()
     fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
         sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
-    problem = build_problem(site, fit_weeks, context_hours=surrogate.context_hours)
+    problem = build_problem(site, fit_weeks, context_hours=surrogate.context_hours,
+                            temperature_before=surrogate.uses_temperature_before)
     if method == "cmaes":
         best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
     elif method == "adam":
@@ -451,7 +462,8 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     declared: dict = {}
     if effects:
         declared["cost_without_effects"] = info["cost"]
-        problem = build_problem(site, fit_weeks, effects, context_hours=surrogate.context_hours)
+        problem = build_problem(site, fit_weeks, effects, context_hours=surrogate.context_hours,
+                                temperature_before=surrogate.uses_temperature_before)
         best, stage = fit_declared_effects(problem, surrogate, best, seed)
         info = {**info, "evaluations": info["evaluations"] + stage["evaluations"], "cost": stage["cost"]}
         values = em.split_parameters(effects, best[None, problem.n_base:])
@@ -563,7 +575,7 @@ def score_weeks(site, surrogate: sg.Surrogate, weeks: list[int], params: np.ndar
                 absent: np.ndarray | None = None) -> dict[str, float]:
     """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks (with the
     model-side ``effects`` whose parameters follow in ``params``, and the ``absent`` days of the site)."""
-    problem = build_problem(site, weeks, effects, absent, surrogate.context_hours)
+    problem = build_problem(site, weeks, effects, absent, surrogate.context_hours, surrogate.uses_temperature_before)
     return score_series(problem, *predict(problem, surrogate, params), params, scale)
 
 

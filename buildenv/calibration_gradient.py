@@ -44,7 +44,7 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
     rng = np.random.default_rng(seed)
     z = torch.tensor(rng.normal(0.0, 1.0, (starts, problem.dim)), dtype=torch.float32, requires_grad=True)
     lo, hi = torch.tensor(problem.lo, dtype=torch.float32), torch.tensor(problem.hi, dtype=torch.float32)
-    x_base = torch.tensor(problem.x_base, dtype=torch.float32)
+    x_base = torch.tensor(surrogate.model_inputs(problem.x_base))  # the channels the model reads
     weeks = x_base.shape[0]
     free = free_theta()
     theta_const = torch.tensor([problem.theta_known.get(n, 0.0) for n in cat.THETA_NAMES], dtype=torch.float32)

@@ -23,7 +23,7 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
 
     weeks = list(range(site.weeks))
     problem = build_problem(site, weeks, tuple(result.get("declared_effects", ())),
-                            context_hours=surrogate.context_hours)
+                            context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before)
     params = calibrated_parameters(result, problem.effects)
     t, q = predict(problem, surrogate, params)
     occupied = problem_occupancy(problem, params).reshape(-1).astype(float)

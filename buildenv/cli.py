@@ -185,7 +185,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
     result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
                              model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
                              progress=not args.quiet, context_hours=args.context_hours, init=args.init,
-                             ground_temperature=not args.no_ground_temperature, epochs=args.epochs,
+                             ground_temperature=not args.no_ground_temperature,
+                             temperature_before=args.temperature_before, epochs=args.epochs,
                              batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
                              patience=args.patience, device=args.device, minutes=args.minutes)
     print(json.dumps(result, indent=None if args.json else 2))
@@ -275,6 +276,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--no-ground-temperature", action="store_true",
                    help="leave the ground temperature under the slab out of the inputs (as checkpoints made "
                         "before it was one)")
+    p.add_argument("--temperature-before", action="store_true",
+                   help="give the model the indoor temperature measured over the context hours (in training the "
+                        "previous week's simulated one, hidden on a quarter of the weeks); calibration feeds it "
+                        "the site's measured previous week (with --init, added to the checkpoint's inputs)")
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate of Adam")

@@ -129,7 +129,8 @@ def _column(params: Mapping[str, np.ndarray], name: str, j: int, n: int) -> np.n
 
 
 def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndarray:
-    """Apply the input effects to encoded inputs.
+    """Apply the input effects to encoded inputs (and take a modelled sensor bias off the temperature measured
+    before the week, where the inputs carry it: :data:`buildenv.surrogate.TEMPERATURE_BEFORE_CHANNELS`).
 
     Args:
         x: ``(N, context + 168, C)`` physical inputs of :func:`buildenv.surrogate.encode_weeks` (modified
@@ -152,6 +153,9 @@ def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndar
         since = hours_since_occupied(occ > OCCUPIED_LEVEL)
         tail = share * np.clip(hours - since + 1.0, 0.0, 1.0) * (since >= 1)
         x[..., _CH["occupancy_fraction"]] = np.maximum(occ, tail)
+    bias = _column(params, "temperature_sensor_bias", 0, n)
+    if bias is not None and x.shape[-1] == len(sg.ALL_CHANNELS):  # the temperature measured before the week
+        x[..., len(sg.INPUT_CHANNELS)] -= bias  # is the sensor's reading: the model wants the building's
     return x
 
 

@@ -275,7 +275,7 @@ class _Context:
 def _problem(ctx: _Context, fit: ModelFit, weeks: list[int], absent: np.ndarray | None = None) -> cal.Problem:
     mask = fit.absent if absent is None else absent
     problem = cal.build_problem(ctx.site, weeks, fit.model_effects, mask if mask.any() else None,
-                                ctx.surrogate.context_hours)
+                                ctx.surrogate.context_hours, ctx.surrogate.uses_temperature_before)
     for name, value in fit.pinned.items():
         j = problem.names.index(name)
         problem.lo[j] = problem.hi[j] = value
@@ -420,7 +420,8 @@ def joint_fit(ctx: _Context, effects: tuple[str, ...], progress: bool = False) -
     this way (its days are detected, not fitted)."""
     if HOLIDAYS in effects:
         raise ValueError("holidays are detected day by day, not calibrated jointly")
-    problem = cal.build_problem(ctx.site, ctx.fit_weeks, tuple(effects), context_hours=ctx.surrogate.context_hours)
+    problem = cal.build_problem(ctx.site, ctx.fit_weeks, tuple(effects), context_hours=ctx.surrogate.context_hours,
+                                temperature_before=ctx.surrogate.uses_temperature_before)
     params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
                                        progress=progress, restarts=ctx.settings.base_restarts)
     return ModelFit(tuple(effects), params, np.zeros((ctx.site.weeks, 7)), info["cost"], info["evaluations"])

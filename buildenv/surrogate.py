@@ -14,6 +14,13 @@ Encoding (one row per hour, ``context_hours + 168`` rows per week):
   never trained on otherwise costs it the level of its weeks (``bench/results/metamodel_ground_input.md``).
   Checkpoints made before this channel existed (their metadata lists no ``ground_temperature_c``) are
   given the other channels only.
+- optionally, for a metamodel trained with them (``buildenv train --temperature-before``,
+  :attr:`Surrogate.uses_temperature_before`), two more channels after these
+  (:data:`TEMPERATURE_BEFORE_CHANNELS`): the indoor temperature measured over the context hours (degC; the
+  previous week's ``T_INT_OFFICE`` in a campaign, the site's measured temperature in a calibration), and a flag
+  that it is known. Where it is not (a site's first week, a week simulated for any date), the flag is 0 and the
+  model reads the channel's training mean. The first day's error is mostly the state the previous week left,
+  which this shows the model (``bench/results/context_temperature_probe.md``).
 
 The context is the hours before the week (their weather and schedules; :data:`CONTEXT_HOURS`, the day
 before, unless a checkpoint was trained with another ``context_hours``, a whole number of days): a week cut
@@ -49,7 +56,14 @@ INPUT_CHANNELS: tuple[str, ...] = (*WEATHER_INPUTS, *HOURLY_CHANNELS, *CALENDAR_
 #: the channels of a metamodel without the ground temperature (checkpoints made before it was an input)
 NO_GROUND_CHANNELS: tuple[str, ...] = INPUT_CHANNELS[:-1]
 _IS_CONTEXT = INPUT_CHANNELS.index("is_context")
+_GROUND = INPUT_CHANNELS.index(GROUND_CHANNEL)
+#: the optional channels appended after :data:`INPUT_CHANNELS`: the indoor temperature measured before the week
+#: (degC, on the context hours) and whether it is known (1) or not (0)
+TEMPERATURE_BEFORE_CHANNELS: tuple[str, str] = ("indoor_temperature_before_c", "indoor_temperature_before_known")
+#: every channel a metamodel can read, in the order a checkpoint lists them
+ALL_CHANNELS: tuple[str, ...] = (*INPUT_CHANNELS, *TEMPERATURE_BEFORE_CHANNELS)
 TEMPERATURE_CHANNELS: list[int] = [cat.OUTPUT_NAMES.index(n) for n in cat.TEMPERATURE_OUTPUTS]
+_T_OUT = TEMPERATURE_CHANNELS[0]  # the output a site's temperature sensor reads
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
 log = logging.getLogger(__name__)
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "data" / "metamodel_default.pt"
@@ -119,7 +133,7 @@ def _week_hours(first_hours: np.ndarray, context_hours: int, year_hours: int) ->
 def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                  previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
                  has_previous: np.ndarray | None = None, context_hours: int = CONTEXT_HOURS,
-                 ground_c: np.ndarray | None = None) -> np.ndarray:
+                 ground_c: np.ndarray | None = None, temperature_before_c: np.ndarray | None = None) -> np.ndarray:
     """Model inputs of weeks, physical units (not yet standardised).
 
     Args:
@@ -130,11 +144,15 @@ def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray,
             :attr:`Surrogate.context_hours`).
         ground_c: ``(N, context_hours + 168)`` ground temperature under the slab, degC (:func:`ground_hours`);
             ``None`` leaves the channel NaN, which a metamodel without it never reads and one with it refuses.
+        temperature_before_c: ``(N, context_hours)`` indoor temperature measured over the context hours, degC,
+            NaN where unknown; given, the two :data:`TEMPERATURE_BEFORE_CHANNELS` are appended.
     Returns:
-        ``(N, context_hours + 168, len(INPUT_CHANNELS))`` float32.
+        ``(N, context_hours + 168, C)`` float32: ``len(INPUT_CHANNELS)`` channels, or ``len(ALL_CHANNELS)``
+        with ``temperature_before_c``.
     """
     n, ctx = len(theta), check_context_hours(context_hours)
-    x = np.empty((n, ctx + cat.HOURS_PER_WEEK, len(INPUT_CHANNELS)), dtype=np.float32)
+    channels = len(INPUT_CHANNELS) if temperature_before_c is None else len(ALL_CHANNELS)
+    x = np.empty((n, ctx + cat.HOURS_PER_WEEK, channels), dtype=np.float32)
     _fill_rows(x[:, ctx:], settings, occupancy, weather, slice(None))
     x[:, ctx:, _CALENDAR] = _calendar(cat.HOURS_PER_WEEK)
     x[:, :, _THETA] = np.asarray(theta, dtype=np.float32)[:, None, :]
@@ -148,7 +166,26 @@ def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray,
             x[use, :ctx, :_SCHEDULES.stop] = rows[..., :_SCHEDULES.stop]
     x[:, :, _IS_CONTEXT] = 0.0
     x[:, :ctx, _IS_CONTEXT] = 1.0
-    x[..., -1] = np.nan if ground_c is None else np.asarray(ground_c, dtype=np.float32).reshape(n, -1)
+    x[..., _GROUND] = np.nan if ground_c is None else np.asarray(ground_c, dtype=np.float32).reshape(n, -1)
+    if temperature_before_c is not None:
+        set_temperature_before(x, temperature_before_c)
+    return x
+
+
+def set_temperature_before(x: np.ndarray, temperature_c: np.ndarray | None) -> np.ndarray:
+    """Write the indoor temperature measured before each week into inputs ``x`` ``(N, context + 168,
+    len(ALL_CHANNELS))`` (in place, returned): ``temperature_c`` ``(N, context)`` degC on the context hours, NaN
+    where unknown (``None``: unknown everywhere); the flag is 1 where it is known."""
+    ctx = context_of(x)
+    value, known = len(INPUT_CHANNELS), len(INPUT_CHANNELS) + 1
+    x[..., value] = np.nan
+    x[..., known] = 0.0
+    if temperature_c is not None:
+        t = np.asarray(temperature_c, dtype=np.float32).reshape(len(x), -1)
+        if t.shape[1] != ctx:
+            raise ValueError(f"temperature before the week: {t.shape[1]} hours given, the context has {ctx}")
+        x[:, :ctx, value] = t
+        x[:, :ctx, known] = np.isfinite(t)
     return x
 
 
@@ -158,10 +195,12 @@ def _read(ds, name: str, ids: np.ndarray) -> np.ndarray:
     return getattr(ds, name)[unique][back]
 
 
-def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048,
-                   context_hours: int = CONTEXT_HOURS) -> tuple[np.ndarray, np.ndarray]:
+def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048, context_hours: int = CONTEXT_HOURS,
+                   temperature_before: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """Inputs ``(n, context_hours + 168, C)`` and outputs ``(n, 168, 8)`` of dataset weeks (in ``indices``
-    order), each with its real preceding hours as context where the dataset has them."""
+    order), each with its real preceding hours as context where the dataset has them (``temperature_before``:
+    with the previous week's simulated indoor temperature as the temperature measured before the week, unknown
+    on a run's first week)."""
     indices = np.asarray(indices)
     previous = ds.previous_week()
     ground = dataset_ground_c(ds)
@@ -174,7 +213,11 @@ def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048,
         prev = tuple(_read(ds, name, prev_idx) for name in ("settings", "occupancy", "weather"))
         week = [_read(ds, name, idx) for name in ("theta", "settings", "occupancy", "weather")]
         hours = _week_hours(week_of_year[idx] * cat.HOURS_PER_WEEK, context_hours, ground.shape[1])
-        xs.append(encode_weeks(*week, prev, has, context_hours, ground[climate[idx][:, None], hours]))
+        before = None
+        if temperature_before:
+            before = _read(ds, "outputs", prev_idx)[:, -context_hours:, _T_OUT].astype(np.float32)
+            before[~has] = np.nan
+        xs.append(encode_weeks(*week, prev, has, context_hours, ground[climate[idx][:, None], hours], before))
         ys.append(_read(ds, "outputs", idx))
     return np.concatenate(xs), np.concatenate(ys).astype(np.float32)
 
@@ -202,11 +245,19 @@ def weather_ground_c(weather: str | Path) -> np.ndarray:
     return hourly_ground_temperature_c(load_weather(weather))
 
 
-def metadata(context_hours: int = CONTEXT_HOURS, ground: bool = True) -> dict:
+def input_channels(ground: bool = True, temperature_before: bool = False) -> tuple[str, ...]:
+    """The channels a metamodel reads: with or without the ground temperature, with or without the temperature
+    measured before the week (which needs the ground temperature too)."""
+    if temperature_before and not ground:
+        raise CheckpointError("the temperature before the week is an input only with the ground temperature")
+    return ALL_CHANNELS if temperature_before else INPUT_CHANNELS if ground else NO_GROUND_CHANNELS
+
+
+def metadata(context_hours: int = CONTEXT_HOURS, ground: bool = True, temperature_before: bool = False) -> dict:
     """What a checkpoint records about its encoding: the catalogue and channels it must share with this
-    buildenv to be usable (``ground``: whether the ground temperature is one of them), and its context length."""
+    buildenv to be usable (:func:`input_channels`), and its context length."""
     return {"catalogue_hash": cat.catalogue_hash(),
-            "input_channels": list(INPUT_CHANNELS if ground else NO_GROUND_CHANNELS),
+            "input_channels": list(input_channels(ground, temperature_before)),
             "output_channels": list(cat.OUTPUT_NAMES), "context_hours": check_context_hours(context_hours)}
 
 
@@ -239,6 +290,12 @@ class Surrogate:
         """Whether the ground temperature is one of its inputs (checkpoints made before it was are not)."""
         return GROUND_CHANNEL in self.checkpoint.metadata.get("input_channels", ())
 
+    @property
+    def uses_temperature_before(self) -> bool:
+        """Whether the indoor temperature measured before the week is one of its inputs
+        (:data:`TEMPERATURE_BEFORE_CHANNELS`; ``buildenv train --temperature-before``)."""
+        return TEMPERATURE_BEFORE_CHANNELS[0] in self.checkpoint.metadata.get("input_channels", ())
+
     def _inference_model(self):
         """The module ``predict_encoded`` calls: physical inputs ``(N, context_hours + 168, C)`` -> physical
         outputs of the week ``(N, 168, 8)``, standardisation included (traced once, on first use)."""
@@ -265,10 +322,12 @@ class Surrogate:
     def predict(self, theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
                 has_previous: np.ndarray | None = None, batch_size: int = INFERENCE_BATCH,
-                ground_c: np.ndarray | None = None) -> np.ndarray:
+                ground_c: np.ndarray | None = None, temperature_before_c: np.ndarray | None = None) -> np.ndarray:
         """Hourly outputs ``(N, 168, 8)`` (Wh/m2, degC) of N weeks in as few model calls as the batch allows.
 
-        Arguments as :func:`encode_weeks`; ``ground_c`` is needed where :attr:`uses_ground`.
+        Arguments as :func:`encode_weeks`; ``ground_c`` is needed where :attr:`uses_ground`;
+        ``temperature_before_c`` is read where :attr:`uses_temperature_before` (unknown where not given) and
+        ignored otherwise.
         """
         n = len(theta)
         out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
@@ -277,9 +336,13 @@ class Surrogate:
             prev = None if previous is None else tuple(a[part] for a in previous)
             has = None if has_previous is None else np.asarray(has_previous)[part]
             ground = None if ground_c is None or not self.uses_ground else np.asarray(ground_c)[part]
+            before = None
+            if self.uses_temperature_before:
+                before = (np.full((len(theta[part]), self.context_hours), np.nan, np.float32)
+                          if temperature_before_c is None else np.asarray(temperature_before_c)[part])
             x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has,
-                             self.context_hours, ground)
-            out[part] = self.predict_encoded(x, batch_size)
+                             self.context_hours, ground, before)
+            out[part] = self._run(x, batch_size, own=True)
         return out
 
     def predict_encoded(self, x: np.ndarray, batch_size: int = INFERENCE_BATCH) -> np.ndarray:
@@ -287,24 +350,47 @@ class Surrogate:
 
         ``batch_size`` weeks go through the model at a time (:data:`INFERENCE_BATCH`); any N is accepted.
         """
+        return self._run(x, batch_size, own=False)
+
+    def _run(self, x: np.ndarray, batch_size: int, own: bool) -> np.ndarray:
+        """:meth:`predict_encoded`; ``own``: ``x`` is this call's to change (encoded by :meth:`predict`)."""
         import torch
 
         if context_of(x) != self.context_hours:
             raise CheckpointError(f"inputs carry {context_of(x)} context hours, this metamodel was trained with "
                                   f"{self.context_hours}: encode them with context_hours={self.context_hours}")
-        if x.shape[-1] != len(INPUT_CHANNELS):
-            raise CheckpointError(f"inputs carry {x.shape[-1]} channels, encode_weeks gives {len(INPUT_CHANNELS)}")
-        channels = slice(None) if self.uses_ground else slice(0, len(NO_GROUND_CHANNELS))
-        if self.uses_ground and np.isnan(x[..., -1]).any():
+        if x.shape[-1] not in (len(INPUT_CHANNELS), len(ALL_CHANNELS)):
+            raise CheckpointError(f"inputs carry {x.shape[-1]} channels, encode_weeks gives {len(INPUT_CHANNELS)} "
+                                  f"({len(ALL_CHANNELS)} with the temperature before the week)")
+        if self.uses_ground and np.isnan(x[..., _GROUND]).any():
             raise CheckpointError("this metamodel needs the ground temperature under the slab: pass ground_c "
                                   "(buildenv.surrogate.ground_hours of the weather file's hourly values)")
         model = self._inference_model()
         out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         with torch.inference_mode():
             for start in range(0, len(x), batch_size):
-                xb = torch.from_numpy(np.ascontiguousarray(x[start:start + batch_size, :, channels], dtype=np.float32))
-                out[start:start + batch_size] = model(xb).numpy()
+                xb = self.model_inputs(x[start:start + batch_size], in_place=own)
+                out[start:start + batch_size] = model(torch.from_numpy(xb)).numpy()
         return out
+
+    def model_inputs(self, x: np.ndarray, in_place: bool = False) -> np.ndarray:
+        """The channels of encoded inputs ``x`` this metamodel reads, physical units, float32: those it does not
+        read are dropped; the temperature before the week is added as unknown where ``x`` lacks it, and where it
+        is unknown (NaN) the model reads the channel's training mean (written into ``x`` itself when
+        ``in_place`` and ``x`` already has the model's channels, saving a copy)."""
+        wanted = self.checkpoint.inputs
+        if not self.uses_temperature_before:
+            return np.ascontiguousarray(x[..., :wanted], dtype=np.float32)
+        if in_place and x.shape[-1] == wanted and x.dtype == np.float32 and x.flags.c_contiguous:
+            full = x
+        else:
+            full = np.empty(x.shape[:-1] + (wanted,), dtype=np.float32)
+            full[..., :x.shape[-1]] = x
+        if x.shape[-1] < wanted:
+            set_temperature_before(full, None)
+        value = full[..., len(INPUT_CHANNELS)]
+        value[np.isnan(value)] = self.checkpoint.input_norm.mean[len(INPUT_CHANNELS)]
+        return full
 
 
 def load_metamodel(path: str | Path | None = None) -> Surrogate:
@@ -320,8 +406,9 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
         raise CheckpointError(f"metamodel checkpoint not found: {path}")
     ck = load_checkpoint(path)
     try:
-        expected = metadata(ck.metadata.get("context_hours", CONTEXT_HOURS),
-                            GROUND_CHANNEL in ck.metadata.get("input_channels", ()))
+        channels = ck.metadata.get("input_channels", ())
+        expected = metadata(ck.metadata.get("context_hours", CONTEXT_HOURS), GROUND_CHANNEL in channels,
+                            TEMPERATURE_BEFORE_CHANNELS[0] in channels)
     except CheckpointError as exc:
         raise CheckpointError(f"{path}: {exc}") from None
     for key, value in expected.items():

@@ -27,14 +27,32 @@ def standardised_tensors(x: np.ndarray, y: np.ndarray, ck):
 
     pad = np.zeros((len(y), sg.context_of(x), y.shape[-1]), np.float32)
     y_full = np.concatenate([pad, ck.output_norm.transform(y)], axis=1)
-    return torch.from_numpy(ck.input_norm.transform(x)), torch.from_numpy(y_full)
+    z = ck.input_norm.transform(x)
+    if x.shape[-1] == len(sg.ALL_CHANNELS):  # an unknown temperature before the week reads as its mean
+        value = z[..., len(sg.INPUT_CHANNELS)]
+        value[np.isnan(value)] = 0.0
+    return torch.from_numpy(z), torch.from_numpy(y_full)
+
+
+#: Share of the training and validation weeks whose temperature before the week is hidden (a seeded draw), so
+#: that a metamodel trained with it still predicts weeks before which nothing was measured
+TEMPERATURE_BEFORE_HIDDEN = 0.25
+
+
+def hide_temperature_before(x: np.ndarray, share: float, seed: int) -> np.ndarray:
+    """Mark the temperature before the week unknown on a seeded random ``share`` of the weeks of inputs ``x``
+    ``(N, context + 168, len(ALL_CHANNELS))`` (in place, returned)."""
+    hidden = np.random.default_rng(seed).random(len(x)) < share
+    x[hidden, :, len(sg.INPUT_CHANNELS)] = np.nan
+    x[hidden, :, len(sg.INPUT_CHANNELS) + 1] = 0.0
+    return x
 
 
 def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = "weather_weeks",
                     max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
                     holdout_climates: list[str] | None = None, progress: bool = True,
                     context_hours: int = sg.CONTEXT_HOURS, init: str | Path | None = None,
-                    ground_temperature: bool = True, **train_options) -> dict:
+                    ground_temperature: bool = True, temperature_before: bool = False, **train_options) -> dict:
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
@@ -53,9 +71,14 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
             configuration, trained with the same split kind, split seed and held-out climates, so that the
             test weeks of ``data`` stay unseen when ``data`` covers the same weather files. A checkpoint made
             before the ground temperature was an input gets it, with zero weights (it starts out computing
-            what it did) and the channel's statistics from this training split.
+            what it did) and the channel's statistics from this training split; so does one made without the
+            temperature before the week when ``temperature_before`` asks for it.
         ground_temperature: give the model the ground temperature under the slab (:mod:`buildenv.surrogate`);
             ``False`` trains on the other channels only, as checkpoints made before it existed.
+        temperature_before: give the model the indoor temperature measured over the context hours (the
+            previous week's simulated ``T_INT_OFFICE``; :data:`buildenv.surrogate.TEMPERATURE_BEFORE_CHANNELS`),
+            hidden on a seeded :data:`TEMPERATURE_BEFORE_HIDDEN` share of the training and validation weeks and
+            unknown on a run's first week. Needs the ground temperature.
         train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
     Returns:
         ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
@@ -67,7 +90,8 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
     from metamodels.normalisation import Standardiser
     from metamodels.train import TrainConfig, fit
 
-    channels = slice(None) if ground_temperature else slice(0, len(sg.NO_GROUND_CHANNELS))
+    wanted = sg.input_channels(ground_temperature, temperature_before)
+    channels = slice(0, len(wanted))
     started = time.perf_counter()
     ctx = sg.check_context_hours(context_hours)
     last = Path(out).with_name(Path(out).name + ".last")
@@ -81,23 +105,31 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         if (sg.GROUND_CHANNEL in was.get("input_channels", ())) != ground_temperature:
             raise BuildenvError(f"{last} was trained {'with' if not ground_temperature else 'without'} the ground "
                                 "temperature: rerun as it was to resume it, or remove it to start over")
+        if (sg.TEMPERATURE_BEFORE_CHANNELS[0] in was.get("input_channels", ())) != temperature_before:
+            raise BuildenvError(f"{last} was trained {'with' if not temperature_before else 'without'} the "
+                                "temperature before the week: rerun as it was to resume it, or remove it to start over")
     with open_dataset(data) as ds:
         parts = training_split(ds, split, seed, holdout_climates, max_weeks)
         ds_zoning = ds.zoning
         train_idx = parts["train"]
-        x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx)
-        x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx)
+        x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx, temperature_before=temperature_before)
+        x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx, temperature_before=temperature_before)
+        if temperature_before:
+            hide_temperature_before(x_tr, TEMPERATURE_BEFORE_HIDDEN, seed)
+            hide_temperature_before(x_va, TEMPERATURE_BEFORE_HIDDEN, seed + 1)
         for name, y in (("training", y_tr), ("validation", y_va)):
             missing = ~np.isfinite(y).all(axis=(1, 2))
             if missing.any():
                 raise BuildenvError(f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that "
                                     "are not finite (NaN or inf): the dataset lacks them or is damaged; simulate it "
                                     "again or train on a subset that has them (--max-weeks of a carried pack)")
-        x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx)
-        apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx) if holdout_climates else None
+        x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx, temperature_before=temperature_before)
+        apart = (sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx,
+                                   temperature_before=temperature_before) if holdout_climates else None)
     torch.manual_seed(seed)
     config = dict(model_config or {})
-    metadata = {**sg.metadata(ctx, ground_temperature), "dataset": str(Path(data).resolve()), "split": split,
+    metadata = {**sg.metadata(ctx, ground_temperature, temperature_before), "dataset": str(Path(data).resolve()),
+                "split": split,
                 "split_seed": seed, "holdout_climates": list(holdout_climates or []),
                 "train_weeks": int(len(train_idx)), "zoning": ds_zoning}
     if init is not None:
@@ -106,11 +138,14 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
                                         "train_weeks": start.metadata.get("train_weeks"),
                                         "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS)}
         ck = Checkpoint(model, dict(start.config), start.model, start.input_norm, start.output_norm, metadata)
-        if ground_temperature and sg.GROUND_CHANNEL not in start.metadata.get("input_channels", ()):
-            ck = _with_ground(ck, x_tr)
-            metadata["initialised_from"]["added_inputs"] = [sg.GROUND_CHANNEL]
-        elif not ground_temperature and sg.GROUND_CHANNEL in start.metadata.get("input_channels", ()):
+        had = tuple(start.metadata.get("input_channels", sg.NO_GROUND_CHANNELS))
+        if sg.GROUND_CHANNEL in had and not ground_temperature:
             raise BuildenvError(f"--init {init} reads the ground temperature: leave --no-ground-temperature out")
+        if sg.TEMPERATURE_BEFORE_CHANNELS[0] in had and not temperature_before:
+            raise BuildenvError(f"--init {init} reads the temperature before the week: pass --temperature-before")
+        if len(wanted) > len(had):
+            ck = _with_inputs(ck, x_tr[..., channels], len(had))
+            metadata["initialised_from"]["added_inputs"] = list(wanted[len(had):])
     else:
         net = build(model, x_tr[..., channels].shape[-1], y_tr.shape[-1], **config)
         ck = Checkpoint(model, config, net, Standardiser.fit(x_tr[..., channels]), Standardiser.fit(y_tr), metadata)
@@ -129,17 +164,18 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
             "fit": {k: v for k, v in history.items() if k != "history"}, "test": test, **extra}
 
 
-def _with_ground(ck, x_tr: np.ndarray):
-    """Checkpoint ``ck`` (made without the ground temperature) given it as one more input: zero weights,
-    standardised with its mean and deviation over the training inputs ``x_tr``."""
+def _with_inputs(ck, x_tr: np.ndarray, had: int):
+    """Checkpoint ``ck`` (which reads the first ``had`` channels) given the other channels of the training inputs
+    ``x_tr`` as more inputs: zero weights (it starts out computing what it did), standardised with their mean
+    and deviation over ``x_tr`` (known values only)."""
     from metamodels.checkpoint import Checkpoint
     from metamodels.models import with_more_inputs
     from metamodels.normalisation import Standardiser
 
-    ground = Standardiser.fit(x_tr[..., -1:])
-    norm = Standardiser(np.concatenate([ck.input_norm.mean, ground.mean]),
-                        np.concatenate([ck.input_norm.std, ground.std]))
-    net = with_more_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, 1)
+    added = Standardiser.fit(x_tr[..., had:])
+    norm = Standardiser(np.concatenate([ck.input_norm.mean, added.mean]),
+                        np.concatenate([ck.input_norm.std, added.std]))
+    net = with_more_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, x_tr.shape[-1] - had)
     return Checkpoint(ck.name, ck.config, net, norm, ck.output_norm, ck.metadata)
 
 
@@ -215,7 +251,8 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
             idx = checkpoint_split(ds, meta)["test"]
         else:
             idx = np.arange(len(ds))
-        x, y = sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours)
+        x, y = sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours,
+                                 temperature_before=surrogate.uses_temperature_before)
     result = score(surrogate, x, y)
     result["subset"] = subset if subset == "holdout_climate" or (subset == "test" and same) else "all"
     return result

@@ -23,13 +23,18 @@ class Standardiser:
 
     @classmethod
     def fit(cls, data: np.ndarray, min_std: float = 1e-6) -> Standardiser:
-        """Fit on ``data`` of shape ``(..., channels)`` (float64 accumulation; pass the training split only)."""
+        """Fit on ``data`` of shape ``(..., channels)`` (float64 accumulation; pass the training split only).
+
+        NaN values (an input unknown in some samples) are left out of their channel's statistics; a channel
+        with no value at all gets mean 0 and deviation 1."""
         flat = np.asarray(data).reshape(-1, data.shape[-1])
         rows = max(1, FIT_CHUNK_VALUES // flat.shape[1])  # two passes in float64 chunks: a bounded extra memory
         chunks = [slice(i, i + rows) for i in range(0, len(flat), rows)]
-        mean = sum(flat[c].sum(0, dtype=np.float64) for c in chunks) / len(flat)
-        var = sum(((flat[c] - mean) ** 2).sum(0) for c in chunks) / len(flat)
-        return cls(mean.astype(np.float32), np.maximum(np.sqrt(var), min_std).astype(np.float32))
+        count = sum((~np.isnan(flat[c])).sum(0) for c in chunks)
+        mean = sum(np.nansum(flat[c], 0, dtype=np.float64) for c in chunks) / np.maximum(count, 1)
+        var = sum(np.nansum((flat[c] - mean) ** 2, 0) for c in chunks) / np.maximum(count, 1)
+        std = np.where(count > 0, np.maximum(np.sqrt(var), min_std), 1.0)
+        return cls(mean.astype(np.float32), std.astype(np.float32))
 
     def transform(self, x: np.ndarray | torch.Tensor) -> np.ndarray | torch.Tensor:
         """Standardise (numpy or torch, any leading shape)."""

@@ -262,6 +262,69 @@ def test_a_checkpoint_without_the_ground_temperature_is_fine_tuned_with_it(tiny_
                         batch_size=4, progress=False)
 
 
+def test_a_metamodel_reads_the_temperature_measured_before_the_week(tiny_dataset, tmp_path):
+    """``--temperature-before``: the previous week's simulated indoor temperature over the context hours (unknown
+    on a run's first week), added to a checkpoint with zero weights, hidden on a share of the training weeks."""
+    from buildenv.dataset import open_dataset
+    from buildenv.training import hide_temperature_before
+
+    config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
+    base, tuned, scratch = tmp_path / "base.pt", tmp_path / "before.pt", tmp_path / "scratch.pt"
+    train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1,
+                    batch_size=4, progress=False, context_hours=48)
+    train_metamodel(tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False,
+                    init=base, lr=0.0, context_hours=48, temperature_before=True)
+    old, new = sg.load_metamodel(base), sg.load_metamodel(tuned)
+    assert not old.uses_temperature_before and new.uses_temperature_before
+    assert new.checkpoint.inputs == len(sg.ALL_CHANNELS)
+    assert new.checkpoint.metadata["initialised_from"]["added_inputs"] == list(sg.TEMPERATURE_BEFORE_CHANNELS)
+    value, known = len(sg.INPUT_CHANNELS), len(sg.INPUT_CHANNELS) + 1
+    t_out = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
+    with open_dataset(tiny_dataset) as ds:
+        previous = ds.previous_week()
+        x, _ = sg.encode_dataset(ds, np.arange(len(previous)), context_hours=48, temperature_before=True)
+        outputs = ds.outputs[:]
+        week = [a[:] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
+    first, later = previous < 0, previous >= 0
+    assert first.any() and later.any()
+    np.testing.assert_array_equal(x[later, :48, value], outputs[previous[later], -48:, t_out])
+    assert (x[later, :48, known] == 1).all() and (x[:, 48:, known] == 0).all() and (x[first, :, known] == 0).all()
+    assert np.isnan(x[first, :, value]).all() and np.isnan(x[:, 48:, value]).all()
+    # zero weights: the widened model predicts what it did, with the temperature or without it
+    without = x[..., :len(sg.INPUT_CHANNELS)]
+    np.testing.assert_allclose(new.predict_encoded(x), old.predict_encoded(without), rtol=0, atol=1e-4)
+    np.testing.assert_allclose(new.predict_encoded(without), old.predict_encoded(without), rtol=0, atol=1e-4)
+    np.testing.assert_array_equal(old.predict_encoded(x), old.predict_encoded(without))  # never read by it
+    ground = x[..., sg.INPUT_CHANNELS.index(sg.GROUND_CHANNEL)]
+    before = x[:, :48, value]
+    np.testing.assert_array_equal(new.predict(*week, ground_c=ground, temperature_before_c=before),
+                                  new.predict_encoded(sg.encode_weeks(*week, context_hours=48, ground_c=ground,
+                                                                      temperature_before_c=before)))
+    # trained from scratch with it: a quarter of the weeks hidden, every week predicted, evaluated the same way
+    result = train_metamodel(tiny_dataset, "transformer", scratch, split="random", model_config=config, epochs=1,
+                             batch_size=4, progress=False, context_hours=48, temperature_before=True)
+    assert np.isfinite(result["test"]["loss"])
+    assert evaluate_metamodel(scratch, tiny_dataset)["loss"] == pytest.approx(result["test"]["loss"], rel=1e-5)
+    assert np.isfinite(sg.load_metamodel(scratch).predict(*week, ground_c=ground)).all()
+    hidden = hide_temperature_before(x.copy(), 1.0, 0)
+    assert np.isnan(hidden[..., value]).all() and (hidden[..., known] == 0).all()
+    with pytest.raises(BuildenvError, match="pass --temperature-before"):
+        train_metamodel(tiny_dataset, "transformer", tmp_path / "back.pt", split="random", epochs=1, init=tuned,
+                        progress=False, context_hours=48)
+    with pytest.raises(BuildenvError, match="without the temperature before the week"):  # resumed another way
+        train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=2,
+                        batch_size=4, progress=False, context_hours=48, temperature_before=True)
+    with pytest.raises(sg.CheckpointError, match="ground temperature"):
+        sg.input_channels(ground=False, temperature_before=True)
+
+
+def test_standardiser_statistics_leave_unknown_values_out():
+    data = np.array([[1.0, np.nan, np.nan], [3.0, 5.0, np.nan], [5.0, 7.0, np.nan]], dtype=np.float32)
+    norm = Standardiser.fit(data)
+    np.testing.assert_allclose(norm.mean, [3.0, 6.0, 0.0])
+    np.testing.assert_allclose(norm.std, [np.sqrt(8 / 3), 1.0, 1.0], rtol=1e-6)
+
+
 def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, tmp_path):
     ckpt = tmp_path / "ctx48.pt"
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}

@@ -117,8 +117,10 @@ def rescore(data: str | Path, result: str | Path) -> dict:
     meta = surrogate.checkpoint.metadata
     with open_dataset(data) as ds:
         parts = checkpoint_split(ds, meta)
-        scores = {name: score(surrogate, *sg.encode_dataset(ds, parts[name], context_hours=surrogate.context_hours))
-                  for name in ("test", "holdout_climate") if name in parts}
+        encoded = {name: sg.encode_dataset(ds, parts[name], context_hours=surrogate.context_hours,
+                                           temperature_before=surrogate.uses_temperature_before)
+                   for name in ("test", "holdout_climate") if name in parts}
+        scores = {name: score(surrogate, *weeks) for name, weeks in encoded.items()}
     run.setdefault("scored_where_trained", {"test": run["test"], "holdout_climate": run.get("holdout_climate")})
     run["test"] = scores["test"]
     if "holdout_climate" in scores:

@@ -57,7 +57,8 @@ from buildenv.weather_morph import morph_source
 
 def _errors(surrogate: sg.Surrogate, ds, idx: np.ndarray) -> dict[str, np.ndarray]:
     """:func:`week_errors` of a model on dataset weeks ``idx``, encoded for it."""
-    return week_errors(surrogate, *sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours))
+    return week_errors(surrogate, *sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours,
+                                                        temperature_before=surrogate.uses_temperature_before))
 
 
 def week_errors(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, np.ndarray]:

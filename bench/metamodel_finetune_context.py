@@ -58,8 +58,10 @@ def _default_scores(data: str, init: str) -> tuple[dict, dict, int]:
                              f"{len(ds.weather_names) * cat.WEEKS_PER_YEAR}: its weather_weeks split would not be "
                              "the default's; simulate more weeks")
         parts = ds.split("weather_weeks", seed=0, holdout_climates=[HOLDOUT])
-        test = sg.encode_dataset(ds, parts["test"], context_hours=surrogate.context_hours)
-        apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=surrogate.context_hours)
+        test = sg.encode_dataset(ds, parts["test"], context_hours=surrogate.context_hours,
+                                  temperature_before=surrogate.uses_temperature_before)
+        apart = sg.encode_dataset(ds, parts["holdout_climate"], context_hours=surrogate.context_hours,
+                                  temperature_before=surrogate.uses_temperature_before)
     return score(surrogate, *test), score(surrogate, *apart), pairs
 
 

@@ -42,7 +42,8 @@ def fresh_scores(checkpoint: str, fresh: Path) -> dict[str, dict]:
     surrogate = sg.load_metamodel(None if checkpoint == "default" else checkpoint)
     unseen = surrogate.checkpoint.metadata.get("holdout_climates") or []
     with open_dataset(fresh) as ds:
-        x, y = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=surrogate.context_hours)
+        x, y = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=surrogate.context_hours,
+                                 temperature_before=surrogate.uses_temperature_before)
         climate = ds.weather_index[:]
         unseen_ids = [ds.weather_names.index(c) for c in unseen if c in ds.weather_names]
     out = {"fresh buildings": score(surrogate, x, y) | {"weeks": len(x)}}

@@ -39,7 +39,8 @@ def main() -> None:
     models = [sg.load_metamodel(path) for path in (args.a, args.b)]
     with open_dataset(args.data) as ds:
         test = checkpoint_split(ds, models[0].checkpoint.metadata)
-        losses = [week_losses(m, *sg.encode_dataset(ds, test["test"], context_hours=m.context_hours))
+        losses = [week_losses(m, *sg.encode_dataset(ds, test["test"], context_hours=m.context_hours,
+                                                    temperature_before=m.uses_temperature_before))
                   for m in models]
     diff = losses[0] - losses[1]
     rng = np.random.default_rng(args.seed)

@@ -10,8 +10,9 @@ the temperature before the week; the page probed the default of 2026-11-27, befo
 2. Two fine-tunes of it, same weeks, epochs, learning rate and seed: a control with the usual inputs,
    and one given two more channels, zero-initialised (:func:`metamodels.models.with_more_inputs`): the
    indoor temperature the previous week ended with over the context hours (``T_INT_OFFICE``, degC, the series a
-   site measures) and a flag that it is known (0 on the weeks that start a run, where it is filled with its
-   training mean). The extra channels exist only in this probe.
+   site measures) and a flag that it is known (0 on the weeks that start a run, where the model reads its
+   training mean): the channels of ``buildenv train --temperature-before``, encoded by
+   :func:`buildenv.surrogate.encode_dataset`, here with none hidden.
 
 Writes ``bench/results/{--name}.{md,json}``:
 
@@ -38,40 +39,14 @@ from buildenv.training import checkpoint_split, standardised_tensors
 
 RESULTS = Path(__file__).resolve().parent / "results"
 T = cat.OUTPUT_NAMES.index(cat.TEMPERATURE_OUTPUTS[0])
+PLAIN, KNOWN = len(sg.INPUT_CHANNELS), len(sg.INPUT_CHANNELS) + 1  # the usual channels; the known flag
 
 
-def encode(ds, idx: np.ndarray, previous: np.ndarray, ctx: int) -> dict:
-    """Encoded weeks ``idx`` with their true outputs, whether each continues a run, and the indoor temperature
-    (degC) of the previous week's last ``ctx`` hours (the week's own first hours where it starts a run)."""
-    x, y = sg.encode_dataset(ds, idx, context_hours=ctx)
-    has = previous[idx] >= 0
-    before = np.where(has, previous[idx], idx)
-    unique, back = np.unique(before, return_inverse=True)
-    t_before = ds.outputs[unique][back][:, -ctx:, T].astype(np.float32)
-    return {"x": x, "y": y, "continues": has, "t_before": t_before}
-
-
-def with_temperature_before(week: dict, fill_c: float) -> np.ndarray:
-    """Inputs with the two probe channels appended: the temperature before the week on the context hours where
-    known (``fill_c`` elsewhere) and the flag that it is known."""
-    x, has, ctx = week["x"], week["continues"], week["t_before"].shape[1]
-    extra = np.zeros(x.shape[:2] + (2,), np.float32)
-    extra[..., 0] = fill_c
-    extra[has, :ctx, 0] = week["t_before"][has]
-    extra[has, :ctx, 1] = 1.0
-    return np.concatenate([x, extra], axis=-1)
-
-
-def predict(ck, x: np.ndarray, ctx: int) -> np.ndarray:
-    """Physical outputs ``(N, 168, 8)`` of checkpoint ``ck`` on physical inputs ``x`` (any channel count)."""
-    import torch
-
-    from metamodels.normalisation import StandardisedModel
-
-    model = StandardisedModel(ck.model.eval(), ck.input_norm, ck.output_norm, ctx).eval()
-    with torch.inference_mode():
-        return np.concatenate([model(torch.from_numpy(np.ascontiguousarray(x[i:i + 256]))).numpy()
-                               for i in range(0, len(x), 256)])
+def encode(ds, idx: np.ndarray, ctx: int) -> dict:
+    """Encoded weeks ``idx`` with the temperature before the week (:func:`buildenv.surrogate.encode_dataset`), their
+    true outputs, and whether each continues a run (its temperature before the week is known)."""
+    x, y = sg.encode_dataset(ds, idx, context_hours=ctx, temperature_before=True)
+    return {"x": x, "y": y, "continues": x[:, 0, KNOWN] == 1}
 
 
 def day_errors(pred: np.ndarray, week: dict) -> dict:
@@ -121,25 +96,23 @@ def main() -> None:
     rng = np.random.default_rng(0)
     with open_dataset(args.data) as ds:
         parts = checkpoint_split(ds, ck.metadata)
-        previous = ds.previous_week()
         sizes = {"train": args.train_weeks, "val": args.test_weeks // 2, "test": args.test_weeks,
                  "holdout_climate": args.test_weeks // 2}
-        weeks = {k: encode(ds, np.sort(rng.choice(parts[k], min(n, len(parts[k])), replace=False)), previous, ctx)
+        weeks = {k: encode(ds, np.sort(rng.choice(parts[k], min(n, len(parts[k])), replace=False)), ctx)
                  for k, n in sizes.items()}
     scored = ("test", "holdout_climate")
     results = {"shipped default": {k: day_errors(default.predict_encoded(weeks[k]["x"]), weeks[k]) for k in scored}}
     train = weeks["train"]
-    known = train["t_before"][train["continues"]]
-    mean_c, std_c = float(known.mean()), float(known.std())
-    norm = Standardiser(np.concatenate([ck.input_norm.mean, [mean_c, 0.0]]).astype(np.float32),
-                        np.concatenate([ck.input_norm.std, [std_c, 1.0]]).astype(np.float32))
+    temperature = Standardiser.fit(train["x"][..., PLAIN:KNOWN])  # over the known hours; the flag stays 0 / 1
+    norm = Standardiser(np.concatenate([ck.input_norm.mean, temperature.mean, [0.0]]).astype(np.float32),
+                        np.concatenate([ck.input_norm.std, temperature.std, [1.0]]).astype(np.float32))
+    wide = with_more_inputs(copy.deepcopy(ck.model), ck.name, ck.config, ck.inputs, ck.outputs, 2)
     variants = {
         "control (same inputs)": (Checkpoint(ck.name, ck.config, copy.deepcopy(ck.model), ck.input_norm,
-                                             ck.output_norm, dict(ck.metadata)), lambda w: w["x"]),
+                                             ck.output_norm, dict(ck.metadata)), lambda w: w["x"][..., :PLAIN]),
         "with the temperature before the week": (
-            Checkpoint(ck.name, ck.config, with_more_inputs(copy.deepcopy(ck.model), ck.name, ck.config, ck.inputs,
-                                                            ck.outputs, 2), norm, ck.output_norm, dict(ck.metadata)),
-            lambda w: with_temperature_before(w, mean_c))}
+            Checkpoint(ck.name, ck.config, wide, norm, ck.output_norm,
+                       {**ck.metadata, "input_channels": list(sg.ALL_CHANNELS)}), lambda w: w["x"])}
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
@@ -154,10 +127,12 @@ def main() -> None:
         history = fit(model, *standardised_tensors(inputs(train), train["y"], model),
                       *standardised_tensors(inputs(weeks["val"]), weeks["val"]["y"], model), hour_mask, cfg, out)
         fits[label] = {k: history[k] for k in ("best_val_loss", "best_epoch", "epochs_run", "seconds")}
-        results[label] = {k: day_errors(predict(model, inputs(weeks[k]), ctx), weeks[k]) for k in scored}
+        results[label] = {k: day_errors(sg.Surrogate(model).predict_encoded(inputs(weeks[k])), weeks[k])
+                          for k in scored}
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": "python bench/context_temperature_probe.py "
-              f"--base {args.base} --data {args.data} --train-weeks {args.train_weeks} --epochs {args.epochs} --lr {args.lr:g} "
+              f"--base {args.base} --data {args.data} --train-weeks {args.train_weeks} --epochs {args.epochs} "
+              f"--lr {args.lr:g} "
               f"--test-weeks {args.test_weeks} --name {args.name}",
               "context_hours": ctx, "weeks": {k: len(w["y"]) for k, w in weeks.items()},
               "holdout_climates": ck.metadata.get("holdout_climates"), "fits": fits, "results": results,
@@ -180,7 +155,8 @@ def page(r: dict) -> str:
              "the previous week left; \"starting a run\": EnergyPlus warmed it up by repeating its first day, as "
              "the model's context shows it.", ""]
     for key, title in sets.items():
-        lines += [f"## {title}", "", "| model | weeks | days 1-7 | day 1 / days 2-7 | RMSE_T |", "|---|---|---|---|---|"]
+        lines += [f"## {title}", "", "| model | weeks | days 1-7 | day 1 / days 2-7 | RMSE_T |",
+                  "|---|---|---|---|---|"]
         for label, res in r["results"].items():
             for part in ("continuing a run", "starting a run"):
                 s = res[key][part]

@@ -43,8 +43,8 @@ COLUMNS = (("loss", "loss", 4), ("R2_T pooled", "r2_t_pooled", 4), ("R2_Q pooled
 
 
 def test_sets(data: str, fresh: str, meta: dict) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Encoded inputs (the models' context hours, every channel, the temperature before the week included) and
-    outputs of the three test sets."""
+    """Encoded inputs (the longest context of the models, every channel, the temperature before the week
+    included) and outputs of the three test sets."""
     sets = {}
     ctx = meta["context_hours"]
     with open_dataset(data) as ds:
@@ -55,6 +55,14 @@ def test_sets(data: str, fresh: str, meta: dict) -> dict[str, tuple[np.ndarray, 
         sets["fresh buildings"] = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=ctx,
                                                     temperature_before=True)
     return sets
+
+
+def own_inputs(x: np.ndarray, model: sg.Surrogate, given: bool) -> np.ndarray:
+    """Inputs encoded with the longest context, cut to ``model``'s context hours (the last hours before the week
+    are the same either way: the previous week's end, or the first day repeated), without the temperature
+    before the week unless ``given``."""
+    x = x[:, sg.context_of(x) - model.context_hours:]
+    return x if given else x[..., :len(sg.INPUT_CHANNELS)]
 
 
 def scored_variants(models: dict[str, sg.Surrogate]) -> dict[str, tuple[sg.Surrogate, bool]]:
@@ -79,10 +87,9 @@ def main() -> None:
     started = time.perf_counter()
     models = {label: sg.load_metamodel(path) for label, path in (m.split("=", 1) for m in args.model)}
     first = next(iter(models))
-    contexts = {m.context_hours for m in models.values()}
-    if len(contexts) != 1:
-        raise SystemExit(f"the models see different context hours ({sorted(contexts)}): compare like with like")
-    sets = test_sets(args.data, args.fresh, models[first].checkpoint.metadata)
+    longest = max(models.values(), key=lambda m: m.context_hours)
+    sets = test_sets(args.data, args.fresh, {**models[first].checkpoint.metadata,
+                                             "context_hours": longest.context_hours})
     command = f"bench/ground_default.py --data {args.data} --fresh {args.fresh} " + " ".join(
         f"--model {shlex.quote(m)}" for m in args.model) + f" --name {args.name} --title {shlex.quote(args.title)}"
     result = {"title": args.title, "date": time.strftime("%Y-%m-%d"), "machine": machine(), "command": command,
@@ -92,8 +99,7 @@ def main() -> None:
                          for label, m in models.items()}, "sets": {}}
     variants = scored_variants(models)
     for name, (x, y) in sets.items():
-        without = x[..., :len(sg.INPUT_CHANNELS)]
-        inputs = {label: x if given else without for label, (_, given) in variants.items()}
+        inputs = {label: own_inputs(x, m, given) for label, (m, given) in variants.items()}
         errors = {label: week_errors(m, inputs[label], y) for label, (m, _) in variants.items()}
         result["sets"][name] = {
             "weeks": int(len(x)),

@@ -64,12 +64,12 @@ def main() -> None:
     seeds = [int(v) for v in args.seeds.split(",")]
     chosen = {} if args.only_given_sites else sites(Path(args.out))
     chosen.update(dict(v.split("=", 1) for v in args.site))
+    loaded = {site_label: load_site(path) for site_label, path in chosen.items()}  # read once, every model fits them
     started, load = time.perf_counter(), os.getloadavg()[0]
     rows = []
     for label, checkpoint in models.items():
         surrogate = sg.load_metamodel(None if checkpoint == "default" else checkpoint)
-        for site_label, path in chosen.items():
-            site = load_site(path)
+        for site_label, site in loaded.items():
             effects = tuple(dict.fromkeys((site.effects if args.site_effects else ()) + tuple(args.effect)))
             for seed in seeds:
                 result = cal.calibrate_site(site, surrogate, seed=seed, save=False, effects=effects)

@@ -73,6 +73,8 @@ def main() -> None:
                         help="fit weeks: the first half, or every other week (buildenv.gap.split_weeks)")
     parser.add_argument("--weeks", type=int, default=WEEKS,
                         help="weeks each site measures (fit and held-out weeks: --split)")
+    parser.add_argument("--note", default="",
+                        help="a line for the page under its header, e.g. where cases resumed from --out were run")
     add_known_argument(parser)
     args = parser.parse_args()
     known = parse_known(args.known)
@@ -106,8 +108,8 @@ def main() -> None:
                + (f" --weeks {args.weeks}" if args.weeks != WEEKS else "")
                + (f" --split {args.split}" if args.split != DiagnosisSettings.split else ""))
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
-              "load_average_at_start": load, "command": command, "seconds_this_run": round(time.perf_counter()
-                                                                                          - started, 1), **result}
+              "load_average_at_start": load, "command": command, "note": args.note,
+              "seconds_this_run": round(time.perf_counter() - started, 1), **result}
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     labels = s["labels"]
@@ -124,7 +126,8 @@ def main() -> None:
              "diagnosed blind (`buildenv/gap_check.py` states the procedure).",
              f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
              "Building parameters every site declares known (fixed in calibration): "
-             + (", ".join(f"{k} = {v:g}" for k, v in known.items()) or "none") + ".", "",
+             + (", ".join(f"{k} = {v:g}" for k, v in known.items()) or "none") + ".",
+             *([args.note] if args.note else []), "",
              "| | value | target |", "|---|---|---|",
              f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
              f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",

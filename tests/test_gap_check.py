@@ -161,3 +161,43 @@ def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path)
     (tmp_path / "case_000" / "truth.json").write_text(json.dumps({"effects": [
         {"name": "heating_capacity_limit", "magnitude": 40.0, "details": {"design_capacity_kw": 395.5}}]}))
     assert _site(tmp_path, limit, alternate, inject=True) == tmp_path / "case_000"
+
+
+def test_the_gap_bound_counts_a_site_findable_when_any_of_its_records_left_a_gap(tmp_path):
+    """bench/gap_check_bound.py: two checks of the same plan and a third of another seed; a site is findable
+    when some record left a gap (> 0, or at least the naming bar)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "gap_check_bound.py"
+    spec = importlib.util.spec_from_file_location("gap_check_bound", path)
+    bound = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(bound)
+
+    def row(case, true, share, correct):
+        return {"case": case, "true": true, "start": "2019-10-07", "magnitude": 50.0, "named": true if correct
+                else "none", "correct": correct, "gap_left": {"share": share, "left": share >= 0.15}}
+
+    def page(seed, rows):
+        return {"date": "2026-11-27", "plan": {"seed": seed, "weeks": 8, "settings": {"split": "alternate",
+                                                                                          "min_gain": 0.15}},
+                "cases": rows + [{"case": 9, "true": "none", "start": "2019-10-07", "magnitude": None}]}
+
+    files = []
+    pages = {"a": page(0, [row(0, "solar_shading", -0.2, False), row(1, "wind_infiltration", 0.1, False)]),
+             "b": page(0, [row(0, "solar_shading", -0.05, False), row(1, "wind_infiltration", 0.2, True)]),
+             "b_first": page(0, [row(0, "solar_shading", -0.05, False)]),  # the first case of "b" again
+             "c": page(1, [row(0, "solar_shading", 0.3, True)])}
+    for name, content in pages.items():
+        files.append(tmp_path / f"{name}.json")
+        files[-1].write_text(json.dumps(content))
+    sites, checks = bound.collect(files)
+    effects = bound.by_effect(sites)
+    assert len(sites) == 3 and [c["effect_cases"] for c in checks] == [2, 2, 1, 1]
+    assert effects["solar_shading"] == {"sites": 2, "records": 3, "never_a_gap": 1, "never_over_bar": 1,
+                                        "named_in_a_record": 1, "median_best_share": 0.3}
+    assert effects["wind_infiltration"]["never_a_gap"] == 0 and effects["wind_infiltration"]["records"] == 2
+    summary = bound.reach(effects)
+    assert summary["effect_sites"] == 3
+    assert summary["share_with_a_gap"] == pytest.approx(2 / 3)
+    assert summary["share_over_the_bar"] == pytest.approx(2 / 3)

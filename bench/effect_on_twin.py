@@ -7,9 +7,9 @@ calibrated as the diagnosis calibrates them (:func:`buildenv.gap.base_fit`, the 
 injected effect is added and refitted (:func:`buildenv.gap.refit`, its control alongside), and the held-out gain
 is scored as the diagnosis scores it (the smaller of the gains against the control and against the refit with
 the effect taken out). A candidate that gains about as much on the twin as on the case finds something the
-clean building has too, and held-out attribution cannot tell the two apart. The building parameters that the
-base calibrations of case and twin put furthest apart (in shares of their ranges) show where an absorbed
-effect went.
+clean building has too, and held-out attribution cannot tell the two apart. The page also lists the building
+parameters that the base calibrations of case and twin put furthest apart (in shares of their ranges): where an
+absorbed effect went, or parameters the fit weeks barely constrain (the cooling power in a heating season).
 
     .venv/bin/python bench/effect_on_twin.py --out out/diagnose-check-seed0-tb-16 --seed 0 --cases 3 \\
         --name effect_on_twin
@@ -41,7 +41,8 @@ BASE_EFFECTS = ("night_cycle_cold_air", "evening_departure")
 
 
 def try_effect(site, effect: str, surrogate, settings: gap.DiagnosisSettings) -> dict:
-    """Base model of ``site`` and the ``effect`` candidate refitted on it, scored on the held-out weeks."""
+    """Base model of ``site`` and the ``effect`` candidate refitted on it, scored on the held-out weeks
+    (``baseline``: the model the gain was judged against, ``heldout_baseline`` its held-out metrics)."""
     ctx = gap._context(site, surrogate, gap.with_declared_effects(site, settings))
     base = gap.base_fit(ctx)
     ctx.sigma = gap.residual_sigma(ctx, base)
@@ -52,7 +53,8 @@ def try_effect(site, effect: str, surrogate, settings: gap.DiagnosisSettings) ->
                                gap.heldout_score(ctx, gap.without_new_effect(base, trial), trial, k))
     return {"theta": base.params[:len(cal.free_theta())], "base_cost": base.cost, "gain": score["gain"],
             "gain_vs_control": score["gain_vs_control"], "p_value": score["p_value"],
-            "estimate": trial.effect_parameters()[effect], "heldout_base": score["metrics_before"]}
+            "estimate": trial.effect_parameters()[effect], "baseline": score["baseline"],
+            "heldout_baseline": score["metrics_before"]}
 
 
 def moved_most(case_theta: np.ndarray, twin_theta: np.ndarray, site, n: int = 3) -> list[dict]:

@@ -79,21 +79,23 @@ def main() -> None:
     parser.add_argument("--split", default="alternate")
     parser.add_argument("--name", default="effect_on_twin", help="stem of the result files")
     args = parser.parse_args()
-    settings = gap.DiagnosisSettings(evaluations=1500, base_restarts=3, split=args.split, base_effects=BASE_EFFECTS,
-                                     max_effects=2)
+    settings = gap.DiagnosisSettings(evaluations=1500, base_restarts=3, split=args.split, base_effects=BASE_EFFECTS)
     stand_in = StandIn(weeks=args.weeks, split=args.split)
     plan = plan_cases(args.plan_cases, args.seed, BASE_EFFECTS, None, args.weeks)
+    numbers = [int(c) for c in args.cases.split(",")]
+    for number in numbers:  # every case checked before any is run
+        if not 0 <= number < len(plan):
+            raise SystemExit(f"effect_on_twin: --cases {number}: the plan has cases 0-{len(plan) - 1}")
+        effect = get_effect(plan[number]["true"]) if plan[number]["true"] != NONE else None
+        if effect is None or effect.building_parameter or effect.name == gap.HOLIDAYS:
+            raise SystemExit(f"effect_on_twin: case {number} of seed {args.seed}: "
+                             + ("no effect injected" if effect is None else f"{effect.name} is not refitted by the "
+                                "diagnosis (carried by a building parameter, or detected day by day)"))
     surrogate = load_metamodel()
     record_path = RESULTS / f"{args.name}.json"
     rows = json.loads(record_path.read_text())["rows"] if record_path.is_file() else []
-    for number in (int(c) for c in args.cases.split(",")):
+    for number in numbers:
         case = plan[number]
-        if case["true"] == NONE:
-            raise SystemExit(f"effect_on_twin: case {number} of seed {args.seed} has no effect injected")
-        effect = get_effect(case["true"])
-        if effect.building_parameter or effect.name == gap.HOLIDAYS:
-            raise SystemExit(f"effect_on_twin: case {number} of seed {args.seed}: {effect.name} is not refitted "
-                             "by the diagnosis (carried by a building parameter, or detected day by day)")
         started = time.perf_counter()
         sites = {side: load_site(_site(Path(args.out), case, stand_in, inject=side == "case"))
                  for side in ("case", "twin")}
@@ -106,11 +108,12 @@ def main() -> None:
         rows = [r for r in rows if (r["seed"], r["case"]) != (args.seed, number)] + [row]
         sides = {s: (round(row[s]["gain"], 3), row[s]["estimate"]) for s in ("on_case", "on_twin")}
         print(json.dumps({k: row[k] for k in ("seed", "case", "effect")} | sides), flush=True)
-    rows.sort(key=lambda r: (r["seed"], r["case"]))
-    record_path.write_text(json.dumps({"date": time.strftime("%Y-%m-%d"), "machine": platform.platform(),
-                                       "settings": {"evaluations": 1500, "base_restarts": 3, "split": args.split,
-                                                    "weeks": args.weeks, "base_effects": list(BASE_EFFECTS)},
-                                       "rows": rows}, indent=1, default=float) + "\n")
+        rows.sort(key=lambda r: (r["seed"], r["case"]))
+        record_path.write_text(json.dumps(  # after every case, so that a stopped run keeps the cases it finished
+            {"date": time.strftime("%Y-%m-%d"), "machine": platform.platform(),
+             "settings": {"evaluations": settings.evaluations, "base_restarts": settings.base_restarts,
+                          "split": settings.split, "weeks": args.weeks, "base_effects": list(settings.base_effects)},
+             "rows": rows}, indent=1, default=float) + "\n")
     lines = [f"# An injected effect's candidate on its blind case and on the clean twin ({time.strftime('%Y-%m-%d')})",
              "", f"{platform.platform()}; `python bench/effect_on_twin.py --out DIR --seed S --cases N[,N...] --name "
              f"{args.name}` once per seed (the blind checks' sites, gap_check_tb_seed*). Gain: share of the held-out "

@@ -58,7 +58,7 @@ def collect(paths: list[Path]) -> tuple[dict, list[dict]]:
             records = sites[site_key(page, r)]
             if any(x["share"] == r["gap_left"]["share"] and x["named"] == r["named"] for x in records):
                 continue  # the same diagnosis on a page that holds the first cases of a longer check
-            records.append({"file": path.name, "share": r["gap_left"]["share"], "named": r["named"],
+            records.append({"share": r["gap_left"]["share"], "named": r["named"],
                             "correct": bool(r["correct"]), "bar": bar})
         files.append({"file": path.name, "date": page.get("date"), "command": page.get("command", ""),
                       "effect_cases": len(rows), "left": sum(r["gap_left"]["share"] >= bar for r in rows),

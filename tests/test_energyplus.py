@@ -187,3 +187,25 @@ def test_campaign_run_whose_thermostat_alternates_in_warmup_still_simulates():
     out = simulate_weeks(task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week,
                          zoning=task.zoning).outputs
     assert np.isfinite(out).all() and 18.0 < out[..., OUT["T_INT_OFFICE"]].mean() < 30.0
+
+
+def test_the_wind_probe_adds_its_infiltration_to_the_shoebox(monkeypatch):
+    """bench/wind_response.py: its second infiltration object changes nothing at zero, and at 0.03 air changes
+    per hour per m/s raises the heat consumption, hourly with the wind and as a constant level alike."""
+    import importlib.util
+    from pathlib import Path
+
+    bench = Path(__file__).resolve().parents[1] / "bench"
+    monkeypatch.syspath_prepend(str(bench))
+    spec = importlib.util.spec_from_file_location("wind_response", bench / "wind_response.py")
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    q = [OUT[n] for n in cat.HEAT_CONSUMPTION_OUTPUTS]
+    still = probe.energyplus_runs(DEFAULT_THETA, "usa_il_chicago", 44, 2, k=0.0)
+    np.testing.assert_allclose(still["wind"], still["base"], atol=1e-6)
+    np.testing.assert_allclose(still["level"], still["base"], atol=1e-6)
+    runs = probe.energyplus_runs(DEFAULT_THETA, "usa_il_chicago", 44, 2, k=0.03)
+    base, wind, level = (runs[v][..., q].sum() for v in ("base", "wind", "level"))
+    assert wind > 1.02 * base and level > 1.02 * base
+    assert 0.02 < float(runs["level_ach"]) < 0.03 * 15  # the mean of 0.03 x share x a November wind (m/s)
+    assert not np.allclose(runs["wind"], runs["level"])

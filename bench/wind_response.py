@@ -84,7 +84,8 @@ def _with_infiltration(ach: float, schedule: str, csv: Path | None):
         objects = model["ZoneInfiltration:DesignFlowRate"]
         (name, base), = objects.items()
         volume = shoebox.Geometry.from_theta(shoebox.theta_dict(theta, check)).volume_m3
-        objects[f"{name} added"] = {**base, "schedule_name": schedule, "design_flow_rate": round(ach * volume / 3600, 6)}
+        flow_m3_s = round(ach * volume / 3600.0, 6)
+        objects[f"{name} added"] = {**base, "schedule_name": schedule, "design_flow_rate": flow_m3_s}
         if csv is not None:
             model["Schedule:File"][schedule] = {**model["Schedule:File"]["occupancy_fraction"],
                                                 "file_name": str(csv.resolve()), "column_number": 1}

@@ -184,6 +184,9 @@ def main() -> None:
     model = sg.load_metamodel(args.checkpoint)
     thetas = sample_group("theta_build", args.buildings, np.random.default_rng(args.seed))
     starts = [int(s) for s in args.starts.split(",")]
+    if args.weeks < 2 or any(s < 0 or s + args.weeks > cat.WEEKS_PER_YEAR for s in starts):
+        raise SystemExit(f"wind_response: --starts {args.starts} --weeks {args.weeks}: every run needs at least 2 "
+                         f"weeks, all within weeks 0-{cat.WEEKS_PER_YEAR - 1} of the year")
     rows = []
     for i in tqdm(range(args.buildings), desc="buildings"):
         start = starts[i % len(starts)]

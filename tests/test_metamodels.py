@@ -562,3 +562,24 @@ def test_attention_paths_agree():
         finally:
             mm.DENSE_MATMUL_MAX_TOKENS = old
     torch.testing.assert_close(fused, explicit, rtol=1e-4, atol=1e-5)
+
+
+def test_the_first_day_probe_scores_a_linear_dependence_and_no_dependence(monkeypatch):
+    """bench/first_day_memory.py: its cross-validated R2 finds a linear dependence and none in noise; its day
+    RMSEs put Monday first."""
+    import importlib.util
+    from pathlib import Path
+
+    bench = Path(__file__).resolve().parents[1] / "bench"
+    monkeypatch.syspath_prepend(str(bench))
+    spec = importlib.util.spec_from_file_location("first_day_memory", bench / "first_day_memory.py")
+    probe = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(probe)
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(2000, 2))
+    assert probe.cv_r2(x, 2.0 * x[:, 0] + 0.1 * rng.normal(size=2000)) > 0.99
+    assert abs(probe.cv_r2(x, rng.normal(size=2000))) < 0.01
+    residual = np.full((3, 168), 0.1)
+    residual[:, :24] = 0.2
+    daily = probe.by_day(residual)
+    assert daily[0] == pytest.approx(0.2) and probe.monday_over_rest(daily) == pytest.approx(2.0)

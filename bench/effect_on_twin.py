@@ -14,6 +14,10 @@ absorbed effect went, or parameters the fit weeks barely constrain (the cooling 
     .venv/bin/python bench/effect_on_twin.py --out out/diagnose-check-seed0-tb-16 --seed 0 --cases 3 \\
         --name effect_on_twin
 
+With ``--model-side`` an effect carried by a building parameter (a heating capacity limit, night plug loads) is
+taken too and refitted with its own model-side addition on top of the base calibration, as the diagnosis does
+for a site that declares that parameter known (otherwise it judges such an effect by pinning the parameter).
+
 ``--out`` must hold the sites ``case_NNN`` and ``case_NNN_twin`` of that seed's plan (they are made when
 missing, which runs EnergyPlus). Writes ``bench/results/<name>.{md,json}``; reruns add to the page.
 """
@@ -78,6 +82,10 @@ def main() -> None:
     parser.add_argument("--weeks", type=int, default=8)
     parser.add_argument("--split", default="alternate")
     parser.add_argument("--name", default="effect_on_twin", help="stem of the result files")
+    parser.add_argument("--model-side", action="store_true",
+                        help="also take effects carried by a building parameter (heating capacity limit, night plug "
+                        "loads), refitted with their own model-side addition on top of the base calibration, as "
+                        "for a site that declares that parameter known")
     args = parser.parse_args()
     settings = gap.DiagnosisSettings(evaluations=1500, base_restarts=3, split=args.split, base_effects=BASE_EFFECTS)
     stand_in = StandIn(weeks=args.weeks, split=args.split)
@@ -87,10 +95,10 @@ def main() -> None:
         if not 0 <= number < len(plan):
             raise SystemExit(f"effect_on_twin: --cases {number}: the plan has cases 0-{len(plan) - 1}")
         effect = get_effect(plan[number]["true"]) if plan[number]["true"] != NONE else None
-        if effect is None or effect.building_parameter or effect.name == gap.HOLIDAYS:
+        if effect is None or (effect.building_parameter and not args.model_side) or effect.name == gap.HOLIDAYS:
             raise SystemExit(f"effect_on_twin: case {number} of seed {args.seed}: "
                              + ("no effect injected" if effect is None else f"{effect.name} is not refitted by the "
-                                "diagnosis (carried by a building parameter, or detected day by day)"))
+                                "diagnosis (carried by a building parameter: --model-side; or detected day by day)"))
     surrogate = load_metamodel()
     record_path = RESULTS / f"{args.name}.json"
     rows = json.loads(record_path.read_text())["rows"] if record_path.is_file() else []
@@ -102,6 +110,7 @@ def main() -> None:
         tried = {f"on_{side}": try_effect(site, case["true"], surrogate, settings) for side, site in sites.items()}
         row = {"seed": args.seed, "case": number, "effect": case["true"], "magnitude": case["magnitude"],
                "start": case["start"], "seconds": round(time.perf_counter() - started, 1),
+               "model_side": bool(get_effect(case["true"]).building_parameter),
                "moved_most": moved_most(tried["on_case"]["theta"], tried["on_twin"]["theta"], sites["case"])}
         for side, t in tried.items():
             row[side] = {k: v for k, v in t.items() if k != "theta"}

@@ -125,7 +125,7 @@ def main() -> None:
              "rows": rows}, indent=1, default=float) + "\n")
     lines = [f"# An injected effect's candidate on its blind case and on the clean twin ({time.strftime('%Y-%m-%d')})",
              "", f"{platform.platform()}; `python bench/effect_on_twin.py --out DIR --seed S --cases N[,N...] --name "
-             f"{args.name}` once per seed (the blind checks' sites, gap_check_tb_seed*). Gain: share of the held-out "
+             f"{args.name}{' --model-side' if args.model_side else ''}` once per seed (the blind checks' sites, gap_check_tb_seed*). Gain: share of the held-out "
              "standardised squared error the candidate removes, scored as the diagnosis scores it; the bar to name "
              f"an effect is {settings.min_gain:.0%}. `bench/effect_on_twin.py` states the method.", "",
              "| seed | case | effect | magnitude | first Monday | gain on the case | estimate | gain on the twin | "

@@ -65,14 +65,48 @@ def day_errors(pred: np.ndarray, week: dict) -> dict:
     return out
 
 
-def main() -> None:
-    """Measure, fine-tune both variants, score them, write the page."""
+def fine_tune(model, inputs, train: dict, val: dict, epochs: int, lr: float, out: Path) -> dict:
+    """Fine-tune checkpoint ``model`` (in place) on the encoded weeks ``train`` (:func:`encode`), early-stopped on
+    ``val``, reading the channels ``inputs(week)`` gives: batches of 256, seed 0, no early stop before ``epochs``;
+    the best epoch is written to ``out`` (any earlier file there is replaced). Returns the training history."""
     import torch
 
+    from metamodels.train import TrainConfig, fit
+
+    torch.manual_seed(0)
+    cfg = TrainConfig(epochs=epochs, batch_size=256, lr=lr, patience=epochs, seed=0,
+                      temperature_channels=sg.TEMPERATURE_CHANNELS, consumption_channels=sg.CONSUMPTION_CHANNELS)
+    for stale in (out, out.with_name(out.name + ".last")):
+        stale.unlink(missing_ok=True)
+    hour_mask = torch.tensor([False] * sg.context_of(train["x"]) + [True] * cat.HOURS_PER_WEEK)
+    return fit(model, *standardised_tensors(inputs(train), train["y"], model),
+               *standardised_tensors(inputs(val), val["y"], model), hour_mask, cfg, out)
+
+
+def day_table(title: str, results: dict, key: str) -> list[str]:
+    """Markdown lines of one test set ``key``: each model's RMSE_T by day (:func:`day_errors`), weeks continuing
+    a run and weeks starting one."""
+    lines = [f"## {title}", "", "| model | weeks | days 1-7 | day 1 / days 2-7 | RMSE_T |", "|---|---|---|---|---|"]
+    for label, res in results.items():
+        for part in ("continuing a run", "starting a run"):
+            s = res[key][part]
+            days = " ".join(f"{d:.3f}" for d in s["rmse_t_by_day"])
+            lines.append(f"| {label}, {part} | {s['weeks']:,} | {days} | {s['day1_ratio']:.2f} | {s['rmse_t']:.4f} |")
+    return lines
+
+
+def fit_lines(fits: dict, start: str) -> list[str]:
+    """Markdown lines of the fine-tunes' records (best validation loss, its epoch, epochs run, seconds)."""
+    return [f"Fine-tunes from {start} (best validation loss, its epoch, epochs run, seconds):", ""] + [
+        f"- {label}: {f['best_val_loss']:.5f}, epoch {f['best_epoch']}, {f['epochs_run']} epochs, "
+        f"{f['seconds']:.0f} s" for label, f in fits.items()]
+
+
+def main() -> None:
+    """Measure, fine-tune both variants, score them, write the page."""
     from metamodels.checkpoint import Checkpoint
     from metamodels.models import with_more_inputs
     from metamodels.normalisation import Standardiser
-    from metamodels.train import TrainConfig, fit
 
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--data", default="data/campaign-cp-160000-r13")
@@ -113,19 +147,11 @@ def main() -> None:
         "with the temperature before the week": (
             Checkpoint(ck.name, ck.config, wide, norm, ck.output_norm,
                        {**ck.metadata, "input_channels": list(sg.ALL_CHANNELS)}), lambda w: w["x"])}
-    hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     fits = {}
     for i, (label, (model, inputs)) in enumerate(variants.items()):
-        torch.manual_seed(0)
-        cfg = TrainConfig(epochs=args.epochs, batch_size=256, lr=args.lr, patience=args.epochs, seed=0,
-                          temperature_channels=sg.TEMPERATURE_CHANNELS, consumption_channels=sg.CONSUMPTION_CHANNELS)
-        out = work / f"variant{i}.pt"
-        for stale in (out, out.with_name(out.name + ".last")):
-            stale.unlink(missing_ok=True)
-        history = fit(model, *standardised_tensors(inputs(train), train["y"], model),
-                      *standardised_tensors(inputs(weeks["val"]), weeks["val"]["y"], model), hour_mask, cfg, out)
+        history = fine_tune(model, inputs, train, weeks["val"], args.epochs, args.lr, work / f"variant{i}.pt")
         fits[label] = {k: history[k] for k in ("best_val_loss", "best_epoch", "epochs_run", "seconds")}
         results[label] = {k: day_errors(sg.Surrogate(model).predict_encoded(inputs(weeks[k])), weeks[k])
                           for k in scored}
@@ -155,21 +181,13 @@ def page(r: dict) -> str:
              "the previous week left; \"starting a run\": EnergyPlus warmed it up by repeating its first day, as "
              "the model's context shows it.", ""]
     for key, title in sets.items():
-        lines += [f"## {title}", "", "| model | weeks | days 1-7 | day 1 / days 2-7 | RMSE_T |",
-                  "|---|---|---|---|---|"]
-        for label, res in r["results"].items():
-            for part in ("continuing a run", "starting a run"):
-                s = res[key][part]
-                lines.append(f"| {label}, {part} | {s['weeks']:,} | {' '.join(f'{d:.3f}' for d in s['rmse_t_by_day'])} "
-                             f"| {s['day1_ratio']:.2f} | {s['rmse_t']:.4f} |")
+        lines += day_table(title, r["results"], key)
         lines.append("")
         lines += ["Monday's RMSE_T by hour (0-23 h), weeks continuing a run:", ""]
         lines += [f"- {label}: {' '.join(f'{v:.2f}' for v in res[key]['day1_by_hour_continuing'])}"
                   for label, res in r["results"].items()]
         lines.append("")
-    lines += ["Fine-tunes from the shipped default (best validation loss, its epoch, epochs run, seconds):", ""]
-    lines += [f"- {label}: {f['best_val_loss']:.5f}, epoch {f['best_epoch']}, {f['epochs_run']} epochs, "
-              f"{f['seconds']:.0f} s" for label, f in r["fits"].items()]
+    lines += fit_lines(r["fits"], "the shipped default")
     return "\n".join(lines) + "\n"
 
 

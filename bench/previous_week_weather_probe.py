@@ -27,23 +27,23 @@ from pathlib import Path
 
 import numpy as np
 from _training_runs import RESULTS, machine
-from context_temperature_probe import day_errors, encode
+from context_temperature_probe import day_errors, day_table, encode, fine_tune, fit_lines
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
 from buildenv.dataset import open_dataset
-from buildenv.training import checkpoint_split, standardised_tensors
+from buildenv.training import checkpoint_split
 
 CHANNEL = "outdoor_mean_previous_week_c"
 TAMB = cat.WEATHER_NAMES.index("TAMB")
 TEMPERATURE_BEFORE = len(sg.INPUT_CHANNELS)
 
 
-def previous_week_outdoor_c(ds, idx: np.ndarray) -> np.ndarray:
-    """``(len(idx),)`` mean outdoor temperature (degC) of the 168 hours before each week ``idx`` of a campaign; the
-    week's first day's on a week that starts a run (EnergyPlus's warm-up repeats it)."""
+def previous_week_outdoor_c(ds, idx: np.ndarray, tamb: np.ndarray) -> np.ndarray:
+    """``(len(idx),)`` mean outdoor temperature (degC) of the 168 hours before each week ``idx`` of a campaign whose
+    hourly outdoor temperatures are ``tamb`` ``(weeks, 168)``; the week's first day's on a week that starts a run
+    (EnergyPlus's warm-up repeats it)."""
     previous = ds.previous_week()[idx]
-    tamb = ds.weather[:][..., TAMB].astype(np.float64)
     return np.where(previous >= 0, tamb[np.maximum(previous, 0)].mean(1),
                     tamb[idx][:, :cat.HOURS_PER_DAY].mean(1)).astype(np.float32)
 
@@ -77,12 +77,9 @@ def fit_record(log: Path) -> dict:
 
 def main() -> None:
     """Fine-tune both variants, score them, write the page."""
-    import torch
-
     from metamodels.checkpoint import Checkpoint, load_checkpoint
     from metamodels.models import with_more_inputs
     from metamodels.normalisation import Standardiser
-    from metamodels.train import TrainConfig, fit
 
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--data", required=True, help="a campaign with weeks cut from longer runs")
@@ -101,7 +98,9 @@ def main() -> None:
     ck, ctx = base.checkpoint, base.context_hours
     with open_dataset(args.data) as ds:
         parts = checkpoint_split(ds, ck.metadata)
-        weeks = {k: with_channel(encode(ds, np.sort(parts[k]), ctx), previous_week_outdoor_c(ds, np.sort(parts[k])))
+        tamb = ds.weather[:][..., TAMB].astype(np.float64)  # read once, for every part
+        weeks = {k: with_channel(encode(ds, np.sort(parts[k]), ctx),
+                                 previous_week_outdoor_c(ds, np.sort(parts[k]), tamb))
                  for k in ("train", "val", "test", "holdout_climate")}
     for week in weeks.values():  # an unknown temperature before the week reads as its training mean
         value = week["x"][..., TEMPERATURE_BEFORE]
@@ -121,21 +120,13 @@ def main() -> None:
         "with the previous week's outdoor mean": (
             Checkpoint(ck.name, ck.config, wide, norm, ck.output_norm,
                        {**ck.metadata, "input_channels": channels + [CHANNEL]}), lambda w: w["x"])}
-    hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
     work = Path(args.work)
     work.mkdir(parents=True, exist_ok=True)
     fits = {}
     for i, (label, (model, inputs)) in enumerate(variants.items()):
         out = work / f"variant{i}.pt"
         if not args.reuse:
-            torch.manual_seed(0)
-            cfg = TrainConfig(epochs=args.epochs, batch_size=256, lr=args.lr, patience=args.epochs, seed=0,
-                              temperature_channels=sg.TEMPERATURE_CHANNELS,
-                              consumption_channels=sg.CONSUMPTION_CHANNELS)
-            for stale in (out, out.with_name(out.name + ".last")):
-                stale.unlink(missing_ok=True)
-            fit(model, *standardised_tensors(inputs(train), train["y"], model),
-                *standardised_tensors(inputs(weeks["val"]), weeks["val"]["y"], model), hour_mask, cfg, out)
+            fine_tune(model, inputs, train, weeks["val"], args.epochs, args.lr, out)
         model = load_checkpoint(out)  # its best epoch
         fits[label] = fit_record(out.with_name(out.name + ".csv"))
         results[label] = {k: day_errors(predict(model, inputs(weeks[k])), weeks[k]) for k in scored}
@@ -165,18 +156,8 @@ def page(r: dict) -> str:
              "RMSE_T, apart for weeks that continue an EnergyPlus run and weeks that start one "
              "(`bench/previous_week_weather_probe.py`).", ""]
     for key, title in sets.items():
-        lines += [f"## {title}", "", "| model | weeks | days 1-7 | day 1 / days 2-7 | RMSE_T |",
-                  "|---|---|---|---|---|"]
-        for label, res in r["results"].items():
-            for part in ("continuing a run", "starting a run"):
-                s = res[key][part]
-                days = " ".join(f"{d:.3f}" for d in s["rmse_t_by_day"])
-                lines.append(f"| {label}, {part} | {s['weeks']:,} | {days} | {s['day1_ratio']:.2f} | "
-                             f"{s['rmse_t']:.4f} |")
-        lines.append("")
-    lines += ["Fine-tunes from the base (best validation loss, its epoch, epochs run, seconds):", ""]
-    lines += [f"- {label}: {f['best_val_loss']:.5f}, epoch {f['best_epoch']}, {f['epochs_run']} epochs, "
-              f"{f['seconds']:.0f} s" for label, f in r["fits"].items()]
+        lines += day_table(title, r["results"], key) + [""]
+    lines += fit_lines(r["fits"], "the base")
     return "\n".join(lines) + "\n"
 
 

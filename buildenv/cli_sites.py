@@ -114,7 +114,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
-    from buildenv.calibration import at_bounds_note, calibrate_site
+    from buildenv.calibration import at_bounds_note, calibrate_site, runs_note
     from buildenv.calibration_plot import plot_calibration
     from buildenv.site import load_site
     from buildenv.surrogate import load_metamodel
@@ -127,9 +127,9 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     result["plot"] = str(plot_calibration(load_site(args.site), load_metamodel(args.checkpoint), result,
                                           Path(args.site) / "calibration.png"))
     print(json.dumps(result, indent=None if args.json else 2))
-    note = at_bounds_note(result)
-    if note:
-        print(note, file=sys.stderr)
+    for note in (at_bounds_note(result), runs_note(result)):
+        if note:
+            print(note, file=sys.stderr)
     return 0
 
 
@@ -182,7 +182,8 @@ def register(sub) -> None:
     p.add_argument("--method", default="cmaes", choices=["cmaes", "adam"])
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations (per run)")
     p.add_argument("--restarts", type=int, default=1,
-                   help="independent CMA-ES runs (seeds SEED, SEED+1, ...), the lowest cost kept")
+                   help="independent CMA-ES runs (seeds SEED, SEED+1, ...), the lowest cost kept; a note says "
+                        "when runs that fit alike predict the held-out weeks apart")
     p.add_argument("--effect", action="append", default=[], metavar="NAME",
                    help="an effect the building is known to have (repeatable; `buildenv effects` lists them), "
                         "e.g. night_cycle_cold_air for a VAV system with terminal reheat: its parameters are "

@@ -162,8 +162,35 @@ def test_restarts_keep_the_best_of_independent_runs(tmp_path, surrogate):
     assert len(info["run_costs"]) == 3 and info["run_costs"][0] == single["cost"]  # run 0 is the single run
     assert info["cost"] == min(info["run_costs"]) and info["evaluations"] >= 3 * 100
     assert cal.evaluate(problem, surrogate, best[None])[0] == pytest.approx(info["cost"], abs=1e-6)
+    runs = info["run_parameters"]
+    assert runs.shape == (3, problem.dim)
+    np.testing.assert_allclose(cal.evaluate(problem, surrogate, runs), info["run_costs"], atol=1e-6)
+    np.testing.assert_array_equal(runs[int(np.argmin(info["run_costs"]))], best)
     with pytest.raises(cal.CalibrationError, match="restarts must be at least 1"):
         cal.calibrate_cmaes(problem, surrogate, restarts=0)
+
+
+def test_a_calibration_with_restarts_scores_each_run_on_the_heldout_weeks(tmp_path, surrogate):
+    site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=2)
+    result = cal.calibrate_site(site, surrogate, seed=3, max_evaluations=150, restarts=2, save=False)
+    assert [r["seed"] for r in result["runs"]] == [3, 4] and min(r["cost"] for r in result["runs"]) == pytest.approx(
+        result["cost"], abs=1e-5)
+    best = min(result["runs"], key=lambda r: r["cost"])  # no effects: the kept run is the result's model
+    assert best["heldout_rmse_t_celsius"] == pytest.approx(result["heldout"]["rmse_t_celsius"], abs=1e-4)
+    assert "runs" not in cal.calibrate_site(site, surrogate, max_evaluations=150, save=False)
+
+
+def test_runs_that_fit_alike_but_predict_the_heldout_weeks_apart_are_noted():
+    def runs(*rows):
+        return {"runs": [{"seed": k, "cost": c, "heldout_rmse_t_celsius": e} for k, (c, e) in enumerate(rows)]}
+
+    note = cal.runs_note(runs((0.319, 1.32), (0.324, 1.21), (0.329, 0.61)))  # the October twin's three runs
+    assert "\n" not in note and note.startswith("note: 3 of 3 CMA-ES runs") and "RMSE_T 0.61 to 1.32 K" in note
+    assert cal.runs_note(runs((0.222, 0.57), (0.203, 0.54), (0.203, 0.54))) is None  # the default site's: agree
+    assert cal.runs_note(runs((0.20, 0.40), (0.30, 1.30))) is None  # the one that predicts apart fits worse
+    assert cal.runs_note(runs((0.20, 0.40), (0.209, 0.59))) is None  # under 1.5x apart
+    assert cal.runs_note(runs((0.20, 0.40), (0.209, 0.61))) is not None
+    assert cal.runs_note(runs((0.20, 0.40))) is None and cal.runs_note({}) is None
 
 
 def test_anchored_refit_stays_near_its_start_unless_the_fit_pays(tmp_path, surrogate):

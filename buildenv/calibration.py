@@ -355,7 +355,7 @@ def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, ma
         run_costs.append(float(es.result.fbest))
         run_parameters.append(problem.from_unit(np.asarray(es.result.xbest))[0])
         if es.result.fbest < best_cost:
-            best_cost, best = float(es.result.fbest), problem.from_unit(np.asarray(es.result.xbest))[0]
+            best_cost, best = float(es.result.fbest), run_parameters[-1]
     bar.close()
     if weights is not None:  # the plain cost of the point the anchored search chose
         best_cost = float(evaluate(problem, surrogate, best[None])[0])
@@ -498,15 +498,26 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
             result[key] = score_weeks(site, surrogate, ws, best, scale, effects)
             result[key]["seconds"], result[key]["evaluations"] = result["seconds"], result["evaluations"]
     if method == "cmaes" and restarts > 1 and heldout:
-        result["runs"] = [{"seed": seed + k, "cost": round(cost, 5),
-                           **{f"heldout_{m}": round(score_weeks(site, surrogate, heldout, params, scale)[m], 4)
-                              for m in ("rmse_t_celsius", "r2_t")}}
-                          for k, (cost, params) in enumerate(zip(info["run_costs"], run_parameters))]
+        result["runs"] = _score_runs(site, surrogate, heldout, info["run_costs"], run_parameters, scale, seed)
     if save:
         from buildenv.site import save_calibration
 
         save_calibration(site.path, result)
     return result
+
+
+def _score_runs(site, surrogate: sg.Surrogate, heldout: list[int], run_costs: list[float],
+                run_parameters: np.ndarray, scale: dict[str, tuple[float, float]], seed: int) -> list[dict]:
+    """``calibrate_site``'s ``runs``: each CMA-ES run's seed, cost and held-out RMSE_T (degC) and R2_T of its
+    parameters without the declared effects, the held-out weeks encoded once."""
+    problem = build_problem(site, heldout, context_hours=surrogate.context_hours,
+                            temperature_before=surrogate.uses_temperature_before)
+    runs = []
+    for k, (cost, params) in enumerate(zip(run_costs, run_parameters)):
+        metrics = score_series(problem, *predict(problem, surrogate, params), params, scale)
+        runs.append({"seed": seed + k, "cost": round(cost, 5),
+                     **{f"heldout_{m}": round(metrics[m], 4) for m in ("rmse_t_celsius", "r2_t")}})
+    return runs
 
 
 def parameters_at_bounds(theta: dict[str, float], known=()) -> list[dict]:

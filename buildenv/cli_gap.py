@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES
+from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES, MIN_GAIN
 
 
 def _settings(args: argparse.Namespace):
@@ -88,7 +88,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--base-restarts", type=int, default=1,
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
                         "lowest fit cost kept")
-    p.add_argument("--min-gain", type=float, default=0.15,
+    p.add_argument("--min-gain", type=float, default=MIN_GAIN,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",

@@ -82,6 +82,8 @@ JUDGES = ("pooled", "effect_series")
 # How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.gap.split_weeks); the first is
 # the default.
 DIAGNOSIS_SPLITS = ("first_half", "alternate")
+# The smallest held-out gain a gap diagnosis names an effect for (buildenv.gap.DiagnosisSettings.min_gain).
+MIN_GAIN = 0.10
 
 
 class EffectError(BuildenvError, ValueError):

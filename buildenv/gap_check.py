@@ -245,6 +245,25 @@ def _mse(metrics: dict, series: str) -> float:
     return metrics["rmse_t_celsius"] ** 2 if series == "temperature" else metrics["rmse_q_wh_m2"] ** 2
 
 
+def _diagnosis_record(result: dict) -> dict:
+    """What a blind check keeps of one diagnosis: the first effect named, every candidate's first-step gains,
+    p-values and estimates (enough to judge the step again under other naming rules), the base model's
+    held-out metrics and the residual standard deviations the gains are standardised by."""
+    named = result["selected"][0] if result["selected"] else NONE
+    return {"named": named, "selected": result["selected"], "ranked": [e["name"] for e in result["effects"]],
+            "scores": {e["name"]: e["score"] for e in result["effects"]},
+            "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
+            "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"]
+                                 if "gain_vs_control" in e},
+            "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
+            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
+            "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
+            "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
+            "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
+            "verdict": result["verdict"], "heldout_base": result["heldout_base"],
+            "residual_sigma": result["residual_sigma"]}
+
+
 def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
     """Make, diagnose and score one case (and its clean twin when an effect is injected)."""
     from buildenv.site import load_site
@@ -253,19 +272,8 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
     site = load_site(_site(out, case, stand_in, inject=True))
     result = diagnose(site, surrogate, settings, localisation=False)
     result.pop("_fit", None)
-    named = result["selected"][0] if result["selected"] else NONE
-    row = {**case, "named": named, "correct": named == case["true"], "selected": result["selected"],
-           "ranked": [e["name"] for e in result["effects"]],
-           "scores": {e["name"]: e["score"] for e in result["effects"]},
-           "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
-           "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"] if "gain_vs_control" in e},
-           "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
-           "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
-           "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
-           "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
-           "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
-           "verdict": result["verdict"], "heldout_base": result["heldout_base"],
-           "residual_sigma": result["residual_sigma"]}
+    record = _diagnosis_record(result)
+    row = {**case, **record, "correct": record["named"] == case["true"]}
     if case["true"] != NONE:
         row = _gap_left_row(out, case, row, surrogate, settings, stand_in)
     if case["true"] != NONE and case["true"] in result["selected"]:
@@ -281,6 +289,23 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
         row["footprint"] = footprint(out, case, stand_in)
     row["seconds"] = round(time.perf_counter() - started, 1)
     return row
+
+
+def diagnose_twin(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
+    """Diagnose an effect case's clean twin blind, as one more site with no effect: the record of
+    :func:`run_case` for a clean case (``true`` is ``none``), the twin made first if the check has not made it.
+
+    Each effect case has a twin with the same period and sensor noise and nothing injected, so a check's twins
+    measure the false alarms of the naming rules on many more clean sites than its own clean cases
+    (``bench/gap_check_bar.py``)."""
+    from buildenv.site import load_site
+
+    started = time.perf_counter()
+    result = diagnose(load_site(_site(out, case, stand_in, inject=False)), surrogate, settings, localisation=False)
+    result.pop("_fit", None)
+    record = _diagnosis_record(result)
+    return {**case, "true": NONE, "twin_of": case["true"], **record, "correct": record["named"] == NONE,
+            "seconds": round(time.perf_counter() - started, 1)}
 
 
 def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> list[str]:

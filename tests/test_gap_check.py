@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 import shutil
@@ -12,8 +13,9 @@ from buildenv.cli import main
 from buildenv.env import DEFAULT_SITE
 from buildenv.effects_inject import choose_holidays
 from buildenv.gap import DiagnosisSettings, split_weeks
-from buildenv.gap_check import (NONE, REFERENCE_START, StandIn, _site, latest_first_monday, plan_cases,
-                                ranked_first, reference_start, run_check, summarise)
+from buildenv.surrogate import load_metamodel
+from buildenv.gap_check import (NONE, REFERENCE_START, StandIn, _site, diagnose_twin, latest_first_monday,
+                                plan_cases, ranked_first, reference_start, run_check, summarise)
 
 
 def test_plan_is_seeded_and_cycles_through_the_labels():
@@ -63,6 +65,14 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     assert summary["gap_left_cases"] == 1 and summary["top1_accuracy_gap_left"] == 1.0
     assert "gap_left" not in rows[NONE]
     json.dumps(result, default=float)
+    # the bias case's clean twin, diagnosed blind as one more clean site: a record judged like a clean case's
+    case = {k: bias[k] for k in ("case", "true", "magnitude", "start", "noise_seed", "effect_seed")}
+    twin = diagnose_twin(tmp_path, case, load_metamodel(), dataclasses.replace(
+        settings, base_effects=("night_plug_loads",)), StandIn())
+    assert twin["true"] == NONE and twin["twin_of"] == "temperature_sensor_bias" and twin["start"] == bias["start"]
+    assert twin["named"] == NONE and twin["correct"]
+    assert set(twin["scores"]) == set(twin["p_values"]) == set(twin["estimates"]) == set(settings.candidates)
+    assert twin["heldout_base"]["r2_t"] > bias["heldout_base"]["r2_t"]  # the bias was the case's gap
     # a rerun resumes: finished cases are read back, not redone; a case finished before the gap left after
     # calibration was recorded gets it, with the case's base model calibrated again as its diagnosis did
     case_file = tmp_path / f"case_{bias['case']:03d}.json"

@@ -89,7 +89,8 @@ def _common(p: argparse.ArgumentParser) -> None:
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
                         "lowest fit cost kept")
     p.add_argument("--min-gain", type=float, default=MIN_GAIN,
-                   help="smallest held-out gain (share of standardised squared error removed) to select an effect")
+                   help="smallest held-out gain (share of standardised squared error removed) to select an effect "
+                        "(default %(default)s)")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",
                    help="score each candidate on both series (default) or on the series it shows in")

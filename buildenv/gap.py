@@ -186,8 +186,8 @@ class DiagnosisSettings:
         min_gain: smallest held-out gain (share of the standardised squared error removed) to select an effect.
             10 %: over 85 blind cases of six seeds and 27 clean sites (11 clean cases, 16 clean twins;
             ``bench/results/gap_check_bar.md``) it names 57 effects right against 49 at the earlier 15 %, and
-            recognises the same 26 clean sites; it names one effect case wrongly (a 0.6 h sensor lag taken for
-            shading, 11 %). At 8 % two more clean sites get an effect named.
+            recognises 26 of the 27 clean sites at either bar; it names one effect case wrongly (a 0.6 h sensor
+            lag taken for blinds, 11 %). At 8 % two more clean sites get an effect named.
         max_effects: most effects selected.
         seed: seed of every CMA-ES run.
         base_effects: effects the building is already known to have: in the model from the start (calibrated

@@ -184,10 +184,10 @@ class DiagnosisSettings:
             ...), the lowest fit cost kept.
         alpha: family-wise significance level of a step (Bonferroni over its candidates).
         min_gain: smallest held-out gain (share of the standardised squared error removed) to select an effect.
-            10 %: over 85 blind cases of six seeds and 27 clean sites (11 clean cases, 16 clean twins;
+            10 %: over 85 blind cases of six seeds and 54 clean sites (11 clean cases, 43 clean twins;
             ``bench/results/gap_check_bar.md``) it names 57 effects right against 49 at the earlier 15 %, and
-            recognises 26 of the 27 clean sites at either bar; it names one effect case wrongly (a 0.6 h sensor
-            lag taken for blinds, 11 %). At 8 % two more clean sites get an effect named.
+            recognises 52 of the 54 clean sites against 53; it names one effect case wrongly (a 0.6 h sensor lag
+            taken for blinds, 11 %). At 8 % two more clean sites get an effect named.
         max_effects: most effects selected.
         seed: seed of every CMA-ES run.
         base_effects: effects the building is already known to have: in the model from the start (calibrated

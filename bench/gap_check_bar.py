@@ -36,7 +36,7 @@ from gap_check_rejudge import first_named
 
 from buildenv.effects import get_effect
 from buildenv.gap import SERIES, DiagnosisSettings
-from buildenv.gap_check import NONE, StandIn, diagnose_twin, ranked_first
+from buildenv.gap_check import NONE, StandIn, _mse, diagnose_twin, ranked_first
 
 RESULTS = Path(__file__).resolve().parent / "results"
 BARS = (0.05, 0.08, 0.10, 0.12, 0.15)
@@ -81,12 +81,10 @@ def first_step_shrinkage(row: dict, name: str) -> float | None:
     if get_effect(name).building_parameter:
         return None
     series = get_effect(name).series[0]
-    i = SERIES.index(series)
     try:
-        sse = row["sse_by_series"][name][series][1]
-        before = row["heldout_base"]["rmse_t_celsius" if i == 0 else "rmse_q_wh_m2"] ** 2
-        twin = row["twin_heldout_base"]["rmse_t_celsius" if i == 0 else "rmse_q_wh_m2"] ** 2
-        after = sse / row["heldout_base"]["hours"] * row["residual_sigma"][i] ** 2
+        before, twin = _mse(row["heldout_base"], series), _mse(row["twin_heldout_base"], series)
+        sse = row["sse_by_series"][name][series][1]  # (control, candidate), standardised
+        after = sse / row["heldout_base"]["hours"] * row["residual_sigma"][SERIES.index(series)] ** 2
     except (KeyError, TypeError):
         return None
     return (before - after) / (before - twin) if before - twin > 1e-12 else None
@@ -113,10 +111,9 @@ def judge(rows: list[dict], twins: list[dict], alpha: float, bar: float) -> dict
 def replay_check(pages: list[dict]) -> tuple[int, float]:
     """Cases named right with one effect selected: how many, and the largest difference between the recorded
     shrinkage and the first step's replayed one (the replay's own check)."""
-    diffs = [abs(first_step_shrinkage(r, r["true"]) - r["shrinkage"]["of_effect_gap"])
-             for p in pages for r in p["cases"]
-             if r.get("correct") and r["true"] != NONE and len(r["selected"]) == 1 and "shrinkage" in r
-             and first_step_shrinkage(r, r["true"]) is not None and np.isfinite(r["shrinkage"]["of_effect_gap"])]
+    pairs = [(first_step_shrinkage(r, r["true"]), r["shrinkage"]["of_effect_gap"]) for p in pages for r in p["cases"]
+             if r.get("correct") and r["true"] != NONE and len(r["selected"]) == 1 and "shrinkage" in r]
+    diffs = [abs(a - b) for a, b in pairs if a is not None and np.isfinite(b)]
     return len(diffs), max(diffs, default=float("nan"))
 
 
@@ -188,10 +185,9 @@ def main() -> None:
         lines.append(f"| {Path(p).stem} | {pages[p]['plan']['seed']} | " + " | ".join(cells) + " |")
     lines += ["", "## Cases named differently by the bars", "", "| page | case | injected | magnitude | "
               + " | ".join(f"{b:g}" for b in bars) + " |", "|---|---|---|---|" + "---|" * len(bars)]
-    for p, by_bar in per_page.items():
+    for p in per_page:
         for row in pages[p]["cases"] + twins.get(p, []):
-            key = "twins_named" if "twin_of" in row else "named"
-            names = [by_bar[f"{b:g}"][key].get(row["case"], first_named(row, alpha, b)) for b in bars]
+            names = [first_named(row, alpha, b) for b in bars]
             if len(set(names)) > 1:
                 what = f"clean twin of {row['twin_of']}" if "twin_of" in row else row["true"]
                 magnitude = "-" if row.get("magnitude") is None or "twin_of" in row else f"{row['magnitude']:.2f}"

@@ -1,12 +1,14 @@
 """The diagnosis' naming bar (``min_gain``) measured on blind checks and on their clean twins.
 
-A candidate effect is named when it is significant, plausible and its held-out gain reaches ``min_gain``
-(:func:`buildenv.gap.candidate_qualifies`). The bar trades named effects against false alarms, so it is
-measured on both: on the effect cases of recorded blind checks (``bench/gap_check.py`` pages), whose first
-step every record keeps, and on clean sites. A check has only one or two clean cases a seed; every effect case
-has a clean twin (same period, same sensor noise, nothing injected), and ``--twins PAGE`` diagnoses those
-twins blind (:func:`buildenv.gap_check.diagnose_twin`, ``twin_NNN.json`` beside the check's case files, a
-rerun skips those done), so one seed gives about 14 more clean sites.
+A candidate effect was named when it was significant, plausible and its held-out gain reached ``min_gain``
+(:func:`buildenv.gap.candidate_qualifies` with ``clean_ceilings=False``, the rule this page replays; from
+2026-11-28 an effect with a clean-site ceiling is judged by its estimate instead, ``bench/gap_clean_ceiling.py``).
+The bar trades named effects against false alarms, so it is measured on both: on the effect cases of
+recorded blind checks (``bench/gap_check.py`` pages), whose first step every record keeps, and on clean sites.
+A check has only one or two clean cases a seed; every effect case has a clean twin (same period, same sensor
+noise, nothing injected), and ``--twins PAGE`` diagnoses those twins blind
+(:func:`buildenv.gap_check.diagnose_twin`, ``twin_NNN.json`` beside the check's case files, a rerun skips
+those done), so one seed gives about 14 more clean sites.
 
 Each bar judges every record's first step again, as ``bench/gap_check_rejudge.py`` does. For an effect
 named right it gives the shrinkage of the effect's gap: the recorded one where the check named it, else what
@@ -29,6 +31,8 @@ import argparse
 import json
 import shlex
 import time
+from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -90,10 +94,16 @@ def first_step_shrinkage(row: dict, name: str) -> float | None:
     return (before - after) / (before - twin) if before - twin > 1e-12 else None
 
 
-def judge(rows: list[dict], twins: list[dict], alpha: float, bar: float) -> dict:
-    """Counts of one bar over effect cases, clean cases and clean twins."""
+def bar_named(row: dict, alpha: float, bar: float) -> str:
+    """The effect a record's first step names with every effect judged by the gain ``bar``."""
+    return first_named(row, alpha, bar, clean_ceilings=False)
+
+
+def judge(rows: list[dict], twins: list[dict], name_of: Callable[[dict], str]) -> dict:
+    """Counts of one naming rule (``name_of``: a record's first-step naming) over effect cases, clean cases and
+    clean twins."""
     effect = [r for r in rows if r["true"] != NONE]
-    named = [first_named(r, alpha, bar) for r in effect]
+    named = [name_of(r) for r in effect]
     shrink = [r["shrinkage"]["of_effect_gap"] if r.get("correct") and "shrinkage" in r
               else first_step_shrinkage(r, r["true"]) for r, n in zip(effect, named) if n == r["true"]]
     shrink = [s for s in shrink if s is not None]
@@ -101,11 +111,11 @@ def judge(rows: list[dict], twins: list[dict], alpha: float, bar: float) -> dict
             "named_wrong": sum(n not in (NONE, r["true"]) for r, n in zip(effect, named)),
             "ranked_first": sum(ranked_first(r) for r in effect),
             "clean_cases": sum(r["true"] == NONE for r in rows),
-            "clean_recognised": sum(first_named(r, alpha, bar) == NONE for r in rows if r["true"] == NONE),
-            "twins": len(twins), "twins_recognised": sum(first_named(r, alpha, bar) == NONE for r in twins),
-            "median_first_step_shrinkage": float(np.median(shrink)) if shrink else None,
+            "clean_recognised": sum(name_of(r) == NONE for r in rows if r["true"] == NONE),
+            "twins": len(twins), "twins_recognised": sum(name_of(r) == NONE for r in twins),
+            "median_first_step_shrinkage": float(np.median(shrink)) if shrink else None, "shrinkages": shrink,
             "named": {r["case"]: n for r, n in zip(effect, named)},
-            "twins_named": {r["case"]: first_named(r, alpha, bar) for r in twins}}
+            "twins_named": {r["case"]: name_of(r) for r in twins}}
 
 
 def replay_check(pages: list[dict]) -> tuple[int, float]:
@@ -153,9 +163,10 @@ def main() -> None:
                                                                           if pages[p]["plan"]["seed"] in held]
     table = {group: {f"{b:g}": judge([r for p in members for r in pages[p]["cases"]],
                                      [t for p in members for t in twins.get(p, [])] if group == "all" else [],
-                                     alpha, b) for b in bars}
+                                     partial(bar_named, alpha=alpha, bar=b)) for b in bars}
              for group, members in groups.items()}
-    per_page = {p: {f"{b:g}": judge(pages[p]["cases"], twins.get(p, []), alpha, b) for b in bars} for p in pages}
+    per_page = {p: {f"{b:g}": judge(pages[p]["cases"], twins.get(p, []), partial(bar_named, alpha=alpha, bar=b))
+                    for b in bars} for p in pages}
     count, worst = replay_check(list(pages.values()))
     command = ("python bench/gap_check_bar.py " + " ".join(f"--page {p}" for p in args.page)
                + "".join(f" --twins {p}" for p in args.twins) + (" --no-diagnose" if args.no_diagnose else "")
@@ -187,7 +198,7 @@ def main() -> None:
               + " | ".join(f"{b:g}" for b in bars) + " |", "|---|---|---|---|" + "---|" * len(bars)]
     for p in per_page:
         for row in pages[p]["cases"] + twins.get(p, []):
-            names = [first_named(row, alpha, b) for b in bars]
+            names = [bar_named(row, alpha, b) for b in bars]
             if len(set(names)) > 1:
                 what = f"clean twin of {row['twin_of']}" if "twin_of" in row else row["true"]
                 magnitude = "-" if row.get("magnitude") is None or "twin_of" in row else f"{row['magnitude']:.2f}"

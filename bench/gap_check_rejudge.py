@@ -1,8 +1,8 @@
 """Recorded blind checks judged again under the catalogue's current plausibility rules.
 
 The first effect a diagnosis names is decided by its first step alone: the candidate with the largest held-out
-gain among those that qualify (:func:`buildenv.gap.candidate_qualifies`: significant, the minimum gain, a
-plausible estimate). Every result of ``bench/gap_check.py`` records that step for each case (gains, p-values,
+gain among those that qualify (:func:`buildenv.gap.candidate_qualifies`: significant, a plausible estimate,
+and an estimate beyond the effect's clean-site ceiling or, without one, the minimum gain). Every result of ``bench/gap_check.py`` records that step for each case (gains, p-values,
 estimates), so a change of the plausibility rules can be replayed on it exactly, without rerunning a
 calibration. The later steps (the second effect) are not replayed.
 
@@ -17,6 +17,7 @@ from __future__ import annotations
 import argparse
 import json
 import time
+from collections.abc import Mapping
 from pathlib import Path
 
 from gap_check_compare import tally
@@ -27,13 +28,15 @@ from buildenv.gap_check import NONE
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
-def first_named(row: dict, alpha: float, min_gain: float) -> str:
+def first_named(row: dict, alpha: float, min_gain: float,
+                clean_ceilings: bool | Mapping[str, float] = True) -> str:
     """The effect a recorded case's first step names under the current plausibility rules (``none`` if none);
-    a carried effect (its estimate is its building parameter) must also make none of its series worse."""
+    a carried effect (its estimate is its building parameter) must also make none of its series worse;
+    ``clean_ceilings``: as :class:`buildenv.gap.DiagnosisSettings`."""
     threshold = alpha / len(row["p_values"])
     for name in sorted(row["scores"], key=lambda n: -row["scores"][n]):
         if candidate_qualifies(name, row["scores"][name], row["p_values"][name], threshold, min_gain,
-                               row["estimates"][name], row.get("gains_by_series", {}).get(name)):
+                               row["estimates"][name], row.get("gains_by_series", {}).get(name), clean_ceilings):
             return name
     return NONE
 

@@ -13,13 +13,15 @@ from typing import Any
 
 def catalogue_rows() -> list[dict[str, Any]]:
     """One JSON-ready row per effect: name, title, kind, magnitude unit, practice range, default, injection
-    limits, no-effect magnitude, series, the model-side parameters and the smallest estimate a diagnosis names."""
+    limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names and
+    the size beyond which any significant held-out gain names it (the clean-site ceiling)."""
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
 
     return [{"name": e.name, "title": e.title, "kind": e.kind, "magnitude_unit": e.magnitude_unit,
              "magnitude_range": list(e.magnitude_range), "default_magnitude": e.default_magnitude,
              "injection_limits": list(INJECTION_LIMITS[e.name]), "no_effect_magnitude": NO_EFFECT_MAGNITUDE[e.name],
              "series": list(e.series), "model": e.model, "named_from": e.named_from() or None,
+             "named_beyond": e.clean_ceiling_text() or None,
              "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
                              "description": p.description} for p in e.parameters]}
             for e in EFFECTS.values()]
@@ -38,7 +40,8 @@ def _cmd_effects(args: argparse.Namespace) -> int:
               f"    magnitude: {lo:g} to {hi:g} {r['magnitude_unit']} in practice, default {r['default_magnitude']:g}\n"
               f"    shows in: {', '.join(r['series'])}\n"
               f"    model side: {params}"
-              + (f"\n    named from: {r['named_from']}" if r["named_from"] else ""))
+              + (f"\n    named from: {r['named_from']}" if r["named_from"] else "")
+              + (f"\n    named by significance alone when: {r['named_beyond']}" if r["named_beyond"] else ""))
     print("\ninject with: buildenv site reference --out SITE --effect NAME[=MAGNITUDE] [--effect-seed N]")
     return 0
 

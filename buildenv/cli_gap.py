@@ -23,6 +23,7 @@ def _settings(args: argparse.Namespace):
     if args.refit_anchor is not None:
         step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
+                             clean_ceilings=getattr(args, "clean_ceilings", True),
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts, split=args.split,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
@@ -90,7 +91,11 @@ def _common(p: argparse.ArgumentParser) -> None:
                         "lowest fit cost kept")
     p.add_argument("--min-gain", type=float, default=MIN_GAIN,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect "
+                        "without a clean-site ceiling (`buildenv effects`), or any with --no-clean-ceilings "
                         "(default %(default)s)")
+    p.add_argument("--no-clean-ceilings", dest="clean_ceilings", action="store_false",
+                   help="judge every effect by --min-gain, not by its estimate against the largest one calibrated "
+                        "on clean sites")
     p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",
                    help="score each candidate on both series (default) or on the series it shows in")

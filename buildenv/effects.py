@@ -82,8 +82,12 @@ JUDGES = ("pooled", "effect_series")
 # How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.gap.split_weeks); the first is
 # the default.
 DIAGNOSIS_SPLITS = ("first_half", "alternate")
-# The smallest held-out gain a gap diagnosis names an effect for (buildenv.gap.DiagnosisSettings.min_gain).
+# The smallest held-out gain a gap diagnosis names an effect without a clean-site ceiling for
+# (buildenv.gap.DiagnosisSettings.min_gain; Effect.clean_ceiling).
 MIN_GAIN = 0.10
+# Where Effect.clean_ceiling comes from (bench/gap_clean_ceiling.py recomputes the ceilings from these records).
+CLEAN_CEILING_SOURCE = ("estimate calibrated on 70 clean sites: the 13 clean cases and 57 clean twins of the blind "
+                        "checks' seeds 0-6, bench/results/gap_check_tb_seed*.json")
 
 
 class EffectError(BuildenvError, ValueError):
@@ -138,6 +142,11 @@ class Effect:
             parameter known, the model-side addition (:attr:`parameters`) is tried as for any other effect.
         vanishes_at: the end of :attr:`building_parameter`'s range where the effect vanishes: ``max`` (an
             unlimited heating power) or ``min`` (no lighting left on at night).
+        clean_ceiling: the largest size (as :attr:`smallest`) the diagnosis calibrated for this candidate on any
+            clean site of the recorded blind checks (:data:`CLEAN_CEILING_SOURCE`), or None where not measured
+            (effects judged through a building parameter, base effects). A size beyond it is one no site without
+            the effect produced, so a significant held-out gain names the effect whatever its size; a size at or
+            below it is the model's structural misses, and the effect is not named (:meth:`beyond_clean_sites`).
     """
 
     name: str
@@ -154,6 +163,7 @@ class Effect:
     smallest_reason: str = ""
     building_parameter: str | None = None
     vanishes_at: str = "max"
+    clean_ceiling: float | None = None
 
     @property
     def size_name(self) -> str:
@@ -189,10 +199,15 @@ class Effect:
                     "where the effect vanishes)")
         if self.smallest is None:
             return ""
-        unit = self.parameters[0].unit if self.parameters else "fit-week day"
-        unit = "" if unit == "-" else f" {unit}"
-        size = f"|{self.size_name}|" if self.parameters and self.parameters[0].lo < 0 else self.size_name
+        size, unit = self._size_label()
         return f"{size} >= {self.smallest:g}{unit} ({self.smallest_reason})"
+
+    def _size_label(self) -> tuple[str, str]:
+        """How :meth:`named_from` and :meth:`clean_ceiling_text` write the size: its name (``|name|`` when it can
+        be negative) and its unit with a leading space ("" for a ratio)."""
+        unit = self.parameters[0].unit if self.parameters else "fit-week day"
+        size = f"|{self.size_name}|" if self.parameters and self.parameters[0].lo < 0 else self.size_name
+        return size, "" if unit == "-" else f" {unit}"
 
     def plausible(self, values: dict[str, float]) -> bool:
         """Whether calibrated parameter values ``{name: value}`` describe an effect of a size seen in practice
@@ -205,6 +220,20 @@ class Effect:
         if self.smallest is None:
             return True
         return abs(values[self.size_name]) >= self.smallest
+
+    def beyond_clean_sites(self, values: dict[str, float]) -> bool | None:
+        """Whether calibrated parameter values ``{name: value}`` give a size beyond :attr:`clean_ceiling` (None
+        when the effect has no ceiling or ``values`` is a carried effect's building parameter)."""
+        if self.clean_ceiling is None or self.size_name not in values:
+            return None
+        return bool(abs(values[self.size_name]) > self.clean_ceiling)
+
+    def clean_ceiling_text(self) -> str:
+        """The clean-site ceiling with its unit and source ("" when the effect has none)."""
+        if self.clean_ceiling is None:
+            return ""
+        size, unit = self._size_label()
+        return f"{size} > {self.clean_ceiling:g}{unit} (the largest {CLEAN_CEILING_SOURCE})"
 
     def check_magnitude(self, magnitude: float) -> float:
         """The magnitude as a float; raises :class:`EffectError` if it lies outside what the injection can do."""
@@ -225,7 +254,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                            "infiltration air changes added per m/s of wind speed (out of hours)"),),
            "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x wind speed, a quarter "
            "of it while the air handling unit runs", 0.01,
-           smallest_reason="10 % of a tight office's 0.1 air changes per hour"),
+           smallest_reason="10 % of a tight office's 0.1 air changes per hour", clean_ceiling=0.0157),
     Effect("temperature_sensor_bias", "temperature sensor bias",
            "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "
            "near a radiator or in the sun). The consumption is unaffected.",
@@ -233,14 +262,15 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (ModelParameter("bias_k", "K", -3.0, 3.0, 0.0, "offset added to the predicted temperature"),),
            "the predicted temperature reads bias_k higher", 0.8,
            smallest_reason="the model's own offset against the reference office reached 0.79 K in the blind "
-                           "checks without a bias"),
+                           "checks without a bias", clean_ceiling=0.441),
     Effect("temperature_sensor_lag", "temperature sensor lag",
            "The sensor responds slowly (a heavy housing, a sensor in a wall pocket): it reads a first-order "
            "lagged air temperature, so morning start-ups and evening setbacks look slower than they are.",
            "sensor", "h (time constant)", (0.5, 3.0), 1.5, ("temperature",),
            (ModelParameter("tau_h", "h", 0.0, 4.0, 0.0, "first-order time constant of the sensor"),),
            "the predicted temperature is passed through a first-order lag of time constant tau_h", 0.25,
-           smallest_reason="below a quarter of the hourly sampling a lag cannot be told from noise"),
+           smallest_reason="below a quarter of the hourly sampling a lag cannot be told from noise",
+           clean_ceiling=0.645),
     Effect("holidays", "holidays and absent-occupancy days",
            "Weekdays nobody comes in (public holidays, bridge days, closures) while the BMS keeps its weekday "
            "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
@@ -250,7 +280,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "temperature and consumption; days where it is at least half and the day's standardised squared "
            "error falls by more than 15 % are simulated with that much less occupancy; they are estimated from "
            "the data like the occupancy hours", 1.0,
-           smallest_reason="a candidate that flags no fit-week day has estimated nothing from the fit weeks"),
+           smallest_reason="a candidate that flags no fit-week day has estimated nothing from the fit weeks",
+           clean_ceiling=0.0),
 
     Effect("night_plug_loads", "plug loads left on at night",
            "Equipment left on outside occupied hours beyond what the model's night share allows (servers, "
@@ -269,7 +300,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "energyplus", "% of the solar gains blocked", (30.0, 70.0), 50.0, ("temperature", "consumption"),
            (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
            "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)", 0.15,
-           smallest_reason="half the lightest blinds' 30 %"),
+           smallest_reason="half the lightest blinds' 30 %", clean_ceiling=0.574),
     Effect("heating_capacity_limit", "heating capacity limit",
            "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
            "the setpoint, so consumption plateaus and the temperature sags.",
@@ -290,7 +321,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (ModelParameter("effectiveness", "-", 0.0, 0.9, 0.0,
                            "sensible effectiveness of the heat exchanger"),),
            "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
-           0.3, smallest_reason="the poorest exchangers sold reach about 0.5"),
+           0.3, smallest_reason="the poorest exchangers sold reach about 0.5", clean_ceiling=0.122),
     Effect("night_cycle_cold_air", "cold supply air while the fans cycle at night",
            "A central VAV system with terminal reheat supplies every zone air at its cooling supply temperature "
            "(about 13 degC) whenever its fans run. Out of hours its night cycle starts the fans as soon as one "

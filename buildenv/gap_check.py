@@ -44,8 +44,10 @@ predicts the clean twin. Every effect case therefore also calibrates its clean t
 way, and the share of the case's held-out error the effect added is
 ``1 - SSE_twin / SSE_case``, both series standardised by the case's fit-week residual standard deviations and
 pooled, as the diagnosis scores a candidate (:func:`gap_left`). When that share is under the diagnosis'
-``min_gain``, even an extension that removed all the effect added could not gain what naming it takes, so the
-summary also gives the top-1 accuracy over the cases whose effect left a gap.
+``min_gain``, even an extension that removed all the effect added could not gain what the bar takes (the bar
+names the effects without a clean-site ceiling; the others are named by their estimate,
+:func:`buildenv.gap.candidate_qualifies`), so the summary also gives the top-1 accuracy over the cases whose
+effect left a gap.
 
 Each case's result is written as ``case_NNN.json`` in ``out``; a rerun skips
 finished cases (a long check resumes) and reuses the sites already made, after checking that each was made for
@@ -328,8 +330,8 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
 
 def ranked_first(row: dict) -> bool:
     """Whether the diagnosis ranked a case's injected effect first with a positive held-out gain, named or not:
-    the attribution alone. A candidate with the best gain may still fail the naming rules (significance, the
-    ``min_gain`` bar, a plausible estimate), and one with no gain ranks first only among candidates that all
+    the attribution alone. A candidate with the best gain may still fail the naming rules (significance, a
+    plausible estimate, its clean-site ceiling or the ``min_gain`` bar), and one with no gain ranks first only among candidates that all
     made the held-out error worse."""
     ranked = row.get("ranked") or []
     return bool(ranked) and ranked[0] == row["true"] and row["scores"].get(row["true"], 0.0) > 0.0

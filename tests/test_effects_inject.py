@@ -299,9 +299,13 @@ def test_cli_lists_the_catalogue(capsys):
     assert named_from["heating_capacity_limit"].startswith("heating_power_w_m2 <= 90 (")  # a step below the top
     assert named_from["heat_recovery"].startswith("effectiveness >= 0.3 (")
     assert named_from["temperature_sensor_bias"].startswith("|bias_k| >= 0.8 K (")
+    beyond = {r["name"]: r["named_beyond"] for r in rows}
+    assert beyond["wind_infiltration"].startswith("ach_per_m_s > 0.0157 1/h per m/s (the largest estimate")
+    assert beyond["heating_capacity_limit"] is None  # judged through its building parameter, by the gain bar
     assert main(["effects"]) == 0
     out = capsys.readouterr().out
     assert "heat_recovery" in out and "named from: effectiveness >= 0.3 (" in out
+    assert "named by significance alone when: blocked_fraction > 0.574 (" in out
 
 
 def test_injected_effect_is_inactive_at_no_effect():

@@ -389,6 +389,36 @@ def test_a_carried_effect_that_trades_one_series_for_the_other_is_not_named():
                             "other absorbs another miss)")
 
 
+def test_an_effect_with_a_clean_site_ceiling_is_named_by_its_estimate():
+    # seed 0 case 8 of the blind check: 40 % wind-driven infiltration injected, calibrated at 0.029 1/h per m/s
+    # (beyond every clean site's 0.0157) with a held-out gain of 4 %, under the 10 % bar
+    from buildenv.gap import candidate_qualifies
+
+    wind = get_effect("wind_infiltration")
+    assert wind.beyond_clean_sites({"ach_per_m_s": 0.029}) and not wind.beyond_clean_sites({"ach_per_m_s": 0.011})
+    assert get_effect("heating_capacity_limit").beyond_clean_sites({"heating_power_w_m2": 40.0}) is None
+    assert candidate_qualifies("wind_infiltration", 0.0425, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029})
+    assert not candidate_qualifies("wind_infiltration", 0.0425, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029},
+                                   clean_ceilings=False)
+    assert not candidate_qualifies("wind_infiltration", 0.0425, 0.01, 0.006, 0.10, {"ach_per_m_s": 0.029})
+    # at or below the ceiling no gain names it: the clean sites' structural misses give such estimates
+    assert not candidate_qualifies("wind_infiltration", 0.3, 1e-9, 0.006, 0.10, {"ach_per_m_s": 0.011})
+    assert candidate_qualifies("wind_infiltration", 0.3, 1e-9, 0.006, 0.10, {"ach_per_m_s": 0.011},
+                               clean_ceilings=False)
+    # ceilings measured elsewhere may replace the catalogue's; an effect left out of them has none
+    assert not candidate_qualifies("wind_infiltration", 0.0425, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029},
+                                   clean_ceilings={"wind_infiltration": 0.03})
+    assert candidate_qualifies("wind_infiltration", 0.12, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029},
+                               clean_ceilings={})
+    # an effect without a ceiling (judged through a building parameter) keeps the gain bar
+    assert not candidate_qualifies("heating_capacity_limit", 0.05, 1e-6, 0.006, 0.10, {"heating_power_w_m2": 36.0})
+    verdict = _verdict([], [{"name": "solar_shading", "plausible": True, "parameters": {"blocked_fraction": 0.42},
+                             "score": 0.199, "series_made_worse": [], "beyond_clean_sites": False,
+                             "significance": {"p_value": 1e-9, "threshold": 0.006}}], 0.10)
+    assert "its estimate is not beyond every clean site's: blocked_fraction > 0.574 (the largest" in verdict
+    assert "held-out gain an effect must bring" not in verdict
+
+
 def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():
     # seed 0 case 5 of the blind check (a heat exchanger): heating power calibrated at 99.9 W/m2, so the model is
     # the same building as the unlimited one it is judged against, yet the two refits differed by 28 % held-out

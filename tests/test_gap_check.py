@@ -122,6 +122,21 @@ def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monke
     assert len(err) == 1 and message in err[0] and effect in err[0]
 
 
+@pytest.mark.parametrize("flags, expected", [([], True), (["--no-clean-ceilings"], False)])
+def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
+    import buildenv.gap
+
+    seen = {}
+
+    def record(site, surrogate, settings, **kwargs):
+        seen["settings"] = settings
+        raise buildenv.gap.cal.CalibrationError("stopped after reading the settings")
+
+    monkeypatch.setattr(buildenv.gap, "diagnose", record)
+    assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
+    assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
+
+
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):
     shutil.copytree(DEFAULT_SITE, tmp_path / "case_000")  # a clean site from 2019-11-04
     case = {"case": 0, "true": NONE, "magnitude": None, "start": "2019-11-04", "noise_seed": 0, "effect_seed": 0}

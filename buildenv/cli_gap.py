@@ -23,7 +23,7 @@ def _settings(args: argparse.Namespace):
     if args.refit_anchor is not None:
         step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
-                             clean_ceilings=getattr(args, "clean_ceilings", True),
+                             clean_ceilings=args.clean_ceilings,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts, split=args.split,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))

@@ -59,10 +59,10 @@ significant gain, stop when none is significant):
    practice, :meth:`buildenv.effects.Effect.plausible`: a heat exchanger of effectiveness 0.1 is the model
    borrowing the effect to absorb another miss; for a sensor bias the model's own offset against the reference
    office; :meth:`buildenv.effects.Effect.named_from` states each floor and its source) **and** the evidence
-   is more than the model's structural misses: its estimate is beyond the largest one calibrated on any of 70
+   is more than the model's structural misses: its estimate is beyond the largest one calibrated on any of 102
    clean sites of the blind checks (:attr:`buildenv.effects.Effect.clean_ceiling`, an empirical null
-   distribution of the estimate: the largest of 70 clean sites' estimates exceeds 95 % of all clean sites'
-   with 97 % confidence), or, for an effect without one (those judged through a building
+   distribution of the estimate: the largest of 102 clean sites' estimates exceeds 95 % of all clean sites'
+   with 99 % confidence), or, for an effect without one (those judged through a building
    parameter), its gain reaches ``min_gain`` (a practical threshold: a calibrated model that only misses by
    structure gains less than this from any single effect). ``DiagnosisSettings.clean_ceilings=False`` judges
    every effect by ``min_gain`` (the rule before 2026-11-28).
@@ -200,10 +200,11 @@ class DiagnosisSettings:
             at or below it. Why: the bar judged every effect against the model's structural misses, which a
             calibrated blinds or wind candidate also absorbs on clean sites (2-20 % gains), while the injected
             effects' own gains are often smaller: blinds gained 1-10 % (estimates 0.44-0.57 for most),
-            wind 4-14 %. Over 99 effect cases and 70 clean sites of seven seeds, each seed judged with ceilings
-            taken from the other six (``bench/results/gap_clean_ceiling.md``; seed 6 was diagnosed after the
-            ceilings of seeds 0-5 were set), it names 75 effects right against 66 at the bar, one wrongly
-            (as the bar), and recognises 69 of 70 clean sites against 68. False: every effect by ``min_gain``.
+            wind 4-14 %. Over 127 effect cases and 102 clean sites of nine seeds, each seed judged with ceilings
+            taken from the other eight (``bench/results/gap_clean_ceiling.md``), it names 93 effects right
+            against 85 at the bar, 3 wrongly against 2, and recognises 101 of 102 clean sites against 97. On the
+            three seeds diagnosed after their ceilings were set (6-8): 29 of 42 against 28, 2 wrong against 1,
+            47 of 48 clean sites against 45. False: every effect by ``min_gain``.
         max_effects: most effects selected.
         seed: seed of every CMA-ES run.
         base_effects: effects the building is already known to have: in the model from the start (calibrated

@@ -2,9 +2,10 @@
 
 The first effect a diagnosis names is decided by its first step alone: the candidate with the largest held-out
 gain among those that qualify (:func:`buildenv.gap.candidate_qualifies`: significant, a plausible estimate,
-and an estimate beyond the effect's clean-site ceiling or, without one, the minimum gain). Every result of ``bench/gap_check.py`` records that step for each case (gains, p-values,
-estimates), so a change of the plausibility rules can be replayed on it exactly, without rerunning a
-calibration. The later steps (the second effect) are not replayed.
+and an estimate beyond the effect's clean-site ceiling or, without one, the minimum gain). Every result of
+``bench/gap_check.py`` records that step for each case (gains, p-values, estimates), so a change of the
+plausibility rules can be replayed on it exactly, without rerunning a calibration. The later steps (the second
+effect) are not replayed.
 
     .venv/bin/python bench/gap_check_rejudge.py --name gap_check_rejudged bench/results/gap_check_known_seed0.json ...
 

@@ -198,7 +198,7 @@ def _total(counts: list[dict]) -> dict:
     """Counts of several pages added (the median shrinkage over their right namings is not kept: None)."""
     keys = ("effect_cases", "named_right", "named_wrong", "ranked_first", "clean_cases", "clean_recognised",
             "twins", "twins_recognised")
-    shrink = [s for c in counts for s in c.get("shrinkages", [])]
+    shrink = [s for c in counts for s in c["shrinkages"]]
     return {k: sum(c[k] for c in counts) for k in keys} | {
         "median_first_step_shrinkage": float(np.median(shrink)) if shrink else None, "shrinkages": shrink}
 

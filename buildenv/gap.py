@@ -717,12 +717,23 @@ def candidate_qualifies(name: str, gain: float, p_value: float, threshold: float
     effect also makes none of its series worse (:func:`carried_series_made_worse`, given ``gain_by_series``).
     ``clean_ceilings`` may also map effects to ceilings used instead of the catalogue's (a blind check judged
     with ceilings measured on other sites; an effect missing from it has none)."""
+    beyond = beyond_clean_sites(name, parameters, clean_ceilings)
+    return p_value < threshold and gain > 0.0 and (gain >= min_gain if beyond is None else beyond) \
+        and get_effect(name).plausible(parameters) \
+        and not carried_series_made_worse(name, parameters, gain_by_series or {})
+
+
+def beyond_clean_sites(name: str, parameters: dict[str, float],
+                       clean_ceilings: bool | Mapping[str, float] = True) -> bool | None:
+    """Whether a candidate's estimate lies beyond its clean-site ceiling (:func:`candidate_qualifies`'s
+    ``clean_ceilings``: the catalogue's, a mapping used instead, or none when False); None where no ceiling
+    applies, and the ``min_gain`` bar judges the candidate."""
+    if clean_ceilings is False:
+        return None
     effect = get_effect(name)
     if isinstance(clean_ceilings, Mapping):
         effect = dataclasses.replace(effect, clean_ceiling=clean_ceilings.get(name))
-    beyond = effect.beyond_clean_sites(parameters) if clean_ceilings is not False else None
-    return p_value < threshold and gain > 0.0 and (gain >= min_gain if beyond is None else beyond) \
-        and effect.plausible(parameters) and not carried_series_made_worse(name, parameters, gain_by_series or {})
+    return effect.beyond_clean_sites(parameters)
 
 
 def series_made_worse(name: str, gain_by_series: dict[str, float]) -> list[str]:
@@ -748,7 +759,7 @@ def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: 
     significant = score["p_value"] < threshold
     parameters = trial.effect_parameters().get(name, {})
     plausible = get_effect(name).plausible(parameters)
-    beyond = get_effect(name).beyond_clean_sites(parameters) if clean_ceilings else None
+    beyond = beyond_clean_sites(name, parameters, clean_ceilings)
     worse = carried_series_made_worse(name, parameters, score["gain_by_series"])
     qualifies = candidate_qualifies(name, score["gain"], score["p_value"], threshold, min_gain, parameters,
                                     score["gain_by_series"], clean_ceilings)

@@ -331,8 +331,8 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
 def ranked_first(row: dict) -> bool:
     """Whether the diagnosis ranked a case's injected effect first with a positive held-out gain, named or not:
     the attribution alone. A candidate with the best gain may still fail the naming rules (significance, a
-    plausible estimate, its clean-site ceiling or the ``min_gain`` bar), and one with no gain ranks first only among candidates that all
-    made the held-out error worse."""
+    plausible estimate, its clean-site ceiling or the ``min_gain`` bar), and one with no gain ranks first only
+    among candidates that all made the held-out error worse."""
     ranked = row.get("ranked") or []
     return bool(ranked) and ranked[0] == row["true"] and row["scores"].get(row["true"], 0.0) > 0.0
 

@@ -2,12 +2,14 @@
 
 On a site with no effect injected, a calibrated candidate still takes some size: it absorbs part of the
 model's structural misses. The largest size any clean site gave a candidate is its clean-site ceiling
-(:attr:`buildenv.effects.Effect.clean_ceiling`); from it the diagnosis names an effect with a size by its
-estimate (beyond the ceiling, at any significant held-out gain) instead of by the ``min_gain`` bar
-(:func:`buildenv.gap.candidate_qualifies`). This script
+(:attr:`buildenv.effects.Effect.clean_ceiling`; for an effect the metamodel carries through a building
+parameter, that parameter's value furthest from where the effect vanishes: the lowest heating power, the
+largest lights' night share); from it the diagnosis names an effect by its estimate (beyond the ceiling, at
+any significant held-out gain) instead of by the ``min_gain`` bar (:func:`buildenv.gap.candidate_qualifies`).
+This script
 
 - measures the ceilings on the clean sites of the given pages (their clean cases, and the clean twins of their
-  effect cases) and checks them against the catalogue's (rounded up to 3 significant digits);
+  effect cases) and checks them against the catalogue's (rounded outwards to 3 significant digits);
 - judges every page's first steps again with three rules: the 10 % bar for every effect (the rule before),
   the ceilings measured on the *other* seeds' clean sites (each seed judged as if it were new: the honest
   estimate), and the catalogue's ceilings (in-sample for the pages that set them);
@@ -44,31 +46,44 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def size(name: str, estimate: dict[str, float]) -> float | None:
-    """The size of a candidate's estimate as the catalogue judges it (None for an effect the metamodel carries
-    through a building parameter: its ceiling is not defined, even where the site declared that parameter known
-    and the model-side addition was calibrated)."""
+    """A candidate's estimate as its clean-site ceiling judges it, oriented so that larger is further from no
+    effect: ``|first parameter|``, or for an effect the metamodel carries its building parameter, negated where
+    the effect vanishes at the top of the parameter's range (a lower heating power is a stronger limit). None
+    when the estimate lacks it (a site that declared the building parameter known calibrates the model-side
+    addition instead, which has no ceiling)."""
     effect = get_effect(name)
-    if effect.building_parameter is not None or effect.size_name not in estimate:
+    if effect.building_parameter is not None:
+        if effect.building_parameter not in estimate:
+            return None
+        return oriented(name, float(estimate[effect.building_parameter]))
+    if effect.size_name not in estimate:
         return None
     return abs(float(estimate[effect.size_name]))
 
 
+def oriented(name: str, value: float) -> float:
+    """A ceiling or size in the catalogue's units turned into :func:`size`'s orientation, or back (the same map)."""
+    effect = get_effect(name)
+    return -value if effect.building_parameter is not None and effect.vanishes_at == "max" else value
+
+
 def ceilings(records: list[dict]) -> dict[str, tuple[float, str]]:
-    """``{effect: (largest size, where)}`` over clean records (a record names its page and case in ``_at``)."""
+    """``{effect: (largest size, where)}`` over clean records (a record names its page and case in ``_at``),
+    sizes as :func:`size` orients them."""
     out: dict[str, tuple[float, str]] = {}
     for row in records:
         for name, estimate in row["estimates"].items():
             value = size(name, estimate)
-            if value is not None and value >= out.get(name, (-1.0, ""))[0]:
+            if value is not None and (name not in out or value >= out[name][0]):
                 out[name] = (value, row["_at"])
     return out
 
 
 def round_up(value: float, digits: int = 3) -> float:
-    """``value`` rounded up to ``digits`` significant digits (0 stays 0)."""
-    if value <= 0:
+    """``value`` rounded up to ``digits`` significant digits (0 stays 0; -54.877 gives -54.8)."""
+    if value == 0:
         return 0.0
-    scale = 10 ** (digits - 1 - math.floor(math.log10(value)))
+    scale = 10 ** (digits - 1 - math.floor(math.log10(abs(value))))
     return math.ceil(value * scale - 1e-9) / scale
 
 
@@ -104,24 +119,32 @@ def main() -> None:
     seed = {p: pages[p]["plan"]["seed"] for p in pages}
     clean = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in args.page}
     measured = ceilings([r for p in args.page for r in clean[p]])
-    catalogue = {e.name: e.clean_ceiling for e in EFFECTS.values() if e.clean_ceiling is not None}
+    catalogue = {e.name: oriented(e.name, e.clean_ceiling) for e in EFFECTS.values() if e.clean_ceiling is not None}
     mismatched = sorted(n for n in set(measured) | set(catalogue)
                         if catalogue.get(n) != (round_up(measured[n][0]) if n in measured else None))
 
     def other_seeds(p: str) -> dict[str, float]:
-        return {n: v for n, (v, _) in ceilings([r for q in args.page if seed[q] != seed[p] for r in clean[q]]).items()}
+        return {n: oriented(n, v)
+                for n, (v, _) in ceilings([r for q in args.page if seed[q] != seed[p] for r in clean[q]]).items()}
 
-    leave_one_out = "ceilings from the other seeds' clean sites"  # for the pages that set the ceilings only
-    rules = {"10 % bar, every effect (before)": lambda p: partial(bar_named, alpha=alpha, bar=MIN_GAIN),
-             leave_one_out: lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
-                                              clean_ceilings=other_seeds(p)),
+    def sized_only(ceilings_of: dict[str, float]) -> dict[str, float]:
+        return {n: v for n, v in ceilings_of.items() if get_effect(n).building_parameter is None}
+
+    # the rules judged with the other seeds' ceilings, for the pages that set the ceilings only
+    leave_one_out = ("ceilings from the other seeds' clean sites, carried effects at the bar",
+                     "ceilings from the other seeds' clean sites")
+    rules = {"10 % bar, every effect": lambda p: partial(bar_named, alpha=alpha, bar=MIN_GAIN),
+             leave_one_out[0]: lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
+                                                 clean_ceilings=sized_only(other_seeds(p))),
+             leave_one_out[1]: lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
+                                                 clean_ceilings=other_seeds(p)),
              "the catalogue's ceilings (now)": lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN)}
     groups = {"seeds that set the ceilings": args.page}
     if args.fresh:
         groups["fresh seeds (held out)"] = args.fresh
     table, per_page = {}, {}
     for group, members in groups.items():
-        names = [r for r in rules if members == args.page or r != leave_one_out]
+        names = [r for r in rules if members == args.page or r not in leave_one_out]
         per_page.update({p: {r: judge(pages[p]["cases"], twins.get(p, []), rules[r](p)) for r in names}
                          for p in members})
         table[group] = {r: _total([per_page[p][r] for p in members]) for r in names}
@@ -146,17 +169,23 @@ def main() -> None:
              "## Ceilings", "",
              f"Measured on {sum(len(clean[p]) for p in args.page)} clean sites (clean cases and clean twins of "
              "the pages above). Own cases: the injected effect's own estimates in its effect cases.", "",
-             "| effect | practice floor | largest on a clean site | where | catalogue | own cases: min, median, "
-             "max | own cases beyond |", "|---|---|---|---|---|---|---|"]
+             "| effect | judged on | practice floor | furthest on a clean site | where | catalogue | own cases: "
+             "min, median, max | own cases beyond |", "|---|---|---|---|---|---|---|---|"]
     for name, (value, where) in sorted(measured.items()):
         effect = get_effect(name)
         own = [s for p in pages for r in pages[p]["cases"] if r["true"] == name
                for s in [size(name, r["estimates"].get(name, {}))] if s is not None]
-        spread = f"{min(own):.3g}, {np.median(own):.3g}, {max(own):.3g}" if own else "-"
         beyond = f"{sum(s > catalogue.get(name, np.inf) for s in own)}/{len(own)}" if own else "-"
-        lines.append(f"| {name} | {effect.smallest if effect.smallest is not None else '-'} | {value:.4g} | "
-                     f"{where} | {catalogue.get(name, '-')} | {spread} | {beyond} |")
-    lines += ["", "Catalogue = largest rounded up to 3 significant digits: "
+        own = sorted(oriented(name, s) for s in own)
+        spread = f"{own[0]:.3g}, {np.median(own):.3g}, {own[-1]:.3g}" if own else "-"
+        floor = effect.carried_limit() if effect.building_parameter is not None else effect.smallest
+        shown = oriented(name, catalogue[name]) if name in catalogue else "-"
+        lines.append(f"| {name} | {effect.building_parameter or effect.size_name} | "
+                     f"{floor if floor is not None else '-'} | {oriented(name, value):.4g} | {where} | {shown} | "
+                     f"{spread} | {beyond} |")
+    lines += ["", "Furthest: the largest size, or for an effect judged through a building parameter the value furthest "
+              "from where the effect vanishes (the lowest heating power, the largest lights' night share). Catalogue "
+              "= furthest rounded outwards to 3 significant digits: "
               + ("yes, every effect." if not mismatched else f"**no** for {', '.join(mismatched)}."), ""]
     head = ["rule", "injected effect named first", "named another effect", "clean cases recognised",
             "clean twins recognised", "all clean sites", "median shrinkage (first step)"]

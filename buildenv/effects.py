@@ -86,8 +86,8 @@ DIAGNOSIS_SPLITS = ("first_half", "alternate")
 # (buildenv.gap.DiagnosisSettings.min_gain; Effect.clean_ceiling).
 MIN_GAIN = 0.10
 # Where Effect.clean_ceiling comes from (bench/gap_clean_ceiling.py recomputes the ceilings from these records).
-CLEAN_CEILING_SOURCE = ("estimate calibrated on 102 clean sites: the 17 clean cases and 85 clean twins of the blind "
-                        "checks' seeds 0-8, bench/results/gap_check_tb_seed*.json")
+CLEAN_CEILING_SOURCE = ("estimate calibrated on 118 clean sites: the 19 clean cases and 99 clean twins of the blind "
+                        "checks' seeds 0-9, bench/results/gap_check_tb_seed*.json")
 
 
 class EffectError(BuildenvError, ValueError):
@@ -143,10 +143,12 @@ class Effect:
         vanishes_at: the end of :attr:`building_parameter`'s range where the effect vanishes: ``max`` (an
             unlimited heating power) or ``min`` (no lighting left on at night).
         clean_ceiling: the largest size (as :attr:`smallest`) the diagnosis calibrated for this candidate on any
-            clean site of the recorded blind checks (:data:`CLEAN_CEILING_SOURCE`), or None where not measured
-            (effects judged through a building parameter, base effects). A size beyond it is one no site without
-            the effect produced, so a significant held-out gain names the effect whatever its size; a size at or
-            below it is the model's structural misses, and the effect is not named (:meth:`beyond_clean_sites`).
+            clean site of the recorded blind checks (:data:`CLEAN_CEILING_SOURCE`); for an effect carried by
+            :attr:`building_parameter`, that parameter's calibrated value furthest from where the effect
+            vanishes (the lowest heating power, the largest lights' night share); None where not measured (base
+            effects). An estimate beyond it is one no site without the effect produced, so a significant held-out
+            gain names the effect whatever its size; at or short of it, it is the model's structural misses, and
+            the effect is not named (:meth:`beyond_clean_sites`).
     """
 
     name: str
@@ -222,9 +224,19 @@ class Effect:
         return abs(values[self.size_name]) >= self.smallest
 
     def beyond_clean_sites(self, values: dict[str, float]) -> bool | None:
-        """Whether calibrated parameter values ``{name: value}`` give a size beyond :attr:`clean_ceiling` (None
-        when the effect has no ceiling or ``values`` is a carried effect's building parameter)."""
-        if self.clean_ceiling is None or self.size_name not in values:
+        """Whether calibrated parameter values ``{name: value}`` lie beyond :attr:`clean_ceiling`: a size larger
+        than it, or for a carried effect a :attr:`building_parameter` further than it from the end of its
+        range where the effect vanishes (a heating power below it, a lights' night share above it). None when
+        the effect has no ceiling, or ``values`` are a carried effect's model-side addition (the site declared
+        its building parameter known)."""
+        if self.clean_ceiling is None:
+            return None
+        if self.building_parameter is not None:
+            if self.building_parameter not in values:
+                return None
+            value = values[self.building_parameter]
+            return bool(value < self.clean_ceiling if self.vanishes_at == "max" else value > self.clean_ceiling)
+        if self.size_name not in values:
             return None
         return bool(abs(values[self.size_name]) > self.clean_ceiling)
 
@@ -232,6 +244,11 @@ class Effect:
         """The clean-site ceiling with its unit and source ("" when the effect has none)."""
         if self.clean_ceiling is None:
             return ""
+        if self.building_parameter is not None:
+            below = self.vanishes_at == "max"
+            return (f"{self.building_parameter} {'<' if below else '>'} {self.clean_ceiling:g} "
+                    f"{cat.get(self.building_parameter).unit} (the {'lowest' if below else 'largest'} "
+                    f"{CLEAN_CEILING_SOURCE})")
         size, unit = self._size_label()
         return f"{size} > {self.clean_ceiling:g}{unit} (the largest {CLEAN_CEILING_SOURCE})"
 
@@ -293,7 +310,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "and the diagnosis tests it against no lighting at night; with light_night_percent declared known, "
            "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied",
            0.5, smallest_reason="one standby monitor per 10 m2",
-           building_parameter="light_night_percent", vanishes_at="min"),
+           building_parameter="light_night_percent", vanishes_at="min", clean_ceiling=22.2),
     Effect("solar_shading", "solar shading / blinds",
            "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
            "hours are colder and need more heat than the model says.",
@@ -313,7 +330,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "the metamodel's heating power (building parameter heating_power_w_m2) is calibrated, and the "
            "diagnosis tests it against an unlimited heating power; with the heating power declared known, the "
            "predicted heating is capped at capacity_w_m2 and the heat not delivered lowers the temperature",
-           building_parameter="heating_power_w_m2"),
+           building_parameter="heating_power_w_m2", clean_ceiling=54.8),
     Effect("heat_recovery", "heat recovery on the air handling unit",
            "An air-to-air heat exchanger preheats the outdoor air with the exhaust air: the air handling unit's "
            "heating falls, most in cold weather.",

@@ -396,7 +396,6 @@ def test_an_effect_with_a_clean_site_ceiling_is_named_by_its_estimate():
 
     wind = get_effect("wind_infiltration")
     assert wind.beyond_clean_sites({"ach_per_m_s": 0.029}) and not wind.beyond_clean_sites({"ach_per_m_s": 0.011})
-    assert get_effect("heating_capacity_limit").beyond_clean_sites({"heating_power_w_m2": 40.0}) is None
     assert candidate_qualifies("wind_infiltration", 0.0425, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029})
     assert not candidate_qualifies("wind_infiltration", 0.0425, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029},
                                    clean_ceilings=False)
@@ -410,13 +409,41 @@ def test_an_effect_with_a_clean_site_ceiling_is_named_by_its_estimate():
                                    clean_ceilings={"wind_infiltration": 0.03})
     assert candidate_qualifies("wind_infiltration", 0.12, 3e-4, 0.006, 0.10, {"ach_per_m_s": 0.029},
                                clean_ceilings={})
-    # an effect without a ceiling (judged through a building parameter) keeps the gain bar
-    assert not candidate_qualifies("heating_capacity_limit", 0.05, 1e-6, 0.006, 0.10, {"heating_power_w_m2": 36.0})
+    # with its building parameter declared known a carried effect's model-side addition is calibrated: it has no
+    # ceiling and keeps the gain bar
+    assert get_effect("heating_capacity_limit").beyond_clean_sites({"capacity_w_m2": 30.0}) is None
+    assert not candidate_qualifies("heating_capacity_limit", 0.05, 1e-6, 0.006, 0.10, {"capacity_w_m2": 30.0})
+    assert candidate_qualifies("heating_capacity_limit", 0.12, 1e-6, 0.006, 0.10, {"capacity_w_m2": 30.0})
     verdict = _verdict([], [{"name": "solar_shading", "plausible": True, "parameters": {"blocked_fraction": 0.42},
                              "score": 0.199, "series_made_worse": [], "beyond_clean_sites": False,
                              "significance": {"p_value": 1e-9, "threshold": 0.006}}], 0.10)
     assert "its estimate is not beyond every clean site's: blocked_fraction > 0.574 (the largest" in verdict
     assert "held-out gain an effect must bring" not in verdict
+
+
+def test_a_carried_effect_is_named_by_its_building_parameter_against_the_clean_sites():
+    # seed 9 of the blind check: a plant at 46 % of design calibrated its heating power at 47.5 W/m2 (gain 5 %,
+    # under the 10 % bar); its clean twin calibrated 88.5 W/m2 and gained 11 %, which the bar named
+    from buildenv.gap import candidate_qualifies
+
+    capacity, night = get_effect("heating_capacity_limit"), get_effect("night_plug_loads")
+    assert capacity.beyond_clean_sites({"heating_power_w_m2": 47.5})
+    assert not capacity.beyond_clean_sites({"heating_power_w_m2": 88.5})
+    both_better = {"temperature": 0.08, "consumption": 0.02}
+    assert candidate_qualifies("heating_capacity_limit", 0.05, 1e-4, 0.006, 0.10, {"heating_power_w_m2": 47.5},
+                               both_better)
+    assert not candidate_qualifies("heating_capacity_limit", 0.11, 1e-7, 0.006, 0.10, {"heating_power_w_m2": 88.5},
+                                   both_better)
+    assert candidate_qualifies("heating_capacity_limit", 0.11, 1e-7, 0.006, 0.10, {"heating_power_w_m2": 88.5},
+                               both_better, clean_ceilings=False)
+    # the series rule still holds beyond the ceiling
+    assert not candidate_qualifies("heating_capacity_limit", 0.05, 1e-4, 0.006, 0.10, {"heating_power_w_m2": 47.5},
+                                   {"temperature": -0.01, "consumption": 0.2})
+    # loads left on at night: the lights' night share, which vanishes at 0 %, judged the other way round
+    assert night.beyond_clean_sites({"light_night_percent": 25.1})
+    assert not night.beyond_clean_sites({"light_night_percent": 17.1})
+    assert "heating_power_w_m2 < 54.8 W/m2 (the lowest" in capacity.clean_ceiling_text()
+    assert "light_night_percent > 22.2 % (the largest" in night.clean_ceiling_text()
 
 
 def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():

@@ -10,9 +10,11 @@ This script
 
 - measures the ceilings on the clean sites of the given pages (their clean cases, and the clean twins of their
   effect cases) and checks them against the catalogue's (rounded outwards to 3 significant digits);
-- judges every page's first steps again with three rules: the 10 % bar for every effect (the rule before),
-  the ceilings measured on the *other* seeds' clean sites (each seed judged as if it were new: the honest
-  estimate), and the catalogue's ceilings (in-sample for the pages that set them);
+- judges every page's first steps again with five rules: the 10 % bar for every effect (the rule before
+  2026-11-28), the ceilings measured on the *other* seeds' clean sites (each seed judged as if it were new: the
+  honest estimate) with the carried effects at the bar (the rule of that morning) and for every effect, and the
+  catalogue's ceilings, again with the carried effects at the bar and for every effect (in-sample for the pages
+  that set them);
 - judges ``--fresh`` pages (blind checks diagnosed after the ceilings were set) with the catalogue's ceilings
   and the bar: the held-out check.
 
@@ -119,7 +121,8 @@ def main() -> None:
     seed = {p: pages[p]["plan"]["seed"] for p in pages}
     clean = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in args.page}
     measured = ceilings([r for p in args.page for r in clean[p]])
-    catalogue = {e.name: oriented(e.name, e.clean_ceiling) for e in EFFECTS.values() if e.clean_ceiling is not None}
+    catalogue_ceilings = {e.name: e.clean_ceiling for e in EFFECTS.values() if e.clean_ceiling is not None}
+    catalogue = {n: oriented(n, v) for n, v in catalogue_ceilings.items()}
     mismatched = sorted(n for n in set(measured) | set(catalogue)
                         if catalogue.get(n) != (round_up(measured[n][0]) if n in measured else None))
 
@@ -138,6 +141,9 @@ def main() -> None:
                                                  clean_ceilings=sized_only(other_seeds(p))),
              leave_one_out[1]: lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
                                                  clean_ceilings=other_seeds(p)),
+             "the catalogue's ceilings, carried effects at the bar":
+                 lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
+                                   clean_ceilings=sized_only(catalogue_ceilings)),
              "the catalogue's ceilings (now)": lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN)}
     groups = {"seeds that set the ceilings": args.page}
     if args.fresh:

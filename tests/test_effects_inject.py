@@ -302,7 +302,7 @@ def test_cli_lists_the_catalogue(capsys):
     beyond = {r["name"]: r["named_beyond"] for r in rows}
     assert beyond["wind_infiltration"].startswith("ach_per_m_s > 0.0157 1/h per m/s (the largest estimate")
     # judged through its building parameter: below the lowest heating power a clean site calibrated
-    assert beyond["heating_capacity_limit"].startswith("heating_power_w_m2 < 54.8 W/m2 (the lowest estimate")
+    assert beyond["heating_capacity_limit"].startswith("heating_power_w_m2 < 46.7 W/m2 (the lowest estimate")
     assert beyond["night_cycle_cold_air"] is None  # a base effect of the blind checks: no ceiling measured
     assert main(["effects"]) == 0
     out = capsys.readouterr().out

@@ -175,7 +175,7 @@ def main() -> None:
              "## Ceilings", "",
              f"Measured on {sum(len(clean[p]) for p in args.page)} clean sites (clean cases and clean twins of "
              "the pages above). Own cases: the injected effect's own estimates in its effect cases.", "",
-             "| effect | judged on | practice floor | furthest on a clean site | where | catalogue | own cases: "
+             "| effect | judged on | floor (practice, or a step from where it vanishes) | furthest on a clean site | where | catalogue | own cases: "
              "min, median, max | own cases beyond |", "|---|---|---|---|---|---|---|---|"]
     for name, (value, where) in sorted(measured.items()):
         effect = get_effect(name)
@@ -221,7 +221,10 @@ def main() -> None:
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{args.name}.json").write_text(json.dumps(
-        {"command": command, "note": args.note, "measured": measured, "catalogue": catalogue,
+        {"command": command, "note": args.note,
+         # in the catalogue's units (measured_oriented: as size() orients them, a heating power negated)
+         "measured": {n: (oriented(n, v), at) for n, (v, at) in measured.items()}, "measured_oriented": measured,
+         "catalogue": catalogue_ceilings,
          "mismatched": mismatched, "groups": table, "pages": per_page, "by_effect": effect_rows,
          "twin_records": twins}, indent=1, default=float) + "\n")
     print("\n".join(lines))

@@ -66,7 +66,7 @@ def size(name: str, estimate: dict[str, float]) -> float | None:
 def oriented(name: str, value: float) -> float:
     """A ceiling or size in the catalogue's units turned into :func:`size`'s orientation, or back (the same map)."""
     effect = get_effect(name)
-    return -value if effect.building_parameter is not None and effect.vanishes_at == "max" else value
+    return effect.strength(value) if effect.building_parameter is not None else value
 
 
 def ceilings(records: list[dict]) -> dict[str, tuple[float, str]]:

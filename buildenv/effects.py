@@ -185,6 +185,11 @@ class Effect:
         var = cat.get(self.building_parameter)
         return var.max - var.step if self.vanishes_at == "max" else var.min + var.step
 
+    def strength(self, value: float) -> float:
+        """A value of :attr:`building_parameter` oriented so that larger means a stronger effect: negated where
+        the effect vanishes at the top of the range (a lower heating power is a tighter limit)."""
+        return -value if self.vanishes_at == "max" else value
+
     def vanishing_value(self) -> float | None:
         """The value of :attr:`building_parameter` at which the effect vanishes (None for an effect not carried)."""
         if self.building_parameter is None:
@@ -218,7 +223,7 @@ class Effect:
         limit = self.carried_limit()
         if limit is not None and self.building_parameter in values:
             value = values[self.building_parameter]
-            return value <= limit if self.vanishes_at == "max" else value >= limit
+            return self.strength(value) >= self.strength(limit)
         if self.smallest is None:
             return True
         return abs(values[self.size_name]) >= self.smallest
@@ -234,8 +239,7 @@ class Effect:
         if self.building_parameter is not None:
             if self.building_parameter not in values:
                 return None
-            value = values[self.building_parameter]
-            return bool(value < self.clean_ceiling if self.vanishes_at == "max" else value > self.clean_ceiling)
+            return bool(self.strength(values[self.building_parameter]) > self.strength(self.clean_ceiling))
         if self.size_name not in values:
             return None
         return bool(abs(values[self.size_name]) > self.clean_ceiling)

@@ -200,7 +200,7 @@ class DiagnosisSettings:
             taken for blinds, 11 %). At 8 % two more clean sites get an effect named.
         clean_ceilings: name an effect that has a clean-site ceiling (:attr:`buildenv.effects.Effect.clean_ceiling`)
             by its estimate, not by ``min_gain``: significant and beyond the ceiling, at any held-out gain; never
-            at or below it. Why: the bar judged every effect against the model's structural misses, which a
+            short of it. Why: the bar judged every effect against the model's structural misses, which a
             calibrated blinds or wind candidate also absorbs on clean sites (2-20 % gains), while the injected
             effects' own gains are often smaller: blinds gained 1-10 % (estimates 0.44-0.57 for most),
             wind 4-14 %. The capacity limit and night plug loads are judged the same way through their building

@@ -6,7 +6,7 @@ import argparse
 import json
 from pathlib import Path
 
-from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES, MIN_GAIN
+from buildenv.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, JUDGES, MIN_GAIN
 
 
 def _settings(args: argparse.Namespace):
@@ -70,6 +70,9 @@ def _cmd_diagnose_check(args: argparse.Namespace) -> int:
 
 
 def _common(p: argparse.ArgumentParser) -> None:
+    """The options ``diagnose`` and ``diagnose-check`` share. The split, base runs and most effects default to the
+    blind checks' settings (``CHECKED_DIAGNOSIS``), under which the clean-site ceilings were measured, so that the
+    check checks what the diagnosis does."""
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
@@ -83,12 +86,13 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--refit-anchor", type=float, default=None,
                    help="pull of every refit towards the model it starts from: weight of the squared move of "
                         "its parameters, in units of their ranges, added to the fit cost (default 0: none)")
-    p.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=DIAGNOSIS_SPLITS[0],
-                   help="fit weeks: the first half (held out: the rest) or every other week from the first "
-                        "(held out: the others), so both see the whole season's weather")
-    p.add_argument("--base-restarts", type=int, default=1,
+    p.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=CHECKED_DIAGNOSIS["split"],
+                   help="fit weeks: the first half (held out: the rest; reuses the site's calibration) or every "
+                        "other week from the first (held out: the others), so both see the whole season's weather "
+                        "(default %(default)s)")
+    p.add_argument("--base-restarts", type=int, default=CHECKED_DIAGNOSIS["base_restarts"],
                    help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
-                        "lowest fit cost kept")
+                        "lowest fit cost kept (default %(default)s)")
     p.add_argument("--min-gain", type=float, default=MIN_GAIN,
                    help="smallest held-out gain (share of standardised squared error removed) to select an effect "
                         "without a clean-site ceiling (`buildenv effects`), or any with --no-clean-ceilings "
@@ -96,7 +100,8 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-clean-ceilings", dest="clean_ceilings", action="store_false",
                    help="judge every effect by --min-gain, not by its estimate against the largest one calibrated "
                         "on clean sites")
-    p.add_argument("--max-effects", type=int, default=3, help="most effects selected")
+    p.add_argument("--max-effects", type=int, default=CHECKED_DIAGNOSIS["max_effects"],
+                   help="most effects selected (default %(default)s)")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",
                    help="score each candidate on both series (default) or on the series it shows in")
     p.add_argument("--seed", type=int, default=0)

@@ -146,7 +146,8 @@ def split_weather(site, split: str = DIAGNOSIS_SPLITS[0]) -> dict:
 
 @dataclass
 class DiagnosisSettings:
-    """Knobs of :func:`diagnose` (defaults are the ones the benchmarks use).
+    """Knobs of :func:`diagnose`. The blind checks and ``buildenv diagnose`` set ``split``, ``base_restarts`` and
+    ``max_effects`` to :data:`buildenv.effects.CHECKED_DIAGNOSIS`; the other defaults are theirs too.
 
     Attributes:
         candidates: effects tried (default: the whole catalogue).
@@ -214,13 +215,15 @@ class DiagnosisSettings:
             set: 6-8, 29 of 42 against 28 at the bar; 10, the first with the carried effects' ceilings, 9 of 14
             against 11 at the bar (10 with the carried effects at the bar), 16 of 16 clean sites under all three.
             False: every effect by ``min_gain``.
-        max_effects: most effects selected.
+        max_effects: most effects selected (the checks: 2).
         seed: seed of every CMA-ES run.
         base_effects: effects the building is already known to have: in the model from the start (calibrated
             with it), not candidates.
         judge: ``"pooled"``: each candidate is scored on both series; ``"effect_series"``: on the series it
             shows in (:attr:`buildenv.effects.Effect.series`).
-        split: how the site's weeks are split into fit and held-out weeks (:func:`split_weeks`).
+        split: how the site's weeks are split into fit and held-out weeks (:func:`split_weeks`). The first half
+            (the default here) reuses the site's calibration; every other week (the checks') sees the whole
+            season on both sides and names more on sites whose weeks get colder.
         own_refit_baseline: judge each candidate also against its own refit with the effect taken out
             (:func:`without_new_effect`) and keep the smaller gain (:func:`stricter_score`). Why: a refit moves
             the building parameters as well as the new effect's, and when the control's CMA-ES run lands worse

@@ -11,6 +11,7 @@ import pytest
 
 from buildenv.cli import main
 from buildenv.env import DEFAULT_SITE
+from buildenv.effects import CHECKED_DIAGNOSIS
 from buildenv.effects_inject import choose_holidays
 from buildenv.gap import DiagnosisSettings, split_weeks
 from buildenv.surrogate import load_metamodel
@@ -135,6 +136,9 @@ def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags
     monkeypatch.setattr(buildenv.gap, "diagnose", record)
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
     assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
+    # the blind checks' settings, under which the ceilings were measured, not DiagnosisSettings' faster defaults
+    assert {k: getattr(seen["settings"], k) for k in CHECKED_DIAGNOSIS} == CHECKED_DIAGNOSIS
+    assert CHECKED_DIAGNOSIS["split"] != DiagnosisSettings.split
 
 
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):

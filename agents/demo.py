@@ -61,6 +61,8 @@ def _diagnosis_text(d: dict) -> str:
         text += (f"\nWith {', '.join(d['selected'])} in the model, held-out CV(RMSE)_Q {b['cv_rmse_q_percent']:.1f} "
                  f"-> {a['cv_rmse_q_percent']:.1f} %, RMSE_T {b['rmse_t_celsius']:.2f} -> {a['rmse_t_celsius']:.2f} "
                  f"degC, R2_Q {b['r2_q']:.3f} -> {a['r2_q']:.3f}.\n")
+    if d.get("settings_note"):  # the demo fits the first half, reusing its calibration
+        text += f"\nNote: {d['settings_note']} (`buildenv diagnose` runs theirs).\n"
     loc = d["localisation"]
     return text + f"\nWhere it misses: {loc['temperature']['summary']} {loc['consumption']['summary']}\n"
 

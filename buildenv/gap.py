@@ -93,7 +93,7 @@ from buildenv import calibration as cal
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import DIAGNOSIS_SPLITS, EFFECTS, JUDGES, MIN_GAIN, EffectError, get_effect
+from buildenv.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, EFFECTS, JUDGES, MIN_GAIN, EffectError, get_effect
 
 ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"
@@ -293,6 +293,17 @@ class ModelFit:
         if HOLIDAYS in self.effects:
             out[HOLIDAYS] = {"absent_days": int((self.absent > 0).sum())}
         return out
+
+
+def settings_note(settings: DiagnosisSettings) -> str:
+    """One line saying which of the settings that change what a diagnosis names differ from the blind checks'
+    (:data:`buildenv.effects.CHECKED_DIAGNOSIS`), for which the clean-site ceilings were measured; empty if none."""
+    differ = [f"{k} {getattr(settings, k)} (checks: {v})" for k, v in CHECKED_DIAGNOSIS.items()
+              if getattr(settings, k) != v]
+    if not differ:
+        return ""
+    return ("settings other than the blind checks', for which the clean-site ceilings and the checks' figures were "
+            "measured: " + ", ".join(differ))
 
 
 @dataclass
@@ -703,7 +714,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
               "verdict": _verdict(selected, first_step, settings.min_gain),
               "model": {"effects": current.effect_parameters(), "absent_days": _absent_dates(site, current),
                         "parameters": current.params.tolist()},
-              "settings": dataclasses.asdict(settings)}
+              "settings": dataclasses.asdict(settings), "settings_note": settings_note(settings)}
     if selected:
         before = base  # the whole gain of the diagnosis, against the base model without any selected effect
         for name in selected:

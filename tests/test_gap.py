@@ -13,9 +13,10 @@ from buildenv import calibration as cal
 from buildenv import effects_model as em
 from buildenv.catalogue import WEATHER_NAMES
 from buildenv.env import DEFAULT_SITE
-from buildenv.effects import EFFECTS, EffectError, get_effect, parse_effect
+from buildenv.effects import CHECKED_DIAGNOSIS, EFFECTS, EffectError, get_effect, parse_effect
 from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, joint_calibration_tests, save_extended_model,
-                          split_weather, split_weeks, stricter_score, with_declared_effects, without_new_effect)
+                          settings_note, split_weather, split_weeks, stricter_score, with_declared_effects,
+                          without_new_effect)
 from buildenv.site import load_site, write_site
 from buildenv.site_model import SiteModel
 from buildenv.surrogate import load_metamodel
@@ -219,7 +220,8 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     assert first["score"] == pytest.approx(min(first["gain_vs_control"], first["gain_vs_own_refit"]), abs=1e-4)
     # recorded for criteria judged on the fit weeks: the bias lowers the cost the searches minimised
     assert 0 < first["fit_cost"]["candidate"] < first["fit_cost"]["control"]
-    assert {"localisation", "effects", "selected", "verdict", "split_weather", "base_at_bounds"} <= set(result)
+    assert {"localisation", "effects", "selected", "verdict", "split_weather", "base_at_bounds",
+            "settings_note"} <= set(result)
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
     saved = save_extended_model(site, result)
     result.pop("_fit")
@@ -280,6 +282,12 @@ def test_the_default_site_declares_its_effects_and_the_diagnosis_takes_them_as_b
     assert site.calibration["heldout"]["r2_t"] > 0.95  # issue 4's target, met with them (0.820 without)
     settings = with_declared_effects(site, DiagnosisSettings())
     assert set(settings.base_effects) >= set(site.effects)  # in the base model, not among the candidates
+
+
+def test_the_settings_note_names_what_differs_from_the_blind_checks():
+    assert settings_note(DiagnosisSettings(**CHECKED_DIAGNOSIS)) == ""
+    note = settings_note(DiagnosisSettings())  # the API's faster defaults: the first half fitted, one base run
+    assert "split first_half (checks: alternate)" in note and "base_restarts 1 (checks: 3)" in note
 
 
 def test_diagnosis_rejects_an_unknown_judging_rule(calibrated, surrogate):

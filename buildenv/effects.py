@@ -82,8 +82,8 @@ JUDGES = ("pooled", "effect_series")
 # How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.gap.split_weeks); the first is
 # buildenv.gap.DiagnosisSettings' default.
 DIAGNOSIS_SPLITS = ("first_half", "alternate")
-# The settings the blind checks ran with, so those the clean-site ceilings and the checks' figures hold for
-# (bench/results/gap_check_tb_seed*.md): every other week fitted, three base calibrations, at most two effects.
+# The settings the blind checks ran with, and so those for which the clean-site ceilings and the checks' figures
+# hold (bench/results/gap_check_tb_seed*.md): every other week fitted, three base calibrations, at most two effects.
 # `buildenv diagnose` defaults to them. DiagnosisSettings' own defaults (the first half fitted, which reuses the
 # site's `buildenv calibrate` result, one base calibration, three effects) are faster, and on 8-week autumn sites
 # name fewer effects and take capacity limits for sensor lags (bench/results/gap_first_half.md).

@@ -250,6 +250,15 @@ class Effect:
             return None
         return bool(abs(values[self.size_name]) > self.clean_ceiling)
 
+    def estimate_text(self, values: dict[str, float]) -> str:
+        """Calibrated values ``{name: value}`` (its parameters, or a carried effect's building parameter) as a
+        person reads them, with units: e.g. "light_night_percent 2.22 %"."""
+        units = {p.name: p.unit for p in self.parameters}
+        if self.building_parameter is not None:
+            units[self.building_parameter] = cat.get(self.building_parameter).unit
+        return ", ".join(f"{k} {v:.3g}" + ("" if units.get(k, "-") == "-" else f" {units[k]}")
+                         for k, v in values.items())
+
     def clean_ceiling_text(self) -> str:
         """The clean-site ceiling with its unit and source ("" when the effect has none)."""
         if self.clean_ceiling is None:

@@ -821,18 +821,19 @@ def _why_not_named(entry: dict, min_gain: float) -> str:
     reasons = []
     if sig["p_value"] >= sig["threshold"]:
         reasons.append(f"not significant at p < {sig['threshold']:.2g}")
+    effect = get_effect(entry["name"])
+    estimate = effect.estimate_text(entry["parameters"])
     beyond = entry.get("beyond_clean_sites")
     if beyond is False:
-        reasons.append("its estimate is not beyond every clean site's: "
-                       f"{get_effect(entry['name']).clean_ceiling_text()}")
+        reasons.append(f"its estimate ({estimate}) is not beyond every clean site's: {effect.clean_ceiling_text()}")
     elif beyond is None and entry["score"] < min_gain:
         reasons.append(f"under the {100 * min_gain:.0f} % held-out gain an effect must bring to be named")
     if entry.get("series_made_worse"):
         reasons.append(f"it makes the {' and '.join(entry['series_made_worse'])} worse: a building parameter "
                        "trading one series against the other absorbs another miss")
     if not entry["plausible"]:
-        reasons.append(f"its estimate {entry['parameters']} is outside what the diagnosis names: "
-                       f"{get_effect(entry['name']).named_from()}")
+        stated = "that estimate" if beyond is False else f"its estimate ({estimate})"
+        reasons.append(f"{stated} is outside what the diagnosis names: {effect.named_from()}")
     return f"{entry['name']}, held-out gain {100 * entry['score']:.1f} %, p = {sig['p_value']:.2g}" + \
         "".join(f"; {r}" for r in reasons)
 

@@ -425,7 +425,8 @@ def test_an_effect_with_a_clean_site_ceiling_is_named_by_its_estimate():
     verdict = _verdict([], [{"name": "solar_shading", "plausible": True, "parameters": {"blocked_fraction": 0.42},
                              "score": 0.199, "series_made_worse": [], "beyond_clean_sites": False,
                              "significance": {"p_value": 1e-9, "threshold": 0.006}}], 0.10)
-    assert "its estimate is not beyond every clean site's: blocked_fraction > 0.574 (the largest" in verdict
+    assert "its estimate (blocked_fraction 0.42) is not beyond every clean site's: blocked_fraction > 0.574 (the " \
+           "largest" in verdict
     assert "held-out gain an effect must bring" not in verdict
 
 
@@ -468,7 +469,8 @@ def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():
     verdict = _verdict([], [{"name": "heating_capacity_limit", "plausible": False, "score": 0.28,
                              "parameters": {"heating_power_w_m2": 99.85}, "series_made_worse": [],
                              "significance": {"p_value": 2.6e-6, "threshold": 0.006}}], 0.15)
-    assert "is outside what the diagnosis names: heating_power_w_m2 <= 90 (one catalogue step below" in verdict
+    assert "its estimate (heating_power_w_m2 99.8 W/m2) is outside what the diagnosis names: heating_power_w_m2 <= " \
+           "90 (one catalogue step below" in verdict
 
 
 def test_the_diagnosis_says_when_its_held_out_weeks_are_colder_than_its_fit_weeks():

@@ -208,8 +208,8 @@ class Effect:
         limit = self.carried_limit()
         if limit is not None:
             side, end = ("<=", "below the top") if self.vanishes_at == "max" else (">=", "above the bottom")
-            return (f"{self.building_parameter} {side} {limit:g} (one catalogue step {end} of its range, "
-                    "where the effect vanishes)")
+            return (f"{self.building_parameter} {side} {limit:g} {cat.get(self.building_parameter).unit} (one "
+                    f"catalogue step {end} of its range, where the effect vanishes)")
         if self.smallest is None:
             return ""
         size, unit = self._size_label()

@@ -470,7 +470,7 @@ def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():
                              "parameters": {"heating_power_w_m2": 99.85}, "series_made_worse": [],
                              "significance": {"p_value": 2.6e-6, "threshold": 0.006}}], 0.15)
     assert "its estimate (heating_power_w_m2 99.8 W/m2) is outside what the diagnosis names: heating_power_w_m2 <= " \
-           "90 (one catalogue step below" in verdict
+           "90 W/m2 (one catalogue step below" in verdict
 
 
 def test_the_diagnosis_says_when_its_held_out_weeks_are_colder_than_its_fit_weeks():

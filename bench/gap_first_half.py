@@ -28,6 +28,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from gap_check_compare import tally
 from gap_check_rejudge import first_named
 
 from buildenv.gap import HOLIDAYS
@@ -107,15 +108,6 @@ def main() -> None:
     write_page(args, rows, missing, time.perf_counter() - started)
 
 
-def tally(rows: list[dict], column: str) -> dict:
-    """Named right / wrong among effect cases and clean sites recognised, for one column of first namings."""
-    effect = [r for r in rows if r["true"] != NONE]
-    clean = [r for r in rows if r["true"] == NONE]
-    return {"effect_cases": len(effect), "named_right": sum(r[column] == r["true"] for r in effect),
-            "named_wrong": sum(r[column] not in (NONE, r["true"]) for r in effect),
-            "clean_sites": len(clean), "clean_recognised": sum(r[column] == NONE for r in clean)}
-
-
 def write_page(args: argparse.Namespace, rows: list[dict], missing: list[str], seconds: float) -> None:
     """``bench/results/<name>.{md,json}``."""
     columns = {"checks": "the checks' settings: every other week fitted, 3 base runs, 2 effects (as recorded)",
@@ -141,7 +133,7 @@ def write_page(args: argparse.Namespace, rows: list[dict], missing: list[str], s
     for key, label in columns.items():
         t, h = totals[key]["all"], totals[key]["without_holidays"]
         lines.append(f"| {label} | {t['named_right']}/{t['effect_cases']} | {t['named_wrong']} | "
-                     f"{t['clean_recognised']}/{t['clean_sites']} | {h['named_right']}/{h['effect_cases']} | "
+                     f"{t['clean_recognised']}/{t['clean_cases']} | {h['named_right']}/{h['effect_cases']} | "
                      f"{h['named_wrong']} |")
     lines += ["", "## Effect cases, and clean sites named by either", "",
               "| page | case | injected | magnitude | checks' settings | first half | first half selected | seconds |",

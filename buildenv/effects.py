@@ -196,6 +196,10 @@ class Effect:
         the effect vanishes at the top of the range (a lower heating power is a tighter limit)."""
         return -value if self.vanishes_at == "max" else value
 
+    def _building_unit(self) -> str:
+        """The catalogue's unit of :attr:`building_parameter`."""
+        return cat.get(self.building_parameter).unit
+
     def vanishing_value(self) -> float | None:
         """The value of :attr:`building_parameter` at which the effect vanishes (None for an effect not carried)."""
         if self.building_parameter is None:
@@ -208,7 +212,7 @@ class Effect:
         limit = self.carried_limit()
         if limit is not None:
             side, end = ("<=", "below the top") if self.vanishes_at == "max" else (">=", "above the bottom")
-            return (f"{self.building_parameter} {side} {limit:g} {cat.get(self.building_parameter).unit} (one "
+            return (f"{self.building_parameter} {side} {limit:g} {self._building_unit()} (one "
                     f"catalogue step {end} of its range, where the effect vanishes)")
         if self.smallest is None:
             return ""
@@ -255,7 +259,7 @@ class Effect:
         person reads them, with units: e.g. "light_night_percent 2.22 %"."""
         units = {p.name: p.unit for p in self.parameters}
         if self.building_parameter is not None:
-            units[self.building_parameter] = cat.get(self.building_parameter).unit
+            units[self.building_parameter] = self._building_unit()
         return ", ".join(f"{k} {v:.3g}" + ("" if units.get(k, "-") == "-" else f" {units[k]}")
                          for k, v in values.items())
 
@@ -266,7 +270,7 @@ class Effect:
         if self.building_parameter is not None:
             below = self.vanishes_at == "max"
             return (f"{self.building_parameter} {'<' if below else '>'} {self.clean_ceiling:g} "
-                    f"{cat.get(self.building_parameter).unit} (the {'lowest' if below else 'largest'} "
+                    f"{self._building_unit()} (the {'lowest' if below else 'largest'} "
                     f"{CLEAN_CEILING_SOURCE})")
         size, unit = self._size_label()
         return f"{size} > {self.clean_ceiling:g}{unit} (the largest {CLEAN_CEILING_SOURCE})"

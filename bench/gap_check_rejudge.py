@@ -23,7 +23,7 @@ from pathlib import Path
 
 from gap_check_compare import tally
 
-from buildenv.gap import candidate_qualifies
+from buildenv.gap import absorbed_candidate, candidate_qualifies, joint_test_qualifies
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -33,12 +33,20 @@ def first_named(row: dict, alpha: float, min_gain: float,
                 clean_ceilings: bool | Mapping[str, float] = True) -> str:
     """The effect a recorded case's first step names under the current plausibility rules (``none`` if none);
     a carried effect (its estimate is its building parameter) must also make none of its series worse;
-    ``clean_ceilings``: as :class:`buildenv.gap.DiagnosisSettings`."""
+    ``clean_ceilings``: as :class:`buildenv.gap.DiagnosisSettings`. When nothing qualifies, the joint tests the
+    record ran (:func:`buildenv.gap.joint_fallback`) are judged for the candidates that trigger one under these
+    ceilings; a triggered candidate the record did not test names nothing."""
     threshold = alpha / len(row["p_values"])
-    for name in sorted(row["scores"], key=lambda n: -row["scores"][n]):
+    ranked = sorted(row["scores"], key=lambda n: -row["scores"][n])
+    for name in ranked:
         if candidate_qualifies(name, row["scores"][name], row["p_values"][name], threshold, min_gain,
                                row["estimates"][name], row.get("gains_by_series", {}).get(name), clean_ceilings):
             return name
+    joint = row.get("joint_tests", {})  # the joint-calibration fallback, where the record ran it
+    for name in ranked:
+        if absorbed_candidate(name, row["estimates"][name], clean_ceilings):
+            if name in joint and joint_test_qualifies(name, joint[name], threshold):
+                return name
     return NONE
 
 

@@ -23,7 +23,7 @@ def _settings(args: argparse.Namespace):
     if args.refit_anchor is not None:
         step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
-                             clean_ceilings=args.clean_ceilings,
+                             clean_ceilings=args.clean_ceilings, joint_fallback=args.joint_fallback,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts, split=args.split,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
@@ -100,6 +100,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-clean-ceilings", dest="clean_ceilings", action="store_false",
                    help="judge every effect by --min-gain, not by its estimate against the largest one calibrated "
                         "on clean sites")
+    p.add_argument("--no-joint-fallback", dest="joint_fallback", action="store_false",
+                   help="when no candidate qualifies, do not test those with an estimate beyond every clean site's "
+                        "again by calibrating the site from scratch without and with them")
     p.add_argument("--max-effects", type=int, default=CHECKED_DIAGNOSIS["max_effects"],
                    help="most effects selected (default %(default)s)")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",

@@ -249,7 +249,8 @@ def _mse(metrics: dict, series: str) -> float:
 
 def _diagnosis_record(result: dict) -> dict:
     """What a blind check keeps of one diagnosis: the first effect named, every candidate's first-step gains,
-    p-values and estimates (enough to judge the step again under other naming rules), the base model's
+    p-values and estimates (enough to judge the step again under other naming rules), its joint tests
+    (:func:`buildenv.gap.joint_fallback`), the base model's
     held-out metrics and the residual standard deviations the gains are standardised by."""
     named = result["selected"][0] if result["selected"] else NONE
     return {"named": named, "selected": result["selected"], "ranked": [e["name"] for e in result["effects"]],
@@ -262,6 +263,9 @@ def _diagnosis_record(result: dict) -> dict:
             "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
             "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
             "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
+            "joint_tests": {e["name"]: {k: e["joint_test"][k] for k in ("gain", "gain_by_series", "p_value",
+                                                                           "estimate", "qualifies")}
+                            for e in result["effects"] if "joint_test" in e},
             "verdict": result["verdict"], "heldout_base": result["heldout_base"],
             "residual_sigma": result["residual_sigma"]}
 

@@ -123,7 +123,7 @@ def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monke
     assert len(err) == 1 and message in err[0] and effect in err[0]
 
 
-@pytest.mark.parametrize("flags, expected", [([], True), (["--no-clean-ceilings"], False)])
+@pytest.mark.parametrize("flags, expected", [([], True), (["--no-clean-ceilings", "--no-joint-fallback"], False)])
 def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
     import buildenv.gap
 
@@ -136,6 +136,7 @@ def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags
     monkeypatch.setattr(buildenv.gap, "diagnose", record)
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
     assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
+    assert seen["settings"].joint_fallback is expected
     # the blind checks' settings, under which the ceilings were measured, not DiagnosisSettings' faster defaults
     assert {k: getattr(seen["settings"], k) for k in CHECKED_DIAGNOSIS} == CHECKED_DIAGNOSIS
     assert CHECKED_DIAGNOSIS["split"] != DiagnosisSettings.split

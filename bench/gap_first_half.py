@@ -20,7 +20,6 @@ import argparse
 import json
 import multiprocessing
 import os
-import shlex
 import shutil
 import statistics
 import tempfile
@@ -28,6 +27,7 @@ import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
+from gap_check_bar import check_folder
 from gap_check_compare import tally
 from gap_check_rejudge import first_named
 
@@ -36,12 +36,6 @@ from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
-
-
-def check_folder(page: dict) -> Path:
-    """The folder of a page's sites, read from the ``--out`` of the command that made the page."""
-    words = shlex.split(page["command"])
-    return Path(words[words.index("--out") + 1])
 
 
 def diagnose_with_defaults(site_dir: str, base_effects: tuple[str, ...], out: str) -> None:

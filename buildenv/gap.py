@@ -553,9 +553,10 @@ def joint_fallback(ctx: _Context, current: ModelFit, entries: list[dict], thresh
     without = None
     for entry in entries:
         name = entry["name"]
-        if carried_by(ctx, name) or not absorbed_candidate(name, entry["parameters"], ctx.settings.clean_ceilings):
+        if not absorbed_candidate(name, entry["parameters"], ctx.settings.clean_ceilings):
             continue
-        without = without or from_scratch(ctx, current)
+        if without is None:
+            without = from_scratch(ctx, current)
         model, test = joint_test(ctx, without, name)
         entry["joint_test"] = test | {"qualifies": joint_test_qualifies(name, test, threshold)}
         if entry["joint_test"]["qualifies"]:
@@ -886,7 +887,8 @@ def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: l
     best candidate of the first step ``entries`` was not named."""
     if not selected:
         best = entries[0] if entries else None
-        return "no significant unmodelled effect" + (f" (best candidate: {_why_not_named(best, min_gain)})"
+        tested = "".join(f"; {e['name']} {_joint_text(e['joint_test'])}" for e in entries[1:] if "joint_test" in e)
+        return "no significant unmodelled effect" + (f" (best candidate: {_why_not_named(best, min_gain)}{tested})"
                                                      if best else "")
     by_joint = {e["name"] for step in steps for e in step["candidates"] if e.get("joint_test", {}).get("qualifies")}
     return "unmodelled effect(s) found: " + ", ".join(
@@ -912,12 +914,16 @@ def _why_not_named(entry: dict, min_gain: float) -> str:
     if not entry["plausible"]:
         stated = "that estimate" if beyond is False else f"its estimate ({estimate})"
         reasons.append(f"{stated} is outside what the diagnosis names: {effect.named_from()}")
-    joint = entry.get("joint_test")
-    if joint:
-        reasons.append(f"calibrated from scratch with and without it, it gains {100 * joint['gain']:.1f} %, "
-                       f"p = {joint['p_value']:.2g}, not significant with a positive gain and a plausible estimate")
+    if "joint_test" in entry:
+        reasons.append(f"it {_joint_text(entry['joint_test'])}")
     return f"{entry['name']}, held-out gain {100 * entry['score']:.1f} %, p = {sig['p_value']:.2g}" + \
         "".join(f"; {r}" for r in reasons)
+
+
+def _joint_text(test: dict) -> str:
+    """A joint test that did not name its candidate (:func:`joint_fallback`), as the verdict says it."""
+    return (f"calibrated from scratch with and without it gains {100 * test['gain']:.1f} %, p = {test['p_value']:.2g} "
+            "(not named: a joint test must gain significantly with a plausible estimate)")
 
 
 def _absent_dates(site, fit: ModelFit) -> list[str]:

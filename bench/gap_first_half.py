@@ -24,6 +24,7 @@ import shutil
 import statistics
 import tempfile
 import time
+from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -36,6 +37,16 @@ from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
 THREAD_VARIABLES = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def run_side_by_side(function: Callable, jobs: list[tuple], workers: int) -> None:
+    """``function(*job)`` for every job, ``workers`` at a time in spawned processes with one thread each (set
+    before the workers import numpy and torch, which read it as they start); an error in a job is raised."""
+    for var in THREAD_VARIABLES:
+        os.environ[var] = "1"
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        for future in [pool.submit(function, *job) for job in jobs]:
+            future.result()
 
 
 def diagnose_with_defaults(site_dir: str, base_effects: tuple[str, ...], out: str) -> None:
@@ -88,11 +99,7 @@ def main() -> None:
                 todo.append((str(site), tuple(page["base_effects"]), str(out)))
     if todo:
         print(f"{len(todo)} sites to diagnose, {args.jobs} at a time")
-        for var in THREAD_VARIABLES:  # read by the spawned workers' numpy and torch as they start
-            os.environ[var] = "1"
-        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-            for future in [pool.submit(diagnose_with_defaults, *job) for job in todo]:
-                future.result()
+        run_side_by_side(diagnose_with_defaults, todo, args.jobs)
     for row in rows:
         result = json.loads(row.pop("out").read_text())
         row["first_half"] = (result["selected"] or [NONE])[0]

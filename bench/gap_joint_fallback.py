@@ -24,17 +24,15 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
 from gap_check_bar import check_folder
 from gap_check_compare import tally
 from gap_check_rejudge import first_named
 from gap_clean_ceiling import ceilings, clean_records, oriented
-from gap_first_half import THREAD_VARIABLES
+from gap_first_half import run_side_by_side
 
 from buildenv.gap import absorbed_candidate, joint_test_qualifies
 from buildenv.gap_check import NONE
@@ -106,11 +104,7 @@ def main() -> None:
             records.append(record)
     if todo:
         print(f"{len(todo)} joint tests to run, {args.jobs} at a time")
-        for var in THREAD_VARIABLES:  # read by the spawned workers' numpy and torch as they start
-            os.environ[var] = "1"
-        with ProcessPoolExecutor(args.jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-            for future in [pool.submit(run_joint_test, *job) for job in todo]:
-                future.result()
+        run_side_by_side(run_joint_test, todo, args.jobs)
     for record in records:
         record["fallback"] = record["checks"]
         for test in record["tests"]:

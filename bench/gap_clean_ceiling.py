@@ -25,7 +25,8 @@ This script
 ``--twin-records`` reads clean twins kept in a page's json (``bench/gap_check_bar.py`` keeps them);
 ``--twins PAGE`` reads (or, without ``--no-diagnose``, diagnoses) a page's twins from its check folder, as
 ``bench/gap_check_bar.py`` does. Run it from the repository root. Writes ``bench/results/NAME.{md,json}``; the
-json keeps every twin record it read.
+json keeps every twin record it read. The ceiling of ``night_plug_loads`` is on the night electricity since
+2026-11-28, which the records do not keep: ``bench/gap_night_electricity.py`` measures it on recalibrated sites.
 """
 
 from __future__ import annotations
@@ -54,6 +55,8 @@ def size(name: str, estimate: dict[str, float]) -> float | None:
     when the estimate lacks it (a site that declared the building parameter known calibrates the model-side
     addition instead, which has no ceiling)."""
     effect = get_effect(name)
+    if effect.judged_on is not None:  # a derived quantity (night_plug_loads: bench/gap_night_electricity.py)
+        return float(estimate[effect.judged_on]) if effect.judged_on in estimate else None
     if effect.building_parameter is not None:
         if effect.building_parameter not in estimate:
             return None
@@ -89,6 +92,15 @@ def round_up(value: float, digits: int = 3) -> float:
     return math.ceil(value * scale - 1e-9) / scale
 
 
+def read_twin_records(paths: list[str]) -> dict[str, list[dict]]:
+    """``{page: [clean twin records]}`` from jsons keeping a ``twin_records`` map (this script's,
+    ``bench/gap_check_bar.py``'s); a later file's page replaces an earlier one's."""
+    twins: dict[str, list[dict]] = {}
+    for path in paths:
+        twins.update({p: list(rows) for p, rows in json.loads(Path(path).read_text())["twin_records"].items()})
+    return twins
+
+
 def clean_records(page: dict, twins: list[dict], at: str) -> list[dict]:
     """A page's clean cases and its clean twins, each tagged with where it comes from."""
     rows = [r | {"_at": f"{at} case {r['case']}"} for r in page["cases"] if r["true"] == NONE]
@@ -111,10 +123,7 @@ def main() -> None:
     args = parser.parse_args()
     started = time.perf_counter()
     pages = {p: json.loads(Path(p).read_text()) for p in dict.fromkeys(args.page + args.fresh)}
-    twins: dict[str, list[dict]] = {}
-    for path in args.twin_records:
-        for page, rows in json.loads(Path(path).read_text())["twin_records"].items():
-            twins[page] = list(rows)
+    twins = read_twin_records(args.twin_records)
     for page in args.twins:
         twins[page] = twin_records(pages[page], not args.no_diagnose)
     alpha = next(iter(pages.values()))["plan"]["settings"]["alpha"]

@@ -17,7 +17,9 @@ recorded site with the check's settings and kept in ``--folder``, so a rerun res
     .venv/bin/python bench/gap_joint_fallback.py --page bench/results/gap_check_tb_seed0.json ... \\
         --twin-records bench/results/gap_clean_ceiling.json --jobs 2
 
-Writes ``bench/results/<name>.{md,json}``.
+Writes ``bench/results/<name>.{md,json}``. The records predate the night electricity (``night_plug_loads`` is judged
+on it since 2026-11-28 and the records keep the lights' share only), so a rerun now judges that candidate by the
+10 % bar; ``bench/gap_night_electricity.py`` replays this fallback under the old and the new night rule.
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from pathlib import Path
 from gap_check_bar import check_folder
 from gap_check_compare import tally
 from gap_check_rejudge import first_named
-from gap_clean_ceiling import ceilings, clean_records, oriented
+from gap_clean_ceiling import ceilings, clean_records, oriented, read_twin_records
 from gap_first_half import run_side_by_side
 
 from buildenv.gap import absorbed_candidate, joint_test_qualifies
@@ -75,9 +77,7 @@ def main() -> None:
     args = parser.parse_args()
     started = time.perf_counter()
     pages = {p: json.loads(Path(p).read_text()) for p in args.page}
-    twins: dict[str, list[dict]] = {}
-    for path in args.twin_records:
-        twins.update({p: list(rows) for p, rows in json.loads(Path(path).read_text())["twin_records"].items()})
+    twins = read_twin_records(args.twin_records)
     seed = {p: pages[p]["plan"]["seed"] for p in pages}
     clean = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in pages}
     folder = Path(args.folder)

@@ -63,8 +63,11 @@ significant gain, stop when none is significant):
    clean sites of the blind checks (:attr:`buildenv.effects.Effect.clean_ceiling`, an empirical null
    distribution of the estimate: the largest of n clean sites' estimates exceeds 95 % of all clean sites'
    with confidence 1 - 0.95^n, over 99 % for the 100 and more measured). For an effect carried by a building
-   parameter the estimate is that parameter: a heating power below the lowest any clean site calibrated, a
-   lights' night share above the largest. An effect without a ceiling (a base effect, or a carried effect whose
+   parameter the estimate is that parameter, a heating power below the lowest any clean site calibrated, or a
+   quantity derived from the building parameters (:attr:`buildenv.effects.Effect.judged_on`): for loads left on
+   at night, the night electricity both night shares add up to, above the largest (the lights' share alone moved
+   between the base model and its recalibration by 10 points where the night electricity moved by 2 %:
+   ``bench/results/gap_night_electricity.md``). An effect without a ceiling (a base effect, or a carried effect whose
    parameter the site declared known, so that its model-side addition is calibrated) needs a gain of at least
    ``min_gain`` instead (a practical threshold: a calibrated model that only misses by structure gains less
    than this from most single effects). ``DiagnosisSettings.clean_ceilings=False`` judges every effect by
@@ -99,7 +102,8 @@ from buildenv import calibration as cal
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, EFFECTS, JUDGES, MIN_GAIN, EffectError, get_effect
+from buildenv.effects import (CHECKED_DIAGNOSIS, DERIVED_SIZES, DIAGNOSIS_SPLITS, EFFECTS, JUDGES, MIN_GAIN, EffectError,
+                              get_effect)
 
 ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"
@@ -305,9 +309,12 @@ class ModelFit:
         values = em.split_parameters(self.model_effects, self.params[None, n_base:])
         out = {e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])}
                for e in self.model_effects}
+        theta = dict(zip(cal.parameter_names(), self.params[:n_base].tolist()))
         for e in self.carried:
-            name = get_effect(e).building_parameter
-            out[e] = {name: round(float(self.params[cal.parameter_names().index(name)]), 5)}
+            effect = get_effect(e)
+            out[e] = {effect.building_parameter: round(theta[effect.building_parameter], 5)}
+            if effect.judged_on is not None:  # e.g. the night electricity both night shares add up to
+                out[e][effect.judged_on] = round(DERIVED_SIZES[effect.judged_on][0](theta), 5)
         if HOLIDAYS in self.effects:
             out[HOLIDAYS] = {"absent_days": int((self.absent > 0).sum())}
         return out

@@ -7,6 +7,7 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.defaults import DEFAULT_THETA, default_week
+from buildenv.effects import night_electricity_w_m2
 from buildenv.campaign import CampaignConfig, plan_campaign
 from buildenv.energyplus.runner import run_energyplus, warmup_settled
 from buildenv.energyplus.shoebox import (
@@ -91,6 +92,9 @@ def test_internal_gains_follow_schedules_exactly(chicago_january):
                                rtol=1e-3, atol=1e-3)
     assert np.all(out[occ == 0, OUT["Q_PEOPLE"]] == 0)
     assert np.all(out[occ > 0, OUT["Q_PEOPLE"]] > 0)
+    # what the gap diagnosis judges loads left on at night by: the electricity of the unoccupied hours
+    night = out[occ == 0][:, [OUT["Q_LIGHT"], OUT["Q_EQP"]]].sum(axis=1)
+    np.testing.assert_allclose(night, night_electricity_w_m2(DEFAULT_THETA), rtol=1e-3)
 
 
 def test_ahu_energy_rises_with_ventilation_volume_and_supply_temperature():

@@ -14,7 +14,8 @@ from buildenv import calibration as cal
 from buildenv import effects_model as em
 from buildenv.catalogue import WEATHER_NAMES
 from buildenv.env import DEFAULT_SITE
-from buildenv.effects import CHECKED_DIAGNOSIS, EFFECTS, EffectError, get_effect, parse_effect
+from buildenv.effects import (CHECKED_DIAGNOSIS, EFFECTS, EffectError, get_effect, night_electricity_w_m2,
+                              parse_effect)
 from buildenv.gap import (DiagnosisSettings, ModelFit, _verdict, diagnose, joint_calibration_tests, save_extended_model,
                           settings_note, split_weather, split_weeks, stricter_score, with_declared_effects,
                           without_new_effect)
@@ -417,11 +418,15 @@ def test_loads_left_on_at_night_past_the_plug_loads_night_share_are_named_agains
         tmp_path, surrogate, light_night_percent, named):
     # the metamodel carries a night load through the night shares of its lights and plug loads; with the plug
     # loads' share at the top of its range, what is left on beyond it can only be lighting, so the diagnosis
-    # judges night_plug_loads against the model with no lighting at night
-    _, result, entry = _diagnose_synthetic(tmp_path, surrogate, "night_plug_loads",
-                                           {"pc_night_percent": 70.0, "light_night_percent": light_night_percent})
+    # judges night_plug_loads against the model with no lighting at night, and sizes it by the night electricity
+    # both shares add up to
+    site, result, entry = _diagnose_synthetic(tmp_path, surrogate, "night_plug_loads",
+                                              {"pc_night_percent": 70.0, "light_night_percent": light_night_percent})
     assert result["selected"] == (["night_plug_loads"] if named else [])
-    assert set(entry["parameters"]) == {"light_night_percent"}
+    assert set(entry["parameters"]) == {"light_night_percent", "night_electricity_w_m2"}
+    true_night = night_electricity_w_m2({"light_night_percent": light_night_percent, "pc_night_percent": 70.0,
+                                         "pc_density_per_m2": 0.06})  # test_calibration._truth's density
+    assert entry["parameters"]["night_electricity_w_m2"] == pytest.approx(true_night, rel=0.15)
     if named:
         assert entry["parameters"]["light_night_percent"] > 30.0 and entry["score"] > 0.3
 
@@ -511,11 +516,22 @@ def test_a_carried_effect_is_named_by_its_building_parameter_against_the_clean_s
     # the series rule still holds beyond the ceiling
     assert not candidate_qualifies("heating_capacity_limit", 0.042, 1e-4, 0.006, 0.10, {"heating_power_w_m2": 31.4},
                                    {"temperature": -0.01, "consumption": 0.2})
-    # loads left on at night: the lights' night share, which vanishes at 0 %, judged the other way round
-    assert night.beyond_clean_sites({"light_night_percent": 25.1})
-    assert not night.beyond_clean_sites({"light_night_percent": 17.1})
+    # loads left on at night: judged on the night electricity both night shares add up to, not on the lights'
+    # share (seed 10 case 7, 2.2 W/m2 injected: the lights' share 10.7 %, under the clean sites' 22.2 %, the night
+    # electricity 4.68 W/m2; the clean twin of seed 8 case 5: 22.2 % and 3.19 W/m2)
+    assert night.beyond_clean_sites({"light_night_percent": 10.7, "night_electricity_w_m2": 4.68})
+    assert not night.beyond_clean_sites({"light_night_percent": 22.2, "night_electricity_w_m2": 3.19})
+    assert night.beyond_clean_sites({"light_night_percent": 25.1}) is None  # a record made before: not judged
     assert "heating_power_w_m2 < 46.7 W/m2 (the lowest" in capacity.clean_ceiling_text()
-    assert "light_night_percent > 22.2 % (the largest" in night.clean_ceiling_text()
+    assert "night_electricity_w_m2 > " in night.clean_ceiling_text() and "W/m2 (the largest" in \
+        night.clean_ceiling_text()
+
+
+def test_the_night_electricity_adds_the_lights_and_equipment_left_on():
+    theta = {"light_night_percent": 20.0, "pc_density_per_m2": 0.05, "pc_night_percent": 40.0}
+    assert night_electricity_w_m2(theta) == pytest.approx(10.0 * 0.2 + 150.0 * 0.05 * 0.4)  # W/m2
+    moved = theta | {"light_night_percent": 50.0, "pc_night_percent": 0.0}  # the same load, carried by the lights
+    assert night_electricity_w_m2(moved) == pytest.approx(night_electricity_w_m2(theta))
 
 
 def test_a_carried_effect_calibrated_at_the_top_of_its_range_is_not_named():

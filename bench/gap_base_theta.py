@@ -10,7 +10,8 @@ with the check's own settings (its plan: split, base calibrations, declared base
         [--effect night_plug_loads --effect none] [--twins] --jobs 2
 
 Resumable: each site's parameters are kept in ``--folder`` as ``seed<S>_case_<NNN>[_twin].json``. Sites are done
-effect cases first, then clean cases, then twins, so a partial run is already useful.
+in this order: those named with ``--first``, the effect cases, the clean cases, then the twins. A partial run is
+therefore already useful. A site whose folder the check no longer keeps is skipped, and the script says which.
 """
 
 from __future__ import annotations

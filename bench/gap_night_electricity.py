@@ -98,13 +98,16 @@ def main() -> None:
              if row["true"] != NONE for key in [f"seed{seed[p]}_case_{row['case']:03d}_twin"]
              if key not in recorded and (night := recalibrated(theta, key)) is not None]
     records = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in pages}
+    by_page = {}  # each page's ceilings, from the other seeds' clean sites
+    for p in pages:
+        others = [r for q in pages if seed[q] != seed[p] for r in records[q]]
+        by_page[p] = ({n: oriented(n, v) for n, (v, _) in ceilings(others).items()},
+                      max(v for r in others if (v := share(r)) is not None),
+                      max((c["night"] for c in clean + extra if seed[c["page"]] != seed[p] and c["night"] is not None),
+                          default=float("inf")))  # none measured: nothing is beyond it
     for s in sites:
         p = s["page"]
-        others = [r for q in pages if seed[q] != seed[p] for r in records[q]]
-        ceilings_of = {n: oriented(n, v) for n, (v, _) in ceilings(others).items()}
-        share_ceiling = max(v for r in others if (v := share(r)) is not None)
-        night_ceiling = max((c["night"] for c in clean + extra if seed[c["page"]] != seed[p] and c["night"] is not None),
-                            default=float("inf"))  # none measured: nothing is beyond it
+        ceilings_of, share_ceiling, night_ceiling = by_page[p]
         settings = pages[p]["plan"]["settings"]
         s["ceilings"] = {RULES[0]: share_ceiling, RULES[1]: night_ceiling}
         before = judged_as(s["row"], share(s["row"])) if share(s["row"]) is not None else s["row"]

@@ -173,7 +173,8 @@ class Effect:
         clean_ceiling: the largest size (as :attr:`smallest`) the diagnosis calibrated for this candidate on any
             clean site of the recorded blind checks (:data:`CLEAN_CEILING_SOURCE`); for an effect carried by
             :attr:`building_parameter`, that parameter's calibrated value furthest from where the effect
-            vanishes (the lowest heating power, the largest lights' night share); None where not measured (base
+            vanishes (the lowest heating power), or the quantity it is :attr:`judged_on` (the largest night
+            electricity); None where not measured (base
             effects). An estimate beyond it is one no site without the effect produced, so a significant held-out
             gain names the effect whatever its size; at or short of it, it is the model's structural misses, and
             the effect is not named (:meth:`beyond_clean_sites`).
@@ -271,7 +272,8 @@ class Effect:
     def beyond_clean_sites(self, values: dict[str, float]) -> bool | None:
         """Whether calibrated parameter values ``{name: value}`` lie beyond :attr:`clean_ceiling`: a size larger
         than it, or for a carried effect a :attr:`building_parameter` further than it from the end of its
-        range where the effect vanishes (a heating power below it, a lights' night share above it). None when
+        range where the effect vanishes (a heating power below it), or for one with :attr:`judged_on` that
+        quantity above it (a night electricity above it). None when
         the effect has no ceiling, or ``values`` are a carried effect's model-side addition (the site declared
         its building parameter known)."""
         if self.clean_ceiling is None:

@@ -66,9 +66,10 @@ significant gain, stop when none is significant):
    parameter the estimate is that parameter, a heating power below the lowest any clean site calibrated, or a
    quantity derived from the building parameters (:attr:`buildenv.effects.Effect.judged_on`): for loads left on
    at night, the night electricity both night shares add up to, above the largest (the lights' share alone moved
-   between the base model and its recalibration by 10 points where the night electricity moved by 2 %:
-   ``bench/results/gap_night_electricity.md``). An effect without a ceiling (a base effect, or a carried effect whose
-   parameter the site declared known, so that its model-side addition is calibrated) needs a gain of at least
+   between the base model and its recalibration by 10 points where the night electricity moved by 2 %, seed 1
+   case 5 recalibrated by ``bench/gap_base_theta.py``; ``bench/results/gap_night_electricity.md``). An effect
+   without a ceiling (a base effect, or a carried effect whose parameter the site declared known, so that its
+   model-side addition is calibrated) needs a gain of at least
    ``min_gain`` instead (a practical threshold: a calibrated model that only misses by structure gains less
    than this from most single effects). ``DiagnosisSettings.clean_ceilings=False`` judges every effect by
    ``min_gain`` (the rule before 2026-11-28).
@@ -102,8 +103,8 @@ from buildenv import calibration as cal
 from buildenv import catalogue as cat
 from buildenv import effects_model as em
 from buildenv import surrogate as sg
-from buildenv.effects import (CHECKED_DIAGNOSIS, DERIVED_SIZES, DIAGNOSIS_SPLITS, EFFECTS, JUDGES, MIN_GAIN, EffectError,
-                              get_effect)
+from buildenv.effects import (CHECKED_DIAGNOSIS, DERIVED_SIZES, DIAGNOSIS_SPLITS, EFFECTS, JUDGES, MIN_GAIN,
+                              EffectError, get_effect)
 
 ABSENCE_THRESHOLD = 0.15
 HOLIDAYS = "holidays"

@@ -142,9 +142,11 @@ def main() -> None:
              f"(gap left) | {_pct(s.get('top1_accuracy_gap_left'))} | |",
              f"| no-effect cases recognised | {_pct(s['none_recognised'])} | >= 90 % |",
              f"| false-alarm rate | {_pct(s['false_alarm_rate'])} | |",
-             "| mean shrinkage of the effect's gap (held-out, found cases) | "
+             "| mean shrinkage of the effect's gap (held-out, the "
+             f"{s.get('shrinkage_cases_gap_left', '-')} found cases whose effect left a gap) | "
              f"{_pct(s['mean_shrinkage_of_effect_gap'])} | >= 50 % |",
-             f"| median shrinkage of the effect's gap | {_pct(s['median_shrinkage_of_effect_gap'])} | |",
+             f"| median shrinkage of the effect's gap (every found case) | "
+             f"{_pct(s['median_shrinkage_of_effect_gap'])} | |",
              f"| mean shrinkage of the whole gap of the series | {_pct(s['mean_shrinkage_of_total_gap'])} | |"]
     times = [r["seconds"] for r in result["cases"]]
     if times:

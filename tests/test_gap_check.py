@@ -102,6 +102,19 @@ def test_ranked_first_counts_the_attribution_whether_or_not_the_effect_was_named
     assert summary["ranked_first_accuracy"] == 0.5 and summary["top1_accuracy"] == 0.25
 
 
+def test_the_mean_shrinkage_is_over_found_effects_that_left_a_gap():
+    # seed 11's found blinds left a held-out MSE 0.08006 against its twin's 0.07999: its shrinkage of 90 (9,000 %)
+    # divides by noise, and took the check's mean to 906 %
+    def row(case, shrinkage, left):
+        return {"case": case, "true": "solar_shading", "named": "solar_shading", "correct": True,
+                "shrinkage": {"of_effect_gap": shrinkage, "of_total_gap": 0.1}, "gap_left": {"left": left}}
+
+    rows = [row(1, 0.9, True), row(2, 0.7, True), row(3, 90.6, False), row(4, float("nan"), True)]
+    summary = summarise(rows, [NONE, "solar_shading"])
+    assert summary["mean_shrinkage_of_effect_gap"] == pytest.approx(0.8)
+    assert summary["shrinkage_cases_gap_left"] == 2
+    assert summary["median_shrinkage_of_effect_gap"] == pytest.approx(0.9)
+
 def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--candidates", "wind", "--no-save", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

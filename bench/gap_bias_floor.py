@@ -64,7 +64,7 @@ def main() -> None:
     parser.add_argument("--name", default="gap_bias_floor")
     args = parser.parse_args()
     started = time.perf_counter()
-    recorded = 0.8
+    recorded = effects.EFFECTS[BIAS].smallest  # the catalogue's floor (K)
     pages = {p: json.loads(Path(p).read_text()) for p in args.page + args.fresh}
     twins = read_twin_records(args.twin_records)
     night = {s["key"]: s for s in json.loads(Path(args.night).read_text())["sites"]}

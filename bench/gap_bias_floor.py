@@ -73,7 +73,7 @@ def main() -> None:
     sites = []
     for p, page in pages.items():
         if p in args.fresh:
-            ceilings_of: dict = True  # the catalogue's
+            ceilings_of: dict | bool = True  # the catalogue's
         else:
             others = [r for q in args.page if seed[q] != seed[p] for r in records[q]]
             ceilings_of = {n: oriented(n, v) for n, (v, _) in ceilings(others).items()}

@@ -115,6 +115,7 @@ def test_the_mean_shrinkage_is_over_found_effects_that_left_a_gap():
     assert summary["shrinkage_cases_gap_left"] == 2
     assert summary["median_shrinkage_of_effect_gap"] == pytest.approx(0.9)
 
+
 def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--candidates", "wind", "--no-save", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()

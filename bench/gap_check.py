@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv.cli_sites import add_known_argument, parse_known
-from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES
+from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES, get_effect
 from buildenv.gap import DiagnosisSettings, split_weeks
 from buildenv.gap_check import FIRST_MONDAYS, VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday, run_check
 from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
@@ -75,9 +75,15 @@ def main() -> None:
                         help="weeks each site measures (fit and held-out weeks: --split)")
     parser.add_argument("--note", default="",
                         help="a line for the page under its header, e.g. where cases resumed from --out were run")
+    parser.add_argument("--effects", default="",
+                        help="comma-separated effects the cases inject, with none between them (default: the whole "
+                             "catalogue less the known effects)")
     add_known_argument(parser)
     args = parser.parse_args()
     known = parse_known(args.known)
+    effects = tuple(e.strip() for e in args.effects.split(",") if e.strip()) or None
+    for name in effects or ():
+        get_effect(name)  # a misspelt name fails here, before the long check
     started, load = time.perf_counter(), os.getloadavg()[0]
     settings = DiagnosisSettings(evaluations=args.evaluations, max_effects=args.max_effects, judge=args.judge,
                                  base_restarts=args.base_restarts, refit_step=args.refit_step,
@@ -88,7 +94,8 @@ def main() -> None:
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
     surrogate = load_metamodel(None if args.checkpoint == "default" else args.checkpoint)
     result = run_check(args.out, args.cases, args.seed, surrogate=surrogate, settings=settings, base_effects=base,
-                       progress=True, known_parameters=known, weeks=args.weeks)
+                       progress=True, known_parameters=known, weeks=args.weeks,
+                       effects=effects)
     s = result["summary"]
     command = (f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
                f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
@@ -104,6 +111,7 @@ def main() -> None:
                + (f" --effect-first {args.effect_first}"
                   if args.effect_first != DiagnosisSettings.effect_first_evaluations else "")
                + "".join(f" --known {k}={v:g}" for k, v in known.items())
+               + (f" --effects {','.join(effects)}" if effects else "")
                + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "default" else "")
                + (f" --weeks {args.weeks}" if args.weeks != WEEKS else "")
                + (f" --split {args.split}" if args.split != DiagnosisSettings.split else ""))
@@ -122,7 +130,8 @@ def main() -> None:
              f"Building: {result['plan']['building']} in {result['plan']['epw']}, {weeks}-week sites "
              f"({len(fit_weeks)} fit + {weeks - len(fit_weeks)} held-out weeks, split {args.split}), first Monday "
              f"drawn between {FIRST_MONDAYS[0]} and {FIRST_MONDAYS[1]} (at latest {latest_first_monday(weeks)}, so "
-             f"the period ends in {FIRST_MONDAYS[1].year}), one effect (or none) injected at a random magnitude, "
+             f"the period ends in {FIRST_MONDAYS[1].year}), one effect "
+             + (f"of {', '.join(effects)} " if effects else "") + "(or none) injected at a random magnitude, "
              "diagnosed blind (`buildenv/gap_check.py` states the procedure).",
              f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
              "Building parameters every site declares known (fixed in calibration): "

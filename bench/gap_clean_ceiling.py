@@ -22,6 +22,11 @@ This script
         --twin-records bench/results/gap_check_bar.json [--fresh bench/results/gap_check_tb_seed6.json] \\
         [--twins bench/results/gap_check_tb_seed6.json] [--no-diagnose] --name gap_clean_ceiling
 
+``--declared`` measures the ceilings of sites that declare building parameters known
+(:attr:`buildenv.effects.Effect.declared_ceiling`): the pages' sites must declare some, their ceilings are checked
+against the catalogue's declared ones, and the rule "the catalogue's ceilings (now)" judges with those, beside
+the ceilings of sites declaring nothing (what a diagnosis used on such sites before 2026-11-29).
+
 ``--twin-records`` reads clean twins kept in a page's json (``bench/gap_check_bar.py`` keeps them);
 ``--twins PAGE`` reads (or, without ``--no-diagnose``, diagnoses) a page's twins from its check folder, as
 ``bench/gap_check_bar.py`` does. Run it from the repository root. Writes ``bench/results/NAME.{md,json}``; the
@@ -42,7 +47,7 @@ import numpy as np
 from gap_check_bar import _cell, bar_named, judge, twin_records
 from gap_check_rejudge import first_named
 
-from buildenv.effects import EFFECTS, MIN_GAIN, get_effect
+from buildenv.effects import EFFECTS, MIN_GAIN, declared_ceilings, get_effect
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -119,6 +124,8 @@ def main() -> None:
                         help="a page whose clean twins are read (or diagnosed) from its check folder")
     parser.add_argument("--no-diagnose", action="store_true", help="read the --twins records only")
     parser.add_argument("--note", default="", help="a paragraph for the page (where the runs ran)")
+    parser.add_argument("--declared", action="store_true",
+                        help="the pages' sites declare building parameters known: measure Effect.declared_ceiling")
     parser.add_argument("--name", default="gap_clean_ceiling")
     args = parser.parse_args()
     started = time.perf_counter()
@@ -130,7 +137,12 @@ def main() -> None:
     seed = {p: pages[p]["plan"]["seed"] for p in pages}
     clean = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in args.page}
     measured = ceilings([r for p in args.page for r in clean[p]])
-    catalogue_ceilings = {e.name: e.clean_ceiling for e in EFFECTS.values() if e.clean_ceiling is not None}
+    declaring = sorted({p for p, page in pages.items() if page["plan"].get("known_parameters")})
+    if args.declared != (len(declaring) == len(pages)):
+        raise SystemExit("--declared needs every page's sites to declare building parameters known, and only then: "
+                         f"{len(declaring)} of {len(pages)} do")
+    catalogue_ceilings = (declared_ceilings() if args.declared else
+                          {e.name: e.clean_ceiling for e in EFFECTS.values() if e.clean_ceiling is not None})
     catalogue = {n: oriented(n, v) for n, v in catalogue_ceilings.items()}
     mismatched = sorted(n for n in set(measured) | set(catalogue)
                         if catalogue.get(n) != (round_up(measured[n][0]) if n in measured else None))
@@ -153,7 +165,12 @@ def main() -> None:
              "the catalogue's ceilings, carried effects at the bar":
                  lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
                                    clean_ceilings=sized_only(catalogue_ceilings)),
-             "the catalogue's ceilings (now)": lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN)}
+             "the catalogue's ceilings (now)": lambda p: partial(first_named, alpha=alpha, min_gain=MIN_GAIN,
+                                                                 clean_ceilings=catalogue_ceilings
+                                                                 if args.declared else True)}
+    if args.declared:
+        rules["the ceilings of sites declaring nothing"] = lambda p: partial(first_named, alpha=alpha,
+                                                                            min_gain=MIN_GAIN)
     groups = {"seeds that set the ceilings": args.page}
     if args.fresh:
         groups["fresh seeds (held out)"] = args.fresh
@@ -174,7 +191,8 @@ def main() -> None:
     command = ("python bench/gap_clean_ceiling.py " + " ".join(f"--page {p}" for p in args.page)
                + "".join(f" --twin-records {p}" for p in args.twin_records)
                + "".join(f" --fresh {p}" for p in args.fresh) + "".join(f" --twins {p}" for p in args.twins)
-               + (" --no-diagnose" if args.no_diagnose else "") + f" --name {args.name}")
+               + (" --no-diagnose" if args.no_diagnose else "") + (" --declared" if args.declared else "")
+               + f" --name {args.name}")
     lines = [f"# Clean-site ceilings and the naming rule they give ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}` ({time.perf_counter() - started:.0f} s).", "",
              *([args.note, ""] if args.note else []),
@@ -183,7 +201,10 @@ def main() -> None:
              "effect with a clean-site ceiling, an estimate beyond it. Shrinkage as in `gap_check_bar.md`.", "",
              "## Ceilings", "",
              f"Measured on {sum(len(clean[p]) for p in args.page)} clean sites (clean cases and clean twins of "
-             "the pages above). Own cases: the injected effect's own estimates in its effect cases.", "",
+             + ("sites declaring " + ", ".join(f"{k} = {v:g}" for k, v in
+                                               pages[args.page[0]]["plan"]["known_parameters"].items())
+                + " known; catalogue: `Effect.declared_ceiling`; " if args.declared else "")
+             + "the pages above). Own cases: the injected effect's own estimates in its effect cases.", "",
              "| effect | judged on | floor (practice, or a step from where it vanishes) | furthest on a clean site | where | catalogue | own cases: "
              "min, median, max | own cases beyond |", "|---|---|---|---|---|---|---|---|"]
     for name, (value, where) in sorted(measured.items()):

@@ -65,6 +65,7 @@ from buildenv import surrogate as sg
 from buildenv.effects import EffectError, check_declarable, get_effect
 from buildenv.errors import BuildenvError
 from buildenv.schedules import hourly_schedules
+from buildenv.threads import one_blas_thread
 
 WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
 SITE_CONSUMPTION_OUTPUTS = cat.HEAT_CONSUMPTION_OUTPUTS
@@ -427,6 +428,7 @@ def default_weeks(n_weeks: int) -> tuple[list[int], list[int]]:
     return list(range(n_fit)), list(range(n_fit, n_weeks))
 
 
+@one_blas_thread()  # buildenv.threads: numpy's BLAS threads would fight the metamodel's
 def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None, method: str = "cmaes",
                    seed: int = 0, max_evaluations: int = 6000, progress: bool = False, save: bool = True,
                    restarts: int = 1, effects: tuple[str, ...] | None = None) -> dict:

@@ -32,6 +32,7 @@ from buildenv.dataset import SPLITS
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 from buildenv.surrogate import CONTEXT_HOURS
+from buildenv.threads import one_blas_thread
 
 
 def _parse_assignments(items: list[str]) -> dict[str, float]:
@@ -323,7 +324,8 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     logging.basicConfig(level=logging.INFO if args.verbose else logging.WARNING, format="%(levelname)s %(message)s")
     try:
-        return args.func(args)
+        with one_blas_thread():  # numpy's BLAS threads would fight the metamodel's (buildenv.threads)
+            return args.func(args)
     except BuildenvError as exc:
         print(f"buildenv {args.command}: error: {exc}", file=sys.stderr)
         return 2

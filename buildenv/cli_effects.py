@@ -14,7 +14,8 @@ from typing import Any
 def catalogue_rows() -> list[dict[str, Any]]:
     """One JSON-ready row per effect: name, title, kind, magnitude unit, practice range, default, injection
     limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names and
-    the size beyond which any significant held-out gain names it (the clean-site ceiling)."""
+    the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
+    building parameters known, the one measured on such sites)."""
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
 
     return [{"name": e.name, "title": e.title, "kind": e.kind, "magnitude_unit": e.magnitude_unit,
@@ -22,6 +23,7 @@ def catalogue_rows() -> list[dict[str, Any]]:
              "injection_limits": list(INJECTION_LIMITS[e.name]), "no_effect_magnitude": NO_EFFECT_MAGNITUDE[e.name],
              "series": list(e.series), "model": e.model, "named_from": e.named_from() or None,
              "named_beyond": e.clean_ceiling_text() or None,
+             "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
              "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
                              "description": p.description} for p in e.parameters]}
             for e in EFFECTS.values()]
@@ -41,7 +43,9 @@ def _cmd_effects(args: argparse.Namespace) -> int:
               f"    shows in: {', '.join(r['series'])}\n"
               f"    model side: {params}"
               + (f"\n    named from: {r['named_from']}" if r["named_from"] else "")
-              + (f"\n    named by significance alone when: {r['named_beyond']}" if r["named_beyond"] else ""))
+              + (f"\n    named by significance alone when: {r['named_beyond']}" if r["named_beyond"] else "")
+              + (f"\n    on a site declaring building parameters known: {r['named_beyond_on_declaring_sites']}"
+                 if r["named_beyond_on_declaring_sites"] else ""))
     print("\ninject with: buildenv site reference --out SITE --effect NAME[=MAGNITUDE] [--effect-seed N]")
     return 0
 

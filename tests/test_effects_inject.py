@@ -298,12 +298,16 @@ def test_cli_lists_the_catalogue(capsys):
     named_from = {r["name"]: r["named_from"] for r in rows}
     assert named_from["heating_capacity_limit"].startswith("heating_power_w_m2 <= 90 W/m2 (")  # a step below the top
     assert named_from["heat_recovery"].startswith("effectiveness >= 0.3 (")
-    assert named_from["temperature_sensor_bias"].startswith("|bias_k| >= 0.8 K (")
+    assert named_from["temperature_sensor_bias"].startswith("|bias_k| >= 0.4 K (")
     beyond = {r["name"]: r["named_beyond"] for r in rows}
     assert beyond["wind_infiltration"].startswith("ach_per_m_s > 0.0157 1/h per m/s (the largest estimate")
     # judged through its building parameter: below the lowest heating power a clean site calibrated
     assert beyond["heating_capacity_limit"].startswith("heating_power_w_m2 < 46.7 W/m2 (the lowest estimate")
     assert beyond["night_cycle_cold_air"] is None  # a base effect of the blind checks: no ceiling measured
+    # on a site declaring building parameters known: the ceiling measured on such sites
+    declaring = {r["name"]: r["named_beyond_on_declaring_sites"] for r in rows}
+    assert declaring["temperature_sensor_bias"].startswith("|bias_k| > ") and "clean sites declaring" in \
+        declaring["temperature_sensor_bias"]
     assert main(["effects"]) == 0
     out = capsys.readouterr().out
     assert "heat_recovery" in out and "named from: effectiveness >= 0.3 (" in out

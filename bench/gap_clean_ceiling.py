@@ -137,10 +137,10 @@ def main() -> None:
     seed = {p: pages[p]["plan"]["seed"] for p in pages}
     clean = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in args.page}
     measured = ceilings([r for p in args.page for r in clean[p]])
-    declaring = sorted({p for p, page in pages.items() if page["plan"].get("known_parameters")})
-    if args.declared != (len(declaring) == len(pages)):
+    declaring = sum(bool(page["plan"].get("known_parameters")) for page in pages.values())
+    if declaring != (len(pages) if args.declared else 0):
         raise SystemExit("--declared needs every page's sites to declare building parameters known, and only then: "
-                         f"{len(declaring)} of {len(pages)} do")
+                         f"{declaring} of {len(pages)} do")
     catalogue_ceilings = (declared_ceilings() if args.declared else
                           {e.name: e.clean_ceiling for e in EFFECTS.values() if e.clean_ceiling is not None})
     catalogue = {n: oriented(n, v) for n, v in catalogue_ceilings.items()}

@@ -302,15 +302,18 @@ def test_cli_lists_the_catalogue(capsys):
     beyond = {r["name"]: r["named_beyond"] for r in rows}
     assert beyond["wind_infiltration"].startswith("ach_per_m_s > 0.0157 1/h per m/s (the largest estimate")
     # judged through its building parameter: below the lowest heating power a clean site calibrated
-    assert beyond["heating_capacity_limit"].startswith("heating_power_w_m2 < 46.7 W/m2 (the lowest estimate")
+    assert beyond["heating_capacity_limit"].startswith("heating_power_w_m2 < 42.5 W/m2 (the lowest estimate")
     assert beyond["night_cycle_cold_air"] is None  # a base effect of the blind checks: no ceiling measured
     # on a site declaring building parameters known: the ceiling measured on such sites
     declaring = {r["name"]: r["named_beyond_on_declaring_sites"] for r in rows}
     assert declaring["temperature_sensor_bias"].startswith("|bias_k| > ") and "clean sites declaring" in \
         declaring["temperature_sensor_bias"]
+    starts = {r["name"]: r["also_recalibrated_from"] for r in rows}
+    assert starts["heating_capacity_limit"] == "heating_power_w_m2 = 25, 40 W/m2" and starts["wind_infiltration"] is None
     assert main(["effects"]) == 0
     out = capsys.readouterr().out
     assert "heat_recovery" in out and "named from: effectiveness >= 0.3 (" in out
+    assert "also recalibrated from: heating_power_w_m2 = 25, 40 W/m2" in out
     assert "named by significance alone when: blocked_fraction > 0.574 (" in out
 
 

@@ -452,6 +452,30 @@ def test_a_heating_plant_short_of_power_is_named_against_an_unlimited_one(tmp_pa
         assert entry["score"] < 0.15
 
 
+def test_a_carried_effect_is_also_refitted_from_its_starts_and_the_best_fit_kept(tmp_path, surrogate):
+    # two capacity limits of the blind checks (seed 12 case 11, seed 17 case 4) calibrated their heating power at
+    # 89-95 W/m2 and a sensor lag was named; refitted from 25 W/m2 they fitted better at 36 W/m2
+    # (bench/results/gap_carried_starts.md). Here a calibration stuck at 95 W/m2 on a 20 W/m2 building.
+    from test_calibration import _synthetic_site, _truth
+
+    from buildenv.gap import _context, _problem, carried_trial
+
+    j = cal.parameter_names().index("heating_power_w_m2")
+    truth = _truth()
+    truth[j] = 20.0
+    site = _synthetic_site(tmp_path, surrogate, truth, noise_seed=0)
+    ctx = _context(site, surrogate, DiagnosisSettings(evaluations=300))
+    stuck = truth.copy()
+    stuck[j] = 95.0
+    absent = np.zeros((site.weeks, 7))
+    cost = cal.evaluate(_problem(ctx, ModelFit((), stuck, absent), ctx.fit_weeks), surrogate, stuck[None])[0]
+    control = ModelFit((), stuck, absent, float(cost))
+    trial = carried_trial(ctx, control, control, "heating_capacity_limit")
+    assert trial.effects == trial.carried == ("heating_capacity_limit",)
+    assert trial.cost < control.cost and trial.params[j] < 40.0
+    assert get_effect("heating_capacity_limit").carried_starts and not get_effect("night_plug_loads").carried_starts
+
+
 def test_a_carried_effect_that_trades_one_series_for_the_other_is_not_named():
     # a sensor reading low absorbed by a low heating power: consumption better, temperature worse
     from buildenv.gap import series_made_worse
@@ -507,6 +531,7 @@ def test_a_carried_effect_is_named_by_its_building_parameter_against_the_clean_s
     assert capacity.beyond_clean_sites({"heating_power_w_m2": 31.4})
     assert not capacity.beyond_clean_sites({"heating_power_w_m2": 88.5})
     assert not capacity.beyond_clean_sites({"heating_power_w_m2": 47.5})  # a clean twin of seed 10 gave 46.75
+    assert not capacity.beyond_clean_sites({"heating_power_w_m2": 42.6})  # seed 17's clean case 0 gave 42.52
     both_better = {"temperature": 0.07, "consumption": 0.01}
     assert candidate_qualifies("heating_capacity_limit", 0.042, 0.0048, 0.00625, 0.10, {"heating_power_w_m2": 31.4},
                                both_better)
@@ -523,9 +548,33 @@ def test_a_carried_effect_is_named_by_its_building_parameter_against_the_clean_s
     assert night.beyond_clean_sites({"light_night_percent": 10.7, "night_electricity_w_m2": 4.68})
     assert not night.beyond_clean_sites({"light_night_percent": 22.2, "night_electricity_w_m2": 3.19})
     assert night.beyond_clean_sites({"light_night_percent": 25.1}) is None  # a record made before: not judged
-    assert "heating_power_w_m2 < 46.7 W/m2 (the lowest" in capacity.clean_ceiling_text()
+    assert "heating_power_w_m2 < 42.5 W/m2 (the lowest" in capacity.clean_ceiling_text()
     assert "night_electricity_w_m2 > " in night.clean_ceiling_text() and "W/m2 (the largest" in \
         night.clean_ceiling_text()
+
+
+@pytest.mark.parametrize("page", ["gap_clean_ceiling_all", "gap_declared_ceiling"])
+def test_the_catalogue_ceilings_are_those_measured_rounded_outwards(page):
+    # the catalogue types each ceiling once; the benchmark pages that measured them are their source (the
+    # largest size on a clean site, rounded outwards to 3 significant digits, a heating power downwards)
+    from buildenv.effects import declared_ceilings
+
+    results = Path(__file__).resolve().parents[1] / "bench" / "results"
+    measured = {n: v for n, (v, _) in json.loads((results / f"{page}.json").read_text())["measured"].items()}
+    if page == "gap_declared_ceiling":
+        typed = declared_ceilings()
+    else:  # night plug loads are judged on the night electricity of recalibrated clean sites, measured apart
+        typed = {e.name: e.clean_ceiling for e in EFFECTS.values() if e.clean_ceiling is not None}
+        nights = json.loads((results / "gap_night_electricity.json").read_text())["clean_nights"]
+        measured["night_plug_loads"] = max(value for value, _ in nights)
+        # the heating power, also on the clean sites diagnosed again with its extra starts (either search)
+        (power, _), = json.loads((results / "gap_carried_starts.json").read_text())["measured"].values()
+        measured["heating_capacity_limit"] = min(measured["heating_capacity_limit"], power)
+    assert set(typed) == set(measured)
+    for name, value in measured.items():
+        effect = get_effect(name)
+        orient = effect.strength if effect.building_parameter and effect.judged_on is None else float
+        assert orient(value) <= orient(typed[name]) <= orient(value) + 0.01 * abs(value), (name, value, typed[name])
 
 
 def test_a_site_declaring_parameters_known_is_judged_by_the_ceilings_of_such_sites():

@@ -108,7 +108,9 @@ NIGHT_CEILING_SOURCE = ("night electricity of the first step's recalibrated base
 # also refitted the heating power from Effect.carried_starts (bench/gap_carried_starts.py), either search.
 CAPACITY_CEILING_SOURCE = ("estimate calibrated on 216 clean sites of the blind checks' seeds 0-16 "
                            "(bench/results/gap_clean_ceiling_all.md) and, before and after the heating power's "
-                           "extra starts, on 26 clean sites of seeds 12-18 (bench/results/gap_carried_starts.md)")
+                           "extra starts, on 50 clean sites of seeds 12-18 (bench/results/gap_carried_starts.md, "
+                           "gap_carried_starts_twins1718.md)")
+
 
 def night_electricity_w_m2(theta: dict[str, float]) -> float:
     """Electric power the shoebox leaves on outside occupied hours, W/m2 of floor: its lighting density

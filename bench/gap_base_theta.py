@@ -21,7 +21,7 @@ import json
 import time
 from pathlib import Path
 
-from gap_check_bar import check_folder
+from gap_check_bar import check_folder, recorded_settings
 from gap_first_half import run_side_by_side
 
 from buildenv.gap_check import NONE
@@ -34,16 +34,17 @@ def base_parameters(site_dir: str, settings: dict, out: str) -> None:
     ``out``, each fit ``{"parameters": {building parameter or occupancy: value}, "effects": {effect: {parameter:
     value}}, "cost", "params": all, in problem order}``. One thread: several run side by side."""
     from buildenv import calibration as cal
-    from buildenv.gap import DiagnosisSettings, _context, base_fit, refit, with_declared_effects
+    from buildenv.gap import _context, base_fit, refit, with_declared_effects
     from buildenv.site import load_site
     from buildenv.surrogate import load_metamodel
 
     started = time.perf_counter()
     site = load_site(site_dir)
-    diagnosis = DiagnosisSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+    diagnosis = recorded_settings(settings)
     ctx = _context(site, load_metamodel("default"), with_declared_effects(site, diagnosis))
     base = base_fit(ctx)
-    control = refit(ctx, base, None)  # the first step's control: the trial a carried effect is judged as
+    control = refit(ctx, base, None)  # the first step's control: the trial of a carried effect without
+    # carried_starts (night plug loads)
     names = cal.parameter_names()
     record = {key: {"parameters": {n: round(float(v), 5) for n, v in zip(names, fit.params[:len(names)])},
                     "effects": fit.effect_parameters(), "cost": fit.cost, "params": fit.params.tolist()}

@@ -25,10 +25,10 @@ import json
 import time
 from pathlib import Path
 
-from gap_check_bar import check_folder
+from gap_check_bar import check_folder, recorded_settings
 
 from buildenv.effects import get_effect
-from buildenv.gap import DiagnosisSettings, diagnose
+from buildenv.gap import diagnose
 from buildenv.gap_check import NONE, _diagnosis_record
 from buildenv.site import load_site
 
@@ -58,8 +58,7 @@ def recorded(page: dict, row: dict, twin: bool) -> dict | None:
 
 def rediagnose(page: dict, row: dict, twin: bool, surrogate) -> dict:
     """Diagnose one recorded site again with the current code, as the check did (its settings, no localisation)."""
-    plan = page["plan"]
-    settings = DiagnosisSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in plan["settings"].items()})
+    settings = recorded_settings(page["plan"]["settings"])
     folder = check_folder(page) / (f"case_{row['case']:03d}" + ("_twin" if twin else ""))
     started = time.perf_counter()
     result = diagnose(load_site(folder), surrogate, settings, localisation=False)

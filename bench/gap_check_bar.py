@@ -53,12 +53,17 @@ def check_folder(page: dict) -> Path:
     return Path(words[words.index("--out") + 1])
 
 
+def recorded_settings(settings: dict) -> DiagnosisSettings:
+    """The diagnosis settings a check recorded (its plan's ``settings``, lists back to tuples)."""
+    return DiagnosisSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+
+
 def twin_records(page: dict, diagnose: bool, progress: bool = True) -> list[dict]:
     """The clean twins' diagnoses of a check's effect cases, those missing made first when ``diagnose``."""
     from buildenv.surrogate import load_metamodel
 
     out, plan = check_folder(page), page["plan"]
-    settings = DiagnosisSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in plan["settings"].items()})
+    settings = recorded_settings(plan["settings"])
     stand_in = StandIn(plan["building"], plan["epw"], plan.get("known_parameters", {}), plan["weeks"],
                        settings.split)
     surrogate, rows = None, []

@@ -30,7 +30,7 @@ import os
 import time
 from pathlib import Path
 
-from gap_check_bar import check_folder
+from gap_check_bar import check_folder, recorded_settings
 from gap_check_compare import tally
 from gap_check_rejudge import first_named
 from gap_clean_ceiling import ceilings, clean_records, oriented, read_twin_records
@@ -45,11 +45,11 @@ RESULTS = Path(__file__).resolve().parent / "results"
 def run_joint_test(site_dir: str, candidate: str, settings: dict, out: str) -> None:
     """The joint test of ``candidate`` on one recorded site with the check's ``settings`` (a DiagnosisSettings
     dict), written to ``out``. One thread: several run side by side."""
-    from buildenv.gap import DiagnosisSettings, joint_calibration_tests
+    from buildenv.gap import joint_calibration_tests
     from buildenv.site import load_site
     from buildenv.surrogate import load_metamodel
 
-    settings = DiagnosisSettings(**{k: tuple(v) if isinstance(v, list) else v for k, v in settings.items()})
+    settings = recorded_settings(settings)
     started = time.perf_counter()
     test = joint_calibration_tests(load_site(site_dir), load_metamodel("default"), (candidate,), settings)[0]
     Path(out).write_text(json.dumps(test | {"seconds": round(time.perf_counter() - started, 1)}, default=float)

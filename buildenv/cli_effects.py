@@ -17,7 +17,6 @@ def catalogue_rows() -> list[dict[str, Any]]:
     the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
     building parameters known, the one measured on such sites), and for an effect carried by a building parameter
     that parameter and the values a diagnosis also recalibrates from (``Effect.carried_starts``)."""
-    from buildenv import catalogue as cat
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
 
     return [{"name": e.name, "title": e.title, "kind": e.kind, "magnitude_unit": e.magnitude_unit,
@@ -27,8 +26,7 @@ def catalogue_rows() -> list[dict[str, Any]]:
              "named_beyond": e.clean_ceiling_text() or None,
              "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
              "building_parameter": e.building_parameter, "carried_starts": list(e.carried_starts),
-             "also_recalibrated_from": (f"{e.building_parameter} = {', '.join(f'{v:g}' for v in e.carried_starts)} "
-                                        f"{cat.get(e.building_parameter).unit}") if e.carried_starts else None,
+             "also_recalibrated_from": e.carried_starts_text() or None,
              "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
                              "description": p.description} for p in e.parameters]}
             for e in EFFECTS.values()]

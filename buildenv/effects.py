@@ -329,6 +329,13 @@ class Effect:
         ceiling is :attr:`declared_ceiling`, from :data:`DECLARED_CEILING_SOURCE`."""
         return dataclasses.replace(self, clean_ceiling=self.declared_ceiling, ceiling_source=DECLARED_CEILING_SOURCE)
 
+    def carried_starts_text(self) -> str:
+        """The values a diagnosis also recalibrates the carrying building parameter from, with its unit ("" when
+        the effect has no :attr:`carried_starts`)."""
+        if not self.carried_starts:
+            return ""
+        return f"{self.building_parameter} = {', '.join(f'{v:g}' for v in self.carried_starts)} {self._building_unit()}"
+
     def clean_ceiling_text(self) -> str:
         """The clean-site ceiling with its unit and source ("" when the effect has none)."""
         if self.clean_ceiling is None:

@@ -56,10 +56,15 @@ def recorded(page: dict, row: dict, twin: bool) -> dict | None:
     return json.loads(path.read_text()) if path.is_file() else None
 
 
+def site_folder(page: dict, row: dict, twin: bool) -> Path:
+    """Where the check keeps a site (it may be gone: ``bench/gap_regenerate_site.py`` makes it again)."""
+    return check_folder(page) / (f"case_{row['case']:03d}" + ("_twin" if twin else ""))
+
+
 def rediagnose(page: dict, row: dict, twin: bool, surrogate) -> dict:
     """Diagnose one recorded site again with the current code, as the check did (its settings, no localisation)."""
     settings = recorded_settings(page["plan"]["settings"])
-    folder = check_folder(page) / (f"case_{row['case']:03d}" + ("_twin" if twin else ""))
+    folder = site_folder(page, row, twin)
     started = time.perf_counter()
     result = diagnose(load_site(folder), surrogate, settings, localisation=False)
     result.pop("_fit", None)
@@ -79,19 +84,21 @@ def _cell(value: float | None) -> str:
     return "-" if value is None else f"{value:.1f}"
 
 
-def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+def site_arguments(parser: argparse.ArgumentParser, effects: str, twins_of: str, folder: str, name: str) -> None:
+    """The options that choose and keep the sites diagnosed again (defaults as given)."""
     parser.add_argument("--page", action="append", required=True, help="a bench/gap_check.py result (.json)")
-    parser.add_argument("--effects", default=f"{CAPACITY},{NONE}",
+    parser.add_argument("--effects", default=effects,
                         help="injected effects whose cases are diagnosed again (none: the clean cases)")
-    parser.add_argument("--twins-of", default=CAPACITY,
+    parser.add_argument("--twins-of", default=twins_of,
                         help="injected effects whose clean twins are diagnosed again ('' for none)")
-    parser.add_argument("--folder", default="out/gap-carried-starts", help="where the new records are kept")
+    parser.add_argument("--folder", default=folder, help="where the new records are kept")
     parser.add_argument("--shard", default="", help="K/N: diagnose every N-th site from the K-th (no page)")
     parser.add_argument("--no-diagnose", action="store_true", help="read the kept records only")
-    parser.add_argument("--name", default="gap_carried_starts")
-    args = parser.parse_args()
-    started = time.perf_counter()
+    parser.add_argument("--name", default=name)
+
+
+def chosen_sites(args: argparse.Namespace) -> tuple[dict[str, dict], list[tuple[str, dict, bool]]]:
+    """The pages read from ``--page`` and the sites :func:`sites` chooses from them."""
     pages = {p: json.loads(Path(p).read_text()) for p in args.page}
     effects = {e.strip() for e in args.effects.split(",") if e.strip()}
     twins_of = {e.strip() for e in args.twins_of.split(",") if e.strip()}
@@ -99,14 +106,21 @@ def main() -> None:
         raise SystemExit("--twins-of: the clean cases have no twins (name injected effects)")
     for name in (effects | twins_of) - {NONE}:
         get_effect(name)
-    todo = sites(pages, effects, twins_of)
+    return pages, sites(pages, effects, twins_of)
+
+
+def diagnosed_rows(args: argparse.Namespace, pages: dict[str, dict], todo: list[tuple[str, dict, bool]]
+                   ) -> tuple[list[tuple], int]:
+    """Diagnose the sites of ``todo`` not yet kept in ``--folder`` whose check folder keeps them (this shard's,
+    none with ``--no-diagnose``), then ``(page, row, twin?, recorded diagnosis, new one)`` of every kept site and
+    how many are still missing."""
     folder = Path(args.folder)
     folder.mkdir(parents=True, exist_ok=True)
     k, n = (int(x) for x in args.shard.split("/")) if args.shard else (0, 1)
     surrogate = None
     for i, (p, row, twin) in enumerate(todo):
         path = folder / f"{key(pages[p], row, twin)}.json"
-        if args.no_diagnose or i % n != k or path.is_file():
+        if args.no_diagnose or i % n != k or path.is_file() or not site_folder(pages[p], row, twin).is_dir():
             continue
         if surrogate is None:
             from buildenv.surrogate import load_metamodel
@@ -114,8 +128,6 @@ def main() -> None:
         record = rediagnose(pages[p], row, twin, surrogate)
         path.write_text(json.dumps(record, indent=1, default=float) + "\n")
         print(f"{path.stem}: {record['named']} ({record['seconds']} s)", flush=True)
-    if args.shard:
-        return
     rows, missing = [], 0
     for p, row, twin in todo:
         path = folder / f"{key(pages[p], row, twin)}.json"
@@ -123,6 +135,18 @@ def main() -> None:
             missing += 1
             continue
         rows.append((p, row, twin, recorded(pages[p], row, twin), json.loads(path.read_text())))
+    return rows, missing
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    site_arguments(parser, f"{CAPACITY},{NONE}", CAPACITY, "out/gap-carried-starts", "gap_carried_starts")
+    args = parser.parse_args()
+    started = time.perf_counter()
+    pages, todo = chosen_sites(args)
+    rows, missing = diagnosed_rows(args, pages, todo)
+    if args.shard:
+        return
     groups: dict[str, dict] = {}
     for _, row, twin, before, after in rows:
         truth = NONE if twin else row["true"]

@@ -3,7 +3,7 @@
 The wind infiltration candidate used to add ``ach_per_m_s x share x wind speed`` to the calibrated air changes, so
 its refit had to lower them by the wind term's mean to keep the level; the base calibration had already taken them
 near the bottom of their range (0.1 1/h), where they could not go lower. The term is now centred on
-:data:`buildenv.effects_model.WIND_REFERENCE_M_S`. A ceiling measured on clean sites with the old term no longer
+:data:`buildenv.effects.WIND_REFERENCE_M_S`. A ceiling measured on clean sites with the old term no longer
 holds, so this script diagnoses the chosen sites of recorded blind checks again with the current code (the same
 records as ``bench/gap_carried_starts.py``), measures the wind candidate's largest estimate on the clean ones and
 judges every site again with it:
@@ -28,8 +28,7 @@ from gap_carried_starts import CAPACITY, chosen_sites, diagnosed_rows, heating_p
 from gap_check_rejudge import first_named
 from gap_clean_ceiling import round_up
 
-from buildenv.effects import EFFECTS, MIN_GAIN, declared_ceilings
-from buildenv.effects_model import WIND_REFERENCE_M_S
+from buildenv.effects import EFFECTS, MIN_GAIN, WIND_REFERENCE_M_S, declared_ceilings
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
@@ -102,7 +101,7 @@ def main() -> None:
              "", f"Command: `{command}` ({time.perf_counter() - started:.0f} s this run; the diagnoses "
              f"{sum(seconds):.0f} s, median {sorted(seconds)[len(seconds) // 2] if seconds else 0:.0f} s a site).",
              "", "The wind infiltration candidate now adds `ach_per_m_s x (share x wind speed - "
-             f"{WIND_REFERENCE_M_S:g} m/s)` to the calibrated air changes (`buildenv.effects_model."
+             f"{WIND_REFERENCE_M_S:g} m/s)` to the calibrated air changes (`buildenv.effects."
              "WIND_REFERENCE_M_S`), where it added `ach_per_m_s x share x wind speed`. Recorded: the verdict the "
              "check recorded (the rules of its day). Now: the current code's diagnosis, its first step judged with "
              "the catalogue's ceilings" + (" of sites declaring building parameters known" if args.declared else "")

@@ -8,10 +8,10 @@ candidates (``N`` weeks, each with its own parameter values):
   WIND_REFERENCE_M_S)`` (at least 0), with the share :data:`VENTILATED_WIND_SHARE` in the hours the ventilation
   input is on and 1 otherwise (a running air handling unit pressurises the building: the DOE reference buildings
   schedule their infiltration at 25 % then, and the stand-in's injection scales with that schedule). The term is
-  centred on :data:`WIND_REFERENCE_M_S`, so the calibrated air changes are those of a typical hour and the
-  candidate moves the hours around that level instead of adding to it: added on top, the wind's level pushed the
-  calibrated air changes to the bottom of their range (0.1 1/h) in most wind cases' refits, where they could not
-  make room for it (see :data:`WIND_REFERENCE_M_S`). Measured on blind case 8 of seed 0
+  centred on :data:`buildenv.effects.WIND_REFERENCE_M_S`, so the calibrated air changes are those of a typical
+  hour and the candidate moves the hours around that level instead of adding to it: added on top, the wind's level
+  pushed the calibrated air changes to the bottom of their range (0.1 1/h) in half the wind cases' refits, where
+  they could not make room for it (see :data:`buildenv.effects.WIND_REFERENCE_M_S`). Measured on blind case 8 of seed 0
   (``bench/results/gap_check_evening_seed0.md``, 40 % per m/s injected): against the injected footprint (the
   case minus its clean twin), the 24-hour term leaves 55 % of its temperature part and 28 % of its consumption
   part unexplained at its best size for consumption and cannot fit both; this form leaves 37 % and 23 % at one
@@ -78,7 +78,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv import surrogate as sg
-from buildenv.effects import EFFECTS, get_effect
+from buildenv.effects import EFFECTS, WIND_REFERENCE_M_S, get_effect
 
 INPUT_EFFECTS = ("wind_infiltration", "solar_shading", "evening_departure")
 OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery", "night_cycle_cold_air")
@@ -90,13 +90,6 @@ SAG_TIME_CONSTANT_H = 3.0
 #: Share of the wind-driven infiltration left while the air handling unit runs (the building is pressurised):
 #: the convention of the DOE reference buildings' infiltration schedules, and the stand-in's own.
 VENTILATED_WIND_SHARE = 0.25
-#: ``share x wind speed`` (m/s) at which the wind term of ``wind_infiltration`` adds nothing: about its mean over
-#: the blind checks' Chicago weeks (2.5-3.3 m/s over the fit weeks of the wind cases of seeds 12-20). In a probe on
-#: those 16 cases and their clean twins (not kept in ``bench/``), the uncentred term's refit left the calibrated air
-#: changes at 0.100-0.104 1/h, the bottom of their range, in 8 of the 16 cases; centred, the refit fitted the fit
-#: weeks better in 14 of 16 cases (and 10 of 16 twins). Diagnosed again with it, the same cases name the wind in 11
-#: of 16, against 5 recorded, with no clean site named (``bench/results/gap_wind_centred.md``).
-WIND_REFERENCE_M_S = 3.0
 
 _CH = {name: i for i, name in enumerate(sg.INPUT_CHANNELS)}
 _OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}

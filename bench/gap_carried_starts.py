@@ -80,8 +80,9 @@ def heating_power(record: dict | None) -> float | None:
     return record["estimates"].get(CAPACITY, {}).get("heating_power_w_m2")
 
 
-def _cell(value: float | None) -> str:
-    return "-" if value is None else f"{value:.1f}"
+def cell(value: float | None, digits: int = 1) -> str:
+    """A table cell: ``value`` with ``digits`` decimals, or "-" where not recorded."""
+    return "-" if value is None else f"{value:.{digits}f}"
 
 
 def site_arguments(parser: argparse.ArgumentParser, effects: str, twins_of: str, folder: str, name: str) -> None:
@@ -193,8 +194,8 @@ def main() -> None:
         lag = after["estimates"].get("temperature_sensor_lag", {}).get("tau_h")
         gain = after["scores"].get(CAPACITY)
         lines.append(f"| {key(pages[p], row, twin)} | {injected} | {magnitude} | "
-                     f"{before['named'] if before else '-'} | {after['named']} | {_cell(heating_power(before))} | "
-                     f"{_cell(heating_power(after))} | {'-' if gain is None else f'{gain:.3f}'} | "
+                     f"{before['named'] if before else '-'} | {after['named']} | {cell(heating_power(before))} | "
+                     f"{cell(heating_power(after))} | {'-' if gain is None else f'{gain:.3f}'} | "
                      f"{'-' if lag is None else f'{lag:.3f}'} |")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")

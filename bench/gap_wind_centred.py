@@ -24,7 +24,8 @@ import json
 import time
 from pathlib import Path
 
-from gap_carried_starts import CAPACITY, chosen_sites, diagnosed_rows, heating_power, key, site_arguments, site_folder
+from gap_carried_starts import (CAPACITY, cell, chosen_sites, diagnosed_rows, heating_power, key, site_arguments,
+                                site_folder)
 from gap_check_rejudge import first_named
 from gap_clean_ceiling import round_up
 
@@ -40,10 +41,6 @@ def wind_estimate(record: dict | None) -> float | None:
     if record is None:
         return None
     return record["estimates"].get(WIND, {}).get("ach_per_m_s")
-
-
-def _cell(value: float | None, digits: int = 4) -> str:
-    return "-" if value is None else f"{value:.{digits}f}"
 
 
 def main() -> None:
@@ -77,10 +74,11 @@ def main() -> None:
     alpha = next(iter(pages.values()))["plan"]["settings"]["alpha"]
     groups: dict[str, dict] = {}
     table = []
+    named_now: dict[str, str] = {}  # each site's first step judged with the new wind ceiling
     for p, row, twin, before, after in rows:
         truth = NONE if twin else row["true"]
         label = "clean twins" if twin else ("clean cases" if truth == NONE else truth)
-        named = first_named(after, alpha, MIN_GAIN, judged)
+        named = named_now[key(pages[p], row, twin)] = first_named(after, alpha, MIN_GAIN, judged)
         g = groups.setdefault(label, {"sites": 0, "right_before": 0, "right_after": 0, "recorded": 0, "wrong": 0})
         g["sites"] += 1
         g["right_after"] += named == truth
@@ -127,14 +125,14 @@ def main() -> None:
               "estimate now | gain now | p now |", "|---|---|---|---|---|---|---|---|---|"]
     for site, injected, magnitude, before, after, named in table:
         lines.append(f"| {site} | {injected} | {'-' if magnitude is None else f'{magnitude:.3g}'} | "
-                     f"{before['named'] if before else '-'} | {_cell(wind_estimate(before))} | {named} | "
-                     f"{_cell(wind_estimate(after))} | {after['scores'][WIND]:.3f} | {after['p_values'][WIND]:.1e} |")
+                     f"{before['named'] if before else '-'} | {cell(wind_estimate(before), 4)} | {named} | "
+                     f"{cell(wind_estimate(after), 4)} | {after['scores'][WIND]:.3f} | {after['p_values'][WIND]:.1e} |")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{args.name}.json").write_text(json.dumps(
         {"command": command, "groups": groups, "reference_m_s": WIND_REFERENCE_M_S,
          "measured": {WIND: list(now), CAPACITY: list(power)}, "recorded_wind_largest": list(old),
-         "records": {key(pages[p], row, twin): after | {"named_now": first_named(after, alpha, MIN_GAIN, judged)}
+         "records": {key(pages[p], row, twin): after | {"named_now": named_now[key(pages[p], row, twin)]}
                      for p, row, twin, _, after in rows}},
         indent=1, default=float) + "\n")
     print("\n".join(lines))

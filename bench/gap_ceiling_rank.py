@@ -25,7 +25,7 @@ from pathlib import Path
 
 from gap_check_bar import judge, twin_records
 from gap_check_rejudge import first_named
-from gap_clean_ceiling import clean_records, oriented, read_twin_records, size
+from gap_clean_ceiling import clean_records, clean_sizes, oriented, read_twin_records
 
 from buildenv.effects import MIN_GAIN
 from buildenv.gap_check import NONE
@@ -36,13 +36,8 @@ RESULTS = Path(__file__).resolve().parent / "results"
 def ranked_ceilings(records: list[dict], rank: int) -> dict[str, float]:
     """``{effect: rank-th largest size}`` over clean records, in the catalogue's units (rank 1: the largest, as
     :func:`gap_clean_ceiling.ceilings`); an effect with fewer sizes than ``rank`` gets none."""
-    sizes: dict[str, list[float]] = {}
-    for row in records:
-        for name, estimate in row["estimates"].items():
-            value = size(name, estimate)
-            if value is not None:
-                sizes.setdefault(name, []).append(value)
-    return {n: oriented(n, sorted(v)[-rank]) for n, v in sizes.items() if len(v) >= rank}
+    return {n: oriented(n, sorted(v for v, _ in sizes)[-rank]) for n, sizes in clean_sizes(records).items()
+            if len(sizes) >= rank}
 
 
 def main() -> None:
@@ -77,15 +72,16 @@ def main() -> None:
             t["clean_sites"] += counts["clean_cases"] + counts["twins"]
             for row in page["cases"]:
                 site = f"seed {seed[p]} case {row['case']}"
-                naming.setdefault(site, {"true": row["true"], "magnitude": row.get("magnitude")})[rank] = \
-                    name_of(row)
+                named = naming.setdefault(site, {"true": row["true"], "magnitude": row.get("magnitude"),
+                                                 "named": {}})["named"]
+                named[rank] = name_of(row)
                 if row["true"] != NONE:
                     e = by_effect.setdefault(row["true"], {}).setdefault(rank, [0, 0])
-                    e[0] += naming[site][rank] == row["true"]
+                    e[0] += named[rank] == row["true"]
                     e[1] += 1
             for row in twins.get(p, []):
                 site = f"seed {seed[p]} twin of case {row['case']}"
-                naming.setdefault(site, {"true": NONE, "magnitude": None})[rank] = name_of(row)
+                naming.setdefault(site, {"true": NONE, "magnitude": None, "named": {}})["named"][rank] = name_of(row)
     command = ("python bench/gap_ceiling_rank.py " + " ".join(f"--page {p}" for p in args.page)
                + "".join(f" --twin-records {p}" for p in args.twin_records)
                + "".join(f" --twins {p}" for p in args.twins) + f" --ranks {args.ranks} --name {args.name}")
@@ -106,9 +102,9 @@ def main() -> None:
               "| site | injected | magnitude | " + " | ".join(f"rank {r}" for r in ranks) + " |",
               "|---|---|---|" + "---|" * len(ranks)]
     for site, n in naming.items():
-        if len({n[r] for r in ranks}) > 1:
+        if len(set(n["named"].values())) > 1:
             magnitude = "-" if n["magnitude"] is None else f"{n['magnitude']:.3g}"
-            lines.append(f"| {site} | {n['true']} | {magnitude} | " + " | ".join(n[r] for r in ranks) + " |")
+            lines.append(f"| {site} | {n['true']} | {magnitude} | " + " | ".join(n["named"][r] for r in ranks) + " |")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{args.name}.json").write_text(json.dumps(

@@ -77,16 +77,21 @@ def oriented(name: str, value: float) -> float:
     return effect.strength(value) if effect.building_parameter is not None else value
 
 
-def ceilings(records: list[dict]) -> dict[str, tuple[float, str]]:
-    """``{effect: (largest size, where)}`` over clean records (a record names its page and case in ``_at``),
-    sizes as :func:`size` orients them."""
-    out: dict[str, tuple[float, str]] = {}
+def clean_sizes(records: list[dict]) -> dict[str, list[tuple[float, str]]]:
+    """``{effect: [(size, where), ...]}`` over clean records in their order (a record names its page and case in
+    ``_at``), sizes as :func:`size` orients them; records without a size are left out."""
+    out: dict[str, list[tuple[float, str]]] = {}
     for row in records:
         for name, estimate in row["estimates"].items():
             value = size(name, estimate)
-            if value is not None and (name not in out or value >= out[name][0]):
-                out[name] = (value, row["_at"])
+            if value is not None:
+                out.setdefault(name, []).append((value, row["_at"]))
     return out
+
+
+def ceilings(records: list[dict]) -> dict[str, tuple[float, str]]:
+    """``{effect: (largest size, where)}`` over clean records (:func:`clean_sizes`; of equal sizes, the last)."""
+    return {name: max(reversed(sizes), key=lambda s: s[0]) for name, sizes in clean_sizes(records).items()}
 
 
 def round_up(value: float, digits: int = 3) -> float:

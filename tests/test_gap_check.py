@@ -245,3 +245,39 @@ def test_the_gap_bound_counts_a_site_findable_when_any_of_its_records_left_a_gap
     assert summary["effect_sites"] == 3
     assert summary["share_with_a_gap"] == pytest.approx(2 / 3)
     assert summary["share_over_the_bar"] == pytest.approx(2 / 3)
+
+
+def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeypatch):
+    """bench/gap_headline.py: a run of the check replaces the replayed naming of the same site, other sites keep
+    theirs, and a run's case is judged again with the catalogue's ceilings (a holiday found is named)."""
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "gap_headline.py"
+    monkeypatch.syspath_prepend(str(path.parent))  # it reads bench/gap_check_rejudge.py as the bench does
+    spec = importlib.util.spec_from_file_location("gap_headline", path)
+    headline = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(headline)
+
+    replay = {"sites": [
+        {"key": "seed0_case_000", "true": "holidays", "night electricity": "none"},
+        {"key": "seed0_case_001", "true": "solar_shading", "night electricity": "wind_infiltration"},
+        {"key": "seed0_case_001_twin", "true": "solar_shading", "night electricity": "none"},
+        {"key": "seed0_case_002", "true": "none", "night electricity": "none"}]}
+    found = {"case": 0, "true": "holidays", "named": "holidays", "ranked": ["holidays", "solar_shading"],
+             "scores": {"holidays": 0.4, "solar_shading": 0.01}, "p_values": {"holidays": 1e-9, "solar_shading": 0.3},
+             "estimates": {"holidays": {"absent_days": 2}, "solar_shading": {"blocked_fraction": 0.3}},
+             "gains_by_series": {"holidays": {"temperature": 0.2, "consumption": 0.5},
+                                 "solar_shading": {"temperature": 0.0, "consumption": 0.01}}}
+    run = {"plan": {"seed": 0}, "cases": [found]}
+    (tmp_path / "replay.json").write_text(json.dumps(replay))
+    (tmp_path / "run.json").write_text(json.dumps(run))
+    sites = headline.sites_from_replay(str(tmp_path / "replay.json")) | headline.sites_from_run(
+        str(tmp_path / "run.json"))
+    assert sites["seed0_case_000"]["named"] == "holidays" and sites["seed0_case_000"]["ranked_first"] is True
+    assert sites["seed0_case_001_twin"]["true"] == "none"
+    [row] = headline.tally(sites)
+    assert (row["cases"], row["right"], row["wrong"], row["ranked"], row["ranked_known"]) == (2, 1, 1, 1, 1)
+    assert (row["clean"], row["clean_right"], row["twins"], row["twins_right"]) == (1, 1, 1, 1)
+    assert row["sources"] == ["replay", "run"]
+    assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "wrong": 1}

@@ -1,0 +1,174 @@
+"""The blind checks' headline: every seed's sites at their latest judgement, counted in one table.
+
+The withheld-effect checks ran over many sessions while the diagnosis changed, so a seed's sites are judged from
+the most recent source that holds them, in this order of precedence (a later one replaces an earlier one, site by
+site):
+
+1. ``--replayed``: the records of the checks' own day judged again with later rules, without a new diagnosis
+   (``bench/gap_night_electricity.py``'s json: its night-electricity rule, other seeds' ceilings, joint tests);
+2. ``--rediagnosed``: records of sites diagnosed again with the code of their day
+   (``bench/gap_wind_centred.py``'s json, twins included);
+3. ``--run``: ``bench/gap_check.py`` pages run with the current diagnosis (fresh seeds, or old seeds run again).
+
+Sources 2 and 3 are judged again here with the catalogue's ceilings (``bench/gap_check_rejudge.first_named``),
+so each of their sites counts as today's code names it; source 1 keeps the naming its replay gave. Run from the
+repository root::
+
+    .venv/bin/python bench/gap_headline.py --replayed bench/results/gap_night_electricity.json \\
+        --rediagnosed bench/results/gap_wind_centred_all.json --rediagnosed bench/results/gap_wind_centred_fresh.json \\
+        --run bench/results/gap_check_tb_seed21.json ... --name gap_headline
+
+Writes ``bench/results/NAME.{md,json}``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import time
+from pathlib import Path
+
+from gap_check_rejudge import first_named
+
+from buildenv.effects import MIN_GAIN
+from buildenv.gap import DiagnosisSettings
+from buildenv.gap_check import NONE
+
+RESULTS = Path(__file__).resolve().parent / "results"
+ALPHA = DiagnosisSettings().alpha  # the checks' significance level (their plans' settings.alpha)
+SITE = re.compile(r"seed(\d+)_case_(\d+)(_twin)?$")
+
+
+def judge(record: dict) -> str:
+    """The effect a diagnosis record's first step names under the catalogue's current ceilings."""
+    return first_named(record, ALPHA, MIN_GAIN)
+
+
+def sites_from_replay(path: str) -> dict[str, dict]:
+    """``{site: {"true", "named", "ranked_first", "source"}}`` of a replay page's sites (ranked first unknown)."""
+    page = json.loads(Path(path).read_text())
+    return {s["key"]: {"true": NONE if s["key"].endswith("_twin") else s["true"], "named": s["night electricity"],
+                       "ranked_first": None, "source": Path(path).stem} for s in page["sites"]}
+
+
+def _site(record: dict, truth: str, source: str) -> dict:
+    """A diagnosis record judged now."""
+    ranked = record.get("ranked") or [NONE]
+    return {"true": truth, "named": judge(record), "recorded": record["named"],
+            "ranked_first": ranked[0] == truth if truth != NONE else None, "source": source}
+
+
+def sites_from_rediagnosis(path: str) -> dict[str, dict]:
+    """Sites of a ``bench/gap_wind_centred.py`` json (its ``records``), each judged now."""
+    page = json.loads(Path(path).read_text())
+    return {site: _site(r, NONE if r.get("twin_of") else r["true"], Path(path).stem)
+            for site, r in page["records"].items()}
+
+
+def sites_from_run(path: str) -> dict[str, dict]:
+    """Cases of a ``bench/gap_check.py`` page, each judged now."""
+    page = json.loads(Path(path).read_text())
+    seed = page["plan"]["seed"]
+    return {f"seed{seed}_case_{r['case']:03d}": _site(r, r["true"], Path(path).stem) for r in page["cases"]}
+
+
+def tally(sites: dict[str, dict]) -> list[dict]:
+    """One row a seed: its sources, effect cases, named right and wrong, ranked first, clean cases and twins."""
+    seeds: dict[int, dict] = {}
+    for site, s in sites.items():
+        seed, _, twin = SITE.match(site).groups()
+        row = seeds.setdefault(int(seed), {"seed": int(seed), "sources": set(), "cases": 0, "right": 0, "wrong": 0,
+                                           "ranked": 0, "ranked_known": 0, "clean": 0, "clean_right": 0,
+                                           "twins": 0, "twins_right": 0})
+        row["sources"].add(s["source"])
+        if twin:
+            row["twins"] += 1
+            row["twins_right"] += s["named"] == NONE
+        elif s["true"] == NONE:
+            row["clean"] += 1
+            row["clean_right"] += s["named"] == NONE
+        else:
+            row["cases"] += 1
+            row["right"] += s["named"] == s["true"]
+            row["wrong"] += s["named"] not in (s["true"], NONE)
+            if s["ranked_first"] is not None:
+                row["ranked_known"] += 1
+                row["ranked"] += s["ranked_first"]
+    return [seeds[k] | {"sources": sorted(seeds[k]["sources"])} for k in sorted(seeds)]
+
+
+def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
+    """``{effect: {"cases", "right", "wrong"}}`` over the effect cases."""
+    rows: dict[str, dict] = {}
+    for site, s in sites.items():
+        if s["true"] == NONE:
+            continue
+        row = rows.setdefault(s["true"], {"cases": 0, "right": 0, "wrong": 0})
+        row["cases"] += 1
+        row["right"] += s["named"] == s["true"]
+        row["wrong"] += s["named"] not in (s["true"], NONE)
+    return dict(sorted(rows.items()))
+
+
+def _percent(part: int, whole: int) -> str:
+    return f"{part}/{whole} ({100 * part / whole:.0f} %)" if whole else "-"
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--replayed", action="append", default=[], help="a bench/gap_night_electricity.py json")
+    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
+    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+    parser.add_argument("--name", default="gap_headline")
+    args = parser.parse_args()
+    sites: dict[str, dict] = {}
+    for paths, read in ((args.replayed, sites_from_replay), (args.rediagnosed, sites_from_rediagnosis),
+                        (args.run, sites_from_run)):
+        for path in paths:
+            sites |= read(path)
+    seeds = tally(sites)
+    total = {k: sum(r[k] for r in seeds) for k in ("cases", "right", "wrong", "ranked", "ranked_known", "clean",
+                                                   "clean_right", "twins", "twins_right")}
+    effects = by_effect(sites)
+    judged_now = [s for s in sites.values() if "recorded" in s]
+    changed = sorted(k for k, s in sites.items() if "recorded" in s and s["named"] != s["recorded"])
+    command = ("python bench/gap_headline.py " + " ".join(
+        [f"--replayed {p}" for p in args.replayed] + [f"--rediagnosed {p}" for p in args.rediagnosed]
+        + [f"--run {p}" for p in args.run]) + f" --name {args.name}")
+    lines = [f"# Gap diagnosis: the blind checks' headline ({time.strftime('%Y-%m-%d')})", "",
+             f"Command: `{command}`.", "",
+             "Each site counts at its latest judgement (`bench/gap_headline.py` states the precedence): a run of "
+             "`bench/gap_check.py` with the current diagnosis, else a diagnosis again of its recorded site, else the "
+             "replay of its record. Diagnosed sites are judged with the catalogue's clean-site ceilings; "
+             f"{len(judged_now) - len(changed)} of the {len(judged_now)} diagnosed sites name what their diagnosis "
+             "named" + (f" (the others: {', '.join(changed)})" if changed else "") + ". Ranked first: the "
+             "injected effect had the best held-out gain, named or not (not known for replayed sites).", "",
+             "| | value | target |", "|---|---|---|",
+             f"| seeds | {len(seeds)} ({seeds[0]['seed']}-{seeds[-1]['seed']}) | |",
+             f"| injected effect named first | **{_percent(total['right'], total['cases'])}** | >= 90 % |",
+             f"| named another effect | {total['wrong']} | |",
+             f"| ranked first (where known) | {_percent(total['ranked'], total['ranked_known'])} | |",
+             f"| clean cases recognised | {_percent(total['clean_right'], total['clean'])} | >= 90 % |",
+             f"| clean twins recognised (where diagnosed) | {_percent(total['twins_right'], total['twins'])} | |",
+             "", "## By seed", "",
+             "| seed | judged from | named first | named wrong | ranked first | clean cases | clean twins |",
+             "|---|---|---|---|---|---|---|"]
+    for r in seeds:
+        lines.append(f"| {r['seed']} | {', '.join(r['sources'])} | {r['right']}/{r['cases']} | {r['wrong']} | "
+                     + (f"{r['ranked']}/{r['ranked_known']}" if r["ranked_known"] else "-")
+                     + f" | {r['clean_right']}/{r['clean']} | "
+                     + (f"{r['twins_right']}/{r['twins']}" if r["twins"] else "-") + " |")
+    lines += ["", "## By injected effect", "", "| effect | cases | named first | named another effect |",
+              "|---|---|---|---|"]
+    for name, row in effects.items():
+        lines.append(f"| {name} | {row['cases']} | {_percent(row['right'], row['cases'])} | {row['wrong']} |")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{args.name}.json").write_text(json.dumps(
+        {"command": command, "total": total, "seeds": seeds, "by_effect": effects, "sites": sites}, indent=1) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

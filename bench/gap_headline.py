@@ -112,6 +112,7 @@ def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
 
 
 def _percent(part: int, whole: int) -> str:
+    """``part/whole (percent %)``, or ``-`` where there is nothing to count."""
     return f"{part}/{whole} ({100 * part / whole:.0f} %)" if whole else "-"
 
 

@@ -70,7 +70,8 @@ def main() -> None:
     clean = [(key(pages[p], row, twin), before, after) for p, row, twin, before, after in rows
              if twin or row["true"] == NONE]
     now = max((wind_estimate(after), site) for site, _, after in clean)
-    old = max((wind_estimate(before), site) for site, before, _ in clean if wind_estimate(before) is not None)
+    old = max(((wind_estimate(before), site) for site, before, _ in clean if wind_estimate(before) is not None),
+              default=None)  # None: no clean site here was diagnosed by its check (twins the check only simulated)
     power = min((heating_power(after), site) for site, _, after in clean if heating_power(after) is not None)
     ceiling = round_up(now[0])
     catalogue = declared_ceilings() if args.declared else \
@@ -124,7 +125,7 @@ def main() -> None:
                 else f"so a ceiling of {ceiling:g}."),
              f"- Largest estimate recorded on the same sites with "
              f"{'the centred term' if args.fresh else 'the old term'}, where the check kept its record: "
-             f"{old[0]:.5f} ({old[1]}).",
+             + (f"{old[0]:.5f} ({old[1]})." if old else "none kept (the check simulated these sites only)."),
              f"- Lowest heating power of the capacity candidate now: {power[0]:.2f} W/m2 ({power[1]}); the "
              f"catalogue's ceiling: {catalogue[CAPACITY]:g} W/m2.", "",
              "## Named right", "",
@@ -144,7 +145,7 @@ def main() -> None:
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{args.name}.json").write_text(json.dumps(
         {"command": command, "groups": groups, "reference_m_s": WIND_REFERENCE_M_S,
-         "measured": {WIND: list(now), CAPACITY: list(power)}, "recorded_wind_largest": list(old),
+         "measured": {WIND: list(now), CAPACITY: list(power)}, "recorded_wind_largest": list(old) if old else None,
          "records": {key(pages[p], row, twin): after | {"named_now": named_now[key(pages[p], row, twin)]}
                      for p, row, twin, _, after in rows}},
         indent=1, default=float) + "\n")

@@ -16,7 +16,9 @@ repository root::
 
     .venv/bin/python bench/gap_headline.py --replayed bench/results/gap_night_electricity.json \\
         --rediagnosed bench/results/gap_wind_centred_all.json --rediagnosed bench/results/gap_wind_centred_fresh.json \\
-        --run bench/results/gap_check_tb_seed21.json ... --name gap_headline
+        --rediagnosed ... --run bench/results/gap_check_rerun_seed0.json ... --name gap_headline
+
+(``bench/results/gap_headline.md`` starts with the full command of its last run.)
 
 Writes ``bench/results/NAME.{md,json}``.
 """
@@ -73,6 +75,13 @@ def sites_from_run(path: str) -> dict[str, dict]:
     return {f"seed{seed}_case_{r['case']:03d}": _site(r, r["true"], Path(path).stem) for r in page["cases"]}
 
 
+def _count_case(row: dict, site: dict) -> None:
+    """Add one effect case to ``row``'s ``cases``, ``right`` (its effect named first) and ``wrong`` (another)."""
+    row["cases"] += 1
+    row["right"] += site["named"] == site["true"]
+    row["wrong"] += site["named"] not in (site["true"], NONE)
+
+
 def tally(sites: dict[str, dict]) -> list[dict]:
     """One row a seed: its sources, effect cases, named right and wrong, ranked first, clean cases and twins."""
     seeds: dict[int, dict] = {}
@@ -89,9 +98,7 @@ def tally(sites: dict[str, dict]) -> list[dict]:
             row["clean"] += 1
             row["clean_right"] += s["named"] == NONE
         else:
-            row["cases"] += 1
-            row["right"] += s["named"] == s["true"]
-            row["wrong"] += s["named"] not in (s["true"], NONE)
+            _count_case(row, s)
             if s["ranked_first"] is not None:
                 row["ranked_known"] += 1
                 row["ranked"] += s["ranked_first"]
@@ -104,10 +111,7 @@ def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
     for site, s in sites.items():
         if s["true"] == NONE:
             continue
-        row = rows.setdefault(s["true"], {"cases": 0, "right": 0, "wrong": 0})
-        row["cases"] += 1
-        row["right"] += s["named"] == s["true"]
-        row["wrong"] += s["named"] not in (s["true"], NONE)
+        _count_case(rows.setdefault(s["true"], {"cases": 0, "right": 0, "wrong": 0}), s)
     return dict(sorted(rows.items()))
 
 

@@ -12,7 +12,7 @@ judges every site again with it:
         --effects wind_infiltration,none --twins-of wind_infiltration,heat_recovery,... \\
         [--shard 0/2] [--no-diagnose] --name gap_wind_centred
 
-``--fresh`` is for checks that ran with the centred term already (seeds 21-24, seeds 0-11 run again): their
+``--fresh`` is for checks that ran with the centred term already (seeds 21-28, seeds 0-11 run again): their
 clean sites are judged with the catalogue's wind ceiling, measured on other seeds, so the page is that ceiling's
 held-out test. ``measured`` in the json gives the largest wind estimate and the lowest heating power on the clean
 sites diagnosed again (the heating power with the carried starts' search). Run it from the repository root. Writes

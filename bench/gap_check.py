@@ -140,6 +140,8 @@ def main() -> None:
              "| | value | target |", "|---|---|---|",
              f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
              f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",
+             *([f"| of which named by the estimate alone (no held-out gain; `buildenv.gap.named_by_estimate`) | "
+                f"{s['named_by_estimate_right']} | |"] if "named_by_estimate_right" in s else []),
              "| injected effect ranked first (best held-out gain, named or not: attribution alone) | "
              f"{_pct(s.get('ranked_first_accuracy'))} | |",
              f"| top-1 among the {s.get('visible_effect_cases', '-')} cases whose effect shows in the data "
@@ -151,6 +153,8 @@ def main() -> None:
              f"(gap left) | {_pct(s.get('top1_accuracy_gap_left'))} | |",
              f"| no-effect cases recognised | {_pct(s['none_recognised'])} | >= 90 % |",
              f"| false-alarm rate | {_pct(s['false_alarm_rate'])} | |",
+             *([f"| no-effect cases named an effect by the estimate alone | {s['named_by_estimate_on_none']} | |"]
+               if "named_by_estimate_on_none" in s else []),
              "| mean shrinkage of the effect's gap (held-out, the "
              f"{s.get('shrinkage_cases_gap_left', '-')} found cases whose effect left a gap) | "
              f"{_pct(s['mean_shrinkage_of_effect_gap'])} | >= 50 % |",

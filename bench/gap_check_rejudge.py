@@ -23,31 +23,45 @@ from pathlib import Path
 
 from gap_check_compare import tally
 
-from buildenv.gap import absorbed_candidate, candidate_qualifies, joint_test_qualifies
+from buildenv.gap import absorbed_candidate, candidate_qualifies, joint_test_qualifies, named_by_estimate
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def first_named(row: dict, alpha: float, min_gain: float,
-                clean_ceilings: bool | Mapping[str, float] = True) -> str:
-    """The effect a recorded case's first step names under the current plausibility rules (``none`` if none);
-    a carried effect (its estimate is its building parameter) must also make none of its series worse;
-    ``clean_ceilings``: as :class:`buildenv.gap.DiagnosisSettings`. When nothing qualifies, the joint tests the
-    record ran (:func:`buildenv.gap.joint_fallback`) are judged for the candidates that trigger one under these
-    ceilings; a triggered candidate the record did not test names nothing."""
+                clean_ceilings: bool | Mapping[str, float] = True,
+                estimate_ceilings: bool | Mapping[str, float] = False) -> str:
+    """The effect a recorded case's first step names under the current plausibility rules (``none`` if none):
+    :func:`naming` without the how."""
+    return naming(row, alpha, min_gain, clean_ceilings, estimate_ceilings)[0]
+
+
+def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapping[str, float] = True,
+           estimate_ceilings: bool | Mapping[str, float] = False) -> tuple[str, str]:
+    """The effect a recorded case's first step names under the current plausibility rules and how: ``(name,
+    "held-out gain" | "joint test" | "estimate alone")``, or ``("none", "")``. A carried effect (its estimate is
+    its building parameter) must also make none of its series worse; ``clean_ceilings``: as
+    :class:`buildenv.gap.DiagnosisSettings`. When nothing qualifies, the joint tests the record ran
+    (:func:`buildenv.gap.joint_fallback`) are judged for the candidates that trigger one under these ceilings; a
+    triggered candidate the record did not test names nothing. When nothing is named still, the estimates are
+    judged against ``estimate_ceilings`` (:func:`buildenv.gap.named_by_estimate`; off with ``clean_ceilings``
+    off, as in a diagnosis). They are off by default, as in the replays written before that rule (2026-11-29),
+    which judge records of sites declaring building parameters known too (no estimate ceilings there);
+    ``bench/gap_headline.py`` and ``bench/gap_estimate_alone.py`` turn them on."""
     threshold = alpha / len(row["p_values"])
     ranked = sorted(row["scores"], key=lambda n: -row["scores"][n])
     for name in ranked:
         if candidate_qualifies(name, row["scores"][name], row["p_values"][name], threshold, min_gain,
                                row["estimates"][name], row.get("gains_by_series", {}).get(name), clean_ceilings):
-            return name
+            return name, "held-out gain"
     joint = row.get("joint_tests", {})  # the joint-calibration fallback, where the record ran it
     for name in ranked:
         if absorbed_candidate(name, row["estimates"][name], clean_ceilings):
             if name in joint and joint_test_qualifies(name, joint[name], threshold):
-                return name
-    return NONE
+                return name, "joint test"
+    alone = named_by_estimate(row["estimates"], row["scores"], False if clean_ceilings is False else estimate_ceilings)
+    return (alone[0], "estimate alone") if alone else (NONE, "")
 
 
 def main() -> None:

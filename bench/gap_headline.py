@@ -33,7 +33,7 @@ import re
 import time
 from pathlib import Path
 
-from gap_check_rejudge import first_named
+from gap_check_rejudge import naming
 
 from buildenv.effects import MIN_GAIN
 from buildenv.gap import DiagnosisSettings
@@ -42,11 +42,13 @@ from buildenv.gap_check import NONE
 RESULTS = Path(__file__).resolve().parent / "results"
 ALPHA = DiagnosisSettings().alpha  # the checks' significance level (their plans' settings.alpha)
 SITE = re.compile(r"seed(\d+)_case_(\d+)(_twin)?$")
+ALONE = "estimate alone"  # how a site named by the estimate alone is named (bench/gap_check_rejudge.naming)
 
 
-def judge(record: dict) -> str:
-    """The effect a diagnosis record's first step names under the catalogue's current ceilings."""
-    return first_named(record, ALPHA, MIN_GAIN)
+def judge(record: dict) -> tuple[str, str]:
+    """The effect a diagnosis record's first step names under the catalogue's current ceilings, and how
+    (``bench/gap_check_rejudge.naming``, its estimate-alone rule included)."""
+    return naming(record, ALPHA, MIN_GAIN, estimate_ceilings=True)
 
 
 def sites_from_replay(path: str) -> dict[str, dict]:
@@ -59,28 +61,40 @@ def sites_from_replay(path: str) -> dict[str, dict]:
 def _site(record: dict, truth: str, source: str) -> dict:
     """A diagnosis record judged now."""
     ranked = record.get("ranked") or [NONE]
-    return {"true": truth, "named": judge(record), "recorded": record["named"],
+    named, how = judge(record)
+    return {"true": truth, "named": named, "how": how, "recorded": record["named"],
             "ranked_first": ranked[0] == truth if truth != NONE else None, "source": source}
 
 
-def sites_from_rediagnosis(path: str) -> dict[str, dict]:
-    """Sites of a ``bench/gap_wind_centred.py`` json (its ``records``), each judged now."""
+def records_from_rediagnosis(path: str) -> dict[str, tuple[dict, str, str]]:
+    """``{site: (record, true effect, source)}`` of a ``bench/gap_wind_centred.py`` json (its ``records``; a clean
+    twin's true effect is none)."""
     page = json.loads(Path(path).read_text())
-    return {site: _site(r, NONE if r.get("twin_of") else r["true"], Path(path).stem)
-            for site, r in page["records"].items()}
+    return {site: (r, NONE if r.get("twin_of") else r["true"], Path(path).stem) for site, r in page["records"].items()}
 
 
-def sites_from_run(path: str) -> dict[str, dict]:
-    """Cases of a ``bench/gap_check.py`` page, each judged now."""
+def records_from_run(path: str) -> dict[str, tuple[dict, str, str]]:
+    """``{site: (record, true effect, source)}`` of a ``bench/gap_check.py`` page's cases."""
     page = json.loads(Path(path).read_text())
     seed = page["plan"]["seed"]
-    return {f"seed{seed}_case_{r['case']:03d}": _site(r, r["true"], Path(path).stem) for r in page["cases"]}
+    return {f"seed{seed}_case_{r['case']:03d}": (r, r["true"], Path(path).stem) for r in page["cases"]}
+
+
+def diagnosed_records(rediagnosed: list[str], runs: list[str]) -> dict[str, tuple[dict, str, str]]:
+    """Every diagnosed site's latest record (runs over rediagnoses, later pages over earlier ones)."""
+    out: dict[str, tuple[dict, str, str]] = {}
+    for paths, read in ((rediagnosed, records_from_rediagnosis), (runs, records_from_run)):
+        for path in paths:
+            out |= read(path)
+    return out
 
 
 def _count_case(row: dict, site: dict) -> None:
-    """Add one effect case to ``row``'s ``cases``, ``right`` (its effect named first) and ``wrong`` (another)."""
+    """Add one effect case to ``row``'s ``cases``, ``right`` (its effect named first; ``alone`` counts those
+    named by the estimate alone) and ``wrong`` (another)."""
     row["cases"] += 1
     row["right"] += site["named"] == site["true"]
+    row["alone"] += site["named"] == site["true"] and site.get("how") == ALONE
     row["wrong"] += site["named"] not in (site["true"], NONE)
 
 
@@ -89,10 +103,12 @@ def tally(sites: dict[str, dict]) -> list[dict]:
     seeds: dict[int, dict] = {}
     for site, s in sites.items():
         seed, _, twin = SITE.match(site).groups()
-        row = seeds.setdefault(int(seed), {"seed": int(seed), "sources": set(), "cases": 0, "right": 0, "wrong": 0,
-                                           "ranked": 0, "ranked_known": 0, "clean": 0, "clean_right": 0,
-                                           "twins": 0, "twins_right": 0})
+        row = seeds.setdefault(int(seed), {"seed": int(seed), "sources": set(), "cases": 0, "right": 0, "alone": 0,
+                                           "wrong": 0, "ranked": 0, "ranked_known": 0, "clean": 0,
+                                           "clean_right": 0, "twins": 0, "twins_right": 0, "clean_alone": 0})
         row["sources"].add(s["source"])
+        if s["true"] == NONE:
+            row["clean_alone"] += s.get("how") == ALONE
         if twin:
             row["twins"] += 1
             row["twins_right"] += s["named"] == NONE
@@ -113,7 +129,7 @@ def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
     for site, s in sites.items():
         if s["true"] == NONE:
             continue
-        _count_case(rows.setdefault(s["true"], {"cases": 0, "right": 0, "wrong": 0}), s)
+        _count_case(rows.setdefault(s["true"], {"cases": 0, "right": 0, "alone": 0, "wrong": 0}), s)
     return dict(sorted(rows.items()))
 
 
@@ -130,13 +146,12 @@ def main() -> None:
     parser.add_argument("--name", default="gap_headline")
     args = parser.parse_args()
     sites: dict[str, dict] = {}
-    for paths, read in ((args.replayed, sites_from_replay), (args.rediagnosed, sites_from_rediagnosis),
-                        (args.run, sites_from_run)):
-        for path in paths:
-            sites |= read(path)
+    for path in args.replayed:
+        sites |= sites_from_replay(path)
+    sites |= {site: _site(*r) for site, r in diagnosed_records(args.rediagnosed, args.run).items()}
     seeds = tally(sites)
-    total = {k: sum(r[k] for r in seeds) for k in ("cases", "right", "wrong", "ranked", "ranked_known", "clean",
-                                                   "clean_right", "twins", "twins_right")}
+    total = {k: sum(r[k] for r in seeds) for k in ("cases", "right", "alone", "wrong", "ranked", "ranked_known",
+                                                   "clean", "clean_right", "twins", "twins_right", "clean_alone")}
     effects = by_effect(sites)
     judged_now = [s for s in sites.values() if "recorded" in s]
     changed = sorted(k for k, s in sites.items() if "recorded" in s and s["named"] != s["recorded"])
@@ -147,17 +162,19 @@ def main() -> None:
              f"Command: `{command}`.", "",
              "Each site counts at its latest judgement (`bench/gap_headline.py` states the precedence): a run of "
              "`bench/gap_check.py` with the current diagnosis, else a diagnosis again of its recorded site, else the "
-             "replay of its record. Diagnosed sites are judged with the catalogue's clean-site ceilings; "
+             "replay of its record. Diagnosed sites are judged with the catalogue's clean-site and estimate ceilings; "
              f"{len(judged_now) - len(changed)} of the {len(judged_now)} diagnosed sites name what their diagnosis "
              "named" + (f" (the others: {', '.join(changed)})" if changed else "") + ". Ranked first: the "
              "injected effect had the best held-out gain, named or not (not known for replayed sites).", "",
              "| | value | target |", "|---|---|---|",
              f"| seeds | {len(seeds)} ({seeds[0]['seed']}-{seeds[-1]['seed']}) | |",
              f"| injected effect named first | **{_percent(total['right'], total['cases'])}** | >= 90 % |",
+             f"| of which named by the estimate alone | {total['alone']} | |",
              f"| named another effect | {total['wrong']} | |",
              f"| ranked first (where known) | {_percent(total['ranked'], total['ranked_known'])} | |",
              f"| clean cases recognised | {_percent(total['clean_right'], total['clean'])} | >= 90 % |",
              f"| clean twins recognised (where diagnosed) | {_percent(total['twins_right'], total['twins'])} | |",
+             f"| clean sites named an effect by the estimate alone | {total['clean_alone']} | |",
              "", "## By seed", "",
              "| seed | judged from | named first | named wrong | ranked first | clean cases | clean twins |",
              "|---|---|---|---|---|---|---|"]
@@ -166,10 +183,12 @@ def main() -> None:
                      + (f"{r['ranked']}/{r['ranked_known']}" if r["ranked_known"] else "-")
                      + f" | {r['clean_right']}/{r['clean']} | "
                      + (f"{r['twins_right']}/{r['twins']}" if r["twins"] else "-") + " |")
-    lines += ["", "## By injected effect", "", "| effect | cases | named first | named another effect |",
-              "|---|---|---|---|"]
+    lines += ["", "## By injected effect", "",
+              "| effect | cases | named first | of which by the estimate alone | named another effect |",
+              "|---|---|---|---|---|"]
     for name, row in effects.items():
-        lines.append(f"| {name} | {row['cases']} | {_percent(row['right'], row['cases'])} | {row['wrong']} |")
+        lines.append(f"| {name} | {row['cases']} | {_percent(row['right'], row['cases'])} | {row['alone']} | "
+                     f"{row['wrong']} |")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{args.name}.json").write_text(json.dumps(

@@ -15,7 +15,8 @@ def catalogue_rows() -> list[dict[str, Any]]:
     """One JSON-ready row per effect: name, title, kind, magnitude unit, practice range, default, injection
     limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names and
     the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
-    building parameters known, the one measured on such sites), and for an effect carried by a building parameter
+    building parameters known, the one measured on such sites), the size beyond which its estimate alone names it
+    when nothing else is named (``Effect.estimate_ceiling``), and for an effect carried by a building parameter
     that parameter and the values a diagnosis also recalibrates from (``Effect.carried_starts``)."""
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
 
@@ -25,6 +26,7 @@ def catalogue_rows() -> list[dict[str, Any]]:
              "series": list(e.series), "model": e.model, "named_from": e.named_from() or None,
              "named_beyond": e.clean_ceiling_text() or None,
              "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
+             "named_by_estimate_alone_beyond": e.estimate_ceiling_text() or None,
              "building_parameter": e.building_parameter, "carried_starts": list(e.carried_starts),
              "also_recalibrated_from": e.carried_starts_text() or None,
              "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
@@ -49,6 +51,8 @@ def _cmd_effects(args: argparse.Namespace) -> int:
               + (f"\n    named by significance alone when: {r['named_beyond']}" if r["named_beyond"] else "")
               + (f"\n    on a site declaring building parameters known: {r['named_beyond_on_declaring_sites']}"
                  if r["named_beyond_on_declaring_sites"] else "")
+              + (f"\n    named by its estimate alone (nothing else named) when: {r['named_by_estimate_alone_beyond']}"
+                 if r["named_by_estimate_alone_beyond"] else "")
               + (f"\n    also recalibrated from: {r['also_recalibrated_from']} (the best fit on the fit weeks kept)"
                  if r["also_recalibrated_from"] else ""))
     print("\ninject with: buildenv site reference --out SITE --effect NAME[=MAGNITUDE] [--effect-seed N]")

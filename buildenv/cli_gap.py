@@ -24,6 +24,7 @@ def _settings(args: argparse.Namespace):
         step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
                              clean_ceilings=args.clean_ceilings, joint_fallback=args.joint_fallback,
+                             estimate_alone=args.estimate_alone,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts, split=args.split,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
@@ -103,6 +104,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-joint-fallback", dest="joint_fallback", action="store_false",
                    help="when no candidate qualifies, do not test those with an estimate beyond every clean site's "
                         "again by calibrating the site from scratch without and with them")
+    p.add_argument("--no-estimate-alone", dest="estimate_alone", action="store_false",
+                   help="when the first step selects nothing, do not name a candidate whose estimate is beyond every "
+                        "clean site's by that estimate alone (`buildenv effects`: named by its estimate alone)")
     p.add_argument("--max-effects", type=int, default=CHECKED_DIAGNOSIS["max_effects"],
                    help="most effects selected (default %(default)s)")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",

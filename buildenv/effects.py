@@ -91,6 +91,11 @@ CHECKED_DIAGNOSIS = {"split": "alternate", "base_restarts": 3, "max_effects": 2}
 # The smallest held-out gain a gap diagnosis names an effect without a clean-site ceiling for
 # (buildenv.gap.DiagnosisSettings.min_gain; Effect.clean_ceiling).
 MIN_GAIN = 0.10
+# The lowest held-out gain at which a gap diagnosis still names an effect by its estimate alone
+# (buildenv.gap.named_by_estimate): one refit's held-out gain moves by about ten points with the path its CMA-ES
+# run takes (buildenv.gap.DiagnosisSettings.effect_first_evaluations), so a candidate that makes the held-out weeks
+# worse by more than that is contradicted by them, not absorbed.
+ESTIMATE_ALONE_LOWEST_GAIN = -0.10
 # Where Effect.clean_ceiling comes from (bench/gap_clean_ceiling.py recomputes the ceilings from these records).
 CLEAN_CEILING_SOURCE = ("estimate calibrated on 216 clean sites: the 31 clean cases and 185 clean twins of the blind "
                         "checks' seeds 0-16, bench/results/gap_clean_ceiling_all.md")
@@ -127,6 +132,11 @@ WIND_REFERENCE_M_S = 3.0
 WIND_CEILING_SOURCE = ("estimate calibrated with the centred wind term on 147 clean sites: the 14 clean cases and 130 "
                        "clean twins of the blind checks' seeds 12-20 and the three clean twins of seeds 4-6 whose "
                        "estimates had been the largest with the old term, bench/results/gap_wind_centred.md")
+
+# Where Effect.estimate_ceiling comes from (bench/gap_estimate_alone.py measures them again from these records).
+ESTIMATE_CEILING_SOURCE = ("estimate calibrated on 464 clean sites diagnosed with the current diagnosis: the 52 clean "
+                           "cases and 412 clean twins of the blind checks' seeds 0-28, "
+                           "bench/results/gap_estimate_alone.md")
 
 
 def night_electricity_w_m2(theta: dict[str, float]) -> float:
@@ -217,6 +227,12 @@ class Effect:
             sensor bias up to 0.66 K, a heat exchanger up to 0.32 and blinds up to 0.79, beyond the ceilings of
             sites declaring nothing (0.487 K, 0.129, 0.574), which named an effect on 22 of 44 such sites (34
             with the bias's 0.4 K floor); by their own ceilings, each seed judged with the other seeds', on 3.
+        estimate_ceiling: the largest size (as :attr:`clean_ceiling` measures it, in the same units) over every
+            clean site diagnosed with the current diagnosis (:data:`ESTIMATE_CEILING_SOURCE`), or None (base
+            effects, holidays). A first-step estimate beyond it names the effect by its estimate alone when no
+            candidate improved the held-out weeks (:func:`buildenv.gap.named_by_estimate`): the base calibration
+            absorbed the effect into the building parameters, so adding it gains nothing held out, but no clean
+            site ever calibrated it that large. Such an effect is reported, not added to the model.
         carried_starts: values of :attr:`building_parameter` (its unit) from which the diagnosis also
             recalibrates the model when it tests a carried effect, keeping whichever of those refits and the
             control fits the fit weeks best (:func:`buildenv.gap.carried_trial`): the calibration can settle in
@@ -245,6 +261,7 @@ class Effect:
     ceiling_source: str = CLEAN_CEILING_SOURCE
     declared_ceiling: float | None = None
     carried_starts: tuple[float, ...] = ()
+    estimate_ceiling: float | None = None
 
     @property
     def size_name(self) -> str:
@@ -341,6 +358,17 @@ class Effect:
         return ", ".join(f"{k} {v:.3g}" + ("" if units.get(k, "-") == "-" else f" {units[k]}")
                          for k, v in values.items())
 
+    def beyond_estimate_ceiling(self, values: dict[str, float]) -> bool | None:
+        """:meth:`beyond_clean_sites` judged against :attr:`estimate_ceiling` instead (None where the effect has
+        none, or ``values`` lack the size it is on)."""
+        return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling).beyond_clean_sites(values)
+
+    def estimate_ceiling_text(self) -> str:
+        """:attr:`estimate_ceiling` with its unit and source, as :meth:`clean_ceiling_text` writes a ceiling ("" when
+        the effect has none)."""
+        return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling,
+                                   ceiling_source=ESTIMATE_CEILING_SOURCE).clean_ceiling_text()
+
     def on_declared_site(self) -> Effect:
         """This effect as a diagnosis judges it on a site declaring building parameters known: its clean-site
         ceiling is :attr:`declared_ceiling`, from :data:`DECLARED_CEILING_SOURCE`."""
@@ -389,7 +417,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            f"{WIND_REFERENCE_M_S:g} m/s), the wind speed at a quarter while the air handling unit runs (at least 0 "
            "air changes)", 0.01,
            smallest_reason="10 % of a tight office's 0.1 air changes per hour", clean_ceiling=0.0144,
-           declared_ceiling=0.0427, ceiling_source=WIND_CEILING_SOURCE),
+           declared_ceiling=0.0427, ceiling_source=WIND_CEILING_SOURCE, estimate_ceiling=0.0175),
     Effect("temperature_sensor_bias", "temperature sensor bias",
            "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "
            "near a radiator or in the sun). The consumption is unaffected.",
@@ -397,7 +425,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (ModelParameter("bias_k", "K", -3.0, 3.0, 0.0, "offset added to the predicted temperature"),),
            "the predicted temperature reads bias_k higher", 0.4,
            smallest_reason="a class-B Pt1000's tolerance near 20 degC", clean_ceiling=0.487,
-           declared_ceiling=0.664),
+           declared_ceiling=0.664, estimate_ceiling=0.514),
     Effect("temperature_sensor_lag", "temperature sensor lag",
            "The sensor responds slowly (a heavy housing, a sensor in a wall pocket): it reads a first-order "
            "lagged air temperature, so morning start-ups and evening setbacks look slower than they are.",
@@ -405,7 +433,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (ModelParameter("tau_h", "h", 0.0, 4.0, 0.0, "first-order time constant of the sensor"),),
            "the predicted temperature is passed through a first-order lag of time constant tau_h", 0.25,
            smallest_reason="below a quarter of the hourly sampling a lag cannot be told from noise",
-           clean_ceiling=0.668, declared_ceiling=0.5),
+           clean_ceiling=0.668, declared_ceiling=0.5, estimate_ceiling=0.713),
     Effect("holidays", "holidays and absent-occupancy days",
            "Weekdays nobody comes in (public holidays, bridge days, closures) while the BMS keeps its weekday "
            "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
@@ -430,7 +458,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied",
            0.5, smallest_reason="one standby monitor per 10 m2",
            building_parameter="light_night_percent", vanishes_at="min", clean_ceiling=3.61,
-           judged_on="night_electricity_w_m2", ceiling_source=NIGHT_CEILING_SOURCE),
+           judged_on="night_electricity_w_m2", ceiling_source=NIGHT_CEILING_SOURCE,
+           estimate_ceiling=3.61),
     Effect("solar_shading", "solar shading / blinds",
            "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
            "hours are colder and need more heat than the model says.",
@@ -438,7 +467,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
            "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)", 0.15,
            smallest_reason="half the lightest blinds' 30 %", clean_ceiling=0.574,
-           declared_ceiling=0.795),
+           declared_ceiling=0.795, estimate_ceiling=0.581),
     Effect("heating_capacity_limit", "heating capacity limit",
            "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
            "the setpoint, so consumption plateaus and the temperature sags.",
@@ -452,7 +481,8 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            "diagnosis tests it against an unlimited heating power; with the heating power declared known, the "
            "predicted heating is capped at capacity_w_m2 and the heat not delivered lowers the temperature",
            building_parameter="heating_power_w_m2", clean_ceiling=42.5, declared_ceiling=40.1,
-           carried_starts=(25.0, 40.0), ceiling_source=CAPACITY_CEILING_SOURCE),
+           carried_starts=(25.0, 40.0), ceiling_source=CAPACITY_CEILING_SOURCE,
+           estimate_ceiling=38.1),
     Effect("heat_recovery", "heat recovery on the air handling unit",
            "An air-to-air heat exchanger preheats the outdoor air with the exhaust air: the air handling unit's "
            "heating falls, most in cold weather.",
@@ -461,7 +491,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
                            "sensible effectiveness of the heat exchanger"),),
            "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
            0.3, smallest_reason="the poorest exchangers sold reach about 0.5", clean_ceiling=0.129,
-           declared_ceiling=0.322),
+           declared_ceiling=0.322, estimate_ceiling=0.148),
     Effect("night_cycle_cold_air", "cold supply air while the fans cycle at night",
            "A central VAV system with terminal reheat supplies every zone air at its cooling supply temperature "
            "(about 13 degC) whenever its fans run. Out of hours its night cycle starts the fans as soon as one "

@@ -6,8 +6,9 @@ period of the heating season (``weeks`` weeks, 4 by default; first Monday drawn 
 2019; a check of longer sites keeps every case's label, magnitude and seeds, only a period that would run into
 the next year starts earlier: :func:`plan_cases`), with its
 own sensor-noise seed; the labels cycle through "none" and every effect in a seeded random order. Each site is
-diagnosed (:func:`buildenv.gap.diagnose`) knowing nothing of what was injected; the first selected effect
-(or "none") is the diagnosis' answer.
+diagnosed (:func:`buildenv.gap.diagnose`) knowing nothing of what was injected; the first selected effect, else
+the effect named by its estimate alone (:func:`buildenv.gap.named_by_estimate`), else "none", is the diagnosis'
+answer (the record's ``named_by_estimate`` says which of the two).
 
 Magnitudes are drawn uniformly from each effect's practice range (:attr:`buildenv.effects.Effect.magnitude_range`),
 with two exceptions stated here: a sensor bias is drawn as ``+-U(0.5, 3) K`` (a bias under 0.5 K hides in the
@@ -252,8 +253,10 @@ def _diagnosis_record(result: dict) -> dict:
     p-values and estimates (enough to judge the step again under other naming rules), its joint tests
     (:func:`buildenv.gap.joint_fallback`), the base model's
     held-out metrics and the residual standard deviations the gains are standardised by."""
-    named = result["selected"][0] if result["selected"] else NONE
-    return {"named": named, "selected": result["selected"], "ranked": [e["name"] for e in result["effects"]],
+    by_estimate = result.get("named_by_estimate", [])
+    named = result["selected"][0] if result["selected"] else by_estimate[0] if by_estimate else NONE
+    return {"named": named, "selected": result["selected"], "named_by_estimate": by_estimate,
+            "ranked": [e["name"] for e in result["effects"]],
             "scores": {e["name"]: e["score"] for e in result["effects"]},
             "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
             "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"]
@@ -373,6 +376,9 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
             "top1_accuracy_visible": float(np.mean([r["correct"] for r in visible])) if visible else None,
             "gap_left_cases": len(left) if any("gap_left" in r for r in effect_rows) else None,
             "top1_accuracy_gap_left": float(np.mean([r["correct"] for r in left])) if left else None,
+            # named by the estimate alone (buildenv.gap.named_by_estimate): right, and on clean sites
+            "named_by_estimate_right": sum(1 for r in effect_rows if r["correct"] and r.get("named_by_estimate")),
+            "named_by_estimate_on_none": sum(1 for r in none_rows if r.get("named_by_estimate")),
             "named_where_no_gap_left": {r["case"]: r["named"] for r in effect_rows
                                         if "gap_left" in r and not r["gap_left"]["left"]},
             "labels": labels, "confusion": confusion}

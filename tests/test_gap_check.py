@@ -137,7 +137,8 @@ def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monke
     assert len(err) == 1 and message in err[0] and effect in err[0]
 
 
-@pytest.mark.parametrize("flags, expected", [([], True), (["--no-clean-ceilings", "--no-joint-fallback"], False)])
+@pytest.mark.parametrize("flags, expected", [
+    ([], True), (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone"], False)])
 def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
     import buildenv.gap
 
@@ -150,7 +151,7 @@ def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags
     monkeypatch.setattr(buildenv.gap, "diagnose", record)
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
     assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
-    assert seen["settings"].joint_fallback is expected
+    assert seen["settings"].joint_fallback is expected and seen["settings"].estimate_alone is expected
     # the blind checks' settings, under which the ceilings were measured, not DiagnosisSettings' faster defaults
     assert {k: getattr(seen["settings"], k) for k in CHECKED_DIAGNOSIS} == CHECKED_DIAGNOSIS
     assert CHECKED_DIAGNOSIS["split"] != DiagnosisSettings.split
@@ -269,15 +270,25 @@ def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeyp
              "estimates": {"holidays": {"absent_days": 2}, "solar_shading": {"blocked_fraction": 0.3}},
              "gains_by_series": {"holidays": {"temperature": 0.2, "consumption": 0.5},
                                  "solar_shading": {"temperature": 0.0, "consumption": 0.01}}}
-    run = {"plan": {"seed": 0}, "cases": [found]}
+    # a wind the base calibration absorbed: no held-out gain, an estimate beyond every clean site's (0.0175)
+    absorbed = {"case": 3, "true": "wind_infiltration", "named": "none", "ranked": ["solar_shading",
+                                                                                   "wind_infiltration"],
+                "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
+                "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
+                "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}}}
+    run = {"plan": {"seed": 0}, "cases": [found, absorbed]}
     (tmp_path / "replay.json").write_text(json.dumps(replay))
     (tmp_path / "run.json").write_text(json.dumps(run))
-    sites = headline.sites_from_replay(str(tmp_path / "replay.json")) | headline.sites_from_run(
-        str(tmp_path / "run.json"))
+    sites = headline.sites_from_replay(str(tmp_path / "replay.json")) | {
+        site: headline._site(*record) for site, record in headline.diagnosed_records([], [str(tmp_path / "run.json")]
+                                                                                     ).items()}
     assert sites["seed0_case_000"]["named"] == "holidays" and sites["seed0_case_000"]["ranked_first"] is True
     assert sites["seed0_case_001_twin"]["true"] == "none"
+    assert (sites["seed0_case_003"]["named"], sites["seed0_case_003"]["how"]) == ("wind_infiltration",
+                                                                                  "estimate alone")
     [row] = headline.tally(sites)
-    assert (row["cases"], row["right"], row["wrong"], row["ranked"], row["ranked_known"]) == (2, 1, 1, 1, 1)
+    assert (row["cases"], row["right"], row["alone"], row["wrong"], row["ranked"], row["ranked_known"]) == \
+        (3, 2, 1, 1, 1, 2)
     assert (row["clean"], row["clean_right"], row["twins"], row["twins_right"]) == (1, 1, 1, 1)
     assert row["sources"] == ["replay", "run"]
-    assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "wrong": 1}
+    assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "alone": 0, "wrong": 1}

@@ -259,8 +259,8 @@ class DiagnosisSettings:
             unless its held-out gain is below -10 % (the held-out weeks contradict it); reported in
             ``named_by_estimate`` and the verdict and *not* added to the model, since it gains nothing held out.
             Why: a wind-driven infiltration the base calibration absorbs into a constant air change rate is
-            refitted at close to its size (0.024-0.037 1/h per m/s for 20-37 % per m/s, against at most 0.0175 on
-            the 464 clean sites) while its held-out gain is -5 % to 2 %, depending on the held-out weeks' winds.
+            refitted at close to its size (0.024-0.037 1/h per m/s for 19-37 % per m/s, against at most 0.0175 on
+            the 464 clean sites) while its held-out gain is -16 % to 2 %, depending on the held-out weeks' winds.
             Replayed on the first steps of seeds 0-28 (``bench/results/gap_estimate_alone.md``), each seed judged
             with the other seeds' clean sites, it names 19 more effects right (12 winds, 4 night loads, 2 blinds,
             a capacity limit), none wrongly, and an effect on 1 of the 464 clean sites. Off on sites declaring

@@ -812,10 +812,11 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
         progress: progress bar over the candidates.
         plot: PNG path of the localisation heatmaps (none if ``None``).
     Returns:
-        ``{"localisation", "effects": [...] ranked best first, "selected", "verdict", "steps", "model",
-        "fit_weeks", "heldout_weeks", "heldout_base", "residual_sigma", "base_at_bounds", "split_weather",
+        ``{"localisation", "effects": [...] ranked best first, "selected", "named_by_estimate", "verdict", "steps",
+        "model", "fit_weeks", "heldout_weeks", "heldout_base", "residual_sigma", "base_at_bounds", "split_weather",
         "seconds"}``; each effect entry has ``name, score, significance, heldout_before, heldout_after,
-        parameters, selected``; ``heldout_base`` holds the base model's held-out metrics, ``residual_sigma`` its
+        parameters, selected``; ``named_by_estimate`` lists the effect named by its estimate alone when nothing was
+        selected (:func:`named_by_estimate`; not in the model); ``heldout_base`` holds the base model's held-out metrics, ``residual_sigma`` its
         fit-week residual standard deviations ([K, Wh/m2], the units every residual is standardised in) and
         ``base_at_bounds`` its building parameters at a bound of their range
         (:func:`buildenv.calibration.parameters_at_bounds`).
@@ -882,7 +883,7 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     selected = [e for e in current.effects if e not in base.effects]
     for e in first_step:
         e["selected"] = e["name"] in selected
-    by_estimate = []
+    by_estimate: list[str] = []
     if not selected and settings.estimate_alone and ctx.ceilings is True:
         for e in first_step:
             e["beyond_estimate_ceiling"] = get_effect(e["name"]).beyond_estimate_ceiling(e["parameters"])
@@ -1002,10 +1003,9 @@ def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: l
         entry = next(e for e in entries if e["name"] == by_estimate[0])
         effect = get_effect(entry["name"])
         return (f"unmodelled effect named by its estimate alone: {entry['name']} ({effect.title}; "
-                f"{effect.estimate_text(entry['parameters'])}, beyond {effect.estimate_ceiling_text()}). "
-                f"Its held-out gain "
-                f"({100 * entry['score']:.1f} %) does not qualify it, so the site's model stays without it: the base "
-                "calibration's building parameters stand in for it")
+                f"{effect.estimate_text(entry['parameters'])}, beyond {effect.estimate_ceiling_text()}). Its "
+                f"held-out gain ({100 * entry['score']:.1f} %) does not qualify it, so the site's model stays without "
+                "it: the base calibration's building parameters stand in for it")
     if not selected:
         best = entries[0] if entries else None
         tested = "".join(f"; {e['name']} {_joint_text(e['joint_test'])}" for e in entries[1:] if "joint_test" in e)

@@ -27,6 +27,7 @@ from buildenv.gap import absorbed_candidate, candidate_qualifies, joint_test_qua
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
+ALONE = "estimate alone"  # how :func:`naming` says a record names its effect by the estimate alone
 
 
 def first_named(row: dict, alpha: float, min_gain: float,
@@ -61,7 +62,7 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
             if name in joint and joint_test_qualifies(name, joint[name], threshold):
                 return name, "joint test"
     alone = named_by_estimate(row["estimates"], row["scores"], False if clean_ceilings is False else estimate_ceilings)
-    return (alone[0], "estimate alone") if alone else (NONE, "")
+    return (alone[0], ALONE) if alone else (NONE, "")
 
 
 def main() -> None:

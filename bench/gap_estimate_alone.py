@@ -31,9 +31,9 @@ import time
 from collections.abc import Callable, Mapping
 from pathlib import Path
 
-from gap_check_rejudge import naming
+from gap_check_rejudge import ALONE, naming
 from gap_clean_ceiling import oriented, round_up, size
-from gap_headline import ALPHA, ALONE, SITE, diagnosed_records
+from gap_headline import ALPHA, SITE, _count_case, _percent, diagnosed_records
 
 from buildenv.effects import EFFECTS, MIN_GAIN, get_effect
 from buildenv.gap_check import NONE
@@ -84,15 +84,8 @@ def counts(records: Mapping[str, tuple[dict, str, str]], named: Mapping[str, tup
             out["clean_right"] += name == NONE
             out["clean_alone"] += how == ALONE
         else:
-            out["cases"] += 1
-            out["right"] += name == truth
-            out["alone"] += name == truth and how == ALONE
-            out["wrong"] += name not in (truth, NONE)
+            _count_case(out, {"true": truth, "named": name, "how": how})
     return out
-
-
-def _percent(part: int, whole: int) -> str:
-    return f"{part}/{whole} ({100 * part / whole:.1f} %)" if whole else "-"
 
 
 def main() -> None:
@@ -131,8 +124,7 @@ def main() -> None:
         check = "" if effect.estimate_ceiling == expected else f" (measured gives {expected:g})"
         own = [size(name, r["estimates"][name]) for r, truth, _ in records.values()
                if truth == name and size(name, r["estimates"].get(name, {})) is not None]
-        judged_on = effect.judged_on or effect.building_parameter or effect.size_name
-        lines.append(f"| {name} | {judged_on} | {oriented(name, value):.5g} | {where} | "
+        lines.append(f"| {name} | {effect.ceiling_on} | {oriented(name, value):.5g} | {where} | "
                      f"{effect.estimate_ceiling:g}{check} | {effect.clean_ceiling:g} | "
                      f"{sum(v > value for v in own)}/{len(own)} |")
     lines += ["", "## The rule replayed", "",
@@ -140,8 +132,8 @@ def main() -> None:
               "effect | clean sites recognised | clean sites named by the estimate alone |",
               "|---|---|---|---|---|---|"]
     for rule, t in tallies.items():
-        lines.append(f"| {rule} | {_percent(t['right'], t['cases'])} | {t['alone']} | {t['wrong']} | "
-                     f"{_percent(t['clean_right'], t['clean'])} | {t['clean_alone']} |")
+        lines.append(f"| {rule} | {_percent(t['right'], t['cases'], 1)} | {t['alone']} | {t['wrong']} | "
+                     f"{_percent(t['clean_right'], t['clean'], 1)} | {t['clean_alone']} |")
     loso = judged["each seed with the other seeds' clean sites"]
     inside = judged["the catalogue's estimate ceilings (in-sample)"]
     lines += ["", "## Sites named by the estimate alone", "",

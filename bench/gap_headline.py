@@ -33,7 +33,7 @@ import re
 import time
 from pathlib import Path
 
-from gap_check_rejudge import naming
+from gap_check_rejudge import ALONE, naming
 
 from buildenv.effects import MIN_GAIN
 from buildenv.gap import DiagnosisSettings
@@ -42,7 +42,6 @@ from buildenv.gap_check import NONE
 RESULTS = Path(__file__).resolve().parent / "results"
 ALPHA = DiagnosisSettings().alpha  # the checks' significance level (their plans' settings.alpha)
 SITE = re.compile(r"seed(\d+)_case_(\d+)(_twin)?$")
-ALONE = "estimate alone"  # how a site named by the estimate alone is named (bench/gap_check_rejudge.naming)
 
 
 def judge(record: dict) -> tuple[str, str]:
@@ -133,9 +132,10 @@ def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
     return dict(sorted(rows.items()))
 
 
-def _percent(part: int, whole: int) -> str:
-    """``part/whole (percent %)``, or ``-`` where there is nothing to count."""
-    return f"{part}/{whole} ({100 * part / whole:.0f} %)" if whole else "-"
+def _percent(part: int, whole: int, digits: int = 0) -> str:
+    """``part/whole (percent %)``, the percentage with ``digits`` decimals, or ``-`` where there is nothing to
+    count."""
+    return f"{part}/{whole} ({100 * part / whole:.{digits}f} %)" if whole else "-"
 
 
 def main() -> None:

@@ -269,6 +269,12 @@ class Effect:
         calibrated parameters (holidays, whose size is the number of fit-week days it flags)."""
         return self.parameters[0].name if self.parameters else "absent_days"
 
+    @property
+    def ceiling_on(self) -> str:
+        """The calibrated value the clean-site and estimate ceilings judge: :attr:`judged_on`, else
+        :attr:`building_parameter`, else :attr:`size_name`."""
+        return self.judged_on or self.building_parameter or self.size_name
+
     def carried_limit(self) -> float | None:
         """The calibrated value of :attr:`building_parameter` from which a carried effect is named: one catalogue
         step inside the end of its range where the effect vanishes (:attr:`vanishes_at`; None for an effect not

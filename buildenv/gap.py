@@ -668,7 +668,7 @@ def named_by_estimate(estimates: Mapping[str, dict[str, float]], gains: Mapping[
                 or gains[name] < ESTIMATE_ALONE_LOWEST_GAIN:
             continue
         ceiling = effect.estimate_ceiling
-        size = parameters.get(effect.judged_on or effect.building_parameter or effect.size_name, 0.0)
+        size = parameters.get(effect.ceiling_on, 0.0)
         beyond.append((abs(abs(size) - abs(ceiling)) / abs(ceiling) if ceiling else float("inf"), name))
     return [max(beyond)[1]] if beyond else []
 
@@ -816,9 +816,9 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
         "model", "fit_weeks", "heldout_weeks", "heldout_base", "residual_sigma", "base_at_bounds", "split_weather",
         "seconds"}``; each effect entry has ``name, score, significance, heldout_before, heldout_after,
         parameters, selected``; ``named_by_estimate`` lists the effect named by its estimate alone when nothing was
-        selected (:func:`named_by_estimate`; not in the model); ``heldout_base`` holds the base model's held-out metrics, ``residual_sigma`` its
-        fit-week residual standard deviations ([K, Wh/m2], the units every residual is standardised in) and
-        ``base_at_bounds`` its building parameters at a bound of their range
+        selected (:func:`named_by_estimate`; not in the model); ``heldout_base`` holds the base model's held-out
+        metrics, ``residual_sigma`` its fit-week residual standard deviations ([K, Wh/m2], the units every residual
+        is standardised in) and ``base_at_bounds`` its building parameters at a bound of their range
         (:func:`buildenv.calibration.parameters_at_bounds`).
     """
     from tqdm import tqdm

@@ -452,8 +452,7 @@ def test_an_estimate_beyond_every_clean_sites_names_its_effect_alone():
     # every estimate ceiling lies at or beyond the gain route's ceiling: no clean site of either set went further
     for effect in EFFECTS.values():
         if effect.estimate_ceiling is not None:
-            assert effect.beyond_estimate_ceiling({effect.judged_on or effect.building_parameter or effect.size_name:
-                                                   effect.clean_ceiling}) is False, effect.name
+            assert effect.beyond_estimate_ceiling({effect.ceiling_on: effect.clean_ceiling}) is False, effect.name
     entry = {"name": "wind_infiltration", "parameters": wind["wind_infiltration"], "score": -0.034}
     assert _verdict([], [entry], 0.10, [], ["wind_infiltration"]).startswith(
         "unmodelled effect named by its estimate alone: wind_infiltration (wind-driven infiltration; ach_per_m_s "

@@ -292,3 +292,39 @@ def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeyp
     assert (row["clean"], row["clean_right"], row["twins"], row["twins_right"]) == (1, 1, 1, 1)
     assert row["sources"] == ["replay", "run"]
     assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "alone": 0, "wrong": 1}
+
+
+def test_the_floor_replay_names_an_exchanger_refit_under_its_floor_and_restores_the_catalogue(tmp_path, monkeypatch):
+    """bench/gap_floor_replay.py: a heat exchanger refit at 0.27 (under the 0.3 floor) with the best held-out gain
+    is named at a floor of 0.25, not at 0.28; the catalogue's floor is the same after the replay."""
+    import importlib.util
+    from pathlib import Path
+
+    from buildenv.effects import EFFECTS
+
+    path = Path(__file__).resolve().parents[1] / "bench" / "gap_floor_replay.py"
+    monkeypatch.syspath_prepend(str(path.parent))  # it reads bench/gap_headline.py as the bench does
+    spec = importlib.util.spec_from_file_location("gap_floor_replay", path)
+    replay = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(replay)
+
+    def case(number, true, exchanger):
+        return {"case": number, "true": true, "named": "none", "ranked": ["heat_recovery", "solar_shading"],
+                "scores": {"heat_recovery": 0.14, "solar_shading": 0.01},
+                "p_values": {"heat_recovery": 1e-7, "solar_shading": 0.3},
+                "estimates": {"heat_recovery": {"effectiveness": exchanger},
+                              "solar_shading": {"blocked_fraction": 0.1}},
+                "gains_by_series": {"heat_recovery": {"temperature": -0.03, "consumption": 0.22},
+                                    "solar_shading": {"temperature": 0.01, "consumption": 0.0}}}
+
+    page = {"plan": {"seed": 3}, "cases": [case(0, "heat_recovery", 0.27), case(1, "none", 0.05)]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    records = replay.diagnosed_records([], [str(tmp_path / "run.json")])
+    before = {site: replay.judge(record)[0] for site, (record, _, _) in records.items()}
+    assert before == {"seed3_case_000": "none", "seed3_case_001": "none"}
+    floor = EFFECTS["heat_recovery"]
+    assert replay.renamed(records, floor, 0.28, before) == []
+    assert replay.renamed(records, floor, 0.25, before) == [
+        {"site": "seed3_case_000", "true": "heat_recovery", "before": "none", "after": "heat_recovery"}]
+    assert EFFECTS["heat_recovery"] is floor and floor.smallest == 0.3
+    assert replay.estimates_by_truth(records, floor) == {"heat_recovery": [0.27], "none": [0.05]}

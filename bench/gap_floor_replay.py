@@ -1,0 +1,115 @@
+"""One effect's plausibility floor replayed on the headline's sites: what a lower (or higher) floor would name.
+
+A diagnosis names an effect only from its plausibility floor (:attr:`buildenv.effects.Effect.smallest`, the
+smallest size real buildings show). When an injected effect is refit under its floor, the floor alone may be what
+missed it (seed 37's case 1: a 56 % heat exchanger refit at 0.273, under the 0.3 floor). Before moving a floor,
+this shows two things on every site the headline counts (``bench/gap_headline.py``'s sources, judged as it
+judges them, first step only):
+
+- how far the effect's estimate goes on sites where it was *not* injected, by injected effect (clean sites
+  included): where another effect pushes it past a candidate floor, that floor lets the effect compete there;
+- each site whose naming changes at each ``--floor``, right or wrong.
+
+It is an in-sample replay of recorded first steps: a floor read off it is tested only by fresh seeds. Run from
+the repository root with the headline's ``--rediagnosed`` and ``--run`` pages::
+
+    .venv/bin/python bench/gap_floor_replay.py --effect heat_recovery --floor 0.25 --floor 0.2 --floor 0.15 \\
+        --rediagnosed bench/results/gap_wind_centred_all.json ... --run bench/results/gap_check_tb_seed21.json ...
+
+Writes ``bench/results/<name>.{md,json}`` (default name ``gap_floor_<effect>``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import time
+from pathlib import Path
+
+from gap_headline import diagnosed_records, judge
+
+import buildenv.effects as effects
+from buildenv.gap_check import NONE
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def estimates_by_truth(records: dict[str, tuple[dict, str, str]], effect: effects.Effect) -> dict[str, list[float]]:
+    """The effect's refit size (``|first parameter|``, as its floor judges it) on each site, by injected effect."""
+    sizes: dict[str, list[float]] = {}
+    for record, truth, _ in records.values():
+        values = record["estimates"].get(effect.name)
+        if values:
+            sizes.setdefault(truth, []).append(abs(values[effect.size_name]))
+    return sizes
+
+
+def renamed(records: dict[str, tuple[dict, str, str]], effect: effects.Effect, floor: float,
+            before: dict[str, str]) -> list[dict]:
+    """The sites whose first step names something else with the effect's floor at ``floor`` (same units)."""
+    effects.EFFECTS[effect.name] = dataclasses.replace(effect, smallest=floor)
+    try:
+        return [{"site": site, "true": truth, "before": before[site], "after": judge(record)[0]}
+                for site, (record, truth, _) in records.items() if judge(record)[0] != before[site]]
+    finally:
+        effects.EFFECTS[effect.name] = effect
+
+
+def _wrong(row: dict, when: str) -> bool:
+    """Whether a renamed site's naming ``when`` ("before" or "after") names an effect that was not injected."""
+    return row[when] not in (row["true"], NONE)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--effect", required=True, choices=sorted(effects.EFFECTS))
+    parser.add_argument("--floor", type=float, action="append", required=True,
+                        help="a floor to replay, in the units of the effect's first model parameter (repeatable)")
+    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
+    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+    parser.add_argument("--name", default="")
+    args = parser.parse_args()
+    effect = effects.EFFECTS[args.effect]
+    if effect.smallest is None:
+        parser.error(f"effect {effect.name} has no plausibility floor to replay")
+    name = args.name or f"gap_floor_{effect.name}"
+    records = diagnosed_records(args.rediagnosed, args.run)
+    before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
+    right = sum(before[site] == truth for site, (_, truth, _) in records.items())
+    sizes = estimates_by_truth(records, effect)
+    changes = {floor: renamed(records, effect, floor, before) for floor in args.floor}
+    command = ("python bench/gap_floor_replay.py --effect " + effect.name
+               + "".join(f" --floor {f:g}" for f in args.floor)
+               + "".join(f" --rediagnosed {p}" for p in args.rediagnosed)
+               + "".join(f" --run {p}" for p in args.run) + f" --name {name}")
+    lines = [f"# Gap diagnosis: the {effect.name} plausibility floor replayed ({time.strftime('%Y-%m-%d')})", "",
+             f"Command: `{command}`.", "",
+             f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
+             f"in-sample. Floor now: {effect.named_from()}.", "",
+             f"## The {effect.size_name} estimate by injected effect", "",
+             "| injected | sites | largest | " + " | ".join(f">= {f:g}" for f in sorted({effect.smallest, *args.floor},
+                                                                                   reverse=True)) + " |",
+             "|---|---|---|" + "---|" * len({effect.smallest, *args.floor})]
+    for truth in sorted(sizes, key=lambda t: (t == effect.name, t == NONE, t)):
+        values = sizes[truth]
+        lines.append(f"| {truth} | {len(values)} | {max(values):.3f} | " + " | ".join(
+            str(sum(v >= f for v in values)) for f in sorted({effect.smallest, *args.floor}, reverse=True)) + " |")
+    lines += ["", "## Sites named otherwise", "", "| floor | site | injected | named now | named with the floor |",
+              "|---|---|---|---|---|"]
+    for floor, rows in changes.items():
+        lines += [f"| {floor:g} | {r['site']} | {r['true']} | {r['before']} | {r['after']} |" for r in rows]
+        gained = sum(r["after"] == r["true"] for r in rows) - sum(r["before"] == r["true"] for r in rows)
+        wrong = sum(_wrong(r, "after") for r in rows) - sum(_wrong(r, "before") for r in rows)
+        lines.append(f"| {floor:g} | **net** | | | {gained:+d} named right, {wrong:+d} named another effect |")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{name}.json").write_text(json.dumps(
+        {"command": command, "effect": effect.name, "floor_now": effect.smallest, "sites": len(records),
+         "right_now": right, "estimates": sizes, "renamed": {str(f): rows for f, rows in changes.items()}},
+        indent=1) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -50,10 +50,11 @@ def renamed(records: dict[str, tuple[dict, str, str]], effect: effects.Effect, f
     """The sites whose first step names something else with the effect's floor at ``floor`` (same units)."""
     effects.EFFECTS[effect.name] = dataclasses.replace(effect, smallest=floor)
     try:
-        return [{"site": site, "true": truth, "before": before[site], "after": judge(record)[0]}
-                for site, (record, truth, _) in records.items() if judge(record)[0] != before[site]]
+        after = {site: judge(record)[0] for site, (record, _, _) in records.items()}
     finally:
         effects.EFFECTS[effect.name] = effect
+    return [{"site": site, "true": truth, "before": before[site], "after": after[site]}
+            for site, (_, truth, _) in records.items() if after[site] != before[site]]
 
 
 def _wrong(row: dict, when: str) -> bool:
@@ -79,6 +80,7 @@ def main() -> None:
     right = sum(before[site] == truth for site, (_, truth, _) in records.items())
     sizes = estimates_by_truth(records, effect)
     changes = {floor: renamed(records, effect, floor, before) for floor in args.floor}
+    columns = sorted({effect.smallest, *args.floor}, reverse=True)  # the floor now and each replayed one
     command = ("python bench/gap_floor_replay.py --effect " + effect.name
                + "".join(f" --floor {f:g}" for f in args.floor)
                + "".join(f" --rediagnosed {p}" for p in args.rediagnosed)
@@ -88,13 +90,12 @@ def main() -> None:
              f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
              f"in-sample. Floor now: {effect.named_from()}.", "",
              f"## The {effect.size_name} estimate by injected effect", "",
-             "| injected | sites | largest | " + " | ".join(f">= {f:g}" for f in sorted({effect.smallest, *args.floor},
-                                                                                   reverse=True)) + " |",
-             "|---|---|---|" + "---|" * len({effect.smallest, *args.floor})]
+             "| injected | sites | largest | " + " | ".join(f">= {f:g}" for f in columns) + " |",
+             "|---|---|---|" + "---|" * len(columns)]
     for truth in sorted(sizes, key=lambda t: (t == effect.name, t == NONE, t)):
         values = sizes[truth]
         lines.append(f"| {truth} | {len(values)} | {max(values):.3f} | " + " | ".join(
-            str(sum(v >= f for v in values)) for f in sorted({effect.smallest, *args.floor}, reverse=True)) + " |")
+            str(sum(v >= f for v in values)) for f in columns) + " |")
     lines += ["", "## Sites named otherwise", "", "| floor | site | injected | named now | named with the floor |",
               "|---|---|---|---|---|"]
     for floor, rows in changes.items():

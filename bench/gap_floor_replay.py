@@ -62,29 +62,47 @@ def _wrong(row: dict, when: str) -> bool:
     return row[when] not in (row["true"], NONE)
 
 
+def net_change(rows: list[dict]) -> str:
+    """What renaming ``rows`` (``{"true", "before", "after"}``) nets: named right, and named another effect."""
+    gained = sum(r["after"] == r["true"] for r in rows) - sum(r["before"] == r["true"] for r in rows)
+    wrong = sum(_wrong(r, "after") for r in rows) - sum(_wrong(r, "before") for r in rows)
+    return f"{gained:+d} named right, {wrong:+d} named another effect"
+
+
+def add_sources(parser: argparse.ArgumentParser) -> None:
+    """The headline's sources as options: ``--rediagnosed`` and ``--run`` pages (repeatable)."""
+    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
+    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+
+
+def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str, str]], dict[str, str], int, str]:
+    """The sites of ``args``' sources (:func:`add_sources`) as the headline judges them: ``(records, {site: named
+    now}, how many are named right, the sources as command-line options)``."""
+    records = diagnosed_records(args.rediagnosed, args.run)
+    before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
+    right = sum(before[site] == truth for site, (_, truth, _) in records.items())
+    options = "".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
+    return records, before, right, options
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--effect", required=True, choices=sorted(effects.EFFECTS))
     parser.add_argument("--floor", type=float, action="append", required=True,
                         help="a floor to replay, in the units of the effect's first model parameter (repeatable)")
-    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
-    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+    add_sources(parser)
     parser.add_argument("--name", default="")
     args = parser.parse_args()
     effect = effects.EFFECTS[args.effect]
     if effect.smallest is None:
         parser.error(f"effect {effect.name} has no plausibility floor to replay")
     name = args.name or f"gap_floor_{effect.name}"
-    records = diagnosed_records(args.rediagnosed, args.run)
-    before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
-    right = sum(before[site] == truth for site, (_, truth, _) in records.items())
+    records, before, right, sources = judged_sources(args)
     sizes = estimates_by_truth(records, effect)
     changes = {floor: renamed(records, effect, floor, before) for floor in args.floor}
     columns = sorted({effect.smallest, *args.floor}, reverse=True)  # the floor now and each replayed one
     command = ("python bench/gap_floor_replay.py --effect " + effect.name
-               + "".join(f" --floor {f:g}" for f in args.floor)
-               + "".join(f" --rediagnosed {p}" for p in args.rediagnosed)
-               + "".join(f" --run {p}" for p in args.run) + f" --name {name}")
+               + "".join(f" --floor {f:g}" for f in args.floor) + sources + f" --name {name}")
     lines = [f"# Gap diagnosis: the {effect.name} plausibility floor replayed ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}`.", "",
              f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
@@ -100,9 +118,7 @@ def main() -> None:
               "|---|---|---|---|---|"]
     for floor, rows in changes.items():
         lines += [f"| {floor:g} | {r['site']} | {r['true']} | {r['before']} | {r['after']} |" for r in rows]
-        gained = sum(r["after"] == r["true"] for r in rows) - sum(r["before"] == r["true"] for r in rows)
-        wrong = sum(_wrong(r, "after") for r in rows) - sum(_wrong(r, "before") for r in rows)
-        lines.append(f"| {floor:g} | **net** | | | {gained:+d} named right, {wrong:+d} named another effect |")
+        lines.append(f"| {floor:g} | **net** | | | {net_change(rows)} |")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
     (RESULTS / f"{name}.json").write_text(json.dumps(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import dataclasses
 import datetime as dt
 import json
@@ -208,16 +209,24 @@ def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path)
     assert _site(tmp_path, limit, alternate, inject=True) == tmp_path / "case_000"
 
 
-def test_the_gap_bound_counts_a_site_findable_when_any_of_its_records_left_a_gap(tmp_path):
-    """bench/gap_check_bound.py: two checks of the same plan and a third of another seed; a site is findable
-    when some record left a gap (> 0, or at least the naming bar)."""
+def _bench_module(name: str, monkeypatch):
+    """A script of bench/ imported as a module, with bench/ on the path as the bench runs it (it imports its
+    neighbours, bench/gap_headline.py among them)."""
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parents[1] / "bench" / "gap_check_bound.py"
-    spec = importlib.util.spec_from_file_location("gap_check_bound", path)
-    bound = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(bound)
+    path = Path(__file__).resolve().parents[1] / "bench" / f"{name}.py"
+    monkeypatch.syspath_prepend(str(path.parent))
+    spec = importlib.util.spec_from_file_location(name, path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_the_gap_bound_counts_a_site_findable_when_any_of_its_records_left_a_gap(tmp_path, monkeypatch):
+    """bench/gap_check_bound.py: two checks of the same plan and a third of another seed; a site is findable
+    when some record left a gap (> 0, or at least the naming bar)."""
+    bound = _bench_module("gap_check_bound", monkeypatch)
 
     def row(case, true, share, correct):
         return {"case": case, "true": true, "start": "2019-10-07", "magnitude": 50.0, "named": true if correct
@@ -251,14 +260,7 @@ def test_the_gap_bound_counts_a_site_findable_when_any_of_its_records_left_a_gap
 def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeypatch):
     """bench/gap_headline.py: a run of the check replaces the replayed naming of the same site, other sites keep
     theirs, and a run's case is judged again with the catalogue's ceilings (a holiday found is named)."""
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parents[1] / "bench" / "gap_headline.py"
-    monkeypatch.syspath_prepend(str(path.parent))  # it reads bench/gap_check_rejudge.py as the bench does
-    spec = importlib.util.spec_from_file_location("gap_headline", path)
-    headline = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(headline)
+    headline = _bench_module("gap_headline", monkeypatch)
 
     replay = {"sites": [
         {"key": "seed0_case_000", "true": "holidays", "night electricity": "none"},
@@ -297,16 +299,9 @@ def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeyp
 def test_the_floor_replay_names_an_exchanger_refit_under_its_floor_and_restores_the_catalogue(tmp_path, monkeypatch):
     """bench/gap_floor_replay.py: a heat exchanger refit at 0.27 (under the 0.3 floor) with the best held-out gain
     is named at a floor of 0.25, not at 0.28; the catalogue's floor is the same after the replay."""
-    import importlib.util
-    from pathlib import Path
-
     from buildenv.effects import EFFECTS
 
-    path = Path(__file__).resolve().parents[1] / "bench" / "gap_floor_replay.py"
-    monkeypatch.syspath_prepend(str(path.parent))  # it reads bench/gap_headline.py as the bench does
-    spec = importlib.util.spec_from_file_location("gap_floor_replay", path)
-    replay = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(replay)
+    replay = _bench_module("gap_floor_replay", monkeypatch)
 
     def case(number, true, exchanger):
         return {"case": number, "true": true, "named": "none", "ranked": ["heat_recovery", "solar_shading"],
@@ -328,3 +323,32 @@ def test_the_floor_replay_names_an_exchanger_refit_under_its_floor_and_restores_
         {"site": "seed3_case_000", "true": "heat_recovery", "before": "none", "after": "heat_recovery"}]
     assert EFFECTS["heat_recovery"] is floor and floor.smallest == 0.3
     assert replay.estimates_by_truth(records, floor) == {"heat_recovery": [0.27], "none": [0.05]}
+
+
+def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guard(tmp_path, monkeypatch):
+    """bench/gap_guard_replay.py: a wind refit beyond every clean site's (0.030 1/h per m/s) but 13.7 % worse on
+    its held-out weeks is held back by the -10 % guard, named at -15 %, not at -12 %; the guard is -10 % after."""
+    import buildenv.gap as gap
+
+    replay = _bench_module("gap_guard_replay", monkeypatch)
+
+    def case(number, true, wind):
+        return {"case": number, "true": true, "named": "none", "ranked": ["solar_shading", "wind_infiltration"],
+                "scores": {"wind_infiltration": -0.137, "solar_shading": 0.013},
+                "p_values": {"wind_infiltration": 0.9, "solar_shading": 0.3},
+                "estimates": {"wind_infiltration": {"ach_per_m_s": wind}, "solar_shading": {"blocked_fraction": 0.1}},
+                "gains_by_series": {"wind_infiltration": {"temperature": -0.01, "consumption": -0.2},
+                                    "solar_shading": {"temperature": 0.01, "consumption": 0.0}}}
+
+    page = {"plan": {"seed": 43}, "cases": [case(0, "wind_infiltration", 0.030), case(1, "none", 0.012)]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")])
+    records, before, right, _ = replay.judged_sources(sources)
+    assert before == {"seed43_case_000": "none", "seed43_case_001": "none"} and right == 1
+    assert replay.renamed(records, -0.12, before) == []
+    assert replay.renamed(records, -0.15, before) == [
+        {"site": "seed43_case_000", "true": "wind_infiltration", "before": "none", "after": "wind_infiltration",
+         "gain": -0.137, "estimate": 0.030}]
+    assert gap.ESTIMATE_ALONE_LOWEST_GAIN == -0.10
+    held_back = replay.renamed(records, float("-inf"), before)
+    assert replay.net_change(held_back) == "+1 named right, +0 named another effect"

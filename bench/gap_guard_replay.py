@@ -1,0 +1,98 @@
+"""The estimate-alone rule's held-out guard replayed on the headline's sites: what a lower (or higher) guard names.
+
+A first step that selects nothing names a candidate by its estimate alone (:func:`buildenv.gap.named_by_estimate`)
+only when its held-out gain is at least :data:`buildenv.effects.ESTIMATE_ALONE_LOWEST_GAIN` (-10 %): worse than
+that, the held-out weeks contradict it. A fresh seed's wind refit beyond every clean site's but 13.7 % worse on
+its held-out weeks (seed 43's case 10) asks whether the guard costs more than it saves. This shows, on every site
+the headline counts (``bench/gap_headline.py``'s sources, judged as it judges them, first step only):
+
+- every site the guard holds back (what the rule would name without it, the candidate's estimate and its held-out
+  gain), right or wrong;
+- each site whose naming changes at each ``--lowest-gain``, and what that nets.
+
+It is an in-sample replay of recorded first steps: a guard read off it is tested only by fresh seeds. Run from the
+repository root with the headline's ``--rediagnosed`` and ``--run`` pages::
+
+    .venv/bin/python bench/gap_guard_replay.py --lowest-gain -0.15 --lowest-gain -0.2 \\
+        --rediagnosed bench/results/gap_wind_centred_all.json ... --run bench/results/gap_check_tb_seed21.json ...
+
+Writes ``bench/results/<name>.{md,json}`` (default name ``gap_guard_estimate_alone``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from pathlib import Path
+
+from gap_floor_replay import add_sources, judged_sources, net_change
+from gap_headline import judge
+
+import buildenv.gap as gap
+from buildenv.effects import get_effect
+
+RESULTS = Path(__file__).resolve().parent / "results"
+
+
+def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, before: dict[str, str]) -> list[dict]:
+    """The sites whose first step names something else with the guard at ``lowest_gain`` (a held-out gain, -0.15 for
+    -15 %), each with the held-out gain and the estimate of what it names then."""
+    guard = gap.ESTIMATE_ALONE_LOWEST_GAIN
+    gap.ESTIMATE_ALONE_LOWEST_GAIN = lowest_gain
+    try:
+        after = {site: judge(record)[0] for site, (record, _, _) in records.items()}
+    finally:
+        gap.ESTIMATE_ALONE_LOWEST_GAIN = guard
+    rows = []
+    for site, (record, truth, _) in records.items():
+        if after[site] != before[site]:
+            named = after[site] if after[site] in record["scores"] else before[site]
+            size = get_effect(named).ceiling_on
+            rows.append({"site": site, "true": truth, "before": before[site], "after": after[site],
+                         "gain": record["scores"][named], "estimate": record["estimates"][named].get(size)})
+    return rows
+
+
+def _row(row: dict) -> str:
+    """A renamed site as a table row."""
+    return (f"| {row['site']} | {row['true']} | {row['before']} | {row['after']} | {100 * row['gain']:.1f} % "
+            f"| {row['estimate']:.4g} |")
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--lowest-gain", type=float, action="append", required=True,
+                        help="a guard to replay: the lowest held-out gain named by estimate (-0.15 for -15 %)")
+    add_sources(parser)
+    parser.add_argument("--name", default="gap_guard_estimate_alone")
+    args = parser.parse_args()
+    records, before, right, sources = judged_sources(args)
+    held_back = renamed(records, float("-inf"), before)
+    changes = {value: renamed(records, value, before) for value in args.lowest_gain}
+    command = ("python bench/gap_guard_replay.py" + "".join(f" --lowest-gain {v:g}" for v in args.lowest_gain)
+               + sources + f" --name {args.name}")
+    header = ["| site | injected | named now | named then | its held-out gain | its estimate |",
+              "|---|---|---|---|---|---|"]
+    lines = [f"# Gap diagnosis: the estimate-alone rule's held-out guard replayed ({time.strftime('%Y-%m-%d')})", "",
+             f"Command: `{command}`.", "",
+             f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
+             f"in-sample. Guard now: a held-out gain of at least {100 * gap.ESTIMATE_ALONE_LOWEST_GAIN:g} %.", "",
+             "## Sites the guard holds back (named by the estimate alone without it)", "", *header,
+             *[_row(r) for r in sorted(held_back, key=lambda r: -r["gain"])],
+             f"| **net without the guard** | | | | | {net_change(held_back)} |", "",
+             "## Sites named otherwise with another guard", "", "| guard | " + header[0][2:], "|---" + header[1]]
+    for value, rows in changes.items():
+        lines += [f"| {100 * value:g} % " + _row(r) for r in rows]
+        lines.append(f"| {100 * value:g} % | **net** | | | | | {net_change(rows)} |")
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{args.name}.json").write_text(json.dumps(
+        {"command": command, "lowest_gain_now": gap.ESTIMATE_ALONE_LOWEST_GAIN, "sites": len(records),
+         "right_now": right, "held_back": held_back, "renamed": {str(v): rows for v, rows in changes.items()}},
+        indent=1) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

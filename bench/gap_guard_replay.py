@@ -37,7 +37,8 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, before: dict[str, str]) -> list[dict]:
     """The sites whose first step names something else with the guard at ``lowest_gain`` (a held-out gain, -0.15 for
-    -15 %), each with the held-out gain and the estimate of what it names then."""
+    -15 %), each with the held-out gain and the estimate (its ceiling's quantity) of what it names then, or of what
+    it named before where it names nothing then."""
     guard = gap.ESTIMATE_ALONE_LOWEST_GAIN
     gap.ESTIMATE_ALONE_LOWEST_GAIN = lowest_gain
     try:
@@ -56,8 +57,9 @@ def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, befor
 
 def _row(row: dict) -> str:
     """A renamed site as a table row."""
+    estimate = "-" if row["estimate"] is None else f"{row['estimate']:.4g}"
     return (f"| {row['site']} | {row['true']} | {row['before']} | {row['after']} | {100 * row['gain']:.1f} % "
-            f"| {row['estimate']:.4g} |")
+            f"| {estimate} |")
 
 
 def main() -> None:

@@ -27,7 +27,7 @@ import json
 import time
 from pathlib import Path
 
-from gap_headline import diagnosed_records, judge
+from gap_headline import add_sources, judge, judged_sources
 
 import buildenv.effects as effects
 from buildenv.gap_check import NONE
@@ -67,22 +67,6 @@ def net_change(rows: list[dict]) -> str:
     gained = sum(r["after"] == r["true"] for r in rows) - sum(r["before"] == r["true"] for r in rows)
     wrong = sum(_wrong(r, "after") for r in rows) - sum(_wrong(r, "before") for r in rows)
     return f"{gained:+d} named right, {wrong:+d} named another effect"
-
-
-def add_sources(parser: argparse.ArgumentParser) -> None:
-    """The headline's sources as options: ``--rediagnosed`` and ``--run`` pages (repeatable)."""
-    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
-    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
-
-
-def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str, str]], dict[str, str], int, str]:
-    """The sites of ``args``' sources (:func:`add_sources`) as the headline judges them: ``(records, {site: named
-    now}, how many are named right, the sources as command-line options)``."""
-    records = diagnosed_records(args.rediagnosed, args.run)
-    before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
-    right = sum(before[site] == truth for site, (_, truth, _) in records.items())
-    options = "".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
-    return records, before, right, options
 
 
 def main() -> None:

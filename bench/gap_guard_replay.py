@@ -26,8 +26,8 @@ import json
 import time
 from pathlib import Path
 
-from gap_floor_replay import add_sources, judged_sources, net_change
-from gap_headline import judge
+from gap_floor_replay import net_change
+from gap_headline import add_sources, judge, judged_sources
 
 import buildenv.gap as gap
 from buildenv.effects import get_effect

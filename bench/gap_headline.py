@@ -132,6 +132,22 @@ def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
     return dict(sorted(rows.items()))
 
 
+def add_sources(parser: argparse.ArgumentParser) -> None:
+    """The headline's sources as options: ``--rediagnosed`` and ``--run`` pages (repeatable)."""
+    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
+    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+
+
+def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str, str]], dict[str, str], int, str]:
+    """The sites of ``args``' sources (:func:`add_sources`) as the headline judges them: ``(records, {site: named
+    now}, how many are named right, the sources as command-line options)``."""
+    records = diagnosed_records(args.rediagnosed, args.run)
+    before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
+    right = sum(before[site] == truth for site, (_, truth, _) in records.items())
+    options = "".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
+    return records, before, right, options
+
+
 def _percent(part: int, whole: int, digits: int = 0) -> str:
     """``part/whole (percent %)``, the percentage with ``digits`` decimals, or ``-`` where there is nothing to
     count."""
@@ -141,8 +157,7 @@ def _percent(part: int, whole: int, digits: int = 0) -> str:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--replayed", action="append", default=[], help="a bench/gap_night_electricity.py json")
-    parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
-    parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+    add_sources(parser)
     parser.add_argument("--name", default="gap_headline")
     args = parser.parse_args()
     sites: dict[str, dict] = {}

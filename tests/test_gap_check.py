@@ -314,8 +314,7 @@ def test_the_floor_replay_names_an_exchanger_refit_under_its_floor_and_restores_
 
     page = {"plan": {"seed": 3}, "cases": [case(0, "heat_recovery", 0.27), case(1, "none", 0.05)]}
     (tmp_path / "run.json").write_text(json.dumps(page))
-    records = replay.diagnosed_records([], [str(tmp_path / "run.json")])
-    before = {site: replay.judge(record)[0] for site, (record, _, _) in records.items()}
+    records, before, _, _ = replay.judged_sources(argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")]))
     assert before == {"seed3_case_000": "none", "seed3_case_001": "none"}
     floor = EFFECTS["heat_recovery"]
     assert replay.renamed(records, floor, 0.28, before) == []

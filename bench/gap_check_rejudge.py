@@ -59,7 +59,7 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
     joint = row.get("joint_tests", {})  # the joint-calibration fallback, where the record ran it
     for name in ranked:
         if absorbed_candidate(name, row["estimates"][name], clean_ceilings):
-            if name in joint and joint_test_qualifies(name, joint[name], threshold):
+            if name in joint and joint_test_qualifies(name, joint[name], threshold, clean_ceilings):
                 return name, "joint test"
     alone = named_by_estimate(row["estimates"], row["scores"], False if clean_ceilings is False else estimate_ceilings)
     return (alone[0], ALONE) if alone else (NONE, "")

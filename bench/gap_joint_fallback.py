@@ -6,7 +6,7 @@ already moved the building parameters to explain the effect (a wind infiltration
 change rate), so the refit started from it has nothing left to gain. The diagnosis then tests such a candidate by
 joint calibration (:func:`buildenv.gap.joint_test`: the site calibrated from scratch with and without it) when
 nothing else qualifies, and names it when that test's held-out gain is significant (the step's Bonferroni
-threshold) with a plausible estimate (:func:`buildenv.gap.joint_test_qualifies`).
+threshold) with a plausible estimate still beyond its ceiling (:func:`buildenv.gap.joint_test_qualifies`).
 
 This replays that rule on the recorded first steps of the blind checks (cases, clean cases and the clean twins'
 records), each seed judged with clean-site ceilings measured on the other seeds' clean sites, as
@@ -82,12 +82,12 @@ def main() -> None:
     clean = {p: clean_records(pages[p], twins.get(p, []), f"seed {seed[p]}") for p in pages}
     folder = Path(args.folder)
     folder.mkdir(parents=True, exist_ok=True)
-    records, todo = [], []
+    records, todo, page_ceilings = [], [], {}
     for p, page in pages.items():
         settings = page["plan"]["settings"]
         alpha, min_gain = settings["alpha"], settings["min_gain"]
-        ceilings_of = {n: oriented(n, v) for n, (v, _) in
-                       ceilings([r for q in pages if seed[q] != seed[p] for r in clean[q]]).items()}
+        ceilings_of = page_ceilings[p] = {n: oriented(n, v) for n, (v, _) in
+                                          ceilings([r for q in pages if seed[q] != seed[p] for r in clean[q]]).items()}
         rows = [(r, "") for r in page["cases"]] + [(t, "_twin") for t in twins.get(p, [])]
         for row, suffix in rows:
             site = f"case_{row['case']:03d}{suffix}"
@@ -109,7 +109,8 @@ def main() -> None:
         record["fallback"] = record["checks"]
         for test in record["tests"]:
             test["joint"] = json.loads(test.pop("out").read_text())
-            test["qualifies"] = joint_test_qualifies(test["candidate"], test["joint"], test["threshold"])
+            test["qualifies"] = joint_test_qualifies(test["candidate"], test["joint"], test["threshold"],
+                                                     page_ceilings[record["page"]])
             if record["fallback"] == NONE and test["qualifies"]:
                 record["fallback"] = test["candidate"]
     write_page(args, records, time.perf_counter() - started)

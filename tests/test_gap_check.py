@@ -351,3 +351,37 @@ def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guar
     assert gap.ESTIMATE_ALONE_LOWEST_GAIN == -0.10
     held_back = replay.renamed(records, float("-inf"), before)
     assert replay.net_change(held_back) == "+1 named right, +0 named another effect"
+
+
+def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_sites_only_without_the_ceiling(
+        tmp_path, monkeypatch):
+    """bench/gap_joint_replay.py: a clean site's sensor lag refit at 0.766 h (beyond every clean site's) whose joint
+    test gained 4.6 % with its estimate back at 0.414 h is named only with the ceiling off; a wind whose joint
+    estimate stays beyond (0.031 1/h per m/s) is named either way, and the joint test's judge is restored after."""
+    replay = _bench_module("gap_joint_replay", monkeypatch)
+    rejudge = replay.gap_check_rejudge
+    judge_joint = rejudge.joint_test_qualifies
+
+    def case(number, true, tested, refit, joint):
+        other = "solar_shading"
+        return {"case": number, "true": true, "named": "none", "ranked": [other, tested],
+                "scores": {tested: -0.12, other: 0.013}, "p_values": {tested: 0.9, other: 0.3},
+                "estimates": {tested: refit, other: {"blocked_fraction": 0.1}},
+                "gains_by_series": {tested: {"temperature": -0.1, "consumption": -0.1},
+                                    other: {"temperature": 0.01, "consumption": 0.0}},
+                "joint_tests": {tested: {"gain": 0.046, "p_value": 5.8e-4, "estimate": joint}}}
+
+    page = {"plan": {"seed": 47}, "cases": [
+        case(0, "none", "temperature_sensor_lag", {"tau_h": 0.766}, {"tau_h": 0.414}),
+        case(1, "wind_infiltration", "wind_infiltration", {"ach_per_m_s": 0.033}, {"ach_per_m_s": 0.031})]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")])
+    records, before, right, _ = replay.judged_sources(sources)
+    assert before == {"seed47_case_000": "none", "seed47_case_001": "wind_infiltration"} and right == 2
+    without = replay.judged_without_ceiling(records)
+    assert without == {"seed47_case_000": ("temperature_sensor_lag", "joint test"),
+                       "seed47_case_001": ("wind_infiltration", "joint test")}
+    assert rejudge.joint_test_qualifies is judge_joint
+    rows = replay.joint_namings(records, without, before)
+    assert [(r["site"], r["joint"], r["with_ceiling"]) for r in rows] == [
+        ("seed47_case_000", 0.414, "none"), ("seed47_case_001", 0.031, "wind_infiltration")]

@@ -23,16 +23,12 @@ from __future__ import annotations
 
 import argparse
 import dataclasses
-import json
 import time
-from pathlib import Path
 
-from gap_headline import add_sources, judge, judged_sources
+from gap_headline import add_sources, judge, judged_sources, replay_scope, write_results
 
 import buildenv.effects as effects
 from buildenv.gap_check import NONE
-
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def estimates_by_truth(records: dict[str, tuple[dict, str, str]], effect: effects.Effect) -> dict[str, list[float]]:
@@ -89,8 +85,7 @@ def main() -> None:
                + "".join(f" --floor {f:g}" for f in args.floor) + sources + f" --name {name}")
     lines = [f"# Gap diagnosis: the {effect.name} plausibility floor replayed ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}`.", "",
-             f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
-             f"in-sample. Floor now: {effect.named_from()}.", "",
+             replay_scope(records, right) + f" Floor now: {effect.named_from()}.", "",
              f"## The {effect.size_name} estimate by injected effect", "",
              "| injected | sites | largest | " + " | ".join(f">= {f:g}" for f in columns) + " |",
              "|---|---|---|" + "---|" * len(columns)]
@@ -103,13 +98,9 @@ def main() -> None:
     for floor, rows in changes.items():
         lines += [f"| {floor:g} | {r['site']} | {r['true']} | {r['before']} | {r['after']} |" for r in rows]
         lines.append(f"| {floor:g} | **net** | | | {net_change(rows)} |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / f"{name}.json").write_text(json.dumps(
-        {"command": command, "effect": effect.name, "floor_now": effect.smallest, "sites": len(records),
-         "right_now": right, "estimates": sizes, "renamed": {str(f): rows for f, rows in changes.items()}},
-        indent=1) + "\n")
-    print("\n".join(lines))
+    write_results(name, lines, {
+        "command": command, "effect": effect.name, "floor_now": effect.smallest, "sites": len(records),
+        "right_now": right, "estimates": sizes, "renamed": {str(f): rows for f, rows in changes.items()}})
 
 
 if __name__ == "__main__":

@@ -22,17 +22,13 @@ Writes ``bench/results/<name>.{md,json}`` (default name ``gap_guard_estimate_alo
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 from gap_floor_replay import net_change
-from gap_headline import add_sources, judge, judged_sources
+from gap_headline import add_sources, judge, judged_sources, replay_scope, write_results
 
 import buildenv.gap as gap
 from buildenv.effects import get_effect
-
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, before: dict[str, str]) -> list[dict]:
@@ -78,8 +74,8 @@ def main() -> None:
               "|---|---|---|---|---|---|"]
     lines = [f"# Gap diagnosis: the estimate-alone rule's held-out guard replayed ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}`.", "",
-             f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
-             f"in-sample. Guard now: a held-out gain of at least {100 * gap.ESTIMATE_ALONE_LOWEST_GAIN:g} %.", "",
+             replay_scope(records, right)
+             + f" Guard now: a held-out gain of at least {100 * gap.ESTIMATE_ALONE_LOWEST_GAIN:g} %.", "",
              "## Sites the guard holds back (named by the estimate alone without it)", "", *header,
              *[_row(r) for r in sorted(held_back, key=lambda r: -r["gain"])],
              f"| **net without the guard** | | | | | {net_change(held_back)} |", "",
@@ -87,13 +83,9 @@ def main() -> None:
     for value, rows in changes.items():
         lines += [f"| {100 * value:g} % " + _row(r) for r in rows]
         lines.append(f"| {100 * value:g} % | **net** | | | | | {net_change(rows)} |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(
-        {"command": command, "lowest_gain_now": gap.ESTIMATE_ALONE_LOWEST_GAIN, "sites": len(records),
-         "right_now": right, "held_back": held_back, "renamed": {str(v): rows for v, rows in changes.items()}},
-        indent=1) + "\n")
-    print("\n".join(lines))
+    write_results(args.name, lines, {
+        "command": command, "lowest_gain_now": gap.ESTIMATE_ALONE_LOWEST_GAIN, "sites": len(records),
+        "right_now": right, "held_back": held_back, "renamed": {str(v): rows for v, rows in changes.items()}})
 
 
 if __name__ == "__main__":

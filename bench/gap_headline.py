@@ -148,6 +148,21 @@ def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str,
     return records, before, right, options
 
 
+def replay_scope(records: dict, right: int) -> str:
+    """The replays' sentence on what they judge: ``records`` from :func:`judged_sources`, ``right`` of them named
+    right now."""
+    return (f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
+            "in-sample.")
+
+
+def write_results(name: str, lines: list[str], data: dict) -> None:
+    """``bench/results/<name>.md`` (``lines``) and ``<name>.json`` (``data``), and the page printed."""
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
+    (RESULTS / f"{name}.json").write_text(json.dumps(data, indent=1) + "\n")
+    print("\n".join(lines))
+
+
 def _percent(part: int, whole: int, digits: int = 0) -> str:
     """``part/whole (percent %)``, the percentage with ``digits`` decimals, or ``-`` where there is nothing to
     count."""
@@ -204,11 +219,8 @@ def main() -> None:
     for name, row in effects.items():
         lines.append(f"| {name} | {row['cases']} | {_percent(row['right'], row['cases'])} | {row['alone']} | "
                      f"{row['wrong']} |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(
-        {"command": command, "total": total, "seeds": seeds, "by_effect": effects, "sites": sites}, indent=1) + "\n")
-    print("\n".join(lines))
+    write_results(args.name, lines,
+                  {"command": command, "total": total, "seeds": seeds, "by_effect": effects, "sites": sites})
 
 
 if __name__ == "__main__":

@@ -23,17 +23,13 @@ Writes ``bench/results/<name>.{md,json}`` (default name ``gap_joint_replay``).
 from __future__ import annotations
 
 import argparse
-import json
 import time
-from pathlib import Path
 
 import gap_check_rejudge
 from gap_floor_replay import net_change
-from gap_headline import add_sources, judge, judged_sources
+from gap_headline import add_sources, judge, judged_sources, replay_scope, write_results
 
 from buildenv.effects import get_effect
-
-RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def judged_without_ceiling(records: dict[str, tuple[dict, str, str]]) -> dict[str, tuple[str, str]]:
@@ -77,9 +73,8 @@ def main() -> None:
     command = "python bench/gap_joint_replay.py" + sources + f" --name {args.name}"
     lines = [f"# Gap diagnosis: the joint test's clean-site ceiling replayed ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}`.", "",
-             f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
-             "in-sample. A joint test now names its candidate only with an estimate beyond the candidate's "
-             "clean-site ceiling.", "",
+             replay_scope(records, right) + " A joint test now names its candidate only with an estimate beyond "
+             "the candidate's clean-site ceiling.", "",
              "## Sites a joint test names without the ceiling", "",
              "| site | injected | named by the joint test | refit estimate | joint estimate | ceiling | joint gain "
              "| named with the ceiling |", "|---|---|---|---|---|---|---|---|"]
@@ -88,12 +83,8 @@ def main() -> None:
     lines += ["", "## Sites named otherwise without the ceiling", "", "| site | injected | named now | without |",
               "|---|---|---|---|", *[f"| {r['site']} | {r['true']} | {r['before']} | {r['after']} |" for r in changed],
               f"| **net without the ceiling** | | | {net_change(changed)} |"]
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(
-        {"command": command, "sites": len(records), "right_now": right, "joint_namings": rows, "renamed": changed},
-        indent=1) + "\n")
-    print("\n".join(lines))
+    write_results(args.name, lines, {"command": command, "sites": len(records), "right_now": right,
+                                     "joint_namings": rows, "renamed": changed})
 
 
 if __name__ == "__main__":

@@ -20,7 +20,10 @@ repository root::
 
 (``bench/results/gap_headline.md`` starts with the full command of its last run. Since every recorded seed's
 sites were run or diagnosed again with the current code, the headline needs no ``--replayed`` page; with
-``bench/results/gap_night_electricity.json`` added it counts the same.)
+``bench/results/gap_night_electricity.json`` added it counts the same.) To add a seed, start from the last run's
+sources: ``--sources-of bench/results/gap_headline.json --run bench/results/gap_check_tb_seedN.json`` (the page
+records the command in full). The replays (``bench/gap_guard_replay.py``, ``bench/gap_floor_replay.py``,
+``bench/gap_joint_replay.py``) take ``--sources-of bench/results/gap_headline.json`` to judge the headline's sites.
 
 Writes ``bench/results/NAME.{md,json}``.
 """
@@ -30,6 +33,7 @@ from __future__ import annotations
 import argparse
 import json
 import re
+import shlex
 import time
 from pathlib import Path
 
@@ -133,18 +137,41 @@ def by_effect(sites: dict[str, dict]) -> dict[str, dict]:
 
 
 def add_sources(parser: argparse.ArgumentParser) -> None:
-    """The headline's sources as options: ``--rediagnosed`` and ``--run`` pages (repeatable)."""
+    """The headline's sources as options: ``--rediagnosed`` and ``--run`` pages (repeatable), or ``--sources-of``
+    a headline's json, whose recorded command gives them."""
     parser.add_argument("--rediagnosed", action="append", default=[], help="a bench/gap_wind_centred.py json")
     parser.add_argument("--run", action="append", default=[], help="a bench/gap_check.py json run with today's code")
+    parser.add_argument("--sources-of", default="", metavar="HEADLINE_JSON",
+                        help="take --rediagnosed and --run from this headline's command (bench/results/"
+                             "gap_headline.json: the sites the headline counts)")
+
+
+def headline_sources(path: str | Path) -> tuple[list[str], list[str]]:
+    """The ``--rediagnosed`` and ``--run`` pages of the headline json at ``path``, read off its recorded command;
+    a headline built from ``--replayed`` pages too cannot be replayed and raises ``ValueError``."""
+    words = shlex.split(json.loads(Path(path).read_text())["command"])
+    pairs = list(zip(words, words[1:]))
+    if any(option == "--replayed" for option, _ in pairs):
+        raise ValueError(f"{path}: its headline counts --replayed pages, which a replay cannot judge again")
+    return ([p for option, p in pairs if option == "--rediagnosed"], [p for option, p in pairs if option == "--run"])
+
+
+def source_pages(args: argparse.Namespace) -> tuple[list[str], list[str]]:
+    """``args``' ``--rediagnosed`` and ``--run`` pages (:func:`add_sources`): those of ``--sources-of`` first, then
+    those given, each page once (a later page replaces an earlier one's sites)."""
+    sources_of = getattr(args, "sources_of", "")
+    rediagnosed, runs = headline_sources(sources_of) if sources_of else ([], [])
+    return (list(dict.fromkeys(rediagnosed + args.rediagnosed)), list(dict.fromkeys(runs + args.run)))
 
 
 def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str, str]], dict[str, str], int, str]:
     """The sites of ``args``' sources (:func:`add_sources`) as the headline judges them: ``(records, {site: named
     now}, how many are named right, the sources as command-line options)``."""
-    records = diagnosed_records(args.rediagnosed, args.run)
+    records = diagnosed_records(*source_pages(args))
     before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
     right = sum(before[site] == truth for site, (_, truth, _) in records.items())
-    options = "".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
+    options = ("".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
+               + (f" --sources-of {args.sources_of}" if getattr(args, "sources_of", "") else ""))
     return records, before, right, options
 
 
@@ -178,7 +205,8 @@ def main() -> None:
     sites: dict[str, dict] = {}
     for path in args.replayed:
         sites |= sites_from_replay(path)
-    sites |= {site: _site(*r) for site, r in diagnosed_records(args.rediagnosed, args.run).items()}
+    rediagnosed, runs = source_pages(args)
+    sites |= {site: _site(*r) for site, r in diagnosed_records(rediagnosed, runs).items()}
     seeds = tally(sites)
     total = {k: sum(r[k] for r in seeds) for k in ("cases", "right", "alone", "wrong", "ranked", "ranked_known",
                                                    "clean", "clean_right", "twins", "twins_right", "clean_alone")}
@@ -186,8 +214,8 @@ def main() -> None:
     judged_now = [s for s in sites.values() if "recorded" in s]
     changed = sorted(k for k, s in sites.items() if "recorded" in s and s["named"] != s["recorded"])
     command = ("python bench/gap_headline.py " + " ".join(
-        [f"--replayed {p}" for p in args.replayed] + [f"--rediagnosed {p}" for p in args.rediagnosed]
-        + [f"--run {p}" for p in args.run]) + f" --name {args.name}")
+        [f"--replayed {p}" for p in args.replayed] + [f"--rediagnosed {p}" for p in rediagnosed]
+        + [f"--run {p}" for p in runs]) + f" --name {args.name}")
     lines = [f"# Gap diagnosis: the blind checks' headline ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}`.", "",
              "Each site counts at its latest judgement (`bench/gap_headline.py` states the precedence): a run of "

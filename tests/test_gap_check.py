@@ -385,3 +385,23 @@ def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_
     rows = replay.joint_namings(records, without, before)
     assert [(r["site"], r["joint"], r["with_ceiling"]) for r in rows] == [
         ("seed47_case_000", 0.414, "none"), ("seed47_case_001", 0.031, "wind_infiltration")]
+
+
+def test_a_replay_takes_the_headline_s_sources_from_its_recorded_command(tmp_path, monkeypatch):
+    """bench/gap_headline.py: ``--sources-of`` reads a headline json's ``--rediagnosed`` and ``--run`` pages off
+    its command, puts them before the pages given (each page once), and refuses a headline of replayed pages."""
+    import argparse
+
+    headline = _bench_module("gap_headline", monkeypatch)
+    page = tmp_path / "gap_headline.json"
+    page.write_text(json.dumps({"command": "python bench/gap_headline.py --rediagnosed a.json --rediagnosed b.json "
+                                           "--run s1.json --run s2.json --name gap_headline"}))
+    assert headline.headline_sources(page) == (["a.json", "b.json"], ["s1.json", "s2.json"])
+    parser = argparse.ArgumentParser()
+    headline.add_sources(parser)
+    args = parser.parse_args(["--sources-of", str(page), "--run", "s3.json", "--run", "s1.json"])
+    assert headline.source_pages(args) == (["a.json", "b.json"], ["s1.json", "s2.json", "s3.json"])
+    assert headline.source_pages(parser.parse_args(["--run", "s3.json"])) == ([], ["s3.json"])
+    page.write_text(json.dumps({"command": "python bench/gap_headline.py --replayed r.json --run s1.json"}))
+    with pytest.raises(ValueError, match="--replayed pages"):
+        headline.headline_sources(page)

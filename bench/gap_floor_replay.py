@@ -11,10 +11,10 @@ judges them, first step only):
 - each site whose naming changes at each ``--floor``, right or wrong.
 
 It is an in-sample replay of recorded first steps: a floor read off it is tested only by fresh seeds. Run from
-the repository root with the headline's ``--rediagnosed`` and ``--run`` pages::
+the repository root with the headline's sources (or its ``--rediagnosed`` and ``--run`` pages one by one)::
 
     .venv/bin/python bench/gap_floor_replay.py --effect heat_recovery --floor 0.25 --floor 0.2 --floor 0.15 \\
-        --rediagnosed bench/results/gap_wind_centred_all.json ... --run bench/results/gap_check_tb_seed21.json ...
+        --sources-of bench/results/gap_headline.json
 
 Writes ``bench/results/<name>.{md,json}`` (default name ``gap_floor_<effect>``).
 """

@@ -11,10 +11,10 @@ the headline counts (``bench/gap_headline.py``'s sources, judged as it judges th
 - each site whose naming changes at each ``--lowest-gain``, and what that nets.
 
 It is an in-sample replay of recorded first steps: a guard read off it is tested only by fresh seeds. Run from the
-repository root with the headline's ``--rediagnosed`` and ``--run`` pages::
+repository root with the headline's sources (or its ``--rediagnosed`` and ``--run`` pages one by one)::
 
-    .venv/bin/python bench/gap_guard_replay.py --lowest-gain -0.15 --lowest-gain -0.2 \\
-        --rediagnosed bench/results/gap_wind_centred_all.json ... --run bench/results/gap_check_tb_seed21.json ...
+    .venv/bin/python bench/gap_guard_replay.py --lowest-gain -0.15 --lowest-gain -0.2 --lowest-gain -0.05 \\
+        --sources-of bench/results/gap_headline.json
 
 Writes ``bench/results/<name>.{md,json}`` (default name ``gap_guard_estimate_alone``).
 """

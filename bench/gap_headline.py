@@ -159,8 +159,7 @@ def headline_sources(path: str | Path) -> tuple[list[str], list[str]]:
 def source_pages(args: argparse.Namespace) -> tuple[list[str], list[str]]:
     """``args``' ``--rediagnosed`` and ``--run`` pages (:func:`add_sources`): those of ``--sources-of`` first, then
     those given, each page once (a later page replaces an earlier one's sites)."""
-    sources_of = getattr(args, "sources_of", "")
-    rediagnosed, runs = headline_sources(sources_of) if sources_of else ([], [])
+    rediagnosed, runs = headline_sources(args.sources_of) if args.sources_of else ([], [])
     return (list(dict.fromkeys(rediagnosed + args.rediagnosed)), list(dict.fromkeys(runs + args.run)))
 
 
@@ -171,7 +170,7 @@ def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str,
     before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
     right = sum(before[site] == truth for site, (_, truth, _) in records.items())
     options = ("".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
-               + (f" --sources-of {args.sources_of}" if getattr(args, "sources_of", "") else ""))
+               + (f" --sources-of {args.sources_of}" if args.sources_of else ""))
     return records, before, right, options
 
 

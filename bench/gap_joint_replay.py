@@ -12,10 +12,9 @@ as it judges them, first step only):
 
 It is an in-sample replay of recorded first steps: only fresh seeds test it. A record that did not run the joint
 test of a candidate the ceiling would reach next names nothing there (``bench/gap_check_rejudge.naming``). Run from
-the repository root with the headline's ``--rediagnosed`` and ``--run`` pages::
+the repository root with the headline's sources (or its ``--rediagnosed`` and ``--run`` pages one by one)::
 
-    .venv/bin/python bench/gap_joint_replay.py --rediagnosed bench/results/gap_wind_centred_all.json ... \\
-        --run bench/results/gap_check_tb_seed21.json ...
+    .venv/bin/python bench/gap_joint_replay.py --sources-of bench/results/gap_headline.json
 
 Writes ``bench/results/<name>.{md,json}`` (default name ``gap_joint_replay``).
 """

@@ -314,7 +314,8 @@ def test_the_floor_replay_names_an_exchanger_refit_under_its_floor_and_restores_
 
     page = {"plan": {"seed": 3}, "cases": [case(0, "heat_recovery", 0.27), case(1, "none", 0.05)]}
     (tmp_path / "run.json").write_text(json.dumps(page))
-    records, before, _, _ = replay.judged_sources(argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")]))
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
+    records, before, _, _ = replay.judged_sources(sources)
     assert before == {"seed3_case_000": "none", "seed3_case_001": "none"}
     floor = EFFECTS["heat_recovery"]
     assert replay.renamed(records, floor, 0.28, before) == []
@@ -341,7 +342,7 @@ def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guar
 
     page = {"plan": {"seed": 43}, "cases": [case(0, "wind_infiltration", 0.030), case(1, "none", 0.012)]}
     (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")])
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
     records, before, right, _ = replay.judged_sources(sources)
     assert before == {"seed43_case_000": "none", "seed43_case_001": "none"} and right == 1
     assert replay.renamed(records, -0.12, before) == []
@@ -375,7 +376,7 @@ def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_
         case(0, "none", "temperature_sensor_lag", {"tau_h": 0.766}, {"tau_h": 0.414}),
         case(1, "wind_infiltration", "wind_infiltration", {"ach_per_m_s": 0.033}, {"ach_per_m_s": 0.031})]}
     (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")])
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
     records, before, right, _ = replay.judged_sources(sources)
     assert before == {"seed47_case_000": "none", "seed47_case_001": "wind_infiltration"} and right == 2
     without = replay.judged_without_ceiling(records)
@@ -390,8 +391,6 @@ def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_
 def test_a_replay_takes_the_headline_s_sources_from_its_recorded_command(tmp_path, monkeypatch):
     """bench/gap_headline.py: ``--sources-of`` reads a headline json's ``--rediagnosed`` and ``--run`` pages off
     its command, puts them before the pages given (each page once), and refuses a headline of replayed pages."""
-    import argparse
-
     headline = _bench_module("gap_headline", monkeypatch)
     page = tmp_path / "gap_headline.json"
     page.write_text(json.dumps({"command": "python bench/gap_headline.py --rediagnosed a.json --rediagnosed b.json "

@@ -55,8 +55,9 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 def size(name: str, estimate: dict[str, float]) -> float | None:
     """A candidate's estimate as its clean-site ceiling judges it, oriented so that larger is further from no
-    effect: ``|first parameter|``, or for an effect the metamodel carries its building parameter, negated where
-    the effect vanishes at the top of the parameter's range (a lower heating power is a stronger limit). None
+    effect: ``|first parameter - clean reading|`` (:meth:`buildenv.effects.Effect.size`), or for an effect the
+    metamodel carries its building parameter, negated where the effect vanishes at the top of the parameter's
+    range (a lower heating power is a stronger limit). None
     when the estimate lacks it (a site that declared the building parameter known calibrates the model-side
     addition instead, which has no ceiling)."""
     effect = get_effect(name)
@@ -68,7 +69,7 @@ def size(name: str, estimate: dict[str, float]) -> float | None:
         return oriented(name, float(estimate[effect.building_parameter]))
     if effect.size_name not in estimate:
         return None
-    return abs(float(estimate[effect.size_name]))
+    return effect.size(estimate)
 
 
 def oriented(name: str, value: float) -> float:

@@ -32,12 +32,13 @@ from buildenv.gap_check import NONE
 
 
 def estimates_by_truth(records: dict[str, tuple[dict, str, str]], effect: effects.Effect) -> dict[str, list[float]]:
-    """The effect's refit size (``|first parameter|``, as its floor judges it) on each site, by injected effect."""
+    """The effect's refit size (:meth:`buildenv.effects.Effect.size`, as its floor judges it) on each site, by
+    injected effect."""
     sizes: dict[str, list[float]] = {}
     for record, truth, _ in records.values():
         values = record["estimates"].get(effect.name)
         if values:
-            sizes.setdefault(truth, []).append(abs(values[effect.size_name]))
+            sizes.setdefault(truth, []).append(effect.size(values))
     return sizes
 
 

@@ -59,7 +59,8 @@ significant gain, stop when none is significant):
    compared with ``alpha / m`` (Bonferroni over the ``m`` candidates of the step). A candidate is selected
    when it is significant, its estimate is plausible (at least the smallest size of the effect seen in
    practice, :meth:`buildenv.effects.Effect.plausible`: a heat exchanger of effectiveness 0.1 is the model
-   borrowing the effect to absorb another miss; for a sensor bias a class-B sensor's tolerance;
+   borrowing the effect to absorb another miss; for a sensor bias a class-B sensor's tolerance, counted from the
+   bias clean sites calibrate, :attr:`buildenv.effects.Effect.clean_reading`;
    :meth:`buildenv.effects.Effect.named_from` states each floor and its source) **and** the evidence
    is more than the model's structural misses: its estimate is beyond the largest one calibrated on any of the
    clean sites of the blind checks (:attr:`buildenv.effects.Effect.clean_ceiling`, an empirical null

@@ -15,12 +15,14 @@ median instead (:attr:`buildenv.effects.Effect.clean_reading`). This script
   sized from zero (its ceilings measured from zero on the same sites) and as the catalogue sizes it, and lists
   every site named otherwise. Seeds after ``--last-seed`` did not set the reading: they are the held-out replay.
   A site where the catalogue's rule calls for a joint test of the bias that the record did not run is marked: it
-  names what the rest of its record does (a new diagnosis would test the bias first).
+  names what the rest of its record does (a new diagnosis would test the bias first). ``--again FOLDER`` lists
+  sites diagnosed again with the reading (``bench/gap_wind_centred.py --effects temperature_sensor_bias --folder
+  FOLDER``), joint test included.
 
 Run from the repository root::
 
     .venv/bin/python bench/gap_bias_reading.py --sources-of bench/results/gap_headline.json --last-seed 28 \\
-        --declared bench/results/gap_declared_ceiling.json
+        --declared bench/results/gap_declared_ceiling.json --again out/gap-bias-reading-55
 
 Writes ``bench/results/<name>.{md,json}`` (default ``gap_bias_reading``). It reads the records only.
 """
@@ -81,6 +83,20 @@ def untested_joint(record: dict, how: str) -> bool:
         and absorbed_candidate(BIAS, estimate)
 
 
+def diagnosed_again(folders: list[str], records: dict[str, tuple[dict, str, str]]) -> list[dict]:
+    """The sites of ``folders`` (``<site>.json`` diagnosis records, e.g. ``bench/gap_wind_centred.py``'s) with
+    their injected effect from ``records``, refit bias (K), joint test of the bias (or None) and first named
+    effect."""
+    rows = []
+    for folder in folders:
+        for path in sorted(Path(folder).glob("seed*_case_*.json")):
+            record, site = json.loads(path.read_text()), path.stem
+            rows.append({"site": site, "true": records[site][1], "magnitude": records[site][0].get("magnitude"),
+                         "bias_k": record["estimates"][BIAS]["bias_k"],
+                         "joint": record.get("joint_tests", {}).get(BIAS), "named": record["named"]})
+    return rows
+
+
 def counts(rows: list[tuple[str, str]], truths: list[str]) -> dict[str, int]:
     """Effect cases named right and named another effect, and clean sites named nothing, of ``(named, how)``."""
     out = {"cases": 0, "right": 0, "wrong": 0, "clean": 0, "clean_right": 0}
@@ -106,6 +122,8 @@ def main() -> None:
                         help="the page that measured the gain route's ceiling from zero")
     parser.add_argument("--zero-estimate-ceiling", default="bench/results/gap_estimate_alone.json",
                         help="the page that measured the estimate ceiling from zero")
+    parser.add_argument("--again", action="append", default=[], metavar="FOLDER",
+                        help="records of sites diagnosed again with the reading (bench/gap_wind_centred.py --folder)")
     parser.add_argument("--name", default="gap_bias_reading")
     args = parser.parse_args()
     effect = effects.EFFECTS[BIAS]
@@ -128,7 +146,7 @@ def main() -> None:
         return f"{typed:g}" + ("" if typed == rounded else f" (measured gives {rounded:g})")
 
     command = (f"python bench/gap_bias_reading.py{sources} --last-seed {args.last_seed} --declared {args.declared}"
-               f" --name {args.name}")
+               + "".join(f" --again {f}" for f in args.again) + f" --name {args.name}")
     lines = [f"# Gap diagnosis: the temperature sensor bias sized from what clean sites calibrate "
              f"({time.strftime('%Y-%m-%d')})", "", f"Command: `{command}`.", "",
              replay_scope(records, right) + f" The reading and the ceilings: the {len(clean)} clean sites of seeds "
@@ -192,7 +210,18 @@ def main() -> None:
                      f"{before[site][0]}{' (estimate alone)' if before[site][1] == ALONE else ''} | {now[site][0]}"
                      f"{' (estimate alone)' if now[site][1] == ALONE else ''}"
                      f"{' (joint test of the bias not run)' if untested else ''} |")
-    write_results(args.name, lines, {
+    again = diagnosed_again(args.again, records)
+    if again:
+        lines += ["", "## Diagnosed again with the reading", "",
+                  "| site | injected | magnitude | refit bias (K) | joint test of the bias: gain, p, estimate (K) | "
+                  "named now |", "|---|---|---|---|---|---|"]
+        for row in again:
+            joint = row["joint"]
+            test = "not run" if joint is None else \
+                f"{joint['gain']:.1%}, {joint['p_value']:.2g}, {joint['estimate']['bias_k']:.3f}"
+            lines.append(f"| {row['site']} | {row['true']} | {row['magnitude']:.3g} | {row['bias_k']:.3f} | {test} | "
+                         f"{row['named']} |")
+    write_results(args.name, lines, {"again": again,
         "command": command, "reading": reading, "ceiling": ceiling, "furthest": furthest,
         "declared_ceiling": declared_ceiling, "clean_sites": len(clean), "declared_sites": len(declared),
         "from_zero": {"clean_ceiling": from_zero.clean_ceiling, "declared_ceiling": from_zero.declared_ceiling},

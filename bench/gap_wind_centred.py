@@ -69,6 +69,9 @@ def main() -> None:
         return
     clean = [(key(pages[p], row, twin), before, after) for p, row, twin, before, after in rows
              if twin or row["true"] == NONE]
+    if not clean:
+        raise SystemExit(f"no clean site among the chosen sites, so no wind ceiling to measure (their records are kept "
+                         f"in {args.folder})")
     now = max((wind_estimate(after), site) for site, _, after in clean)
     old = max(((wind_estimate(before), site) for site, before, _ in clean if wind_estimate(before) is not None),
               default=None)  # None: no clean site here was diagnosed by its check (twins the check only simulated)

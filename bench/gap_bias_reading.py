@@ -1,7 +1,7 @@
 """The temperature sensor bias sized from what clean sites calibrate: the reading, its ceilings, the rule replayed.
 
 Calibrated with a sensor bias on a site where none was injected, the diagnosis still fits one: the calibrated
-model reads the reference office warm, so clean sites calibrate -0.03 to -0.55 K, and an injected bias is refitted
+model reads the reference office warm, so clean sites calibrate -0.55 to 0.00 K, and an injected bias is refitted
 about that much lower. Sized from zero, a +0.6 K sensor came out at +0.2 to +0.4 K, under the 0.4 K floor, while
 clean sites went past the ceiling on the negative side. Since 2026-11-30 the bias is sized from the clean sites'
 median instead (:attr:`buildenv.effects.Effect.clean_reading`). This script

@@ -254,9 +254,10 @@ class Effect:
         clean_reading: for an effect whose size takes either sign, the value (unit of :attr:`size_name`) its
             estimate takes on clean sites, the median over :attr:`reading_source`'s; the floor and the ceilings
             measure the size from it (:meth:`size`), 0 for every other effect. The sensor bias's: the calibrated
-            model reads the reference office about 0.23 K warm, so clean sites calibrate a bias of -0.03 to
-            -0.51 K, and an injected bias is refitted about that much lower (``bench/results/gap_bias_reading.md``:
-            seeds 0-58's 108 bias cases, estimate minus injection, median -0.30 K). Sized from zero, a +0.6 K
+            model reads the reference office about 0.23 K warm, so clean sites calibrate a bias of -0.51 to
+            0.00 K (seeds 0-28), and an injected bias is refitted about that much lower
+            (``bench/results/gap_bias_reading.md``: seeds 0-58's 108 bias cases, estimate minus injection, median
+            -0.30 K). Sized from zero, a +0.6 K
             sensor was refitted at +0.2 to +0.4 K, under the 0.4 K floor, and a clean site at -0.5 K, at the
             ceiling.
         reading_source: where :attr:`clean_reading` comes from ("" where it is 0).

@@ -135,8 +135,9 @@ def main() -> None:
     ceiling = abs(clean[furthest] - effect.clean_reading)
     declared = declared_estimates(args.declared)
     declared_ceiling = max(abs(v - effect.clean_reading) for v in declared)
-    from_zero = dataclasses.replace(effect, clean_reading=0.0, clean_ceiling=round_up(measured_from_zero(
-        args.zero_ceiling)), estimate_ceiling=round_up(measured_from_zero(args.zero_estimate_ceiling)),
+    from_zero = dataclasses.replace(effect, clean_reading=0.0,
+                                    clean_ceiling=round_up(measured_from_zero(args.zero_ceiling)),
+                                    estimate_ceiling=round_up(measured_from_zero(args.zero_estimate_ceiling)),
                                     declared_ceiling=round_up(measured_from_zero(args.declared)))
     now = {site: judge(record) for site, (record, _, _) in records.items()}
     before = judged_with(records, from_zero)
@@ -178,9 +179,10 @@ def main() -> None:
                      f"{quantile[-1]:.3f} |")
     offsets = [record["estimates"][BIAS]["bias_k"] - record["magnitude"] for record, truth, _ in records.values()
                if truth == BIAS and BIAS in record["estimates"]]
+    deciles = statistics.quantiles(offsets, n=10)
     lines += ["", f"On the {len(offsets)} bias cases the estimate less the injected bias has median "
-              f"{statistics.median(offsets):.3f} K (10th-90th percentile {statistics.quantiles(offsets, n=10)[0]:.3f}"
-              f" to {statistics.quantiles(offsets, n=10)[-1]:.3f} K).", "",
+              f"{statistics.median(offsets):.3f} K (10th-90th percentile {deciles[0]:.3f} to {deciles[-1]:.3f} K).",
+              "",
               "## The rule replayed", "",
               "| seeds | effect cases | named right: from zero, now | named another effect: from zero, now "
               "| clean sites | named nothing: from zero, now |", "|---|---|---|---|---|---|"]
@@ -221,11 +223,11 @@ def main() -> None:
                 f"{joint['gain']:.1%}, {joint['p_value']:.2g}, {joint['estimate']['bias_k']:.3f}"
             lines.append(f"| {row['site']} | {row['true']} | {row['magnitude']:.3g} | {row['bias_k']:.3f} | {test} | "
                          f"{row['named']} |")
-    write_results(args.name, lines, {"again": again,
+    write_results(args.name, lines, {
         "command": command, "reading": reading, "ceiling": ceiling, "furthest": furthest,
         "declared_ceiling": declared_ceiling, "clean_sites": len(clean), "declared_sites": len(declared),
         "from_zero": {"clean_ceiling": from_zero.clean_ceiling, "declared_ceiling": from_zero.declared_ceiling},
-        "tallies": tallies, "sites": rows})
+        "tallies": tallies, "sites": rows, "again": again})
 
 
 if __name__ == "__main__":

@@ -57,9 +57,8 @@ def size(name: str, estimate: dict[str, float]) -> float | None:
     """A candidate's estimate as its clean-site ceiling judges it, oriented so that larger is further from no
     effect: ``|first parameter - clean reading|`` (:meth:`buildenv.effects.Effect.size`), or for an effect the
     metamodel carries its building parameter, negated where the effect vanishes at the top of the parameter's
-    range (a lower heating power is a stronger limit). None
-    when the estimate lacks it (a site that declared the building parameter known calibrates the model-side
-    addition instead, which has no ceiling)."""
+    range (a lower heating power is a stronger limit). None when the estimate lacks it (a site that declared the
+    building parameter known calibrates the model-side addition instead, which has no ceiling)."""
     effect = get_effect(name)
     if effect.judged_on is not None:  # a derived quantity (night_plug_loads: bench/gap_night_electricity.py)
         return float(estimate[effect.judged_on]) if effect.judged_on in estimate else None

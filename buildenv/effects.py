@@ -257,9 +257,8 @@ class Effect:
             model reads the reference office about 0.23 K warm, so clean sites calibrate a bias of -0.51 to
             0.00 K (seeds 0-28), and an injected bias is refitted about that much lower
             (``bench/results/gap_bias_reading.md``: seeds 0-58's 108 bias cases, estimate minus injection, median
-            -0.30 K). Sized from zero, a +0.6 K
-            sensor was refitted at +0.2 to +0.4 K, under the 0.4 K floor, and a clean site at -0.5 K, at the
-            ceiling.
+            -0.30 K). Sized from zero, a +0.6 K sensor was refitted at +0.2 to +0.4 K, under the 0.4 K floor, and
+            a clean site at -0.5 K, at the ceiling.
         reading_source: where :attr:`clean_reading` comes from ("" where it is 0).
     """
 
@@ -408,7 +407,8 @@ class Effect:
 
     def on_declared_site(self) -> Effect:
         """This effect as a diagnosis judges it on a site declaring building parameters known: its clean-site
-        ceiling is :attr:`declared_ceiling`, from :data:`DECLARED_CEILING_SOURCE`."""
+        ceiling is :attr:`declared_ceiling`, from :data:`DECLARED_CEILING_SOURCE` (and, for an effect sized from
+        a :attr:`clean_reading`, from :attr:`reading_source`'s median)."""
         source = DECLARED_CEILING_SOURCE + (f"; {self.size_name} from the median {self.reading_source}"
                                             if self.clean_reading else "")
         return dataclasses.replace(self, clean_ceiling=self.declared_ceiling, ceiling_source=source)

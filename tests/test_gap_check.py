@@ -8,6 +8,7 @@ import datetime as dt
 import json
 import shutil
 
+import numpy as np
 import pytest
 
 from buildenv.cli import main
@@ -404,3 +405,23 @@ def test_a_replay_takes_the_headline_s_sources_from_its_recorded_command(tmp_pat
     page.write_text(json.dumps({"command": "python bench/gap_headline.py --replayed r.json --run s1.json"}))
     with pytest.raises(ValueError, match="--replayed pages"):
         headline.headline_sources(page)
+
+
+def test_the_size_page_bins_cases_by_equal_count_and_finds_the_size_from_which_nine_in_ten_are_named(monkeypatch):
+    """bench/gap_by_size.py: sizes in quartile bins (one bin a size where there are four sizes or fewer), every case
+    in exactly one bin, and the smallest size from which 90 % of the cases that large or larger are named right."""
+    page = _bench_module("gap_by_size", monkeypatch)
+    assert page.injected_size("heating_capacity_limit", 40.0) == 60.0
+    assert page.injected_size("temperature_sensor_bias", -0.7) == 0.7
+    assert page.size_bins(np.array([2.0, 3.0, 2.0, 3.0, 3.0])) == [(2.0, 2.0), (3.0, 3.0)]
+    sizes = [float(s) for s in range(1, 21)]
+    cases = {"night_plug_loads": [(s, "night_plug_loads" if s > 4 else "none", f"seed0_case_{i:03d}")
+                                  for i, s in enumerate(sizes)]}
+    cases["night_plug_loads"][-1] = (20.0, "solar_shading", "seed0_case_019")
+    row = page.effect_rows(cases, least=10)["night_plug_loads"]
+    assert sum(b["cases"] for b in row["bins"]) == 20 and [b["cases"] for b in row["bins"]] == [5, 5, 5, 5]
+    assert [b["right"] for b in row["bins"]] == [1, 5, 5, 4] and row["bins"][-1]["wrong"] == 1
+    assert row["smallest_right"] == 5.0
+    # sizes 5-20: 15 of 16 right (94 %); from 4: 15 of 17 (88 %)
+    assert row["reliable"] == 5.0
+    assert page.effect_rows(cases, least=17)["night_plug_loads"]["reliable"] is None

@@ -70,7 +70,9 @@ def reliable_size(cases: list[tuple[float, str]], effect: str, least: int) -> fl
 
 
 def effect_rows(cases: dict[str, list[tuple[float, str, str]]], least: int) -> dict[str, dict]:
-    """``{effect: {"unit", "bins": [...], "reliable", "cases", "right"}}`` from ``{effect: [(size, named, site)]}``."""
+    """Per effect of ``{effect: [(size, named, site)]}``: the unit of its size, its bins (bounds, cases, named
+    right, named another effect, named nothing), its cases and those named right, the smallest size named right
+    and the size from which it is reliably named (:func:`reliable_size`)."""
     out = {}
     for effect in sorted(cases):
         rows = cases[effect]
@@ -139,9 +141,8 @@ def main() -> None:
             cases.setdefault(truth, []).append((injected_size(truth, record["magnitude"]), named[site], site))
     rows = effect_rows(cases, args.least)
     plot(rows, RESULTS / f"{args.name}.png")
-    above = [(r["bins"][1:], r) for r in rows.values()]
-    above_right = sum(b["right"] for bins, _ in above for b in bins)
-    above_cases = sum(b["cases"] for bins, _ in above for b in bins)
+    above = [b for r in rows.values() for b in r["bins"][1:]]  # every bin but each effect's smallest sizes
+    above_right, above_cases = sum(b["right"] for b in above), sum(b["cases"] for b in above)
     command = f"python bench/gap_by_size.py{sources} --least {args.least} --name {args.name}"
     lines = [f"# Gap diagnosis: named first by injected size ({time.strftime('%Y-%m-%d')})", "",
              f"Command: `{command}`.", "",
@@ -162,11 +163,11 @@ def main() -> None:
         smallest = "-" if row["smallest_right"] is None else f"{row['smallest_right']:.3g}"
         lines.append(f"| {effect} | {row['unit']} | {row['cases']} | {_percent(row['right'], row['cases'])} | "
                      f"{bins} | {smallest} | {seen} |")
-    sites = sorted(((effect, site, size, n) for effect, rows_ in cases.items() for size, n, site in rows_))
+    sites = [{"true": effect, "site": site, "size": size, "named": n}
+             for effect in sorted(cases) for size, n, site in sorted(cases[effect], key=lambda c: c[2])]
     write_results(args.name, lines, {"command": command, "least": args.least, "share": SHARE, "effects": rows,
                                      "above_lowest_bin": {"right": above_right, "cases": above_cases},
-                                     "sites": [{"true": e, "site": s, "size": z, "named": n}
-                                               for e, s, z, n in sites]})
+                                     "sites": sites})
 
 
 if __name__ == "__main__":

@@ -56,6 +56,11 @@ def in_bin(size: float, bounds: tuple[float, float], last: bool) -> bool:
     return low <= size <= high if (last or low == high) else low <= size < high
 
 
+def bin_label(b: dict) -> str:
+    """A bin's sizes as the page and the figure show them: ``low-high``, or the one size it holds."""
+    return f"{b['low']:.3g}" if b["low"] == b["high"] else f"{b['low']:.3g}-{b['high']:.3g}"
+
+
 def reliable_size(cases: list[tuple[float, str]], effect: str, least: int) -> float | None:
     """The smallest injected size from which at least :data:`SHARE` of the cases that large or larger name
     ``effect``, over at least ``least`` cases; None where no size does. ``cases`` are ``(size, named)`` pairs."""
@@ -85,8 +90,8 @@ def effect_rows(cases: dict[str, list[tuple[float, str, str]]], least: int) -> d
                          "right": sum(n == effect for n in named),
                          "wrong": sum(n not in (effect, NONE) for n in named),
                          "nothing": sum(n == NONE for n in named)})
-        unit = get_effect(effect).magnitude_unit
-        low, high = get_effect(effect).magnitude_range
+        catalogued = get_effect(effect)
+        unit, (low, high) = catalogued.magnitude_unit, catalogued.magnitude_range
         if effect == "heating_capacity_limit":
             unit = "% of the design heating capacity removed"
         elif low < NO_EFFECT_MAGNITUDE[effect] < high:
@@ -107,8 +112,7 @@ def plot(rows: dict[str, dict], path: Path) -> None:
 
     fig, axes = plt.subplots(2, 4, figsize=(15, 6.5), sharey=True)
     for ax, (effect, row) in zip(axes.flat, rows.items()):
-        labels = [f"{b['low']:.3g}" if b["low"] == b["high"] else f"{b['low']:.3g}-{b['high']:.3g}"
-                  for b in row["bins"]]
+        labels = [bin_label(b) for b in row["bins"]]
         x = np.arange(len(labels))
         share = {k: np.array([b[k] / b["cases"] for b in row["bins"]]) for k in ("right", "wrong", "nothing")}
         ax.bar(x, share["right"], color="tab:green", label="named right")
@@ -156,9 +160,8 @@ def main() -> None:
              f"smallest named right | seen from ({SHARE:.0%} of the cases that large or larger) |",
              "|---|---|---|---|---|---|---|"]
     for effect, row in rows.items():
-        bins = "; ".join(
-            (f"{b['low']:.3g}" if b["low"] == b["high"] else f"{b['low']:.3g}-{b['high']:.3g}")
-            + f": {b['right']}/{b['cases']}" + (f" ({b['wrong']})" if b["wrong"] else "") for b in row["bins"])
+        bins = "; ".join(f"{bin_label(b)}: {b['right']}/{b['cases']}" + (f" ({b['wrong']})" if b["wrong"] else "")
+                         for b in row["bins"])
         seen = "none" if row["reliable"] is None else f"{row['reliable']:.3g}"
         smallest = "-" if row["smallest_right"] is None else f"{row['smallest_right']:.3g}"
         lines.append(f"| {effect} | {row['unit']} | {row['cases']} | {_percent(row['right'], row['cases'])} | "

@@ -8,7 +8,9 @@ the headline counts (``bench/gap_headline.py``'s sources, judged as it judges th
 
 - every site the guard holds back (what the rule would name without it, the candidate's estimate and its held-out
   gain), right or wrong;
-- each site whose naming changes at each ``--lowest-gain``, and what that nets.
+- each site whose naming changes at each ``--lowest-gain``, and what that nets;
+- every site named by the estimate alone now, with its held-out gain on each measured series, worst first (what a
+  guard on each series would hold back).
 
 It is an in-sample replay of recorded first steps: a guard read off it is tested only by fresh seeds. Run from the
 repository root with the headline's sources (or its ``--rediagnosed`` and ``--run`` pages one by one)::
@@ -51,11 +53,31 @@ def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, befor
     return rows
 
 
+def by_worst_series(records: dict[str, tuple[dict, str, str]], before: dict[str, str]) -> list[dict]:
+    """Every site named by the estimate alone now (``before``: what each site names now), with its candidate's
+    held-out gain pooled and on each measured series (fractions; -0.26 for 26 % worse), worst series first: what a
+    guard on each series, not the pooled gain, would hold back."""
+    rows = []
+    for site, (record, truth, _) in records.items():
+        if judge(record)[1] != "estimate alone":
+            continue
+        named = before[site]
+        series = record.get("gains_by_series", {}).get(named, {})
+        rows.append({"site": site, "true": truth, "named": named, "gain": record["scores"][named],
+                     "series": series, "worst": min(series.values(), default=float("nan"))})
+    return sorted(rows, key=lambda row: (row["worst"] != row["worst"], row["worst"]))
+
+
 def _row(row: dict) -> str:
     """A renamed site as a table row."""
     estimate = "-" if row["estimate"] is None else f"{row['estimate']:.4g}"
     return (f"| {row['site']} | {row['true']} | {row['before']} | {row['after']} | {100 * row['gain']:.1f} % "
             f"| {estimate} |")
+
+
+def _series_gain(series: dict[str, float], key: str) -> str:
+    """One series' held-out gain as a percentage, or ``-`` where the record does not keep it."""
+    return f"{100 * series[key]:.1f} %" if key in series else "-"
 
 
 def main() -> None:
@@ -83,9 +105,16 @@ def main() -> None:
     for value, rows in changes.items():
         lines += [f"| {100 * value:g} % " + _row(r) for r in rows]
         lines.append(f"| {100 * value:g} % | **net** | | | | | {net_change(rows)} |")
+    worst = by_worst_series(records, before)
+    lines += ["", "## Sites named by the estimate alone now, by their worst series held out", "",
+              "| site | injected | named | held-out gain | temperature | consumption |", "|---|---|---|---|---|---|",
+              *[f"| {r['site']} | {r['true']} | {r['named']} | {100 * r['gain']:.1f} % | "
+                + " | ".join(_series_gain(r["series"], key) for key in ("temperature", "consumption")) + " |"
+                for r in worst]]
     write_results(args.name, lines, {
         "command": command, "lowest_gain_now": gap.ESTIMATE_ALONE_LOWEST_GAIN, "sites": len(records),
-        "right_now": right, "held_back": held_back, "renamed": {str(v): rows for v, rows in changes.items()}})
+        "right_now": right, "held_back": held_back, "renamed": {str(v): rows for v, rows in changes.items()},
+        "named_by_estimate": worst})
 
 
 if __name__ == "__main__":

@@ -355,6 +355,33 @@ def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guar
     assert replay.net_change(held_back) == "+1 named right, +0 named another effect"
 
 
+def test_the_guard_replay_lists_the_sites_named_by_the_estimate_alone_worst_series_first(tmp_path, monkeypatch):
+    """bench/gap_guard_replay.py: a clean site's sensor lag refit past every clean site's (0.80 h), 8 % worse held
+    out pooled but 26 % worse on the temperature, is named by the estimate alone and listed before a wind whose
+    worst series is 5 % worse; a site named by its held-out gain is not listed."""
+    replay = _bench_module("gap_guard_replay", monkeypatch)
+
+    def case(number, true, named, gain, series, estimate):
+        other = "solar_shading"
+        return {"case": number, "true": true, "named": "none", "ranked": [other, named],
+                "scores": {named: gain, other: 0.013}, "p_values": {named: 0.9, other: 0.3},
+                "estimates": {named: estimate, other: {"blocked_fraction": 0.1}},
+                "gains_by_series": {named: series, other: {"temperature": 0.01, "consumption": 0.0}}}
+
+    page = {"plan": {"seed": 70}, "cases": [
+        case(0, "wind_infiltration", "wind_infiltration", -0.02, {"temperature": -0.05, "consumption": 0.01},
+             {"ach_per_m_s": 0.030}),
+        case(1, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.80}),
+        case(2, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.30})]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
+    records, before, _, _ = replay.judged_sources(sources)
+    rows = replay.by_worst_series(records, before)
+    assert [(r["site"], r["named"], r["worst"]) for r in rows] == [
+        ("seed70_case_001", "temperature_sensor_lag", -0.26), ("seed70_case_000", "wind_infiltration", -0.05)]
+    assert rows[0]["gain"] == -0.08 and rows[0]["true"] == "none"
+
+
 def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_sites_only_without_the_ceiling(
         tmp_path, monkeypatch):
     """bench/gap_joint_replay.py: a clean site's sensor lag refit at 0.766 h (beyond every clean site's) whose joint

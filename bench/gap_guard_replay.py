@@ -55,8 +55,9 @@ def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, befor
 
 def by_worst_series(records: dict[str, tuple[dict, str, str]], before: dict[str, str]) -> list[dict]:
     """Every site named by the estimate alone now (``before``: what each site names now), with its candidate's
-    held-out gain pooled and on each measured series (fractions; -0.26 for 26 % worse), worst series first: what a
-    guard on each series, not the pooled gain, would hold back."""
+    held-out gain pooled and on each measured series (fractions; -0.26 for 26 % worse), worst series first (``worst``
+    None, listed last, where the record keeps no series): what a guard on each series, not the pooled gain, would
+    hold back."""
     rows = []
     for site, (record, truth, _) in records.items():
         if judge(record)[1] != "estimate alone":
@@ -64,8 +65,8 @@ def by_worst_series(records: dict[str, tuple[dict, str, str]], before: dict[str,
         named = before[site]
         series = record.get("gains_by_series", {}).get(named, {})
         rows.append({"site": site, "true": truth, "named": named, "gain": record["scores"][named],
-                     "series": series, "worst": min(series.values(), default=float("nan"))})
-    return sorted(rows, key=lambda row: (row["worst"] != row["worst"], row["worst"]))
+                     "series": series, "worst": min(series.values(), default=None)})
+    return sorted(rows, key=lambda row: (row["worst"] is None, row["worst"] or 0.0))
 
 
 def _row(row: dict) -> str:

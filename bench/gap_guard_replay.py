@@ -108,9 +108,10 @@ def main() -> None:
         lines.append(f"| {100 * value:g} % | **net** | | | | | {net_change(rows)} |")
     worst = by_worst_series(records, before)
     lines += ["", "## Sites named by the estimate alone now, by their worst series held out", "",
-              "| site | injected | named | held-out gain | temperature | consumption |", "|---|---|---|---|---|---|",
+              "| site | injected | named | held-out gain | " + " | ".join(gap.SERIES) + " |",
+              "|---|---|---|---" + "|---" * len(gap.SERIES) + "|",
               *[f"| {r['site']} | {r['true']} | {r['named']} | {100 * r['gain']:.1f} % | "
-                + " | ".join(_series_gain(r["series"], key) for key in ("temperature", "consumption")) + " |"
+                + " | ".join(_series_gain(r["series"], key) for key in gap.SERIES) + " |"
                 for r in worst]]
     write_results(args.name, lines, {
         "command": command, "lowest_gain_now": gap.ESTIMATE_ALONE_LOWEST_GAIN, "sites": len(records),

@@ -358,7 +358,7 @@ def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guar
 def test_the_guard_replay_lists_the_sites_named_by_the_estimate_alone_worst_series_first(tmp_path, monkeypatch):
     """bench/gap_guard_replay.py: a clean site's sensor lag refit past every clean site's (0.80 h), 8 % worse held
     out pooled but 26 % worse on the temperature, is named by the estimate alone and listed before a wind whose
-    worst series is 5 % worse; a site named by its held-out gain is not listed."""
+    worst series is 5 % worse; a lag refit at 0.30 h, among the clean sites', names nothing and is not listed."""
     replay = _bench_module("gap_guard_replay", monkeypatch)
 
     def case(number, true, named, gain, series, estimate):

@@ -17,12 +17,14 @@ median instead (:attr:`buildenv.effects.Effect.clean_reading`). This script
   A site where the catalogue's rule calls for a joint test of the bias that the record did not run is marked: it
   names what the rest of its record does (a new diagnosis would test the bias first). ``--again FOLDER`` lists
   sites diagnosed again with the reading (``bench/gap_wind_centred.py --effects temperature_sensor_bias --folder
-  FOLDER``), joint test included.
+  FOLDER``), joint test included; ``--again`` of a page's ``.json`` keeps the rows that page listed.
 
 Run from the repository root::
 
     .venv/bin/python bench/gap_bias_reading.py --sources-of bench/results/gap_headline.json --last-seed 28 \\
-        --declared bench/results/gap_declared_ceiling.json --again out/gap-bias-reading-55
+        --declared bench/results/gap_declared_ceiling.json --again bench/results/gap_bias_reading.json
+
+(the two bias sites of seed 55 diagnosed again were first listed from ``--again out/gap-bias-reading-55``).
 
 Writes ``bench/results/<name>.{md,json}`` (default ``gap_bias_reading``). It reads the records only.
 """
@@ -86,9 +88,15 @@ def untested_joint(record: dict, how: str) -> bool:
 def diagnosed_again(folders: list[str], records: dict[str, tuple[dict, str, str]]) -> list[dict]:
     """The sites of ``folders`` (``<site>.json`` diagnosis records, e.g. ``bench/gap_wind_centred.py``'s) with
     their injected effect from ``records``, refit bias (K), joint test of the bias (or None) and first named
-    effect."""
+    effect. A ``.json`` page this script wrote stands for the folders it read: its rows are kept as they are, so
+    the page regenerates on a checkout without ``out/``."""
     rows = []
     for folder in folders:
+        if folder.endswith(".json"):
+            rows += json.loads(Path(folder).read_text())["again"]
+            continue
+        if not Path(folder).is_dir():
+            raise SystemExit(f"--again {folder}: no such folder of diagnosis records (or give the page's .json)")
         for path in sorted(Path(folder).glob("seed*_case_*.json")):
             record, site = json.loads(path.read_text()), path.stem
             rows.append({"site": site, "true": records[site][1], "magnitude": records[site][0].get("magnitude"),
@@ -123,7 +131,8 @@ def main() -> None:
     parser.add_argument("--zero-estimate-ceiling", default="bench/results/gap_estimate_alone.json",
                         help="the page that measured the estimate ceiling from zero")
     parser.add_argument("--again", action="append", default=[], metavar="FOLDER",
-                        help="records of sites diagnosed again with the reading (bench/gap_wind_centred.py --folder)")
+                        help="records of sites diagnosed again with the reading (bench/gap_wind_centred.py --folder), "
+                             "or a page's .json whose rows are kept")
     parser.add_argument("--name", default="gap_bias_reading")
     args = parser.parse_args()
     effect = effects.EFFECTS[BIAS]

@@ -452,3 +452,24 @@ def test_the_size_page_bins_cases_by_equal_count_and_finds_the_size_from_which_n
     # sizes 5-20: 15 of 16 right (94 %); from 4: 15 of 17 (88 %)
     assert row["reliable"] == 5.0
     assert page.effect_rows(cases, least=17)["night_plug_loads"]["reliable"] is None
+
+
+def test_the_bias_reading_keeps_the_sites_diagnosed_again_from_its_page_and_refuses_a_missing_folder(
+        tmp_path, monkeypatch):
+    """bench/gap_bias_reading.py --again: a folder of diagnosis records gives one row per site; the page's .json
+    keeps the rows it listed (a checkout without out/ regenerates the page); a missing folder is an error."""
+    reading = _bench_module("gap_bias_reading", monkeypatch)
+    folder = tmp_path / "again"
+    folder.mkdir()
+    joint = {"gain": 0.05, "p_value": 1e-4, "estimate": {"bias_k": 0.37}, "qualifies": True}
+    (folder / "seed55_case_012.json").write_text(json.dumps({
+        "estimates": {"temperature_sensor_bias": {"bias_k": 0.19}}, "named": "temperature_sensor_bias",
+        "joint_tests": {"temperature_sensor_bias": joint}}))
+    records = {"seed55_case_012": ({"magnitude": 0.65}, "temperature_sensor_bias", "")}
+    rows = reading.diagnosed_again([str(folder)], records)
+    assert rows == [{"site": "seed55_case_012", "true": "temperature_sensor_bias", "magnitude": 0.65, "bias_k": 0.19,
+                     "joint": joint, "named": "temperature_sensor_bias"}]
+    (tmp_path / "page.json").write_text(json.dumps({"again": rows}))
+    assert reading.diagnosed_again([str(tmp_path / "page.json")], {}) == rows
+    with pytest.raises(SystemExit, match="no such folder"):
+        reading.diagnosed_again([str(tmp_path / "gone")], records)

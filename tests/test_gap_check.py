@@ -352,7 +352,9 @@ def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guar
          "gain": -0.137, "estimate": 0.030}]
     assert gap.ESTIMATE_ALONE_LOWEST_GAIN == -0.10
     held_back = replay.renamed(records, float("-inf"), before)
-    assert replay.net_change(held_back) == "+1 named right, +0 named another effect"
+    assert replay.net_change(held_back) == "+1 named right, +0 named another effect, +0 clean sites named"
+    twin = {"true": "none", "before": "none", "after": "temperature_sensor_lag"}
+    assert replay.net_change(held_back + [twin]) == "+1 named right, +0 named another effect, +1 clean sites named"
 
 
 def test_the_guard_replay_lists_the_sites_named_by_the_estimate_alone_worst_series_first(tmp_path, monkeypatch):

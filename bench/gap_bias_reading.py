@@ -130,7 +130,7 @@ def main() -> None:
                         help="the page that measured the gain route's ceiling from zero")
     parser.add_argument("--zero-estimate-ceiling", default="bench/results/gap_estimate_alone.json",
                         help="the page that measured the estimate ceiling from zero")
-    parser.add_argument("--again", action="append", default=[], metavar="FOLDER",
+    parser.add_argument("--again", action="append", default=[], metavar="FOLDER|PAGE",
                         help="records of sites diagnosed again with the reading (bench/gap_wind_centred.py --folder), "
                              "or a page's .json whose rows are kept")
     parser.add_argument("--name", default="gap_bias_reading")

@@ -61,7 +61,8 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
         if absorbed_candidate(name, row["estimates"][name], clean_ceilings):
             if name in joint and joint_test_qualifies(name, joint[name], threshold, clean_ceilings):
                 return name, "joint test"
-    alone = named_by_estimate(row["estimates"], row["scores"], False if clean_ceilings is False else estimate_ceilings)
+    alone = named_by_estimate(row["estimates"], row["scores"], False if clean_ceilings is False else estimate_ceilings,
+                              row.get("gains_by_series"))
     return (alone[0], ALONE) if alone else (NONE, "")
 
 

@@ -43,6 +43,27 @@ def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float, befor
         after = {site: judge(record)[0] for site, (record, _, _) in records.items()}
     finally:
         gap.ESTIMATE_ALONE_LOWEST_GAIN = guard
+    return _changed(records, before, after)
+
+
+def without_sensor_rule(record: dict) -> dict:
+    """``record`` without its sensor effects' held-out gains by series: judged so, the estimate-alone rule names a
+    sensor effect that reads its series worse held out (:func:`buildenv.gap.sensor_reading_made_worse` needs those
+    gains; no other rule reads a sensor effect's)."""
+    series = {name: gains for name, gains in record.get("gains_by_series", {}).items()
+              if get_effect(name).kind != "sensor"}
+    return record | {"gains_by_series": series}
+
+
+def held_back_by_sensor_rule(records: dict[str, tuple[dict, str, str]], before: dict[str, str]) -> list[dict]:
+    """The sites whose first step would name otherwise without the sensor rule (:func:`without_sensor_rule`), as
+    :func:`renamed` lists them."""
+    after = {site: judge(without_sensor_rule(record))[0] for site, (record, _, _) in records.items()}
+    return _changed(records, before, after)
+
+
+def _changed(records: dict[str, tuple[dict, str, str]], before: dict[str, str], after: dict[str, str]) -> list[dict]:
+    """The sites named otherwise ``after`` than ``before`` (:func:`renamed`'s rows)."""
     rows = []
     for site, (record, truth, _) in records.items():
         if after[site] != before[site]:
@@ -90,6 +111,7 @@ def main() -> None:
     args = parser.parse_args()
     records, before, right, sources = judged_sources(args)
     held_back = renamed(records, float("-inf"), before)
+    sensor_held = held_back_by_sensor_rule(records, before)
     changes = {value: renamed(records, value, before) for value in args.lowest_gain}
     command = ("python bench/gap_guard_replay.py" + "".join(f" --lowest-gain {v:g}" for v in args.lowest_gain)
                + sources + f" --name {args.name}")
@@ -102,6 +124,10 @@ def main() -> None:
              "## Sites the guard holds back (named by the estimate alone without it)", "", *header,
              *[_row(r) for r in sorted(held_back, key=lambda r: -r["gain"])],
              f"| **net without the guard** | | | | | {net_change(held_back)} |", "",
+             "## Sites the sensor rule holds back (a sensor effect reading its series worse held out)", "",
+             "`buildenv.gap.sensor_reading_made_worse`: set from seeds 0-80's records, tested by fresh seeds "
+             "from 81.", "", *header, *[_row(r) for r in sorted(sensor_held, key=lambda r: -r["gain"])],
+             f"| **net without the sensor rule** | | | | | {net_change(sensor_held)} |", "",
              "## Sites named otherwise with another guard", "", "| guard | " + header[0][2:], "|---" + header[1]]
     for value, rows in changes.items():
         lines += [f"| {100 * value:g} % " + _row(r) for r in rows]
@@ -115,7 +141,8 @@ def main() -> None:
                 for r in worst]]
     write_results(args.name, lines, {
         "command": command, "lowest_gain_now": gap.ESTIMATE_ALONE_LOWEST_GAIN, "sites": len(records),
-        "right_now": right, "held_back": held_back, "renamed": {str(v): rows for v, rows in changes.items()},
+        "right_now": right, "held_back": held_back, "held_back_by_sensor_rule": sensor_held,
+        "renamed": {str(v): rows for v, rows in changes.items()},
         "named_by_estimate": worst})
 
 

@@ -459,6 +459,20 @@ def test_an_estimate_beyond_every_clean_sites_names_its_effect_alone():
         == ["temperature_sensor_bias"]
     assert named_by_estimate({"temperature_sensor_bias": {"bias_k": -0.575}}, {"temperature_sensor_bias": -0.09}) \
         == []
+    # a sensor effect whose own series reads worse held out names nothing by its estimate (seed 79's case 4 twin:
+    # a 0.749 h lag past the 0.713 h ceiling, -6.5 % pooled, the temperature 29 % worse); a bias reading it better
+    # does (seed 27's case 10: +0.35 K, the temperature 37 % better, the consumption 48 % worse); other effects'
+    # series are not judged so (seed 42's case 15, a wind whose temperature read 20 % worse, was named right)
+    lag = {"temperature_sensor_lag": {"tau_h": 0.749}}
+    assert named_by_estimate(lag, {"temperature_sensor_lag": -0.065}) == ["temperature_sensor_lag"]
+    assert named_by_estimate(lag, {"temperature_sensor_lag": -0.065}, True,
+                             {"temperature_sensor_lag": {"temperature": -0.29, "consumption": 0.109}}) == []
+    assert named_by_estimate({"temperature_sensor_bias": {"bias_k": 0.35}}, {"temperature_sensor_bias": -0.05}, True,
+                             {"temperature_sensor_bias": {"temperature": 0.368, "consumption": -0.476}}) \
+        == ["temperature_sensor_bias"]
+    assert named_by_estimate({"wind_infiltration": {"ach_per_m_s": 0.0243}}, {"wind_infiltration": -0.076}, True,
+                             {"wind_infiltration": {"temperature": -0.20, "consumption": 0.045}}) \
+        == ["wind_infiltration"]
     # a carried effect by its building parameter (a heating power under every clean site's 38.1 W/m2), and the
     # one furthest beyond its ceiling first
     power = {"heating_capacity_limit": {"heating_power_w_m2": 31.8}}

@@ -358,9 +358,11 @@ def test_the_guard_replay_names_a_wind_its_guard_held_back_and_restores_the_guar
 
 
 def test_the_guard_replay_lists_the_sites_named_by_the_estimate_alone_worst_series_first(tmp_path, monkeypatch):
-    """bench/gap_guard_replay.py: a clean site's sensor lag refit past every clean site's (0.80 h), 8 % worse held
-    out pooled but 26 % worse on the temperature, is named by the estimate alone and listed before a wind whose
-    worst series is 5 % worse; a lag refit at 0.30 h, among the clean sites', names nothing and is not listed."""
+    """bench/gap_guard_replay.py: a positive sensor bias refit past every clean site's (+0.35 K), reading the
+    temperature 30 % better held out and the consumption 40 % worse, is named by the estimate alone and listed
+    before a wind whose worst series is 5 % worse; a clean site's sensor lag refit past every clean site's (0.80 h)
+    but reading the temperature 26 % worse held out is held back by the sensor rule (listed there, named without
+    it); a lag refit at 0.30 h, among the clean sites', names nothing and is listed nowhere."""
     replay = _bench_module("gap_guard_replay", monkeypatch)
 
     def case(number, true, named, gain, series, estimate):
@@ -374,14 +376,21 @@ def test_the_guard_replay_lists_the_sites_named_by_the_estimate_alone_worst_seri
         case(0, "wind_infiltration", "wind_infiltration", -0.02, {"temperature": -0.05, "consumption": 0.01},
              {"ach_per_m_s": 0.030}),
         case(1, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.80}),
-        case(2, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.30})]}
+        case(2, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.30}),
+        case(3, "temperature_sensor_bias", "temperature_sensor_bias", -0.05,
+             {"temperature": 0.30, "consumption": -0.40}, {"bias_k": 0.35})]}
     (tmp_path / "run.json").write_text(json.dumps(page))
     sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
     records, before, _, _ = replay.judged_sources(sources)
     rows = replay.by_worst_series(records, before)
     assert [(r["site"], r["named"], r["worst"]) for r in rows] == [
-        ("seed70_case_001", "temperature_sensor_lag", -0.26), ("seed70_case_000", "wind_infiltration", -0.05)]
-    assert rows[0]["gain"] == -0.08 and rows[0]["true"] == "none"
+        ("seed70_case_003", "temperature_sensor_bias", -0.40), ("seed70_case_000", "wind_infiltration", -0.05)]
+    assert rows[0]["gain"] == -0.05 and rows[0]["true"] == "temperature_sensor_bias"
+    held = replay.held_back_by_sensor_rule(records, before)
+    assert [(r["site"], r["before"], r["after"], r["estimate"]) for r in held] == [
+        ("seed70_case_001", "none", "temperature_sensor_lag", 0.80)]
+    assert replay.net_change(held) == "+0 named right, +0 named another effect, +1 clean sites named"
+    assert records["seed70_case_001"][0]["gains_by_series"]["temperature_sensor_lag"]["temperature"] == -0.26
 
 
 def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_sites_only_without_the_ceiling(

@@ -1044,11 +1044,27 @@ def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: l
     if not selected:
         best = entries[0] if entries else None
         tested = "".join(f"; {e['name']} {_joint_text(e['joint_test'])}" for e in entries[1:] if "joint_test" in e)
-        return "no significant unmodelled effect" + (f" (best candidate: {_why_not_named(best, min_gain)}{tested})"
-                                                     if best else "")
+        held = "".join(f"; {text}" for e in entries if e.get("beyond_estimate_ceiling") and e["plausible"]
+                       and e["name"] != HOLIDAYS and (text := _held_back_text(e)))
+        return "no significant unmodelled effect" + (f" (best candidate: {_why_not_named(best, min_gain)}{tested}"
+                                                     f"{held})" if best else "")
     by_joint = {e["name"] for step in steps for e in step["candidates"] if e.get("joint_test", {}).get("qualifies")}
     return "unmodelled effect(s) found: " + ", ".join(
         f"{n} ({get_effect(n).title}{'; named by joint calibration' if n in by_joint else ''})" for n in selected)
+
+
+def _held_back_text(entry: dict) -> str:
+    """Why a first-step candidate whose estimate is beyond every clean site's is not named by it
+    (:func:`named_by_estimate`): its held-out gain under the guard, or, for a sensor effect, its own series read
+    worse held out; "" where neither holds."""
+    effect = get_effect(entry["name"])
+    worse = sensor_reading_made_worse(entry["name"], entry.get("gain_by_series", {}))
+    why = [f"its held-out gain ({100 * entry['score']:.1f} %) is below the {100 * ESTIMATE_ALONE_LOWEST_GAIN:.0f} % "
+           "the estimate alone allows"] if entry["score"] < ESTIMATE_ALONE_LOWEST_GAIN else []
+    why += [f"with it the {s} reads {-100 * entry['gain_by_series'][s]:.0f} % worse held out (a sensor effect "
+            "that is there reads its series better)" for s in worse]
+    return (f"{entry['name']}'s estimate ({effect.estimate_text(entry['parameters'])}) is beyond every clean site's, "
+            f"but not named by it: {' and '.join(why)}") if why else ""
 
 
 def _why_not_named(entry: dict, min_gain: float) -> str:

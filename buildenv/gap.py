@@ -684,8 +684,7 @@ def named_by_estimate(estimates: Mapping[str, dict[str, float]], gains: Mapping[
         if isinstance(estimate_ceilings, Mapping):
             effect = dataclasses.replace(effect, estimate_ceiling=estimate_ceilings.get(name))
         if name == HOLIDAYS or not effect.beyond_estimate_ceiling(parameters) or not effect.plausible(parameters) \
-                or gains[name] < ESTIMATE_ALONE_LOWEST_GAIN \
-                or sensor_reading_made_worse(name, (gains_by_series or {}).get(name, {})):
+                or held_back_from_estimate(name, gains[name], (gains_by_series or {}).get(name, {})):
             continue
         ceiling = effect.estimate_ceiling
         size = parameters.get(effect.ceiling_on, 0.0)
@@ -1044,8 +1043,8 @@ def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: l
     if not selected:
         best = entries[0] if entries else None
         tested = "".join(f"; {e['name']} {_joint_text(e['joint_test'])}" for e in entries[1:] if "joint_test" in e)
-        held = "".join(f"; {text}" for e in entries if e.get("beyond_estimate_ceiling") and e["plausible"]
-                       and e["name"] != HOLIDAYS and (text := _held_back_text(e)))
+        held = "".join(f"; {text}" for e in entries
+                       if e.get("beyond_estimate_ceiling") and e["plausible"] and (text := _held_back_text(e)))
         return "no significant unmodelled effect" + (f" (best candidate: {_why_not_named(best, min_gain)}{tested}"
                                                      f"{held})" if best else "")
     by_joint = {e["name"] for step in steps for e in step["candidates"] if e.get("joint_test", {}).get("qualifies")}
@@ -1053,18 +1052,24 @@ def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: l
         f"{n} ({get_effect(n).title}{'; named by joint calibration' if n in by_joint else ''})" for n in selected)
 
 
+def held_back_from_estimate(name: str, gain: float, gain_by_series: Mapping[str, float]) -> list[str]:
+    """Why the held-out weeks keep a candidate beyond every clean site's from being named by its estimate alone
+    (:func:`named_by_estimate`), one phrase per reason, empty when nothing does: its held-out ``gain`` below
+    :data:`buildenv.effects.ESTIMATE_ALONE_LOWEST_GAIN`, or a sensor effect's own series read worse
+    (:func:`sensor_reading_made_worse`, from ``gain_by_series``)."""
+    why = [f"its held-out gain ({100 * gain:.1f} %) is below the {100 * ESTIMATE_ALONE_LOWEST_GAIN:.0f} % the "
+           "estimate alone allows"] if gain < ESTIMATE_ALONE_LOWEST_GAIN else []
+    return why + [f"with it the {s} reads {-100 * gain_by_series[s]:.0f} % worse held out (a sensor effect that is "
+                  "there reads its series better)" for s in sensor_reading_made_worse(name, gain_by_series)]
+
+
 def _held_back_text(entry: dict) -> str:
-    """Why a first-step candidate whose estimate is beyond every clean site's is not named by it
-    (:func:`named_by_estimate`): its held-out gain under the guard, or, for a sensor effect, its own series read
-    worse held out; "" where neither holds."""
-    effect = get_effect(entry["name"])
-    worse = sensor_reading_made_worse(entry["name"], entry.get("gain_by_series", {}))
-    why = [f"its held-out gain ({100 * entry['score']:.1f} %) is below the {100 * ESTIMATE_ALONE_LOWEST_GAIN:.0f} % "
-           "the estimate alone allows"] if entry["score"] < ESTIMATE_ALONE_LOWEST_GAIN else []
-    why += [f"with it the {s} reads {-100 * entry['gain_by_series'][s]:.0f} % worse held out (a sensor effect "
-            "that is there reads its series better)" for s in worse]
-    return (f"{entry['name']}'s estimate ({effect.estimate_text(entry['parameters'])}) is beyond every clean site's, "
-            f"but not named by it: {' and '.join(why)}") if why else ""
+    """A first-step candidate beyond every clean site's and why it is not named by its estimate
+    (:func:`held_back_from_estimate`); "" where nothing holds it back."""
+    why = held_back_from_estimate(entry["name"], entry["score"], entry.get("gain_by_series", {}))
+    estimate = get_effect(entry["name"]).estimate_text(entry["parameters"])
+    return (f"{entry['name']}'s estimate ({estimate}) is beyond every clean site's, but not named by it: "
+            f"{' and '.join(why)}") if why else ""
 
 
 def _why_not_named(entry: dict, min_gain: float) -> str:

@@ -15,8 +15,8 @@ seeds showed it held back only right namings beside the sensor rule. This shows,
 It is an in-sample replay of recorded first steps: a guard read off it is tested only by fresh seeds. Run from the
 repository root with the headline's sources (or its ``--rediagnosed`` and ``--run`` pages one by one)::
 
-    .venv/bin/python bench/gap_guard_replay.py --lowest-gain -0.1 --lowest-gain -0.15 --lowest-gain -0.2 \\
-        --sources-of bench/results/gap_headline.json
+    .venv/bin/python bench/gap_guard_replay.py --lowest-gain -0.05 --lowest-gain -0.1 --lowest-gain -0.15 \\
+        --lowest-gain -0.2 --sources-of bench/results/gap_headline.json
 
 Writes ``bench/results/<name>.{md,json}`` (default name ``gap_guard_estimate_alone``).
 """
@@ -36,8 +36,8 @@ from buildenv.effects import get_effect
 def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float | None,
             before: dict[str, str]) -> list[dict]:
     """The sites whose first step names something else with a guard at ``lowest_gain`` (a held-out gain, -0.15 for
-    -15 %; None: no guard), each with the held-out gain and the estimate (its ceiling's quantity) of what it names then, or of what
-    it named before where it names nothing then."""
+    -15 %; None: no guard), each with the held-out gain and the estimate (its ceiling's quantity) of what it names
+    then, or of what it named before where it names nothing then."""
     guard = gap.ESTIMATE_ALONE_LOWEST_GAIN
     gap.ESTIMATE_ALONE_LOWEST_GAIN = lowest_gain
     try:
@@ -132,7 +132,8 @@ def main() -> None:
              "`buildenv.gap.sensor_reading_made_worse`: set from seeds 0-80's records, tested by fresh seeds "
              "from 81.", "", *header, *[_row(r) for r in sorted(sensor_held, key=lambda r: -r["gain"])],
              f"| **net without the sensor rule** | | | | | {net_change(sensor_held)} |", "",
-             "## Sites named otherwise with a guard on the held-out gain", "", "| guard | " + header[0][2:], "|---" + header[1]]
+             "## Sites named otherwise with a guard on the held-out gain", "", "| guard | " + header[0][2:],
+             "|---" + header[1]]
     for value, rows in changes.items():
         lines += [f"| {100 * value:g} % " + _row(r) for r in rows]
         lines.append(f"| {100 * value:g} % | **net** | | | | | {net_change(rows)} |")

@@ -267,8 +267,8 @@ class DiagnosisSettings:
             refitted at close to its size (0.024-0.037 1/h per m/s for 19-37 % per m/s, against at most 0.0175 on
             the 464 clean sites) while its held-out gain is -16 % to 2 %, depending on the held-out weeks' winds.
             Replayed on the first steps of seeds 0-28 (``bench/results/gap_estimate_alone.md``), each seed judged
-            with the other seeds' clean sites, it names 19 more effects right (12 winds, 4 night loads, 2 blinds,
-            a capacity limit), none wrongly, and an effect on 1 of the 464 clean sites. Off on sites declaring
+            with the other seeds' clean sites, it names 22 more effects right, none wrongly, and an effect on 2 of
+            the 464 clean sites (1 with the -10 % guard). Off on sites declaring
             building parameters known (no such ceilings were measured there) and with ``clean_ceilings`` off.
         max_effects: most effects selected (the checks: 2).
         seed: seed of every CMA-ES run.

@@ -62,7 +62,8 @@ def declared_estimates(path: str) -> list[float]:
 
 def measured_from_zero(path: str) -> float:
     """The largest ``|bias_k|`` (K) on clean sites that a ceiling page measured (``bench/gap_clean_ceiling.py``'s
-    json, or ``bench/gap_estimate_alone.py``'s): the ceilings the catalogue had before the reading."""
+    json): the ceilings the catalogue had before the reading. (``bench/gap_estimate_alone.py``'s page measures from
+    the reading since it was regenerated on 2026-12-01, so the estimate ceiling from zero is measured here.)"""
     measured = json.loads(Path(path).read_text())["measured"][BIAS]
     return measured["furthest"] if isinstance(measured, dict) else measured[0]
 
@@ -128,8 +129,6 @@ def main() -> None:
                         help="a bench/gap_clean_ceiling.py --declared json (sites declaring their loads known)")
     parser.add_argument("--zero-ceiling", default="bench/results/gap_clean_ceiling_all.json",
                         help="the page that measured the gain route's ceiling from zero")
-    parser.add_argument("--zero-estimate-ceiling", default="bench/results/gap_estimate_alone.json",
-                        help="the page that measured the estimate ceiling from zero")
     parser.add_argument("--again", action="append", default=[], metavar="FOLDER|PAGE",
                         help="records of sites diagnosed again with the reading (bench/gap_wind_centred.py --folder), "
                              "or a page's .json whose rows are kept")
@@ -146,7 +145,7 @@ def main() -> None:
     declared_ceiling = max(abs(v - effect.clean_reading) for v in declared)
     from_zero = dataclasses.replace(effect, clean_reading=0.0,
                                     clean_ceiling=round_up(measured_from_zero(args.zero_ceiling)),
-                                    estimate_ceiling=round_up(measured_from_zero(args.zero_estimate_ceiling)),
+                                    estimate_ceiling=round_up(max(abs(v) for v in clean.values())),
                                     declared_ceiling=round_up(measured_from_zero(args.declared)))
     now = {site: judge(record) for site, (record, _, _) in records.items()}
     before = judged_with(records, from_zero)
@@ -173,7 +172,8 @@ def main() -> None:
              f"sites of {args.declared}, {min(declared):.3f} to {max(declared):.3f} K | "
              f"{check(effect.declared_ceiling, round_up(declared_ceiling))} |",
              "", f"Sized from zero, the ceilings were {from_zero.clean_ceiling:g} K (gain route, "
-             f"{args.zero_ceiling}), {from_zero.estimate_ceiling:g} K (estimate alone, {args.zero_estimate_ceiling})"
+             f"{args.zero_ceiling}), {from_zero.estimate_ceiling:g} K (estimate alone, the same "
+             f"{len(clean)} clean sites, as bench/gap_estimate_alone.py measured it before the reading)"
              f" and {from_zero.declared_ceiling:g} K (declaring): the rule replayed below as 'from zero'.", "",
              "## The bias estimate (K) by injected effect", "",
              "| injected | sites | 10th percentile | median | 90th percentile |", "|---|---|---|---|---|"]

@@ -23,11 +23,13 @@ from pathlib import Path
 
 from gap_check_compare import tally
 
-from buildenv.gap import absorbed_candidate, candidate_qualifies, joint_test_qualifies, named_by_estimate
+from buildenv.gap import (NIGHT_LOADS, absorbed_candidate, candidate_qualifies, joint_test_qualifies,
+                          named_by_estimate, night_load_named_first)
 from buildenv.gap_check import NONE
 
 RESULTS = Path(__file__).resolve().parent / "results"
 ALONE = "estimate alone"  # how :func:`naming` says a record names its effect by the estimate alone
+NIGHT_FIRST = "night electricity"  # ... and by the night electricity its model carries (night_load_named_first)
 
 
 def first_named(row: dict, alpha: float, min_gain: float,
@@ -41,7 +43,7 @@ def first_named(row: dict, alpha: float, min_gain: float,
 def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapping[str, float] = True,
            estimate_ceilings: bool | Mapping[str, float] = False) -> tuple[str, str]:
     """The effect a recorded case's first step names under the current plausibility rules and how: ``(name,
-    "held-out gain" | "joint test" | "estimate alone")``, or ``("none", "")``. A carried effect (its estimate is
+    "held-out gain" | "joint test" | "estimate alone" | "night electricity")``, or ``("none", "")``. A carried effect (its estimate is
     its building parameter) must also make none of its series worse; ``clean_ceilings``: as
     :class:`buildenv.gap.DiagnosisSettings`. When nothing qualifies, the joint tests the record ran
     (:func:`buildenv.gap.joint_fallback`) are judged for the candidates that trigger one under these ceilings; a
@@ -49,7 +51,19 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
     judged against ``estimate_ceilings`` (:func:`buildenv.gap.named_by_estimate`; off with ``clean_ceilings``
     off, as in a diagnosis). They are off by default, as in the replays written before that rule (2026-11-29),
     which judge records of sites declaring building parameters known too (no estimate ceilings there);
-    ``bench/gap_headline.py`` and ``bench/gap_estimate_alone.py`` turn them on."""
+    ``bench/gap_headline.py`` and ``bench/gap_estimate_alone.py`` turn them on. With them on, a night electricity
+    far beyond its ceiling names night plug loads ahead of all of these (:func:`buildenv.gap.night_load_named_first`;
+    :data:`buildenv.effects.NIGHT_LOAD_FIRST_BEYOND` as ``buildenv.gap`` holds it)."""
+    name, how = _naming_by_gain(row, alpha, min_gain, clean_ceilings, estimate_ceilings)
+    ceilings = False if clean_ceilings is False else estimate_ceilings
+    if name != NIGHT_LOADS and night_load_named_first(row["estimates"], ceilings):
+        return NIGHT_LOADS, NIGHT_FIRST
+    return name, how
+
+
+def _naming_by_gain(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapping[str, float],
+                    estimate_ceilings: bool | Mapping[str, float]) -> tuple[str, str]:
+    """:func:`naming` without the night-electricity rule."""
     threshold = alpha / len(row["p_values"])
     ranked = sorted(row["scores"], key=lambda n: -row["scores"][n])
     for name in ranked:

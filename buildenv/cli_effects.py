@@ -16,7 +16,8 @@ def catalogue_rows() -> list[dict[str, Any]]:
     limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names and
     the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
     building parameters known, the one measured on such sites), the size beyond which its estimate alone names it
-    when nothing else is named (``Effect.estimate_ceiling``), and for an effect carried by a building parameter
+    when nothing else is named (``Effect.estimate_ceiling``), the size from which it is named first ahead of every
+    held-out gain (night plug loads: :func:`named_first_text`), and for an effect carried by a building parameter
     that parameter and the values a diagnosis also recalibrates from (``Effect.carried_starts``)."""
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
 
@@ -27,11 +28,25 @@ def catalogue_rows() -> list[dict[str, Any]]:
              "named_beyond": e.clean_ceiling_text() or None,
              "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
              "named_by_estimate_alone_beyond": e.estimate_ceiling_text() or None,
+             "named_first_beyond": named_first_text(e.name),
              "building_parameter": e.building_parameter, "carried_starts": list(e.carried_starts),
              "also_recalibrated_from": e.carried_starts_text() or None,
              "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
                              "description": p.description} for p in e.parameters]}
             for e in EFFECTS.values()]
+
+
+def named_first_text(name: str) -> str | None:
+    """When a first step names effect ``name`` ahead of every held-out gain, as a person reads it (only night plug
+    loads: :func:`buildenv.gap.night_load_named_first`), or None."""
+    from buildenv.effects import NIGHT_LOAD_FIRST_BEYOND, get_effect
+
+    if name != "night_plug_loads" or NIGHT_LOAD_FIRST_BEYOND is None:
+        return None
+    effect = get_effect(name)
+    return (f"{effect.ceiling_on} > {NIGHT_LOAD_FIRST_BEYOND * effect.estimate_ceiling:.3g} W/m2 "
+            f"({NIGHT_LOAD_FIRST_BEYOND:g} times the estimate ceiling) with the temperature sensor bias refit at 0 K "
+            "or colder (a sensor reading warm makes a calibration add heat at night too)")
 
 
 def _cmd_effects(args: argparse.Namespace) -> int:
@@ -53,6 +68,8 @@ def _cmd_effects(args: argparse.Namespace) -> int:
                  if r["named_beyond_on_declaring_sites"] else "")
               + (f"\n    named by its estimate alone (nothing else named) when: {r['named_by_estimate_alone_beyond']}"
                  if r["named_by_estimate_alone_beyond"] else "")
+              + (f"\n    named first, ahead of any held-out gain, when: {r['named_first_beyond']}"
+                 if r["named_first_beyond"] else "")
               + (f"\n    also recalibrated from: {r['also_recalibrated_from']} (the best fit on the fit weeks kept)"
                  if r["also_recalibrated_from"] else ""))
     print("\ninject with: buildenv site reference --out SITE --effect NAME[=MAGNITUDE] [--effect-seed N]")

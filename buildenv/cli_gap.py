@@ -24,7 +24,7 @@ def _settings(args: argparse.Namespace):
         step["refit_anchor"] = args.refit_anchor
     return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
                              clean_ceilings=args.clean_ceilings, joint_fallback=args.joint_fallback,
-                             estimate_alone=args.estimate_alone,
+                             estimate_alone=args.estimate_alone, night_load_first=args.night_load_first,
                              max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
                              base_restarts=args.base_restarts, split=args.split,
                              base_effects=tuple(getattr(args, "base_effect", None) or ()))
@@ -107,6 +107,9 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--no-estimate-alone", dest="estimate_alone", action="store_false",
                    help="when the first step selects nothing, do not name a candidate whose estimate is beyond every "
                         "clean site's by that estimate alone (`buildenv effects`: named by its estimate alone)")
+    p.add_argument("--no-night-load-first", dest="night_load_first", action="store_false",
+                   help="do not name night plug loads first when the night electricity the model carries is far "
+                        "beyond every clean site's and the sensor bias refits cold")
     p.add_argument("--max-effects", type=int, default=CHECKED_DIAGNOSIS["max_effects"],
                    help="most effects selected (default %(default)s)")
     p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",

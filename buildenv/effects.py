@@ -101,6 +101,16 @@ MIN_GAIN = 0.10
 # nothing wrong that the sensor rule does not also hold back (bench/results/gap_guard_estimate_alone.md), so it was
 # dropped. bench/gap_guard_replay.py replays any guard.
 ESTIMATE_ALONE_LOWEST_GAIN: float | None = None
+# How many times its estimate ceiling (3.61 W/m2) the night electricity the first step's model carries
+# (night_plug_loads' Effect.judged_on) must reach for a gap diagnosis to name loads left on at night first, ahead of
+# every held-out gain, unless the sensor bias candidate refits warm (buildenv.gap.night_load_named_first); None:
+# never. Read off the first steps of seeds 0-92 of the blind checks (bench/results/gap_night_first.md): on the 2569
+# other sites (clean cases and twins, the other effects, biases refit cold) the night electricity reached 3.90 W/m2
+# (a capacity limit); beyond 1.25 times the ceiling (4.51 W/m2) lay 122 injected night loads, every one with the
+# bias refit cold (-0.14 to -0.98 K), and 62 injected biases, every one refit warm (+0.49 K and more). 15 of those
+# night loads were named otherwise (6 nothing; 9, of 5.6-7.9 W/m2, another effect: blinds 6 times, heat recovery
+# twice, a -0.98 K bias). Set before fresh seeds 93-96 finished, which test it.
+NIGHT_LOAD_FIRST_BEYOND: float | None = 1.25
 # Where Effect.clean_ceiling comes from (bench/gap_clean_ceiling.py recomputes the ceilings from these records).
 CLEAN_CEILING_SOURCE = ("estimate calibrated on 216 clean sites: the 31 clean cases and 185 clean twins of the blind "
                         "checks' seeds 0-16, bench/results/gap_clean_ceiling_all.md")

@@ -315,6 +315,8 @@ def test_cli_lists_the_catalogue(capsys):
     assert "heat_recovery" in out and "named from: effectiveness >= 0.3 (" in out
     assert "also recalibrated from: heating_power_w_m2 = 25, 40 W/m2" in out
     assert "named by significance alone when: blocked_fraction > 0.574 (" in out
+    assert "named first, ahead of any held-out gain, when: night_electricity_w_m2 > 4.51 W/m2 (1.25 times" in out
+    assert sum(r["named_first_beyond"] is not None for r in rows) == 1
 
 
 def test_injected_effect_is_inactive_at_no_effect():

@@ -782,3 +782,47 @@ def test_the_diagnosis_says_when_its_held_out_weeks_are_colder_than_its_fit_week
     alternate = split_weather(site, "alternate")  # weeks 0, 2, 4 reach -7.8 degC
     assert alternate["heldout_colder_than_fit_percent"] < first["heldout_colder_than_fit_percent"]
     assert alternate["note"] is None
+
+
+def test_a_night_electricity_far_beyond_every_clean_sites_names_night_loads_first_unless_the_bias_refits_warm():
+    # the blind checks' records (bench/results/gap_night_first.md): seed 88 case 5, a 4.87 W/m2 night load whose
+    # first step carried 7.82 W/m2 of night electricity (the lights' night share at 26 %) and refit the sensor bias
+    # at -0.98 K; the held-out gains named that bias. Seed 57 case 9, a +2.94 K bias, carried 9.35 W/m2 and refit it
+    # at +2.8 K. The other sites of seeds 0-92 carried at most 3.90 W/m2 (the ceiling: 3.61; 1.25 times: 4.51)
+    from buildenv.effects import NIGHT_LOAD_FIRST_BEYOND
+    from buildenv.gap import _night_load_first, night_load_named_first
+
+    assert NIGHT_LOAD_FIRST_BEYOND == 1.25
+
+    def estimates(night, bias):
+        return {"night_plug_loads": {"light_night_percent": 26.3, "night_electricity_w_m2": night},
+                "temperature_sensor_bias": {"bias_k": bias}, "solar_shading": {"blocked_fraction": 0.5}}
+
+    assert night_load_named_first(estimates(7.82, -0.98))
+    assert not night_load_named_first(estimates(9.35, 2.8))  # a sensor reading warm makes the model heat at night
+    assert not night_load_named_first(estimates(3.90, -0.33))  # seed 77 case 13, a capacity limit
+    assert night_load_named_first(estimates(4.55, -0.41))  # seed 81 case 4, a 2.32 W/m2 load named nothing
+    assert not night_load_named_first(estimates(4.50, -0.41))
+    assert not night_load_named_first(estimates(7.82, -0.98), False)
+    assert not night_load_named_first(estimates(7.82, -0.98), {"night_plug_loads": 8.0})  # a replay's ceilings
+    no_bias = estimates(7.82, -0.98)
+    del no_bias["temperature_sensor_bias"]
+    assert not night_load_named_first(no_bias)  # the bias declared or not tested: a warm sensor is not ruled out
+
+    # in a first step: the night candidate's trial replaces what the held-out gains selected, its entry marked
+    trials = [(name, object(), {}) for name in ("solar_shading", "temperature_sensor_bias", "night_plug_loads")]
+    entries = [{"name": name, "parameters": estimates(7.82, -0.98)[name], "qualifies": name == "solar_shading"}
+               for name, _, _ in trials]
+    chosen = _night_load_first(trials, entries)
+    assert chosen == ("night_plug_loads", trials[2][1]) and entries[2]["named_by_night_electricity"]
+    assert _verdict(["night_plug_loads"], entries, 0.10) == (
+        "unmodelled effect(s) found: night_plug_loads (plug loads left on at night; named first by the night "
+        "electricity the model carries, 7.82 W/m2, beyond 1.25 times every clean site's 3.61 W/m2, with the sensor "
+        "bias refit cold)")
+    entries[0]["qualifies"], entries[2]["qualifies"] = False, True  # already first by its gain: left as it is
+    del entries[2]["named_by_night_electricity"]
+    assert _night_load_first(trials, entries) is None and "named_by_night_electricity" not in entries[2]
+    entries[2]["qualifies"], entries[1]["parameters"] = False, {"bias_k": 2.8}  # nothing selected, the bias warm
+    assert _night_load_first(trials, entries) is None
+    entries[1]["parameters"] = {"bias_k": -0.2}  # nothing selected, the bias cold: named all the same
+    assert _night_load_first(trials, entries) == ("night_plug_loads", trials[2][1])

@@ -140,7 +140,8 @@ def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monke
 
 
 @pytest.mark.parametrize("flags, expected", [
-    ([], True), (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone"], False)])
+    ([], True), (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone", "--no-night-load-first"],
+                 False)])
 def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
     import buildenv.gap
 
@@ -154,6 +155,7 @@ def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
     assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
     assert seen["settings"].joint_fallback is expected and seen["settings"].estimate_alone is expected
+    assert seen["settings"].night_load_first is expected
     # the blind checks' settings, under which the ceilings were measured, not DiagnosisSettings' faster defaults
     assert {k: getattr(seen["settings"], k) for k in CHECKED_DIAGNOSIS} == CHECKED_DIAGNOSIS
     assert CHECKED_DIAGNOSIS["split"] != DiagnosisSettings.split
@@ -486,3 +488,47 @@ def test_the_bias_reading_keeps_the_sites_diagnosed_again_from_its_page_and_refu
     assert reading.diagnosed_again([str(tmp_path / "page.json")], {}) == rows
     with pytest.raises(SystemExit, match="no such folder"):
         reading.diagnosed_again([str(tmp_path / "gone")], records)
+
+
+def test_the_night_first_replay_names_a_large_night_load_taken_for_blinds_and_leaves_a_warm_bias(tmp_path,
+                                                                                                  monkeypatch):
+    """bench/gap_night_first.py: a night load carried at 7.82 W/m2 with the bias refit cold, which the held-out
+    gains name blinds (seed 89's case 11), is named night plug loads by the headline's judging; a +2.9 K bias
+    carried at 9.35 W/m2 stays a bias; a clean twin at 3.60 W/m2 names nothing. Off, or at 2.5 times the ceiling,
+    the night load is blinds again; the rule is back at its value after."""
+    import buildenv.gap as gap
+
+    replay = _bench_module("gap_night_first", monkeypatch)
+
+    def case(number, true, night, bias, best):
+        return {"case": number, "true": true, "named": best, "ranked": [best, "night_plug_loads"],
+                "scores": {best: 0.33, "night_plug_loads": -0.4, "temperature_sensor_bias": -0.1}
+                | ({best: 0.37} if best == "temperature_sensor_bias" else {}),
+                "p_values": {best: 1e-12, "night_plug_loads": 1.0, "temperature_sensor_bias": 1.0}
+                | ({best: 1e-12} if best == "temperature_sensor_bias" else {}),
+                "estimates": {"solar_shading": {"blocked_fraction": 0.8},
+                              "night_plug_loads": {"light_night_percent": 61.0, "night_electricity_w_m2": night},
+                              "temperature_sensor_bias": {"bias_k": bias}},
+                "gains_by_series": {"solar_shading": {"temperature": 0.5, "consumption": 0.1},
+                                    "temperature_sensor_bias": {"temperature": 0.6, "consumption": 0.0},
+                                    "night_plug_loads": {"temperature": -0.88, "consumption": 0.03}}}
+
+    page = {"plan": {"seed": 89}, "cases": [case(0, "night_plug_loads", 7.82, -0.46, "solar_shading"),
+                                            case(1, "temperature_sensor_bias", 9.35, 2.9, "temperature_sensor_bias")]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
+    records, before, right, _ = replay.judged_sources(sources)
+    assert before == {"seed89_case_000": "night_plug_loads", "seed89_case_001": "temperature_sensor_bias"}
+    assert replay.judge(records["seed89_case_000"][0]) == ("night_plug_loads", "night electricity")
+    off = replay.renamed(records, None, before)
+    assert off == [{"site": "seed89_case_000", "true": "night_plug_loads", "before": "night_plug_loads",
+                    "after": "solar_shading", "night_electricity_w_m2": 7.82, "bias_k": -0.46}]
+    assert replay.renamed(records, 2.5, before) == off and replay.renamed(records, 2.0, before) == []
+    assert gap.NIGHT_LOAD_FIRST_BEYOND == 1.25
+    records["seed89_case_000_twin"] = (case(0, "none", 3.60, -0.3, "solar_shading") | {"scores": {
+        "solar_shading": 0.01, "night_plug_loads": 0.0, "temperature_sensor_bias": 0.0}}, "none", "run")
+    kinds = replay.by_kind(records, [1.25, 2.5])
+    assert kinds["night_plug_loads"]["beyond"] == {1.25: {"warm": 0, "cold": 1}, 2.5: {"warm": 0, "cold": 0}}
+    assert kinds["temperature_sensor_bias"]["beyond"][2.5] == {"warm": 1, "cold": 0}
+    assert kinds["clean twin"] == {"sites": 1, "largest": 3.60, "beyond": {1.25: {"warm": 0, "cold": 0},
+                                                                            2.5: {"warm": 0, "cold": 0}}}

@@ -43,8 +43,8 @@ def first_named(row: dict, alpha: float, min_gain: float,
 def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapping[str, float] = True,
            estimate_ceilings: bool | Mapping[str, float] = False) -> tuple[str, str]:
     """The effect a recorded case's first step names under the current plausibility rules and how: ``(name,
-    "held-out gain" | "joint test" | "estimate alone" | "night electricity")``, or ``("none", "")``. A carried effect (its estimate is
-    its building parameter) must also make none of its series worse; ``clean_ceilings``: as
+    "held-out gain" | "joint test" | "estimate alone" | "night electricity")``, or ``("none", "")``. A carried
+    effect (its estimate is its building parameter) must also make none of its series worse; ``clean_ceilings``: as
     :class:`buildenv.gap.DiagnosisSettings`. When nothing qualifies, the joint tests the record ran
     (:func:`buildenv.gap.joint_fallback`) are judged for the candidates that trigger one under these ceilings; a
     triggered candidate the record did not test names nothing. When nothing is named still, the estimates are
@@ -52,11 +52,12 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
     off, as in a diagnosis). They are off by default, as in the replays written before that rule (2026-11-29),
     which judge records of sites declaring building parameters known too (no estimate ceilings there);
     ``bench/gap_headline.py`` and ``bench/gap_estimate_alone.py`` turn them on. With them on, a night electricity
-    far beyond its ceiling names night plug loads ahead of all of these (:func:`buildenv.gap.night_load_named_first`;
-    :data:`buildenv.effects.NIGHT_LOAD_FIRST_BEYOND` as ``buildenv.gap`` holds it)."""
+    far beyond its ceiling names night plug loads ahead of all but a held-out gain of its own, as a diagnosis does
+    (:func:`buildenv.gap.night_load_named_first`; :data:`buildenv.effects.NIGHT_LOAD_FIRST_BEYOND` as
+    ``buildenv.gap`` holds it)."""
     name, how = _naming_by_gain(row, alpha, min_gain, clean_ceilings, estimate_ceilings)
     ceilings = False if clean_ceilings is False else estimate_ceilings
-    if name != NIGHT_LOADS and night_load_named_first(row["estimates"], ceilings):
+    if (name, how) != (NIGHT_LOADS, "held-out gain") and night_load_named_first(row["estimates"], ceilings):
         return NIGHT_LOADS, NIGHT_FIRST
     return name, how
 

@@ -3,8 +3,9 @@ what naming night plug loads first from it changes.
 
 The base calibration carries loads left on at night in the night shares of the lighting and plug loads, and a
 first step judges ``night_plug_loads`` by the night electricity those shares add up to. A large night load
-(3-5 W/m2 injected, 4.5-8 W/m2 carried) is carried by the lights' night share too, and the model carrying it can read the held-out temperature
-worse than the one with no lighting at night, so the held-out gains name something else. The diagnosis names night
+(3-5 W/m2 injected, 4.5-8 W/m2 carried) is carried by the lights' night share too, and the model carrying it can
+read the held-out temperature worse than the one with no lighting at night, so the held-out gains name something
+else. The diagnosis names night
 plug loads first when that night electricity is beyond :data:`buildenv.effects.NIGHT_LOAD_FIRST_BEYOND` times its
 estimate ceiling and the sensor bias candidate refits cold (:func:`buildenv.gap.night_load_named_first`). This
 shows, on every site the headline counts (``bench/gap_headline.py``'s sources, judged as it judges them, first step

@@ -669,12 +669,12 @@ def joint_test_qualifies(name: str, test: dict, threshold: float,
     Why the ceiling: the test is run because the refit's estimate was beyond every clean site's, the evidence of
     size the diagnosis names by (:func:`absorbed_candidate`); calibrated from scratch, an estimate that falls back
     among the clean sites' has lost that evidence, and its gain is what one more free parameter buys. Replayed on
-    the headline's sites of seeds 0-94 (``bench/results/gap_joint_replay.md``), 30 were named by a joint test
+    the headline's sites of seeds 0-96 (``bench/results/gap_joint_replay.md``), 30 were named by a joint test
     without it: 29 right, and a clean twin named a 0.41 h sensor lag whose joint estimate fell among the clean
     sites' (a night load taken that way for 0.51 blinds is named first by its night electricity since
     2026-12-01, :func:`night_load_named_first`; a twin's -0.45 K sensor bias is no longer tested since a bias is
-    sized from what clean sites calibrate). With it the twin is recognised, and one effect is lost: seed 13's 12 % wind, whose joint
-    estimate (0.01437 1/h per m/s) fell 0.2 % under the 0.0144 ceiling."""
+    sized from what clean sites calibrate). With it the twin is recognised, and one effect is lost: seed 13's 12 %
+    wind, whose joint estimate (0.01437 1/h per m/s) fell 0.2 % under the 0.0144 ceiling."""
     return test["gain"] > 0.0 and test["p_value"] < threshold and get_effect(name).plausible(test["estimate"]) \
         and beyond_clean_sites(name, test["estimate"], clean_ceilings) is not False
 
@@ -714,9 +714,10 @@ def night_load_named_first(estimates: Mapping[str, dict[str, float]],
     (``DiagnosisSettings.night_load_first``): the night electricity its model carries (the night_plug_loads
     candidate's estimate ``night_electricity_w_m2``, W/m2) is beyond :data:`buildenv.effects.NIGHT_LOAD_FIRST_BEYOND`
     times that effect's estimate ceiling, and the temperature sensor bias candidate refits cold or at zero
-    (``bias_k`` <= 0 K). A calibration adds electricity at night for a sensor reading warm too (biases of +1 K and
-    more carried 5.6-9.4 W/m2 on the blind checks), so without the bias candidate's estimate (a site declaring the
-    bias, or a diagnosis not testing it) it is False. ``estimate_ceilings``: as :func:`named_by_estimate`."""
+    (``bias_k`` <= 0 K). A calibration adds electricity at night for a sensor reading warm too (biases refit at
+    +0.49 K and more carried up to 9.4 W/m2 on the blind checks), so without the bias candidate's estimate (a site
+    declaring the bias, or a diagnosis not testing it) it is False. ``estimate_ceilings``: as
+    :func:`named_by_estimate`."""
     beyond = NIGHT_LOAD_FIRST_BEYOND
     if beyond is None or estimate_ceilings is False or NIGHT_LOADS not in estimates \
             or "bias_k" not in estimates.get(SENSOR_BIAS, {}):

@@ -23,6 +23,7 @@ from pathlib import Path
 
 from gap_check_compare import tally
 
+from buildenv.effects import ceilings_in_sunshine
 from buildenv.gap import (NIGHT_LOADS, absorbed_candidate, candidate_qualifies, joint_test_qualifies,
                           named_by_estimate, night_load_named_first)
 from buildenv.gap_check import NONE
@@ -54,7 +55,13 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
     ``bench/gap_headline.py`` and ``bench/gap_estimate_alone.py`` turn them on. With them on, a night electricity
     far beyond its ceiling names night plug loads ahead of all but a held-out gain of its own, as a diagnosis does
     (:func:`buildenv.gap.night_load_named_first`; :data:`buildenv.effects.NIGHT_LOAD_FIRST_BEYOND` as
-    ``buildenv.gap`` holds it)."""
+    ``buildenv.gap`` holds it). A record with its fit weeks' irradiance (``fit_irradiance_w_m2``, W/m2) has the
+    catalogue's ceilings (True) judged at it, as a diagnosis does (:func:`buildenv.effects.ceilings_in_sunshine`)."""
+    irradiance = row.get("fit_irradiance_w_m2")
+    if clean_ceilings is True and irradiance is not None:
+        clean_ceilings = ceilings_in_sunshine(irradiance)
+    if estimate_ceilings is True and irradiance is not None:
+        estimate_ceilings = ceilings_in_sunshine(irradiance, "estimate")
     name, how = _naming_by_gain(row, alpha, min_gain, clean_ceilings, estimate_ceilings)
     ceilings = False if clean_ceilings is False else estimate_ceilings
     if (name, how) != (NIGHT_LOADS, "held-out gain") and night_load_named_first(row["estimates"], ceilings):

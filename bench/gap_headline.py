@@ -31,6 +31,7 @@ Writes ``bench/results/NAME.{md,json}``.
 from __future__ import annotations
 
 import argparse
+import datetime as dt
 import json
 import re
 import shlex
@@ -40,8 +41,9 @@ from pathlib import Path
 from gap_check_rejudge import ALONE, naming
 
 from buildenv.effects import MIN_GAIN
-from buildenv.gap import DiagnosisSettings
+from buildenv.gap import DiagnosisSettings, fit_irradiance_w_m2, split_weeks
 from buildenv.gap_check import NONE
+from buildenv.weather import epw_hours, load_weather
 
 RESULTS = Path(__file__).resolve().parent / "results"
 ALPHA = DiagnosisSettings().alpha  # the checks' significance level (their plans' settings.alpha)
@@ -84,11 +86,43 @@ def records_from_run(path: str) -> dict[str, tuple[dict, str, str]]:
 
 
 def diagnosed_records(rediagnosed: list[str], runs: list[str]) -> dict[str, tuple[dict, str, str]]:
-    """Every diagnosed site's latest record (runs over rediagnoses, later pages over earlier ones)."""
+    """Every diagnosed site's latest record (runs over rediagnoses, later pages over earlier ones), each with its
+    fit weeks' irradiance (``fit_irradiance_w_m2``, W/m2: :func:`irradiance_of_sites` where the record predates
+    it; none where no page gives the weeks' weather), so that the catalogue's ceilings are judged at it as a
+    diagnosis does."""
     out: dict[str, tuple[dict, str, str]] = {}
     for paths, read in ((rediagnosed, records_from_rediagnosis), (runs, records_from_run)):
         for path in paths:
             out |= read(path)
+    irradiance = irradiance_of_sites(runs + [p for path in rediagnosed for p in pages_of(path)])
+    for site, (record, truth, source) in out.items():
+        if "fit_irradiance_w_m2" not in record and site.removesuffix("_twin") in irradiance:
+            out[site] = ({**record, "fit_irradiance_w_m2": irradiance[site.removesuffix("_twin")]}, truth, source)
+    return out
+
+
+def pages_of(path: str) -> list[str]:
+    """The ``bench/gap_check.py`` pages a ``bench/gap_wind_centred.py`` json diagnosed the sites of (its command's
+    ``--page`` options)."""
+    words = shlex.split(json.loads(Path(path).read_text())["command"])
+    return [page for option, page in zip(words, words[1:]) if option == "--page"]
+
+
+def irradiance_of_sites(pages: list[str]) -> dict[str, float]:
+    """``{site: W/m2}``: the fit weeks' mean global horizontal irradiance (:func:`buildenv.gap.fit_irradiance_w_m2`)
+    of every case of ``bench/gap_check.py`` pages (a clean twin has its case's weeks), from each case's first
+    Monday and the page's weather, weeks and split (none for a page without them)."""
+    out: dict[str, float] = {}
+    for path in dict.fromkeys(pages):
+        page = json.loads(Path(path).read_text())
+        plan = page["plan"]
+        if not {"epw", "weeks", "settings"} <= set(plan):
+            continue
+        hourly = load_weather(plan["epw"]).hourly
+        fit = split_weeks(plan["weeks"], plan["settings"]["split"])[0]
+        for case in page["cases"]:
+            weather = hourly[epw_hours(dt.date.fromisoformat(case["start"]), plan["weeks"])]
+            out[f"seed{plan['seed']}_case_{case['case']:03d}"] = fit_irradiance_w_m2(weather, fit)
     return out
 
 

@@ -16,7 +16,8 @@ def catalogue_rows() -> list[dict[str, Any]]:
     limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names and
     the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
     building parameters known, the one measured on such sites), the size beyond which its estimate alone names it
-    when nothing else is named (``Effect.estimate_ceiling``), the size from which it is named first ahead of every
+    when nothing else is named (``Effect.estimate_ceiling``), both ceilings per W/m2 of the fit weeks' irradiance
+    where they grow with it (blinds: ``Effect.sunshine_ceiling``), the size from which it is named first ahead of every
     held-out gain (night plug loads: :func:`named_first_text`), and for an effect carried by a building parameter
     that parameter and the values a diagnosis also recalibrates from (``Effect.carried_starts``)."""
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
@@ -28,6 +29,7 @@ def catalogue_rows() -> list[dict[str, Any]]:
              "named_beyond": e.clean_ceiling_text() or None,
              "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
              "named_by_estimate_alone_beyond": e.estimate_ceiling_text() or None,
+             "ceilings_in_sunshine": e.sunshine_ceiling_text() or None,
              "named_first_beyond": named_first_text(e.name),
              "building_parameter": e.building_parameter, "carried_starts": list(e.carried_starts),
              "also_recalibrated_from": e.carried_starts_text() or None,
@@ -68,6 +70,8 @@ def _cmd_effects(args: argparse.Namespace) -> int:
                  if r["named_beyond_on_declaring_sites"] else "")
               + (f"\n    named by its estimate alone (nothing else named) when: {r['named_by_estimate_alone_beyond']}"
                  if r["named_by_estimate_alone_beyond"] else "")
+              + (f"\n    both ceilings, on a site whose fit weeks' irradiance is known: {r['ceilings_in_sunshine']}"
+                 if r["ceilings_in_sunshine"] else "")
               + (f"\n    named first, ahead of any held-out gain, when: {r['named_first_beyond']}"
                  if r["named_first_beyond"] else "")
               + (f"\n    also recalibrated from: {r['also_recalibrated_from']} (the best fit on the fit weeks kept)"

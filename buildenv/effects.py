@@ -153,6 +153,12 @@ ESTIMATE_CEILING_SOURCE = ("estimate calibrated on 464 clean sites diagnosed wit
                            "cases and 412 clean twins of the blind checks' seeds 0-28, "
                            "bench/results/gap_estimate_alone.md")
 
+# Where Effect.sunshine_ceiling comes from (bench/gap_sunshine_ceiling.py measures it again from these records).
+SUNSHINE_CEILING_SOURCE = ("ratio of the estimate to the fit weeks' mean global horizontal irradiance over 1552 clean "
+                           "sites diagnosed with the current diagnosis: the 171 clean cases and 1381 clean twins of "
+                           "the blind checks' seeds 0-96, fit-week irradiance 66.9-95.6 W/m2, "
+                           "bench/results/gap_sunshine_ceiling.md")
+
 # Where the sensor bias's clean reading and ceilings come from (bench/gap_bias_reading.py measures them again): its
 # size is measured from the median clean site's estimate (Effect.clean_reading), so its ceilings were measured
 # again from it, on the estimate ceilings' sites (and on the sites declaring their internal loads known, for
@@ -273,6 +279,15 @@ class Effect:
             -0.30 K). Sized from zero, a +0.6 K sensor was refitted at +0.2 to +0.4 K, under the 0.4 K floor, and
             a clean site at -0.5 K, at the ceiling.
         reading_source: where :attr:`clean_reading` comes from ("" where it is 0).
+        sunshine_ceiling: ``(per_w_m2, lowest_w_m2)`` where the clean sites' estimate grows with the sunshine of
+            the fit weeks, else None: the largest ratio of a clean site's estimate to its fit weeks' mean global
+            horizontal irradiance (W/m2), and the lowest such irradiance it was measured at. A diagnosis judges
+            the effect's clean-site and estimate ceilings as that ratio times the site's own fit-week irradiance,
+            not below the lowest measured (:meth:`in_sunshine`, :data:`SUNSHINE_CEILING_SOURCE`). Blinds: clean
+            sites fitted on the sunnier October weeks of the blind checks calibrate up to 0.58 of the irradiance
+            blocked, those fitted on November weeks at most 0.33, where injected blinds are calibrated at 0.09-0.78
+            (median 0.44) and were named in 6 of 101 cases by the constant ceiling of 0.574.
+        irradiance_w_m2: the fit-week irradiance (W/m2) :meth:`in_sunshine` judged the ceilings at, or None.
     """
 
     name: str
@@ -297,6 +312,8 @@ class Effect:
     estimate_ceiling: float | None = None
     clean_reading: float = 0.0
     reading_source: str = ""
+    sunshine_ceiling: tuple[float, float] | None = None
+    irradiance_w_m2: float | None = None
 
     @property
     def size_name(self) -> str:
@@ -412,11 +429,35 @@ class Effect:
         none, or ``values`` lack the size it is on)."""
         return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling).beyond_clean_sites(values)
 
+    def in_sunshine(self, irradiance_w_m2: float | None) -> Effect:
+        """This effect as a diagnosis judges it on a site whose fit weeks had a mean global horizontal irradiance of
+        ``irradiance_w_m2`` (W/m2): for an effect with a :attr:`sunshine_ceiling`, clean-site and estimate
+        ceilings of ``per_w_m2 x max(irradiance_w_m2, lowest_w_m2)``; itself otherwise, or when the irradiance is
+        unknown (None)."""
+        if self.sunshine_ceiling is None or irradiance_w_m2 is None:
+            return self
+        per, lowest = self.sunshine_ceiling
+        ceiling = round(per * max(float(irradiance_w_m2), lowest), 4)
+        source = (f"{SUNSHINE_CEILING_SOURCE}: at most {per:g} per W/m2, times this site's "
+                  f"{float(irradiance_w_m2):.1f} W/m2" + (f" (taken as {lowest:g})" if irradiance_w_m2 < lowest else ""))
+        return dataclasses.replace(self, clean_ceiling=ceiling, estimate_ceiling=ceiling, ceiling_source=source,
+                                   irradiance_w_m2=float(irradiance_w_m2))
+
+    def sunshine_ceiling_text(self) -> str:
+        """:attr:`sunshine_ceiling` as a person reads it ("" when the effect has none)."""
+        if self.sunshine_ceiling is None:
+            return ""
+        per, lowest = self.sunshine_ceiling
+        size, unit = self._size_label()
+        return (f"{size} > {per:g}{unit} x the fit weeks' mean global horizontal irradiance in W/m2 (taken as "
+                f"{lowest:g} where lower; {per:g} is the largest {SUNSHINE_CEILING_SOURCE})")
+
     def estimate_ceiling_text(self) -> str:
         """:attr:`estimate_ceiling` with its unit and source, as :meth:`clean_ceiling_text` writes a ceiling ("" when
         the effect has none)."""
-        return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling, ceiling_source=(
-            self.reading_source if self.clean_reading else ESTIMATE_CEILING_SOURCE)).clean_ceiling_text()
+        source = self.reading_source if self.clean_reading else (
+            self.ceiling_source if self.irradiance_w_m2 is not None else ESTIMATE_CEILING_SOURCE)
+        return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling, ceiling_source=source).clean_ceiling_text()
 
     def on_declared_site(self) -> Effect:
         """This effect as a diagnosis judges it on a site declaring building parameters known: its clean-site
@@ -520,7 +561,7 @@ EFFECTS: dict[str, Effect] = {e.name: e for e in (
            (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
            "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)", 0.15,
            smallest_reason="half the lightest blinds' 30 %", clean_ceiling=0.574,
-           declared_ceiling=0.795, estimate_ceiling=0.581),
+           declared_ceiling=0.795, estimate_ceiling=0.581, sunshine_ceiling=(0.00616, 66.9)),
     Effect("heating_capacity_limit", "heating capacity limit",
            "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
            "the setpoint, so consumption plateaus and the temperature sags.",
@@ -616,6 +657,17 @@ def declared_ceilings() -> dict[str, float]:
     declaring building parameters known by (``buildenv.gap.DiagnosisSettings.clean_ceilings`` as a mapping; an
     effect missing from it is judged by the gain bar)."""
     return {e.name: e.declared_ceiling for e in EFFECTS.values() if e.declared_ceiling is not None}
+
+
+def ceilings_in_sunshine(irradiance_w_m2: float | None, kind: str = "clean") -> dict[str, float]:
+    """``{effect: ceiling}`` of every effect with a clean-site ceiling (``kind="clean"``,
+    :attr:`Effect.clean_ceiling`) or an estimate ceiling (``"estimate"``, :attr:`Effect.estimate_ceiling`), as a
+    diagnosis judges a site whose fit weeks had a mean global horizontal irradiance of ``irradiance_w_m2`` (W/m2;
+    :meth:`Effect.in_sunshine`: the catalogue's own where unknown, None)."""
+    if kind not in ("clean", "estimate"):
+        raise ValueError(f"unknown ceiling kind {kind!r}; choose clean or estimate")
+    ceilings = {name: getattr(e.in_sunshine(irradiance_w_m2), f"{kind}_ceiling") for name, e in EFFECTS.items()}
+    return {name: c for name, c in ceilings.items() if c is not None}
 
 
 def check_declarable(names) -> tuple[str, ...]:

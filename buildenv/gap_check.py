@@ -252,7 +252,8 @@ def _diagnosis_record(result: dict) -> dict:
     """What a blind check keeps of one diagnosis: the first effect named, every candidate's first-step gains,
     p-values and estimates (enough to judge the step again under other naming rules), its joint tests
     (:func:`buildenv.gap.joint_fallback`), the base model's
-    held-out metrics and the residual standard deviations the gains are standardised by."""
+    held-out metrics, the residual standard deviations the gains are standardised by and the fit weeks' irradiance
+    the ceilings were judged at (W/m2)."""
     by_estimate = result.get("named_by_estimate", [])
     named = result["selected"][0] if result["selected"] else by_estimate[0] if by_estimate else NONE
     return {"named": named, "selected": result["selected"], "named_by_estimate": by_estimate,
@@ -270,7 +271,7 @@ def _diagnosis_record(result: dict) -> dict:
                                                                            "estimate", "qualifies")}
                             for e in result["effects"] if "joint_test" in e},
             "verdict": result["verdict"], "heldout_base": result["heldout_base"],
-            "residual_sigma": result["residual_sigma"]}
+            "residual_sigma": result["residual_sigma"], "fit_irradiance_w_m2": result.get("fit_irradiance_w_m2")}
 
 
 def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:

@@ -47,7 +47,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.effects import EffectError, check_declarable
 from buildenv.errors import CatalogueError, SiteError
-from buildenv.weather import epw_day_of_year
+from buildenv.weather import epw_day_of_year, epw_hours
 
 try:  # Python >= 3.11
     import tomllib
@@ -172,10 +172,7 @@ class Site:
         Each day is matched to the same calendar day of the EPW year (Feb 29 to Feb 28); a week that runs
         past Dec 31 continues at the start of the EPW year.
         """
-        days = np.array([[epw_day_of_year(self.start + dt.timedelta(days=7 * k + d)) for d in range(7)]
-                         for k in range(self.weeks)], dtype=int)
-        hours = days[:, :, None] * cat.HOURS_PER_DAY + np.arange(cat.HOURS_PER_DAY)
-        return hours.reshape(self.weeks, cat.HOURS_PER_WEEK)
+        return epw_hours(self.start, self.weeks)
 
     def weather_hours(self, shift_hours: int = 0) -> np.ndarray:
         """The site's weather over the measured weeks, ``(weeks, 168, len(catalogue.WEATHER_NAMES))``

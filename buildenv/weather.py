@@ -41,6 +41,15 @@ def epw_day_of_year(day: dt.date) -> int:
     return index
 
 
+def epw_hours(start: dt.date, weeks: int) -> np.ndarray:
+    """Row of a 365-day EPW year (8760 hourly rows) for every hour of ``weeks`` weeks from ``start``,
+    ``(weeks, 168)`` int in ``0 .. 8759``: each day matched to the same calendar day of the EPW year
+    (:func:`epw_day_of_year`), a week that runs past Dec 31 continuing at the start of the EPW year."""
+    days = np.array([[epw_day_of_year(start + dt.timedelta(days=7 * k + d)) for d in range(7)]
+                     for k in range(weeks)], dtype=int)
+    return (days[:, :, None] * 24 + np.arange(24)).reshape(weeks, 7 * 24)
+
+
 def shipped_weather() -> dict[str, str]:
     """Short name -> absolute path of the TMY3 EPW files shipped with pyenergyplus-lbnl."""
     from pyenergyplus import dataset

@@ -233,7 +233,9 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     # recorded for criteria judged on the fit weeks: the bias lowers the cost the searches minimised
     assert 0 < first["fit_cost"]["candidate"] < first["fit_cost"]["control"]
     assert {"localisation", "effects", "selected", "verdict", "split_weather", "base_at_bounds",
-            "settings_note"} <= set(result)
+            "settings_note", "fit_irradiance_w_m2"} <= set(result)
+    assert result["fit_irradiance_w_m2"] == pytest.approx(
+        site.weather_hours()[result["fit_weeks"], :, WEATHER_NAMES.index("IGLOB_H")].mean(), abs=1e-3)
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
     saved = save_extended_model(site, result)
     result.pop("_fit")
@@ -826,3 +828,47 @@ def test_a_night_electricity_far_beyond_every_clean_sites_names_night_loads_firs
     assert _night_load_first(trials, entries) is None
     entries[1]["parameters"] = {"bias_k": -0.2}  # nothing selected, the bias cold: named all the same
     assert _night_load_first(trials, entries) == ("night_plug_loads", trials[2][1])
+
+
+def test_blinds_are_judged_by_a_ceiling_that_grows_with_the_sunshine_of_the_fit_weeks():
+    # bench/results/gap_sunshine_ceiling.md: clean sites fitted on the November weeks of the blind checks (66.9 W/m2)
+    # calibrated blinds up to 0.332, those fitted on sunny October weeks (94.4 W/m2) up to 0.581
+    from buildenv.effects import ceilings_in_sunshine
+    from buildenv.gap import beyond_clean_sites, fit_irradiance_w_m2, named_by_estimate, site_ceilings
+
+    blinds = get_effect("solar_shading")
+    assert blinds.sunshine_ceiling == (0.00616, 66.9)
+    assert blinds.in_sunshine(None) is blinds
+    assert get_effect("heat_recovery").in_sunshine(50.0).clean_ceiling == 0.129
+    november, october, winter = blinds.in_sunshine(66.878), blinds.in_sunshine(94.4), blinds.in_sunshine(40.0)
+    assert november.clean_ceiling == november.estimate_ceiling == pytest.approx(0.412, abs=1e-3)
+    assert 0.581 < october.clean_ceiling < 0.582  # the October clean site at 0.581 stays under it
+    assert winter.clean_ceiling == november.clean_ceiling  # not extrapolated below the darkest weeks measured
+    assert "times this site's 40.0 W/m2 (taken as 66.9)" in winter.clean_ceiling_text()
+    assert "times this site's 66.9 W/m2" in november.estimate_ceiling_text()
+    assert november.declared_ceiling == blinds.declared_ceiling == 0.795
+
+    clean = ceilings_in_sunshine(66.9)
+    assert set(clean) == {n for n, e in EFFECTS.items() if e.clean_ceiling is not None}
+    assert clean["solar_shading"] == pytest.approx(0.412, abs=1e-3) and clean["heat_recovery"] == 0.129
+    assert ceilings_in_sunshine(None, "estimate")["solar_shading"] == blinds.estimate_ceiling == 0.581
+    with pytest.raises(ValueError, match="clean or estimate"):
+        ceilings_in_sunshine(66.9, "declared")
+    # a 0.45 blinds estimate: beyond every clean site's in November, among them in October
+    assert beyond_clean_sites("solar_shading", {"blocked_fraction": 0.45}, ceilings_in_sunshine(66.9)) is True
+    assert beyond_clean_sites("solar_shading", {"blocked_fraction": 0.45}, ceilings_in_sunshine(94.4)) is False
+    assert beyond_clean_sites("solar_shading", {"blocked_fraction": 0.45}) is False  # the constant 0.574
+    estimates = {"solar_shading": {"blocked_fraction": 0.45}, "heat_recovery": {"effectiveness": 0.05}}
+    gains = {"solar_shading": -0.01, "heat_recovery": 0.0}
+    assert named_by_estimate(estimates, gains, ceilings_in_sunshine(66.9, "estimate")) == ["solar_shading"]
+    assert named_by_estimate(estimates, gains, ceilings_in_sunshine(94.4, "estimate")) == []
+
+    site = load_site(DEFAULT_SITE)
+    assert site_ceilings(site, True, 70.0) == ceilings_in_sunshine(70.0)
+    assert site_ceilings(site, True) is True and site_ceilings(site, False, 70.0) is False
+    declaring = dataclasses.replace(site, known={"occupants_per_100m2": 5.0})
+    assert site_ceilings(declaring, True, 70.0)["solar_shading"] == 0.795  # declared sites' ceilings, unscaled
+
+    weather = np.zeros((4, 168, len(WEATHER_NAMES)))
+    weather[:, :, WEATHER_NAMES.index("IGLOB_H")] = np.array([100.0, 500.0, 60.0, 500.0])[:, None]
+    assert fit_irradiance_w_m2(weather, [0, 2]) == pytest.approx(80.0)

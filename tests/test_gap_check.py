@@ -532,3 +532,38 @@ def test_the_night_first_replay_names_a_large_night_load_taken_for_blinds_and_le
     assert kinds["temperature_sensor_bias"]["beyond"][2.5] == {"warm": 1, "cold": 0}
     assert kinds["clean twin"] == {"sites": 1, "largest": 3.60, "beyond": {1.25: {"warm": 0, "cold": 0},
                                                                             2.5: {"warm": 0, "cold": 0}}}
+
+
+def test_the_headline_judges_blinds_at_the_fit_weeks_irradiance_of_each_recorded_site(tmp_path, monkeypatch):
+    """bench/gap_headline.py and bench/gap_sunshine_ceiling.py: a record from before the irradiance was kept gets
+    its fit weeks' irradiance from its page (its first Monday, the page's weather, weeks and split), its twin
+    from its case; 0.45 blinds with a significant gain are named in November weeks (ceiling 0.412) and not under
+    the constant 0.574, nor in sunny October weeks (0.58)."""
+    replay = _bench_module("gap_sunshine_ceiling", monkeypatch)
+
+    def case(number, true, start, blinds):
+        return {"case": number, "true": true, "named": "none", "start": start, "ranked": ["solar_shading"],
+                "scores": {"solar_shading": 0.05, "heat_recovery": 0.0},
+                "p_values": {"solar_shading": 1e-6, "heat_recovery": 1.0},
+                "estimates": {"solar_shading": {"blocked_fraction": blinds}, "heat_recovery": {"effectiveness": 0.0}},
+                "gains_by_series": {"solar_shading": {"temperature": 0.05, "consumption": 0.05},
+                                    "heat_recovery": {"temperature": 0.0, "consumption": 0.0}}}
+
+    plan = {"seed": 5, "epw": "usa_il_chicago", "weeks": 8, "settings": {"split": "alternate"}}
+    page = {"plan": plan, "cases": [case(0, "solar_shading", "2019-11-04", 0.45),
+                                    case(1, "solar_shading", "2019-10-14", 0.45)]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    twin = case(0, "solar_shading", "2019-11-04", 0.30) | {"twin_of": "solar_shading"}
+    twin.pop("start")
+    (tmp_path / "twins.json").write_text(json.dumps({"command": f"x --page {tmp_path / 'run.json'}",
+                                                     "records": {"seed5_case_000_twin": twin}}))
+    sources = argparse.Namespace(rediagnosed=[str(tmp_path / "twins.json")], run=[str(tmp_path / "run.json")],
+                                 sources_of="")
+    records, now, right, _ = replay.judged_sources(sources)
+    irradiance = {site: r["fit_irradiance_w_m2"] for site, (r, _, _) in records.items()}
+    assert irradiance["seed5_case_000"] == irradiance["seed5_case_000_twin"] == pytest.approx(66.88, abs=0.01)
+    assert irradiance["seed5_case_001"] == pytest.approx(94.4, abs=0.05)
+    assert now == {"seed5_case_000": "solar_shading", "seed5_case_001": "none", "seed5_case_000_twin": "none"}
+    assert replay.judged(records["seed5_case_000"][0], None) == "none"  # the constant ceiling
+    assert replay.judged(records["seed5_case_000"][0], 0.007) == "none"  # a ceiling of 0.468
+    assert replay.judged(records["seed5_case_001"][0], 0.004) == "solar_shading"  # 0.378 in October

@@ -286,7 +286,7 @@ class Effect:
             not below the lowest measured (:meth:`in_sunshine`, :data:`SUNSHINE_CEILING_SOURCE`). Blinds: clean
             sites fitted on the sunnier October weeks of the blind checks calibrate up to 0.58 of the irradiance
             blocked, those fitted on November weeks at most 0.33, where injected blinds are calibrated at 0.09-0.78
-            (median 0.44) and were named in 6 of 101 cases by the constant ceiling of 0.574.
+            (median 0.44) and were named in 7 of 101 cases by the constant ceiling of 0.574 (62 by this one).
         irradiance_w_m2: the fit-week irradiance (W/m2) :meth:`in_sunshine` judged the ceilings at, or None.
     """
 

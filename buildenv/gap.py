@@ -698,11 +698,11 @@ def joint_test_qualifies(name: str, test: dict, threshold: float,
     Why the ceiling: the test is run because the refit's estimate was beyond every clean site's, the evidence of
     size the diagnosis names by (:func:`absorbed_candidate`); calibrated from scratch, an estimate that falls back
     among the clean sites' has lost that evidence, and its gain is what one more free parameter buys. Replayed on
-    the headline's sites of seeds 0-96 (``bench/results/gap_joint_replay.md``), 30 were named by a joint test
-    without it: 29 right, and a clean twin named a 0.41 h sensor lag whose joint estimate fell among the clean
-    sites' (a night load taken that way for 0.51 blinds is named first by its night electricity since
+    the headline's sites of seeds 0-98 (``bench/results/gap_joint_replay.md``), 31 were named by a joint test
+    without it: 29 right, and a clean twin and seed 98's 41 % blinds named a 0.41 h and a 0.63 h sensor lag whose
+    joint estimates fell among the clean sites' (a night load taken that way for 0.51 blinds is named first by its night electricity since
     2026-12-01, :func:`night_load_named_first`; a twin's -0.45 K sensor bias is no longer tested since a bias is
-    sized from what clean sites calibrate). With it the twin is recognised, and one effect is lost: seed 13's 12 %
+    sized from what clean sites calibrate). With it both are named nothing, and one effect is lost: seed 13's 12 %
     wind, whose joint estimate (0.01437 1/h per m/s) fell 0.2 % under the 0.0144 ceiling."""
     return test["gain"] > 0.0 and test["p_value"] < threshold and get_effect(name).plausible(test["estimate"]) \
         and beyond_clean_sites(name, test["estimate"], clean_ceilings) is not False

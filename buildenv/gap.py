@@ -698,7 +698,7 @@ def joint_test_qualifies(name: str, test: dict, threshold: float,
     Why the ceiling: the test is run because the refit's estimate was beyond every clean site's, the evidence of
     size the diagnosis names by (:func:`absorbed_candidate`); calibrated from scratch, an estimate that falls back
     among the clean sites' has lost that evidence, and its gain is what one more free parameter buys. Replayed on
-    the headline's sites of seeds 0-98 (``bench/results/gap_joint_replay.md``), 31 were named by a joint test
+    the headline's sites of seeds 0-100 (``bench/results/gap_joint_replay.md``), 31 were named by a joint test
     without it: 29 right, and a clean twin and seed 98's 41 % blinds named a 0.41 h and a 0.63 h sensor lag whose
     joint estimates fell among the clean sites' (a night load taken that way for 0.51 blinds is named first by its night electricity since
     2026-12-01, :func:`night_load_named_first`; a twin's -0.45 K sensor bias is no longer tested since a bias is

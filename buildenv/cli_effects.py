@@ -17,7 +17,8 @@ def catalogue_rows() -> list[dict[str, Any]]:
     the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
     building parameters known, the one measured on such sites), the size beyond which its estimate alone names it
     when nothing else is named (``Effect.estimate_ceiling``), both ceilings per W/m2 of the fit weeks' irradiance
-    where they grow with it (blinds: ``Effect.sunshine_ceiling``), the size from which it is named first ahead of every
+    where they grow with it (blinds: ``Effect.sunshine_ceiling``), when the estimate alone names it under its floor
+    too (night plug loads: :func:`alone_under_floor_text`), the size from which it is named first ahead of every
     held-out gain (night plug loads: :func:`named_first_text`), and for an effect carried by a building parameter
     that parameter and the values a diagnosis also recalibrates from (``Effect.carried_starts``)."""
     from buildenv.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
@@ -30,12 +31,26 @@ def catalogue_rows() -> list[dict[str, Any]]:
              "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
              "named_by_estimate_alone_beyond": e.estimate_ceiling_text() or None,
              "ceilings_in_sunshine": e.sunshine_ceiling_text() or None,
+             "named_by_estimate_alone_under_the_floor": alone_under_floor_text(e.name),
              "named_first_beyond": named_first_text(e.name),
              "building_parameter": e.building_parameter, "carried_starts": list(e.carried_starts),
              "also_recalibrated_from": e.carried_starts_text() or None,
              "parameters": [{"name": p.name, "unit": p.unit, "lo": p.lo, "hi": p.hi, "none": p.none,
                              "description": p.description} for p in e.parameters]}
             for e in EFFECTS.values()]
+
+
+def alone_under_floor_text(name: str) -> str | None:
+    """When the estimate alone names effect ``name`` with its building parameter under the floor it is named from
+    (only night plug loads: :func:`buildenv.gap.plausible_alone`), as a person reads it, or None."""
+    from buildenv.effects import get_effect
+
+    if name != "night_plug_loads":
+        return None
+    effect = get_effect(name)
+    return (f"{effect.ceiling_on} > {effect.estimate_ceiling:g} W/m2 with {effect.building_parameter} under "
+            f"{effect.carried_limit():g} %, the temperature sensor bias refit at 0 K or colder (the floor is the "
+            "held-out test's, which pins that share at 0 %; the night electricity counts both night shares)")
 
 
 def named_first_text(name: str) -> str | None:
@@ -70,6 +85,9 @@ def _cmd_effects(args: argparse.Namespace) -> int:
                  if r["named_beyond_on_declaring_sites"] else "")
               + (f"\n    named by its estimate alone (nothing else named) when: {r['named_by_estimate_alone_beyond']}"
                  if r["named_by_estimate_alone_beyond"] else "")
+              + (f"\n    named by its estimate alone under that floor too, when: "
+                 f"{r['named_by_estimate_alone_under_the_floor']}"
+                 if r["named_by_estimate_alone_under_the_floor"] else "")
               + (f"\n    both ceilings, on a site whose fit weeks' irradiance is known: {r['ceilings_in_sunshine']}"
                  if r["ceilings_in_sunshine"] else "")
               + (f"\n    named first, ahead of any held-out gain, when: {r['named_first_beyond']}"

@@ -317,6 +317,10 @@ def test_cli_lists_the_catalogue(capsys):
     assert "named by significance alone when: blocked_fraction > 0.574 (" in out
     assert "named first, ahead of any held-out gain, when: night_electricity_w_m2 > 4.51 W/m2 (1.25 times" in out
     assert sum(r["named_first_beyond"] is not None for r in rows) == 1
+    under = {r["name"]: r["named_by_estimate_alone_under_the_floor"] for r in rows
+             if r["named_by_estimate_alone_under_the_floor"]}
+    assert list(under) == ["night_plug_loads"] and under["night_plug_loads"].startswith(
+        "night_electricity_w_m2 > 3.61 W/m2 with light_night_percent under 10 %, the temperature sensor bias refit")
     sunshine = {r["name"]: r["ceilings_in_sunshine"] for r in rows if r["ceilings_in_sunshine"]}
     assert list(sunshine) == ["solar_shading"] and sunshine["solar_shading"].startswith(
         "blocked_fraction > 0.00616 x the fit weeks' mean global horizontal irradiance in W/m2 (taken as 66.9")

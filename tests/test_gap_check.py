@@ -534,6 +534,42 @@ def test_the_night_first_replay_names_a_large_night_load_taken_for_blinds_and_le
                                                                             2.5: {"warm": 0, "cold": 0}}}
 
 
+def test_the_night_alone_replay_names_a_small_load_on_the_equipments_share_and_leaves_a_warm_bias(tmp_path,
+                                                                                                monkeypatch):
+    """bench/gap_night_alone.py: a 1.12 W/m2 night load carried at 4.47 W/m2 on a 0.3 % lights' share with the bias
+    refit cold (seed 25's case 12), whose gains name nothing, is named night plug loads by its estimate alone; with
+    the floor kept it names nothing again. A +0.03 K bias carried at 3.85 W/m2 on 0 % names nothing, and night
+    loads only without the bias condition; the rule is back after each variant."""
+    import buildenv.gap as gap
+
+    replay = _bench_module("gap_night_alone", monkeypatch)
+
+    def case(number, true, night, share, bias):
+        return {"case": number, "true": true, "named": "none", "ranked": ["night_plug_loads"],
+                "scores": {"night_plug_loads": -0.06, "temperature_sensor_bias": -0.2},
+                "p_values": {"night_plug_loads": 1.0, "temperature_sensor_bias": 1.0},
+                "estimates": {"night_plug_loads": {"light_night_percent": share, "night_electricity_w_m2": night},
+                              "temperature_sensor_bias": {"bias_k": bias}},
+                "gains_by_series": {"night_plug_loads": {"temperature": -0.1, "consumption": 0.02},
+                                    "temperature_sensor_bias": {"temperature": -0.3, "consumption": 0.0}}}
+
+    page = {"plan": {"seed": 25}, "cases": [case(12, "night_plug_loads", 4.47, 0.3, -0.29),
+                                            case(13, "temperature_sensor_bias", 3.85, 0.0, 0.03)]}
+    (tmp_path / "run.json").write_text(json.dumps(page))
+    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
+    records, before, right, _ = replay.judged_sources(sources)
+    assert before == {"seed25_case_012": "night_plug_loads", "seed25_case_013": "none"} and right == 1
+    assert replay.judge(records["seed25_case_012"][0]) == ("night_plug_loads", "estimate alone")
+    kept = replay.renamed(records, replay._floor_kept, before)
+    assert kept == [{"site": "seed25_case_012", "true": "night_plug_loads", "before": "night_plug_loads",
+                     "after": "none", "night_electricity_w_m2": 4.47, "light_night_percent": 0.3, "bias_k": -0.29}]
+    assert [r["site"] for r in replay.renamed(records, replay._no_bias_condition, before)] == ["seed25_case_013"]
+    assert gap.plausible_alone is replay.gap.plausible_alone and gap.plausible_alone.__module__ == "buildenv.gap"
+    kinds = replay.by_kind(records)
+    assert kinds["night_plug_loads"] == {"sites": 1, "largest": 4.47, "warm": 0, "cold": 1}
+    assert kinds["temperature_sensor_bias"] == {"sites": 1, "largest": 3.85, "warm": 1, "cold": 0}
+
+
 def test_the_headline_judges_blinds_at_the_fit_weeks_irradiance_of_each_recorded_site(tmp_path, monkeypatch):
     """bench/gap_headline.py and bench/gap_sunshine_ceiling.py: a record from before the irradiance was kept gets
     its fit weeks' irradiance from its page (its first Monday, the page's weather, weeks and split), its twin

@@ -27,7 +27,7 @@ import argparse
 import time
 
 from gap_floor_replay import net_change
-from gap_headline import add_sources, judge, judged_sources, replay_scope, write_results
+from gap_headline import add_sources, judge, judged_sources, judged_with, replay_scope, write_results
 
 import buildenv.gap as gap
 from buildenv.effects import get_effect
@@ -38,13 +38,7 @@ def renamed(records: dict[str, tuple[dict, str, str]], lowest_gain: float | None
     """The sites whose first step names something else with a guard at ``lowest_gain`` (a held-out gain, -0.15 for
     -15 %; None: no guard), each with the held-out gain and the estimate (its ceiling's quantity) of what it names
     then, or of what it named before where it names nothing then."""
-    guard = gap.ESTIMATE_ALONE_LOWEST_GAIN
-    gap.ESTIMATE_ALONE_LOWEST_GAIN = lowest_gain
-    try:
-        after = {site: judge(record)[0] for site, (record, _, _) in records.items()}
-    finally:
-        gap.ESTIMATE_ALONE_LOWEST_GAIN = guard
-    return _changed(records, before, after)
+    return _changed(records, before, judged_with(records, "ESTIMATE_ALONE_LOWEST_GAIN", lowest_gain))
 
 
 def without_sensor_rule(record: dict) -> dict:

@@ -40,6 +40,7 @@ from pathlib import Path
 
 from gap_check_rejudge import ALONE, naming
 
+import buildenv.gap as gap
 from buildenv.effects import MIN_GAIN
 from buildenv.gap import DiagnosisSettings, fit_irradiance_w_m2, split_weeks
 from buildenv.gap_check import NONE
@@ -54,6 +55,17 @@ def judge(record: dict) -> tuple[str, str]:
     """The effect a diagnosis record's first step names under the catalogue's current ceilings, and how
     (``bench/gap_check_rejudge.naming``, its estimate-alone rule included)."""
     return naming(record, ALPHA, MIN_GAIN, estimate_ceilings=True)
+
+
+def judged_with(records: dict[str, tuple[dict, str, str]], setting: str, value) -> dict[str, str]:
+    """``{site: named}`` for ``records`` judged (:func:`judge`) with ``buildenv.gap``'s ``setting`` (a module
+    attribute: a knob such as ``NIGHT_LOAD_FIRST_BEYOND`` or a rule function) set to ``value``, restored after."""
+    now = getattr(gap, setting)
+    setattr(gap, setting, value)
+    try:
+        return {site: judge(record)[0] for site, (record, _, _) in records.items()}
+    finally:
+        setattr(gap, setting, now)
 
 
 def sites_from_replay(path: str) -> dict[str, dict]:

@@ -29,8 +29,9 @@ from collections import defaultdict
 from collections.abc import Callable
 
 from gap_floor_replay import net_change
-from gap_headline import SITE, add_sources, judge, judged_sources, replay_scope, write_results
-from gap_night_first import carried, kind
+from gap_headline import (SITE, add_sources, judge, judged_sources, judged_with, replay_scope,  # noqa: F401
+                          write_results)
+from gap_night_first import carried, changed_rows, kind
 
 import buildenv.gap as gap
 from buildenv.effects import get_effect
@@ -72,20 +73,9 @@ def renamed(records: dict[str, tuple[dict, str, str]], rule: Callable[[str, dict
             before: dict[str, str]) -> list[dict]:
     """The sites whose first step names something else with ``rule`` standing in for
     :func:`buildenv.gap.plausible_alone`, each with its night electricity, lights' share and bias refit."""
-    now = gap.plausible_alone
-    gap.plausible_alone = rule
-    try:
-        after = {site: judge(record)[0] for site, (record, _, _) in records.items()}
-    finally:
-        gap.plausible_alone = now
-    rows = []
-    for site, (record, truth, _) in records.items():
-        if after[site] != before[site]:
-            size, bias = carried(record)
-            share = record["estimates"].get(gap.NIGHT_LOADS, {}).get(NIGHT.building_parameter)
-            rows.append({"site": site, "true": truth, "before": before[site], "after": after[site],
-                         "night_electricity_w_m2": size, "light_night_percent": share, "bias_k": bias})
-    return sorted(rows, key=lambda r: -(r["night_electricity_w_m2"] or 0.0))
+    rows = changed_rows(records, before, judged_with(records, "plausible_alone", rule))
+    return [r | {"light_night_percent": records[r["site"]][0]["estimates"].get(gap.NIGHT_LOADS, {})
+                 .get(NIGHT.building_parameter)} for r in rows]
 
 
 def _seed(site: str) -> int:

@@ -31,7 +31,8 @@ import time
 from collections import defaultdict
 
 from gap_floor_replay import net_change
-from gap_headline import add_sources, judge, judged_sources, replay_scope, write_results
+from gap_headline import (add_sources, judge, judged_sources, judged_with, replay_scope,  # noqa: F401 (judge)
+                          write_results)
 
 import buildenv.gap as gap
 from buildenv.effects import get_effect
@@ -77,12 +78,13 @@ def renamed(records: dict[str, tuple[dict, str, str]], beyond: float | None,
             before: dict[str, str]) -> list[dict]:
     """The sites whose first step names something else with the rule at ``beyond`` times the ceiling (None: off),
     each with its night electricity and bias refit."""
-    now = gap.NIGHT_LOAD_FIRST_BEYOND
-    gap.NIGHT_LOAD_FIRST_BEYOND = beyond
-    try:
-        after = {site: judge(record)[0] for site, (record, _, _) in records.items()}
-    finally:
-        gap.NIGHT_LOAD_FIRST_BEYOND = now
+    return changed_rows(records, before, judged_with(records, "NIGHT_LOAD_FIRST_BEYOND", beyond))
+
+
+def changed_rows(records: dict[str, tuple[dict, str, str]], before: dict[str, str],
+                 after: dict[str, str]) -> list[dict]:
+    """The sites named otherwise ``after`` than ``before``, each with its night electricity and bias refit, the
+    largest night electricity first."""
     rows = []
     for site, (record, truth, _) in records.items():
         if after[site] != before[site]:

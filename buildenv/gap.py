@@ -698,8 +698,8 @@ def joint_test_qualifies(name: str, test: dict, threshold: float,
     Why the ceiling: the test is run because the refit's estimate was beyond every clean site's, the evidence of
     size the diagnosis names by (:func:`absorbed_candidate`); calibrated from scratch, an estimate that falls back
     among the clean sites' has lost that evidence, and its gain is what one more free parameter buys. Replayed on
-    the headline's sites of seeds 0-104 (``bench/results/gap_joint_replay.md``), 34 were named by a joint test
-    without it: 32 right, and a clean twin and seed 98's 41 % blinds named a 0.41 h and a 0.63 h sensor lag whose
+    the headline's sites of seeds 0-108 (``bench/results/gap_joint_replay.md``), 36 were named by a joint test
+    without it: 34 right, and a clean twin and seed 98's 41 % blinds named a 0.41 h and a 0.63 h sensor lag whose
     joint estimates fell among the clean sites' (a night load taken that way for 0.51 blinds is named first by its night electricity since
     2026-12-01, :func:`night_load_named_first`; a twin's -0.45 K sensor bias is no longer tested since a bias is
     sized from what clean sites calibrate). With it both are named nothing, and one effect is lost: seed 13's 12 %
@@ -751,7 +751,7 @@ def plausible_alone(name: str, parameters: Mapping[str, float], estimates: Mappi
     small load on the equipment's share (seed 54 case 8: 5.03 W/m2 on a 0.02 % lights' share), so the floor kept
     night loads beyond every clean site from being named. The bias condition is
     :func:`night_load_named_first`'s: a sensor reading warm is carried as heat at night too. Replayed over the
-    headline's sites of seeds 0-104 (``bench/results/gap_night_alone.md``): no clean site's night electricity
+    headline's sites of seeds 0-108 (``bench/results/gap_night_alone.md``): no clean site's night electricity
     passes the 3.61 W/m2 ceiling, and every site it names is an injected night load."""
     effect = get_effect(name)
     if effect.plausible(dict(parameters)):

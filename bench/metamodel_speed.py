@@ -7,10 +7,16 @@ each architecture/configuration on ``--weeks`` encoded weeks, eager PyTorch, bes
 timings. Speed does not depend on the weights, so untrained models are timed; accuracy belongs to
 ``bench/results/metamodels_table1.md``. Then the product path end to end: :meth:`Surrogate.predict` of
 the shipped default checkpoint from catalogue arrays (encoding included, traced model), the call the
-environment and calibration make, against the shoebox of the zoning that default was trained on. The
+environment and calibration make, against the shoebox of the zoning that default was trained on, with its
+model calls spread over worker threads (the default) and with torch alone (``workers=1``). The
 architecture table's ratios are against the paper's single zone.
 
-    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--weeks 4096] [--batch 128] [--repeats 3]
+A shared machine has slow spells that last minutes, and EnergyPlus and the metamodel need not meet the same one:
+the product path and EnergyPlus are timed in ``--rounds`` alternating rounds, each round's ratio is taken
+within it, and the page gives every round and their median.
+
+    .venv/bin/python bench/metamodel_speed.py [--eplus-weeks 1040] [--weeks 4096] [--batch 64] [--repeats 3] \
+        [--rounds 3]
 
 Writes ``bench/results/metamodel_speed.{md,json}``.
 """
@@ -63,22 +69,36 @@ def energyplus_weeks_per_second(weeks: int, zoning: str) -> float:
         shutil.rmtree(out.parent, ignore_errors=True)
 
 
-def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int, checkpoint: str | None = None) -> float:
-    """Best-of-``repeats`` speed of ``load_metamodel(checkpoint).predict`` on dataset-like catalogue arrays
-    (``None``: the shipped default)."""
+def product_arrays(surrogate: sg.Surrogate, weeks: int) -> dict[str, np.ndarray]:
+    """Catalogue arrays of ``weeks`` dataset-like weeks for :meth:`Surrogate.predict` (Chicago's weather)."""
     rng = np.random.default_rng(0)
-    surrogate = sg.load_metamodel(checkpoint)
     theta = sample_group("theta_build", weeks, rng)
     settings, occupancy = sample_weeks(weeks, rng)
     year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
-    weather = year[np.arange(weeks) % cat.WEEKS_PER_YEAR]
-    ground = sg.ground_hours(sg.weather_ground_c("usa_il_chicago"), np.arange(weeks) % cat.WEEKS_PER_YEAR * 168,
-                             surrogate.context_hours)
-    surrogate.predict(theta[:batch], settings[:batch], occupancy[:batch], weather[:batch], ground_c=ground[:batch])
+    first_hours = np.arange(weeks) % cat.WEEKS_PER_YEAR * 168
+    ground = sg.ground_hours(sg.weather_ground_c("usa_il_chicago"), first_hours, surrogate.context_hours)
+    return {"theta": theta, "settings": settings, "occupancy": occupancy,
+            "weather": year[np.arange(weeks) % cat.WEEKS_PER_YEAR], "ground_c": ground}
+
+
+def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int, checkpoint: str | None = None) -> float:
+    """Best-of-``repeats`` speed of ``load_metamodel(checkpoint).predict`` on dataset-like catalogue arrays
+    (``None``: the shipped default), its default workers."""
+    surrogate = sg.load_metamodel(checkpoint)
+    return predict_weeks_per_second(surrogate, product_arrays(surrogate, weeks), batch, repeats)
+
+
+def predict_weeks_per_second(surrogate: sg.Surrogate, arrays: dict[str, np.ndarray], batch: int,
+                             repeats: int, workers: int | None = None) -> float:
+    """Best-of-``repeats`` speed of ``surrogate.predict`` on ``arrays`` (:func:`product_arrays`) with ``workers``
+    threads (``None``: the default, as many as torch has threads; 1: torch alone)."""
+    surrogate.workers = workers
+    weeks = len(arrays["theta"])
+    surrogate.predict(**{k: v[:batch] for k, v in arrays.items()})
     best = float("inf")
     for _ in range(repeats):
         started = time.perf_counter()
-        surrogate.predict(theta, settings, occupancy, weather, batch_size=batch, ground_c=ground)
+        surrogate.predict(**arrays, batch_size=batch)
         best = min(best, time.perf_counter() - started)
     return weeks / best
 
@@ -90,12 +110,28 @@ def main() -> None:
     parser.add_argument("--weeks", type=int, default=4096, help="weeks per timing")
     parser.add_argument("--batch", type=int, default=sg.INFERENCE_BATCH, help="weeks per model call")
     parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--rounds", type=int, default=3,
+                        help="alternating rounds of EnergyPlus and the product path (each round's ratio within it)")
     parser.add_argument("--checkpoint", action="append", metavar="LABEL=PATH",
                         help="also time the product path of this checkpoint (repeatable; the shipped default always)")
     args = parser.parse_args()
     torch.set_num_threads(os.cpu_count() or 1)
-    eplus_by_zoning = {z: energyplus_weeks_per_second(args.eplus_weeks, z) for z in ZONINGS}
-    print({z: round(v, 2) for z, v in eplus_by_zoning.items()})
+    products = ([("shipped default", None)] if sg.DEFAULT_CHECKPOINT.is_file() else []) + [
+        (item.partition("=")[0], item.partition("=")[2]) for item in args.checkpoint or []]
+    loaded = [(label, path, sg.load_metamodel(path)) for label, path in products]
+    arrays = [product_arrays(surrogate, args.weeks) for _, _, surrogate in loaded]
+    rounds = []
+    for number in range(args.rounds):
+        eplus_round = {z: energyplus_weeks_per_second(args.eplus_weeks, z) for z in ZONINGS}
+        speeds = []
+        for (label, _, surrogate), weeks in zip(loaded, arrays):
+            speeds.append({name: predict_weeks_per_second(surrogate, weeks, args.batch, args.repeats, workers)
+                           for name, workers in (("workers", None), ("torch_alone", 1))})
+        rounds.append({"energyplus_weeks_per_second": eplus_round, "product_path": speeds})
+        print(f"round {number + 1}: EnergyPlus {({z: round(v, 1) for z, v in eplus_round.items()})}, "
+              + "; ".join(f"{label} {s['workers']:.0f} weeks/s ({s['torch_alone']:.0f} torch alone)"
+                          for (label, _, _), s in zip(loaded, speeds)))
+    eplus_by_zoning = {z: float(np.median([r["energyplus_weeks_per_second"][z] for r in rounds])) for z in ZONINGS}
     eplus = eplus_by_zoning["single"]
     rows = []
     for name, config in CONFIGS:
@@ -110,41 +146,59 @@ def main() -> None:
                   for x in (v if isinstance(v, list) else [v])),
               "energyplus_weeks_per_second": round(eplus, 2),
               "energyplus_weeks_per_second_by_zoning": {z: round(v, 2) for z, v in eplus_by_zoning.items()},
-              "models": rows}
-    products = ([("shipped default", None)] if sg.DEFAULT_CHECKPOINT.is_file() else []) + [
-        (item.partition("=")[0], item.partition("=")[2]) for item in args.checkpoint or []]
-    result["product_path"] = []
-    for label, path in products:
-        speed = surrogate_weeks_per_second(args.weeks, args.batch, args.repeats, path)
-        surrogate = sg.load_metamodel(path)
-        reference = eplus_by_zoning[surrogate.zoning]
-        result["product_path"].append({"label": label, "checkpoint": path or "default",
-                                       "config": surrogate.checkpoint.config, "zoning": surrogate.zoning,
-                                       "weeks_per_second": round(speed, 1),
-                                       "speedup_vs_energyplus": round(speed / reference, 1)})
-        print(f"{label}: load_metamodel().predict (encoding included, traced): {speed:9.1f} weeks/s  "
-              f"x{speed / reference:6.1f} ({surrogate.zoning} shoebox)")
+              "rounds": rounds, "models": rows, "product_path": []}
+    for i, (label, path, surrogate) in enumerate(loaded):
+        entry = {"label": label, "checkpoint": path or "default", "config": surrogate.checkpoint.config,
+                 "zoning": surrogate.zoning}
+        for name in ("workers", "torch_alone"):
+            ratios = [r["product_path"][i][name] / r["energyplus_weeks_per_second"][surrogate.zoning] for r in rounds]
+            speeds = [r["product_path"][i][name] for r in rounds]
+            entry[name] = {"weeks_per_second": round(float(np.median(speeds)), 1),
+                           "speedup_vs_energyplus": round(float(np.median(ratios)), 1),
+                           "speedup_by_round": [round(x, 1) for x in ratios]}
+        result["product_path"].append(entry)
+        print(f"{label}: load_metamodel().predict (encoding included, traced): median "
+              f"x{entry['workers']['speedup_vs_energyplus']} the {surrogate.zoning} shoebox "
+              f"(rounds {entry['workers']['speedup_by_round']}); "
+              f"torch alone x{entry['torch_alone']['speedup_vs_energyplus']}")
     RESULTS.mkdir(exist_ok=True)
     (RESULTS / "metamodel_speed.json").write_text(json.dumps(result, indent=2) + "\n")
+    (RESULTS / "metamodel_speed.md").write_text("\n".join(page_lines(result, args)) + "\n")
+
+
+def page_lines(result: dict, args: argparse.Namespace) -> list[str]:
+    """The Markdown page of a :func:`main` result."""
+    zonings = list(result["energyplus_weeks_per_second_by_zoning"])
     lines = [f"# Metamodel vs EnergyPlus speed ({result['date']})", "",
              f"Machine: {result['machine']}; torch {result['torch']}. Command: `.venv/bin/python "
-             f"{result['command']}`.", "",
-             f"EnergyPlus shoebox, `buildenv simulate` of {args.eplus_weeks} weeks on all cores: "
-             + ", ".join(f"{z} zoning **{v:.1f} weeks/s**" for z, v in eplus_by_zoning.items()) + ".", "",
-             f"Metamodels, inference of {args.weeks} encoded weeks (192 hours x {len(sg.INPUT_CHANNELS)} inputs) in "
-             f"calls of {args.batch} weeks, eager PyTorch, all cores, best of the repeats (x EnergyPlus: against the "
-             "single zone):", "",
-             "| model | config | parameters | weeks/s | x EnergyPlus |", "|---|---|---|---|---|"]
+             f"{result['command']}`.", ""]
+    for entry in result["product_path"]:
+        w, alone = entry["workers"], entry["torch_alone"]
+        lines += [f"**The product path, {entry['label']}** (`buildenv.load_metamodel({entry['checkpoint']!r}).predict("
+                  f"theta, settings, occupancy, weather, ground_c=ground)`, `{json.dumps(entry['config'])}`, "
+                  f"{args.weeks} weeks from catalogue arrays in calls of {args.batch}, encoding and standardisation "
+                  f"included, traced model): **{w['speedup_vs_energyplus']}x the {entry['zoning']} EnergyPlus shoebox "
+                  f"it was trained on**, the median of {len(w['speedup_by_round'])} rounds "
+                  f"({', '.join(f'{x}x' for x in w['speedup_by_round'])}), {w['weeks_per_second']} weeks/s; "
+                  f"with torch alone (`workers=1`) {alone['speedup_vs_energyplus']}x "
+                  f"({', '.join(f'{x}x' for x in alone['speedup_by_round'])}), {alone['weeks_per_second']} "
+                  "weeks/s.", ""]
+    lines += ["EnergyPlus and the product path, round by round (weeks/s; the product path best of "
+              f"{args.repeats} timings; EnergyPlus `buildenv simulate` of {args.eplus_weeks} weeks on all cores):", "",
+              "| round | " + " | ".join(f"EnergyPlus {z}" for z in zonings) + " | "
+              + " | ".join(f"{e['label']}, workers | torch alone" for e in result["product_path"]) + " |",
+              "|---" * (1 + len(zonings) + 2 * len(result["product_path"])) + "|"]
+    for number, r in enumerate(result["rounds"], 1):
+        lines.append(f"| {number} | " + " | ".join(f"{r['energyplus_weeks_per_second'][z]:.1f}" for z in zonings)
+                     + " | " + " | ".join(f"{s['workers']:.0f} | {s['torch_alone']:.0f}" for s in r["product_path"])
+                     + " |")
+    lines += ["", f"Architectures, inference of {args.weeks} encoded weeks (192 hours x {len(sg.INPUT_CHANNELS)} "
+              f"inputs) in calls of {args.batch} weeks, eager PyTorch, all cores, best of the repeats (x EnergyPlus: "
+              f"against the single zone's median, {result['energyplus_weeks_per_second']} weeks/s):", "",
+              "| model | config | parameters | weeks/s | x EnergyPlus |", "|---|---|---|---|---|"]
     lines += [f"| {r['model']} | `{json.dumps(r['config'])}` | {r['parameters']} | {r['weeks_per_second']} | "
-              f"{r['speedup_vs_energyplus']} |" for r in rows]
-    for d in result["product_path"]:
-        lines += ["", f"The product path, {d['label']}: `buildenv.load_metamodel({d['checkpoint']!r}).predict(theta, "
-                  f"settings, occupancy, weather, ground_c=ground)` (`{json.dumps(d['config'])}`), {args.weeks} weeks "
-                  "from catalogue arrays, encoding and standardisation included, traced model: "
-                  f"**{d['weeks_per_second']} weeks/s, "
-                  f"{d['speedup_vs_energyplus']}x the {d['zoning']} EnergyPlus shoebox it was trained on** "
-                  f"({d['weeks_per_second'] / eplus:.1f}x the single zone)."]
-    (RESULTS / "metamodel_speed.md").write_text("\n".join(lines) + "\n")
+              f"{r['speedup_vs_energyplus']} |" for r in result["models"]]
+    return lines
 
 
 if __name__ == "__main__":

@@ -45,6 +45,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
 from buildenv.schedules import HOURLY_CHANNELS, hourly_encoding
+from buildenv.threads import MetamodelWorkers, split_calls
 
 #: Hours before the week the model sees by default (a checkpoint records its own, ``metadata["context_hours"]``)
 CONTEXT_HOURS = 24
@@ -67,9 +68,11 @@ _T_OUT = TEMPERATURE_CHANNELS[0]  # the output a site's temperature sensor reads
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
 log = logging.getLogger(__name__)
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parent / "data" / "metamodel_default.pt"
-#: weeks per model call: on a 2-core CPU 128 runs 15-20 % faster than 256 and 512 (the activations stay in
-#: cache; ``bench/metamodel_speed.py --batch``), and any number of weeks is accepted
-INFERENCE_BATCH = 128
+#: weeks per model call (any number of weeks is accepted): on a 2-core CPU, with torch alone 128 ran 15-20 %
+#: faster than 256 and 512 (the activations stay in cache; ``bench/metamodel_speed.py --batch``); with the calls
+#: spread over two workers (:class:`buildenv.threads.MetamodelWorkers`) 64 runs 8 % faster than 128 (medians of
+#: six timings of 4,096 weeks, 2026-12-02), with the same outputs
+INFERENCE_BATCH = 64
 
 
 class CheckpointError(BuildenvError):
@@ -267,12 +270,18 @@ class Surrogate:
 
     ``jit=True`` runs inference through the model traced and frozen by ``torch.jit`` (linear + ReLU fused,
     about 1.3x faster on CPU, same outputs to float32 rounding); models that cannot be traced run eagerly.
+    ``workers``: threads that run the model calls of one ``predict`` side by side, each with torch on one thread
+    (:class:`buildenv.threads.MetamodelWorkers`; ``None``: as many as torch has threads, 1: torch alone); the
+    outputs do not depend on it (bit for bit on the CPUs measured; at most float32 rounding where a CPU's matrix
+    products round differently by thread count).
     """
 
     checkpoint: object  # metamodels.checkpoint.Checkpoint
     path: Path | None = None
     jit: bool = True
+    workers: int | None = None
     _runner: object = field(default=None, repr=False, compare=False)
+    _pool: MetamodelWorkers | None = field(default=None, repr=False, compare=False)
 
     @property
     def zoning(self) -> str:
@@ -331,8 +340,9 @@ class Surrogate:
         """
         n = len(theta)
         out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
-        for start in range(0, n, batch_size):  # encode batch by batch: the inputs of many weeks never all exist
-            part = slice(start, start + batch_size)
+        model = self._inference_model()
+
+        def call(part: slice) -> None:  # encoded call by call: the inputs of many weeks never all exist
             prev = None if previous is None else tuple(a[part] for a in previous)
             has = None if has_previous is None else np.asarray(has_previous)[part]
             ground = None if ground_c is None or not self.uses_ground else np.asarray(ground_c)[part]
@@ -342,7 +352,10 @@ class Surrogate:
                           if temperature_before_c is None else np.asarray(temperature_before_c)[part])
             x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has,
                              self.context_hours, ground, before)
-            out[part] = self._run(x, batch_size, own=True)
+            self._check_inputs(x)
+            out[part] = self._call(model, x, own=True)
+
+        self._spread(n, batch_size, call)
         return out
 
     def predict_encoded(self, x: np.ndarray, batch_size: int = INFERENCE_BATCH) -> np.ndarray:
@@ -350,12 +363,24 @@ class Surrogate:
 
         ``batch_size`` weeks go through the model at a time (:data:`INFERENCE_BATCH`); any N is accepted.
         """
-        return self._run(x, batch_size, own=False)
+        self._check_inputs(x)
+        model = self._inference_model()
+        out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
 
-    def _run(self, x: np.ndarray, batch_size: int, own: bool) -> np.ndarray:
-        """:meth:`predict_encoded`; ``own``: ``x`` is this call's to change (encoded by :meth:`predict`)."""
+        def call(part: slice) -> None:
+            out[part] = self._call(model, x[part], own=False)
+
+        self._spread(len(x), batch_size, call)
+        return out
+
+    def _call(self, model, x: np.ndarray, own: bool) -> np.ndarray:
+        """One model call on encoded inputs ``x`` (under ``torch.inference_mode``)."""
         import torch
 
+        return model(torch.from_numpy(self.model_inputs(x, in_place=own))).numpy()
+
+    def _check_inputs(self, x: np.ndarray) -> None:
+        """:class:`CheckpointError` where encoded inputs ``x`` do not suit this metamodel."""
         if context_of(x) != self.context_hours:
             raise CheckpointError(f"inputs carry {context_of(x)} context hours, this metamodel was trained with "
                                   f"{self.context_hours}: encode them with context_hours={self.context_hours}")
@@ -365,13 +390,13 @@ class Surrogate:
         if self.uses_ground and np.isnan(x[..., _GROUND]).any():
             raise CheckpointError("this metamodel needs the ground temperature under the slab: pass ground_c "
                                   "(buildenv.surrogate.ground_hours of the weather file's hourly values)")
-        model = self._inference_model()
-        out = np.empty((len(x), cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
-        with torch.inference_mode():
-            for start in range(0, len(x), batch_size):
-                xb = self.model_inputs(x[start:start + batch_size], in_place=own)
-                out[start:start + batch_size] = model(torch.from_numpy(xb)).numpy()
-        return out
+
+    def _spread(self, n: int, batch_size: int, call) -> None:
+        """``call(part)`` for the model calls ``n`` weeks split into (:func:`buildenv.threads.split_calls`),
+        spread over this metamodel's workers."""
+        if self._pool is None or self._pool.workers != self.workers:
+            self._pool = MetamodelWorkers(self.workers)
+        self._pool.run(split_calls(n, batch_size, self._pool.count()), call)
 
     def model_inputs(self, x: np.ndarray, in_place: bool = False) -> np.ndarray:
         """The channels of encoded inputs ``x`` this metamodel reads, physical units, float32: those it does not

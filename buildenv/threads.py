@@ -9,15 +9,17 @@ at two, with the same verdict and scores in all three. The metamodel alone runs 
 against 3,800 weeks/s in batches of 256), while the matrices numpy handles here are small (CMA-ES's covariance
 of a few dozen parameters), so BLAS gets one thread and torch keeps its own.
 
-A call of many weeks is split among workers instead (:class:`MetamodelWorkers`): as many threads as torch has
-intra-op threads, each running the model on its own share of the weeks with torch on one thread. The network is
-small (about 5 million multiply-adds a week), so two threads inside each matrix product keep the cores less busy
-than two products side by side. Each share is at least :data:`MIN_WEEKS_PER_CALL` weeks, so that the outputs are
-those of one call bit for bit.
+The metamodel's calls of many weeks are split among workers (:class:`MetamodelWorkers`): as many threads as
+torch has intra-op threads, each running the model on its own share of the weeks with torch on one thread. The
+network is small (about 5 million multiply-adds a week), so two threads inside each matrix product keep the cores
+less busy than two products side by side: 1.13x on 4,096 weeks (``bench/results/metamodel_speed.md``, medians of
+three rounds), no slower on a calibration's calls. Each share is at least :data:`MIN_WEEKS_PER_CALL` weeks, so
+that the outputs are those of torch alone bit for bit.
 """
 
 from __future__ import annotations
 
+import os
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -68,6 +70,7 @@ class MetamodelWorkers:
         self.workers = workers
         self._pool: ThreadPoolExecutor | None = None
         self._pool_size = 0
+        self._pool_pid = 0  # a forked child has none of its parent's threads: it makes its own
 
     def count(self) -> int:
         """Workers a call would use now."""
@@ -92,11 +95,11 @@ class MetamodelWorkers:
                 work(call)
 
         with _TORCH_THREADS:
-            if self._pool is None or self._pool_size != workers:
-                if self._pool is not None:
+            if self._pool is None or self._pool_size != workers or self._pool_pid != os.getpid():
+                if self._pool is not None and self._pool_pid == os.getpid():
                     self._pool.shutdown()
                 self._pool = ThreadPoolExecutor(workers, thread_name_prefix="buildenv-metamodel")
-                self._pool_size = workers
+                self._pool_size, self._pool_pid = workers, os.getpid()
             threads = torch.get_num_threads()
             torch.set_num_threads(1)  # read by each worker thread on its first call, and by none after
             try:

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import multiprocessing
 from types import SimpleNamespace
 
 import numpy as np
@@ -102,3 +103,27 @@ def test_an_error_in_a_worker_reaches_the_caller_and_restores_torch_threads():
     assert torch.get_num_threads() == threads
     with pytest.raises(ValueError, match="workers"):
         MetamodelWorkers(0)
+
+
+def _predict_in_child(queue, surrogate, weeks) -> None:
+    queue.put(surrogate.predict(**weeks))
+
+
+def test_a_forked_child_predicts_with_workers_of_its_own():
+    # a process forked after the parent's workers ran (as EnergyPlus runs are, beside a calibration) has none of
+    # their threads: its calls must not wait for them
+    surrogate = load_metamodel()
+    surrogate.workers = 2
+    weeks = _weeks(40, surrogate)
+    expected = surrogate.predict(**weeks)
+    ctx = multiprocessing.get_context("fork")
+    queue = ctx.Queue()
+    child = ctx.Process(target=_predict_in_child, args=(queue, surrogate, weeks))
+    child.start()
+    try:
+        assert np.array_equal(queue.get(timeout=120), expected)
+    finally:
+        child.join(timeout=30)
+        if child.is_alive():
+            child.kill()
+    assert child.exitcode == 0

@@ -75,10 +75,11 @@ def product_arrays(surrogate: sg.Surrogate, weeks: int) -> dict[str, np.ndarray]
     theta = sample_group("theta_build", weeks, rng)
     settings, occupancy = sample_weeks(weeks, rng)
     year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
-    first_hours = np.arange(weeks) % cat.WEEKS_PER_YEAR * 168
-    ground = sg.ground_hours(sg.weather_ground_c("usa_il_chicago"), first_hours, surrogate.context_hours)
-    return {"theta": theta, "settings": settings, "occupancy": occupancy,
-            "weather": year[np.arange(weeks) % cat.WEEKS_PER_YEAR], "ground_c": ground}
+    week_of_year = np.arange(weeks) % cat.WEEKS_PER_YEAR
+    ground = sg.ground_hours(sg.weather_ground_c("usa_il_chicago"), week_of_year * cat.HOURS_PER_WEEK,
+                             surrogate.context_hours)
+    return {"theta": theta, "settings": settings, "occupancy": occupancy, "weather": year[week_of_year],
+            "ground_c": ground}
 
 
 def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int, checkpoint: str | None = None) -> float:

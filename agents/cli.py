@@ -41,6 +41,14 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
     ``nsga2`` picks the front's point of equal comfort to the historical settings (the paper's choice);
     ``cmaes`` maximises the scalarised reward; ``ppo`` applies a trained policy (``policy`` path);
     ``rules`` is the rule-based schedule of :mod:`agents.rules`.
+
+    Returns:
+        ``{"method", "week", "week_start", "seconds", "action" (84,), "chosen", "historical"
+        (scalar scores), "predicted_savings_percent", "comfort_historical_predicted",
+        "comfort_chosen_predicted"}`` and the method's ``"evaluations"`` (NSGA-II: also ``"hypervolume"``,
+        ``"front"``, ``"pareto"``).
+    Raises:
+        SystemExit: an unknown method, or ``ppo`` without a ``policy``.
     """
     from agents.cmaes import scalar_scores
 
@@ -66,7 +74,7 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
 
         if not policy:
             raise SystemExit("buildenv optimize --method ppo: give --policy PATH "
-                             "(train one with bench/ppo_vs_cmaes.py)")
+                             "(train a policy with agents.ppo.train_ppo)")
         obs, _ = env.reset(options={"week": week})
         action, extra = policy_actions(load_policy(policy), obs[None])[0], {"evaluations": 1}
     elif method == "rules":
@@ -86,7 +94,7 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
 
 def _public(result: dict, env) -> dict:
     """The JSON-able part of an :func:`optimise` result (settings by day and name)."""
-    from buildenv.actions import settings_table
+    from buildenv.env.actions import settings_table
 
     out = {k: v for k, v in result.items() if k not in ("action", "front")}
     out["settings"] = settings_table(env.unwrapped.decode(result["action"]))
@@ -130,7 +138,7 @@ def register(sub) -> None:
     p.add_argument("--comfort-weight", type=float, default=1.0, help="w of reward = -(energy + w * comfort)")
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of scored weeks")
     p.add_argument("--generations", type=int, default=1000,
-                   help="NSGA-II generations (1000: within 1 %% of a 10x longer run, see nsga2_convergence.md)")
+                   help="NSGA-II generations")
     p.add_argument("--population", type=int, default=100, help="NSGA-II population")
     p.add_argument("--policy", default=None, help="trained PPO policy (for --method ppo)")
     p.add_argument("--seed", type=int, default=0)

@@ -4,7 +4,7 @@
 2. optimise one held-out week on ``BuildingWeek-v0``: the NSGA-II Pareto front and its point of equal
    comfort (the paper's choice), CMA-ES on the scalarised reward, the rule-based schedule;
 3. run the historical and the chosen settings on the site's real-building EnergyPlus model;
-4. diagnose the gap between the calibrated model and the site (:func:`buildenv.gap.diagnose`: where it
+4. diagnose the gap between the calibrated model and the site (:func:`buildenv.diagnosis.gap.diagnose`: where it
    misses, which unmodelled effect explains it; ``diagnosis.png``), without changing the site's model;
 5. write ``report.md`` with ``pareto.png``, ``before_after.png`` and ``diagnosis.png``.
 """
@@ -26,10 +26,10 @@ COLUMNS = [("settings", "label", ""), ("energy vs historical", "energy_term", ".
 
 
 def _calibrate(site_dir: Path, seed: int, progress: bool) -> dict:
-    from buildenv.calibration import calibrate_site
-    from buildenv.calibration_plot import plot_calibration
-    from buildenv.site import load_site
-    from buildenv.surrogate import load_metamodel
+    from buildenv.calibration.calibrate import calibrate_site
+    from buildenv.calibration.plot import plot_calibration
+    from buildenv.sites import load_site
+    from buildenv.metamodel.surrogate import load_metamodel
 
     surrogate = load_metamodel()
     site = load_site(site_dir)
@@ -39,9 +39,9 @@ def _calibrate(site_dir: Path, seed: int, progress: bool) -> dict:
 
 
 def _diagnose(site_dir: Path, out: Path, seed: int, progress: bool) -> dict:
-    from buildenv.gap import DiagnosisSettings, diagnose
-    from buildenv.site import load_site
-    from buildenv.surrogate import load_metamodel
+    from buildenv.diagnosis.gap import DiagnosisSettings, diagnose
+    from buildenv.sites import load_site
+    from buildenv.metamodel.surrogate import load_metamodel
 
     result = diagnose(load_site(site_dir), load_metamodel(), DiagnosisSettings(seed=seed), progress=progress,
                       plot=out / "diagnosis.png")
@@ -71,8 +71,8 @@ def run_demo(out: Path, seed: int = 0, progress: bool = False) -> Path:
     """Run the demo into ``out`` and return the path of ``report.md``."""
     from agents.cli import default_week, make_env, optimise
     from agents.verify import verify
-    from buildenv.actions import settings_table
-    from buildenv.env import DEFAULT_SITE
+    from buildenv.env.actions import settings_table
+    from buildenv.env.building_week import DEFAULT_SITE
 
     out = Path(out)
     started = time.perf_counter()

@@ -21,8 +21,8 @@ HV_REFERENCE = (1.5, 3.0)
 # the initial population: the historical settings, CONSTANT_STARTS actions with every setting at the same point
 # of its range (from all at the minimum to all at the maximum, the ends of the front), the rest random
 CONSTANT_STARTS = 21
-# distribution indices of the SBX crossover and polynomial mutation: 5 and 5 reached at 1,000 generations a
-# hypervolume that 15 and 20 (pymoo's usual values) did not reach in 15,000 on week 46 (nsga2_convergence.md)
+# distribution indices of the SBX crossover and polynomial mutation: wider steps than pymoo's usual 15 and 20,
+# which converge far more slowly on this problem (docs/optimisers.md)
 SBX_ETA, PM_ETA = 5, 5
 
 
@@ -73,6 +73,8 @@ def pareto_front(env, week: int, population: int = 100, generations: int = 1000,
         generations: number of generations (evaluations = population x generations).
         seed: seed of the run.
         progress: show a progress bar.
+    Returns:
+        the final :class:`ParetoResult`, its points sorted by ``energy_term``.
     """
     from pymoo.algorithms.moo.nsga2 import NSGA2
     from pymoo.core.callback import Callback

@@ -5,17 +5,13 @@ building) to the week's 84 settings: after training, choosing a week's settings 
 instead of a per-week optimisation (:func:`agents.cmaes.optimise_week`, thousands of scored weeks).
 
 - :class:`BuildingVecEnv`: a stable-baselines3 ``VecEnv`` over the native batched
-  :class:`buildenv.env.BuildingWeekVectorEnv`, so that one PPO step of N environments is one metamodel call
-  (SB3's ``DummyVecEnv`` would call the metamodel once per environment).
+  :class:`buildenv.env.building_week.BuildingWeekVectorEnv`, so that one PPO step of N environments is one
+  metamodel call (SB3's ``DummyVecEnv`` would call the metamodel once per environment).
 - :func:`train_ppo`: PPO with hyper-parameters for a one-step contextual bandit (:data:`PPO_DEFAULTS`), the
   policy's mean started at the site's historical settings.
 - :func:`evaluate_policy_weeks`: the deterministic action of each held-out week, scored with the
   environment's batched ``evaluate``, with the policy's inference time.
 - :func:`save_policy` / :func:`load_policy`: the trained model as one SB3 ``.zip`` file.
-
-On the default site's held-out test weeks, PPO trained for 300,000 weeks (about 4.5 min on 2 cores) comes
-within about 1 % of per-week CMA-ES's mean reward for two seeds out of three (6 % for the third), choosing a
-week's settings in under a millisecond instead of about 8 s (``bench/results/ppo_vs_cmaes.md``).
 
 Only the environment is used (``gymnasium.make``/``make_vec`` of ``BuildingWeek-v0`` and
 ``env.unwrapped.evaluate``); never the metamodel or EnergyPlus directly.
@@ -40,15 +36,9 @@ from buildenv.errors import BuildingEnvError
 
 ENV_ID = "BuildingWeek-v0"
 
-#: PPO hyper-parameters for BuildingWeek-v0's default one-week episodes, a contextual bandit: every step
-#: ends its episode, so ``gamma`` and ``gae_lambda`` play no role (the advantage is the reward minus the
-#: value network's estimate of the week's expected reward); short rollouts per environment (many
-#: environments per step) and several epochs on large minibatches; a learning rate of 1e-3 (with SB3's
-#: default 3e-4 the deterministic reward on the training weeks was -0.98 instead of -0.95 after 150,000
-#: weeks); an initial exploration noise of exp(-1.2) = 0.3 action units (CMA-ES's initial step size; the
-#: default exp(0) = 1 would mostly produce clipped actions; exp(-1.6) = 0.2 learnt more slowly); no entropy
-#: bonus (the noise is learnt down as the policy settles). Tuned on training weeks only
-#: (``bench/ppo_vs_cmaes.py --validation``). Any of them can be overridden in :func:`train_ppo`.
+#: PPO hyper-parameters for one-week episodes, a contextual bandit (``gamma`` and ``gae_lambda`` play no role);
+#: initial exploration noise exp(-1.2) = 0.3 action units, CMA-ES's initial step. Tuned on training weeks only;
+#: any of them can be overridden in :func:`train_ppo`.
 PPO_DEFAULTS: dict[str, Any] = {
     "n_steps": 4,
     "batch_size": 256,
@@ -66,7 +56,8 @@ PPO_DEFAULTS: dict[str, Any] = {
 
 # ---------------------------------------------------------------------------------------------- the VecEnv
 class BuildingVecEnv(VecEnv):
-    """A stable-baselines3 ``VecEnv`` over :class:`buildenv.env.BuildingWeekVectorEnv` (one metamodel call a step).
+    """A stable-baselines3 ``VecEnv`` over :class:`buildenv.env.building_week.BuildingWeekVectorEnv` (one
+    metamodel call a step).
 
     The gymnasium vector environment resets finished sub-environments in the same step
     (``AutoresetMode.SAME_STEP``), which is what SB3 expects: the returned observation is the new episode's,
@@ -82,7 +73,8 @@ class BuildingVecEnv(VecEnv):
         env: a ``BuildingWeekVectorEnv`` (``gymnasium.make_vec("BuildingWeek-v0", num_envs=N, ...)``), or
             None to make one from ``num_envs`` and ``env_kwargs``.
         num_envs: environments, when ``env`` is None.
-        **env_kwargs: arguments of ``BuildingWeek-v0`` (``weeks``, ``comfort_weight``, ...), when ``env`` is None.
+        **env_kwargs: arguments of ``BuildingWeek-v0`` (``weeks``, ``comfort_weight``, ...), when ``env`` is
+            None.
     """
 
     def __init__(self, env: gym.vector.VectorEnv | None = None, num_envs: int = 64, **env_kwargs: Any) -> None:
@@ -239,17 +231,15 @@ def train_ppo(env_kwargs: dict | None = None, timesteps: int = 300_000, num_envs
     Args:
         env_kwargs: arguments of ``BuildingWeek-v0``; ``weeks`` defaults to ``"train"`` (the held-out test
             weeks 12-15, 28-31 and 44-47 are never seen).
-        timesteps: simulated weeks to train on (rounded up to whole rollouts of ``n_steps * num_envs``);
-            300,000 take about 4.5 min on 2 idle CPU cores (``bench/results/ppo_vs_cmaes.md``).
+        timesteps: simulated weeks to train on (rounded up to whole rollouts of ``n_steps * num_envs``).
         num_envs: environments stepped together (one metamodel call of ``num_envs`` weeks per PPO step).
         seed: seed of PPO (network initialisation, action noise, minibatches) and of the week draws.
             SB3 also seeds Python's, numpy's and torch's global generators with it.
         save: write the trained model there (an SB3 ``.zip``, see :func:`save_policy`).
         progress: show a tqdm bar of simulated weeks.
-        historical_start: start the policy's mean at the site's historical settings: the bias of the
-            action layer is set to ``env.unwrapped.historical_action`` (its weights are initialised near
-            zero), so the untrained policy proposes today's settings plus exploration noise, as CMA-ES
-            starts from them. The saved model needs nothing extra to act.
+        historical_start: start the policy's mean at the site's historical settings (the action layer's
+            bias set to ``historical_action``), as CMA-ES starts from them; the saved model needs nothing
+            extra to act.
         observation_noise: standard deviation of the Gaussian noise added to training observations
             (:class:`ObservationNoise`; 0: none). Acting and evaluation use clean observations.
         callback: SB3 callback(s) called during training (e.g. to record a learning curve).
@@ -258,6 +248,8 @@ def train_ppo(env_kwargs: dict | None = None, timesteps: int = 300_000, num_envs
     Returns:
         The trained ``stable_baselines3.PPO`` model (CPU). ``model.predict(obs, deterministic=True)`` gives
         actions ``(N, 84)``; :func:`policy_actions` does the same.
+    Raises:
+        BuildingEnvError: ``timesteps`` < 1.
     """
     if timesteps < 1:
         raise BuildingEnvError(f"timesteps={timesteps}: give 1 or more simulated weeks")
@@ -300,8 +292,8 @@ def evaluate_policy_weeks(model: PPO, env_kwargs: dict | None = None, weeks: Ite
 
     Args:
         model: a trained PPO model (:func:`train_ppo`, :func:`load_policy`).
-        env_kwargs: arguments of ``BuildingWeek-v0`` (the site, comfort weight, ... the model was trained
-            with); ``weeks`` is set from ``weeks``.
+        env_kwargs: arguments of ``BuildingWeek-v0`` the model was trained with; ``weeks`` is set from
+            ``weeks``.
         weeks: ``"test"``, ``"train"``, ``"all"`` or week indices.
         env: an existing ``BuildingWeek-v0`` environment to use instead of making one (its ``weeks`` must
             allow starting on each week asked for).

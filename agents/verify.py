@@ -20,10 +20,8 @@ class Verification:
     """Predicted and realised figures of a chosen action, and the hourly series behind them.
 
     Attributes:
-        summary: ``{"predicted_savings_percent", "realised_savings_percent", "comfort_historical",
-            "comfort_chosen", "comfort_historical_predicted", "comfort_chosen_predicted",
-            "energy_historical_kwh", "energy_chosen_kwh", "energy_historical_predicted_kwh",
-            "energy_chosen_predicted_kwh", "seconds_energyplus"}`` (comfort in K, energy of the week in kWh).
+        summary: predicted and realised (EnergyPlus) savings (%), comfort (K) and week energy (kWh) of the
+            historical and chosen settings, and ``seconds_energyplus`` (keys: :func:`verify`).
         predicted: metamodel ``evaluate`` scores of ``[historical, chosen]`` (hourly series included).
         realised: EnergyPlus ``evaluate`` scores of ``[historical, chosen]``.
         occupied: ``(168,)`` occupied hours.
@@ -42,6 +40,11 @@ def verify(env, week: int, action: np.ndarray) -> Verification:
         env: the metamodel ``BuildingWeek-v0`` the action was chosen on (its arguments are reused).
         week: week of the year.
         action: ``(84,)`` chosen action.
+    Returns:
+        the :class:`Verification`; its ``summary`` keys: ``predicted_savings_percent``,
+        ``realised_savings_percent``, ``comfort_historical``, ``comfort_chosen``, ``comfort_historical_predicted``,
+        ``comfort_chosen_predicted``, ``energy_historical_kwh``, ``energy_chosen_kwh``,
+        ``energy_historical_predicted_kwh``, ``energy_chosen_predicted_kwh``, ``seconds_energyplus``.
     """
     base = env.unwrapped
     kwargs = {k: v for k, v in base.arguments.items() if k not in ("backend", "weeks")}

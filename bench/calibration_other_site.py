@@ -18,7 +18,6 @@ Run:  .venv/bin/python bench/calibration_other_site.py [--cases B:E,B:E] [--star
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
 import json
 import shlex
@@ -28,14 +27,15 @@ import sys
 import time
 from pathlib import Path
 
-ROOT = Path(__file__).resolve().parent.parent
-RESULTS = ROOT / "bench" / "results"
+import harness
+from harness import ROOT, RESULTS, CpuMeter, cpu_sentence
+from harness import machine_details as machine
+
+FINDINGS = "## Findings"
 BUILDENV = ROOT / ".venv" / "bin" / "buildenv"
-# Every case tried, in the order tried (none left out): the small office the issue suggested first (its 511 m2
-# is below the catalogue's 1,000 m2: no site can be made of it), then the two other reference offices the
-# catalogue admits (ASHRAE 90.1-2019 medium and large offices, and the large office New2004) in two climates
-# other than Chicago's, mixed-humid Oklahoma City (ASHRAE 3A) and hot-dry Phoenix (2B), and last the default
-# site's own building (medium office New2004) in those climates, added after the others missed.
+# Every case tried, none left out: the small office (511 m2, below the catalogue's 1,000 m2: no site can be made
+# of it), the other reference offices the catalogue admits and the default site's own building, in mixed-humid
+# Oklahoma City (ASHRAE 3A) and hot-dry Phoenix (2B).
 CASES = (("small_office_2019", "usa_ok_oklahoma"),
          ("medium_office_2019", "usa_ok_oklahoma"), ("medium_office_2019", "usa_az_phoenix"),
          ("large_office_2019", "usa_ok_oklahoma"), ("large_office_2019", "usa_az_phoenix"),
@@ -100,8 +100,6 @@ def markdown(data: dict) -> str:
 
 
 def _markdown(data: dict) -> str:
-    from calibration_table2 import cpu_sentence
-
     m = data["machine"]
     lines = [f"# Calibration of other reference offices in other climates ({data['date']})", "",
              "Each case runs the unchanged commands (`buildenv site reference ...`, then `buildenv calibrate --site "
@@ -141,10 +139,7 @@ def _markdown(data: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the cases and write ``bench/results/calibration_other_site.{md,json}``."""
-    sys.path.insert(0, str(ROOT / "bench"))
-    from calibration_table2 import CpuMeter, machine, write_page
-
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = harness.parser(__doc__, first_line=True)
     p.add_argument("--cases", default=",".join(f"{b}:{e}" for b, e in CASES), help="BUILDING:EPW,...")
     p.add_argument("--start", default="01-14", help="first Monday, MM-DD of 2019 (the warm-up week must fit in "
                    "the year: 01-14 is the earliest)")
@@ -156,7 +151,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="only re-render the page from a saved calibration_other_site.json (no runs)")
     args = p.parse_args(argv)
     if args.from_json is not None:
-        write_page(args.out / "calibration_other_site.md", markdown(json.loads(args.from_json.read_text())))
+        data = json.loads(args.from_json.read_text())
+        harness.write_results("calibration_other_site", markdown(data), data, out=args.out, keep=FINDINGS)
         return 0
     cases = [tuple(item.split(":", 1)) for item in args.cases.split(",") if item]
     info = machine()
@@ -168,9 +164,7 @@ def main(argv: list[str] | None = None) -> int:
             "cases": [run_case(b, e, args.start, args.weeks, args.sites) for b, e in cases]}
     data["cpu"] = meter.stop()
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "calibration_other_site.json").write_text(json.dumps(data, indent=1) + "\n")
-    write_page(args.out / "calibration_other_site.md", markdown(data))
-    print(markdown(data))
+    harness.write_results("calibration_other_site", markdown(data), data, out=args.out, keep=FINDINGS, echo=True)
     return 0
 
 

@@ -9,10 +9,10 @@ fit, 3-5 held out), in this order:
 3. the parameters each of them found, re-simulated by the EnergyPlus shoebox (does the metamodel's
    calibration hold for the simulator it imitates?);
 4. the EnergyPlus shoebox, the same CMA-ES, budget ``T``
-   (:func:`buildenv.calibration_energyplus.calibrate_energyplus_cmaes`);
+   (:func:`buildenv.calibration.energyplus.calibrate_energyplus_cmaes`);
 5. the same with a longer budget, ``min(long_factor x T, long_cap)``.
 
-Every row is scored with the same metrics (:func:`buildenv.calibration.site_metrics`) on the predictions of
+Every row is scored with the same metrics (:func:`buildenv.metrics.site_metrics`) on the predictions of
 the model it calibrated (metamodel or EnergyPlus). Writes ``bench/results/calibration_table2.{md,json}`` (a
 hand-written ``## Findings`` section at the end of the old page is kept).
 
@@ -22,12 +22,8 @@ Run:  .venv/bin/python bench/calibration_table2.py [--seed 0] [--long-factor 10]
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
 import json
-import math
-import os
-import platform
 import shlex
 import shutil
 import sys
@@ -35,83 +31,15 @@ import tempfile
 import time
 from pathlib import Path
 
-RESULTS = Path(__file__).resolve().parent / "results"
+import harness
+from harness import RESULTS, CpuMeter, cpu_sentence
+from harness import machine_details as machine
+
 DEFAULT_SITE = Path(__file__).resolve().parent.parent / "buildenv" / "data" / "sites" / "default"
 METRICS = ("r2_t", "r2_q", "rmse_t_celsius", "cv_rmse_q_percent", "nmbe_q_percent")
 
 
-def machine() -> dict:
-    """What ran the bench: CPU model and count, OS, load before starting, versions."""
-    from importlib.metadata import version
-
-    from buildenv.energyplus.runner import energyplus_version
-
-    model = platform.processor() or platform.machine()
-    cpuinfo = Path("/proc/cpuinfo")
-    if cpuinfo.is_file():
-        names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
-                 if line.startswith("model name")]
-        model = names[0] if names else model
-    return {"cpu": model, "cores": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "load_average_1min_at_start": round(os.getloadavg()[0], 2),
-            "versions": {"energyplus": energyplus_version(), "cma": version("cma"), "torch": version("torch"),
-                         "numpy": version("numpy")}}
-
-
 FINDINGS = "## Findings"
-
-
-class CpuMeter:
-    """CPU time the whole machine and this process tree used between :meth:`start` and :meth:`stop`, s.
-
-    What other processes used (``others_cpu_s``) is the machine's busy time (``/proc/stat``) minus this
-    process's and its finished children's (``getrusage``): a record of how idle the CPU really was.
-    """
-
-    def start(self) -> CpuMeter:
-        self._t, self._busy, self._own = time.perf_counter(), self._machine_busy(), self._own_cpu()
-        return self
-
-    def stop(self) -> dict:
-        wall = time.perf_counter() - self._t
-        busy, own = self._machine_busy() - self._busy, self._own_cpu() - self._own
-        cores = os.cpu_count() or 1
-        others = float("nan") if math.isnan(busy) else max(busy - own, 0.0)
-        return {"wall_s": round(wall, 1), "machine_busy_cpu_s": round(busy, 1), "own_cpu_s": round(own, 1),
-                "others_cpu_s": round(others, 1), "others_share_of_capacity": round(others / (cores * wall), 3)}
-
-    @staticmethod
-    def _machine_busy() -> float:
-        try:
-            fields = [float(x) for x in Path("/proc/stat").read_text().split("\n")[0].split()[1:]]
-        except OSError:
-            return float("nan")
-        user, nice, system, _idle, _iowait, irq, softirq, steal = fields[:8]
-        return (user + nice + system + irq + softirq + steal) / os.sysconf("SC_CLK_TCK")
-
-    @staticmethod
-    def _own_cpu() -> float:
-        import resource
-
-        total = 0.0
-        for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
-            usage = resource.getrusage(who)
-            total += usage.ru_utime + usage.ru_stime
-        return total
-
-
-def write_page(path: Path, text: str) -> None:
-    """Write a results page, keeping the hand-written section that starts with ``## Findings`` if the old page
-    has one (it interprets a particular run; its heading says which)."""
-    old = path.read_text() if path.is_file() else ""
-    kept = old[old.index(FINDINGS):] if FINDINGS in old else ""
-    path.write_text(text + ("\n" + kept if kept else ""))
-
-
-def cpu_sentence(cpu: dict) -> str:
-    """What the CPU meter saw, in words."""
-    return (f"During the {cpu['wall_s']:.0f} s of the bench, other processes used {cpu['others_cpu_s']:.0f} CPU s "
-            f"({100 * cpu['others_share_of_capacity']:.1f} % of the {os.cpu_count()} cores' capacity).")
 
 
 def cost_of(metrics: dict) -> float:
@@ -128,14 +56,14 @@ def row(name: str, model: str, budget, result: dict, fit: dict, heldout: dict) -
 
 def run(seed: int, long_factor: float, long_cap: float, workers: int | None, evaluations: int = 6000) -> dict:
     """Run the five calibrations on a temporary copy of the default site; return every row and setting."""
-    from buildenv.calibration import calibrate_site
-    from buildenv.calibration_energyplus import (
+    from buildenv.calibration.calibrate import calibrate_site
+    from buildenv.calibration.energyplus import (
         calibrate_energyplus_cmaes,
         parameters_of,
         score_energyplus,
     )
-    from buildenv.site import load_site
-    from buildenv.surrogate import load_metamodel
+    from buildenv.sites import load_site
+    from buildenv.metamodel.surrogate import load_metamodel
 
     rows = []
     with tempfile.TemporaryDirectory(prefix="buildenv-table2-") as tmp:
@@ -259,7 +187,7 @@ def markdown(data: dict) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the bench and write ``bench/results/calibration_table2.{md,json}``."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = harness.parser(__doc__, first_line=True)
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--long-factor", type=float, default=10.0, help="long EnergyPlus budget in units of T")
     p.add_argument("--long-cap", type=float, default=600.0, help="cap of the long budget, s")
@@ -271,7 +199,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="only re-render the page from a saved calibration_table2.json (no calibration)")
     args = p.parse_args(argv)
     if args.from_json is not None:
-        write_page(args.out / "calibration_table2.md", markdown(json.loads(args.from_json.read_text())))
+        data = json.loads(args.from_json.read_text())
+        harness.write_results("calibration_table2", markdown(data), data, out=args.out, keep=FINDINGS)
         return 0
     info = machine()
     meter = CpuMeter().start()
@@ -281,9 +210,7 @@ def main(argv: list[str] | None = None) -> int:
             **run(args.seed, args.long_factor, args.long_cap, args.workers, args.evaluations)}
     data["cpu"] = meter.stop()
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "calibration_table2.json").write_text(json.dumps(data, indent=1) + "\n")
-    write_page(args.out / "calibration_table2.md", markdown(data))
-    print(markdown(data))
+    harness.write_results("calibration_table2", markdown(data), data, out=args.out, keep=FINDINGS, echo=True)
     return 0
 
 

@@ -11,7 +11,6 @@ Without ``--keep`` the dataset is deleted afterwards; with it, it stays for trai
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -21,12 +20,13 @@ import sys
 import time
 from pathlib import Path
 
-RESULTS = Path(__file__).resolve().parent / "results"
+import harness
+
 
 
 def main() -> None:
     """Run the campaign and write the results files."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--weeks", type=int, default=40000)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="data/campaign-40000")
@@ -55,22 +55,17 @@ def main() -> None:
     }
     table_row = (f"| {args.weeks} | {result['runs']} | {result['climates']} | {result['wall_minutes']} min | "
                  f"{result['weeks_per_second']} | {result['weeks_per_second_per_core']} | {result['dataset_mb']} MB |")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "campaign_scale.json").write_text(json.dumps(result, indent=2) + "\n")
-    (RESULTS / "campaign_scale.md").write_text(f"""# Simulation campaign at the paper's scale
+    harness.write_results("campaign_scale", f"""# Simulation campaign at the paper's scale
 
-- date: {result['date']}
-- machine: {result['machine']['platform']}, {result['machine']['cores']} cores
-- EnergyPlus {result['energyplus']} (pyenergyplus-lbnl)
-- command: `{result['command']}` (timed by `bench/campaign_scale.py`)
+EnergyPlus {result['energyplus']} (pyenergyplus-lbnl); the campaign's command: `{result['command']}`.
 
 | weeks | EnergyPlus runs | climates | wall time | weeks/s | weeks/s/core | dataset.h5 |
 |---|---|---|---|---|---|---|
 {table_row}
 
-Target of the foundation issue: under 30 minutes on a 2-core machine. The wall time includes planning,
+Target: under 30 minutes on a 2-core machine. The wall time includes planning,
 worker start-up, every EnergyPlus run (one building-year of 52 weeks per run) and writing `dataset.h5`.
-""")
+""", result)
     print(json.dumps(result, indent=2))
     if not args.keep:
         shutil.rmtree(out)

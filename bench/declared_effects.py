@@ -1,9 +1,8 @@
 """What declaring an effect the building is known to have buys: the default site calibrated without and with it.
 
 The default site is the DOE medium office, a VAV system with terminal reheat; its night cycle sends the cooling
-supply air (12.8 degC) to every zone whenever one needs heat, which our model lacks
-(``bench/results/default_site_error_budget.md``). ``buildenv calibrate --effect night_cycle_cold_air`` adds the
-effect's model side in a second calibration stage (:func:`buildenv.calibration.fit_declared_effects`); the
+supply air (12.8 degC) to every zone whenever one needs heat, which our model lacks. ``buildenv calibrate --effect night_cycle_cold_air`` adds the
+effect's model side in a second calibration stage (:func:`buildenv.calibration.problem.fit_declared_effects`); the
 shipped site declares its effects in ``site.toml`` (``effects``). This script calibrates two copies of the site,
 one plain (``--no-site-effects``), one with the declared effects (``--effect``, by default the site's own),
 scores both models on the held-out weeks, then lets NSGA-II
@@ -16,22 +15,21 @@ Writes ``bench/results/{name}.md`` and ``.json``.
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
-import json
 import os
 import platform
 import shutil
 from pathlib import Path
 
+import harness
+
 from agents.cli import make_env, optimise
 from agents.verify import verify
-from buildenv.calibration import calibrate_site
-from buildenv.env import DEFAULT_SITE
-from buildenv.site import load_site
-from buildenv.surrogate import load_metamodel
+from buildenv.calibration.calibrate import calibrate_site
+from buildenv.env.building_week import DEFAULT_SITE
+from buildenv.sites import load_site
+from buildenv.metamodel.surrogate import load_metamodel
 
-RESULTS = Path(__file__).parent / "results"
 HELDOUT = ("r2_t", "rmse_t_celsius", "r2_q", "cv_rmse_q_percent", "nmbe_q_percent")
 CHECKS = ("predicted_savings_percent", "realised_savings_percent", "comfort_chosen_predicted", "comfort_chosen",
           "energy_historical_predicted_kwh", "energy_historical_kwh")
@@ -39,7 +37,7 @@ CHECKS = ("predicted_savings_percent", "realised_savings_percent", "comfort_chos
 
 def main() -> None:
     """Calibrate with the declared effects, compare held-out metrics and verified optimisations."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, first_line=True)
     parser.add_argument("--effect", action="append", default=None, help="declared effect (repeatable)")
     parser.add_argument("--weeks", default="44,45,46,47", help="weeks of the year optimised and verified")
     parser.add_argument("--name", default="declared_effects")
@@ -71,13 +69,10 @@ def main() -> None:
                                                             "evaluations", "heldout", "fit_weeks")}
                               for label, (_, c) in models.items()},
               "nsga2_checks": checks}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     lines = [f"# Declared effects on the default site: {', '.join(effects)}", "",
-             f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.", "",
              f"Calibration (CMA-ES, seed 0) on the fit weeks {plain['fit_weeks']}, scored on the held-out weeks "
              f"{plain['heldout_weeks']}; the declared effects' parameters are fitted after the building's "
-             "(`buildenv.calibration`, declared effects):", "",
+             "(`buildenv.calibration.problem`, declared effects):", "",
              "| model | fit cost | " + " | ".join(f"held-out {k}" for k in HELDOUT) + " | estimated |",
              "|---" * (len(HELDOUT) + 3) + "|"]
     for label, (_, c) in models.items():
@@ -102,8 +97,7 @@ def main() -> None:
             ("predicted_savings_percent", "realised_savings_percent"), ("comfort_chosen_predicted", "comfort_chosen"))]
         energy = sum(abs(x["energy_historical_predicted_kwh"] / x["energy_historical_kwh"] - 1) for x in s) / len(s)
         lines.append(f"| {label} | {err[0]:.2f} | {err[1]:.3f} | {100 * energy:.1f} |")
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    harness.write_results(args.name, lines, record, echo=True)
 
 
 if __name__ == "__main__":

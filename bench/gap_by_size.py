@@ -1,9 +1,9 @@
 """How large an unmodelled effect must be for the diagnosis to name it: the headline's effect cases by injected size.
 
 The blind checks draw each effect's magnitude uniformly from the range real buildings show
-(:attr:`buildenv.effects.Effect.magnitude_range`, ``bench/gap_check.py``), so the headline's share named right
+(:attr:`buildenv.diagnosis.effects.Effect.magnitude_range`, ``bench/gap_check.py``), so the headline's share named right
 mixes effects the sensors barely see with effects they cannot miss. This page splits every effect's cases counted by
-the headline (``bench/gap_headline.py``'s sources, judged as it judges them) by injected size:
+the headline (``bench/results/gap_check.json`` by default, judged as ``bench/gap_headline.py`` judges them) by injected size:
 ``|magnitude - the magnitude at which the injection changes nothing|`` in the effect's own unit (the heating
 capacity limit as % of the design capacity removed, the sensor bias as |K|). For each effect it gives
 
@@ -15,22 +15,22 @@ capacity limit as % of the design capacity removed, the sensor bias as |K|). For
 
 It reads the records only; it is a description of recorded first steps, not a rule. Run from the repository root::
 
-    .venv/bin/python bench/gap_by_size.py --sources-of bench/results/gap_headline.json
+    python bench/gap_by_size.py
 
 Writes ``bench/results/<name>.{md,json,png}`` (default name ``gap_by_size``).
 """
 
 from __future__ import annotations
 
-import argparse
-import time
 from pathlib import Path
 
+import harness
 import numpy as np
-from gap_headline import RESULTS, _percent, add_sources, judged_sources, replay_scope, write_results
+from harness import RESULTS, add_sources, judged_sources, replay_scope
+from harness import percent as _percent
 
-from buildenv.effects import NO_EFFECT_MAGNITUDE, get_effect
-from buildenv.gap_check import NONE
+from buildenv.diagnosis.effects import NO_EFFECT_MAGNITUDE, get_effect
+from buildenv.diagnosis.blind_check import NONE
 
 SHARE = 0.9  # the share named right that "reliably seen" asks for
 
@@ -132,7 +132,7 @@ def plot(rows: dict[str, dict], path: Path) -> None:
 
 
 def main() -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     add_sources(parser)
     parser.add_argument("--least", type=int, default=10,
                         help="the fewest cases at or above a size that may call it reliably seen")
@@ -148,8 +148,7 @@ def main() -> None:
     above = [b for r in rows.values() for b in r["bins"][1:]]  # every bin but each effect's smallest sizes
     above_right, above_cases = sum(b["right"] for b in above), sum(b["cases"] for b in above)
     command = f"python bench/gap_by_size.py{sources} --least {args.least} --name {args.name}"
-    lines = [f"# Gap diagnosis: named first by injected size ({time.strftime('%Y-%m-%d')})", "",
-             f"Command: `{command}`.", "",
+    lines = ["# Gap diagnosis: named first by injected size", "",
              replay_scope(records, right) + " Size: the injection's distance from the magnitude that changes "
              "nothing, in the effect's unit. Bins hold equal counts (size quartiles; the holidays by size). "
              f"Figure: `{args.name}.png`.", "",
@@ -168,9 +167,9 @@ def main() -> None:
                      f"{bins} | {smallest} | {seen} |")
     sites = [{"true": effect, "site": site, "size": size, "named": n}
              for effect in sorted(cases) for size, n, site in sorted(cases[effect], key=lambda c: c[2])]
-    write_results(args.name, lines, {"command": command, "least": args.least, "share": SHARE, "effects": rows,
+    harness.write_results(args.name, lines, {"command": command, "least": args.least, "share": SHARE, "effects": rows,
                                      "above_lowest_bin": {"right": above_right, "cases": above_cases},
-                                     "sites": sites})
+                                     "sites": sites}, echo=True)
 
 
 if __name__ == "__main__":

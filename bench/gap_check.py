@@ -1,31 +1,33 @@
-"""The withheld-effect check of the gap diagnosis (issue 6): confusion matrix, accuracy, shrinkage, time.
+"""The withheld-effect check of the gap diagnosis: confusion matrix, accuracy, shrinkage, time.
 
-Runs ``buildenv.gap_check.run_check`` (resumable: cases already in ``--out`` are not redone) and writes
-``bench/results/gap_check.{md,json}``. Targets: the injected effect ranked first in >= 90 % of cases, the
-no-effect case recognised in >= 90 %, the effect's gap shrinking by >= 50 % on held-out weeks, one diagnosis
-of a 4-week site in under 5 minutes on 2 cores.
+Runs ``buildenv.diagnosis.blind_check.run_check`` (resumable: cases already in ``--out`` are not redone) and merges
+its cases into ``bench/results/<name>.json`` (default ``gap_check``), which holds every seed's sites at their
+latest record (:func:`harness.slim_record`); ``<name>.md`` summarises them all, then this run in full. Targets:
+the injected effect named first in >= 90 % of cases, the no-effect case recognised in >= 90 %, the effect's gap
+shrinking by >= 50 % on held-out weeks, one diagnosis of a 4-week site in under 5 minutes on 2 cores.
 """
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
 import json
 import os
 import platform
 import time
-from pathlib import Path
 
+import harness
 import numpy as np
 
-from buildenv.cli_sites import add_known_argument, parse_known
-from buildenv.effects import DIAGNOSIS_SPLITS, JUDGES, get_effect
-from buildenv.gap import DiagnosisSettings, split_weeks
-from buildenv.gap_check import FIRST_MONDAYS, VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday, run_check
-from buildenv.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
-from buildenv.surrogate import load_metamodel
+from buildenv.cli.sites import add_known_argument, parse_known
+from buildenv.diagnosis.blind_check import (FIRST_MONDAYS, NONE, VISIBLE_NOISE_MULTIPLE, WEEKS, latest_first_monday,
+                                            run_check)
+from buildenv.diagnosis.effects import DIAGNOSIS_SPLITS, JUDGES, get_effect
+from buildenv.diagnosis.gap import DiagnosisSettings, split_weeks
+from buildenv.energyplus.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
+from buildenv.metamodel.surrogate import load_metamodel
 
-RESULTS = Path(__file__).resolve().parent / "results"
+ABOUT = ("Every blind-check site at its latest diagnosis record (runs of bench/gap_check.py, and sites diagnosed "
+         "again), slimmed to what judging its first step needs; bench/gap_headline.py judges them.")
 
 
 def _pct(x: float | None) -> str:
@@ -45,7 +47,7 @@ def _primary(estimate: dict) -> str:
 
 def main() -> None:
     """Run (or resume) the check and write the results."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--cases", type=int, default=16)
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--out", default="out/diagnose-check")
@@ -70,7 +72,7 @@ def main() -> None:
     parser.add_argument("--checkpoint", default="default",
                         help="metamodel checkpoint the diagnosis uses (default: the shipped one)")
     parser.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=DiagnosisSettings.split,
-                        help="fit weeks: the first half, or every other week (buildenv.gap.split_weeks)")
+                        help="fit weeks: the first half, or every other week (buildenv.diagnosis.gap.split_weeks)")
     parser.add_argument("--weeks", type=int, default=WEEKS,
                         help="weeks each site measures (fit and held-out weeks: --split)")
     parser.add_argument("--note", default="",
@@ -118,8 +120,6 @@ def main() -> None:
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "note": args.note,
               "seconds_this_run": round(time.perf_counter() - started, 1), **result}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     labels = s["labels"]
     weeks = result["plan"]["weeks"]
     fit_weeks = split_weeks(weeks, args.split)[0]
@@ -132,7 +132,7 @@ def main() -> None:
              f"drawn between {FIRST_MONDAYS[0]} and {FIRST_MONDAYS[1]} (at latest {latest_first_monday(weeks)}, so "
              f"the period ends in {FIRST_MONDAYS[1].year}), one effect "
              + (f"of {', '.join(effects)} " if effects else "") + "(or none) injected at a random magnitude, "
-             "diagnosed blind (`buildenv/gap_check.py` states the procedure).",
+             "diagnosed blind (`buildenv/diagnosis/blind_check.py` states the procedure).",
              f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
              "Building parameters every site declares known (fixed in calibration): "
              + (", ".join(f"{k} = {v:g}" for k, v in known.items()) or "none") + ".",
@@ -140,7 +140,7 @@ def main() -> None:
              "| | value | target |", "|---|---|---|",
              f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
              f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",
-             *([f"| of which named by the estimate alone (no held-out gain; `buildenv.gap.named_by_estimate`) | "
+             *([f"| of which named by the estimate alone (no held-out gain; `buildenv.diagnosis.gap.named_by_estimate`) | "
                 f"{s['named_by_estimate_right']} | |"] if "named_by_estimate_right" in s else []),
              "| injected effect ranked first (best held-out gain, named or not: attribution alone) | "
              f"{_pct(s.get('ranked_first_accuracy'))} | |",
@@ -187,8 +187,53 @@ def main() -> None:
                      f"{'-' if gain is None else f'{gain:.3f}'} | "
                      f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r, settings.alpha)} | "
                      f"{r['seconds']} |")
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    merged = merge_run(args.name, record)
+    lines = [*summary_lines(merged), "", "## The latest run", "", *lines[3:]]
+    harness.write_results(args.name, lines, harness.checks_json(merged["sites"], merged["sources"], ABOUT), echo=True)
+
+
+def merge_run(name: str, record: dict) -> dict:
+    """``bench/results/<name>.json``'s sources and sites with ``record``'s run merged in: its cases replace those
+    of its seed (a clean twin diagnosed apart stays)."""
+    path = harness.RESULTS / f"{name}.json"
+    merged = json.loads(path.read_text()) if path.is_file() else {"sources": [], "sites": {}}
+    seed = record["plan"]["seed"]
+    source = f"{name}_seed{seed}_{record['date']}"
+    merged["sources"] = [s for s in merged["sources"] if s["source"] != source] + [
+        {"source": source, "kind": "run", "command": record["command"], "date": record["date"],
+         "machine": record["machine"], "seed": seed, "plan": record["plan"], "base_effects": record["base_effects"]}]
+    for case in record["cases"]:
+        merged["sites"][f"seed{seed}_case_{case['case']:03d}"] = harness.slim_record(case | {"source": source})
+    used = {s["source"] for s in merged["sites"].values()}
+    merged["sources"] = [s for s in merged["sources"] if s["source"] in used]
+    return merged
+
+
+def summary_lines(merged: dict) -> list[str]:
+    """The page's summary of every seed's sites as their own diagnoses named them (``named`` as recorded)."""
+    seeds: dict[int, dict] = {}
+    for site, s in merged["sites"].items():
+        seed, _, twin = harness.SITE.match(site).groups()
+        row = seeds.setdefault(int(seed), {"cases": 0, "right": 0, "clean": 0, "clean_right": 0, "twins": 0,
+                                           "twins_right": 0})
+        kind = "twins" if twin else "clean" if s["true"] == NONE else "cases"
+        row[kind] += 1
+        row[kind + "_right" if kind != "cases" else "right"] += s["named"] == (NONE if kind != "cases" else s["true"])
+    total = {k: sum(r[k] for r in seeds.values()) for k in ("cases", "right", "clean", "clean_right", "twins",
+                                                             "twins_right")}
+    runs = [s for s in merged["sources"] if s["kind"] == "run"]
+    weeks = sorted({s["plan"]["weeks"] for s in runs})
+    return ["# Gap diagnosis: the withheld-effect check", "",
+            f"{len(merged['sites'])} sites of {len(seeds)} seeds ({min(seeds)}-{max(seeds)}): "
+            f"{total['cases']} with an injected effect, {total['clean']} clean, {total['twins']} clean twins, "
+            f"{'/'.join(map(str, weeks))}-week sites of {', '.join(sorted({s['plan']['building'] for s in runs}))} "
+            f"in {', '.join(sorted({s['plan']['epw'] for s in runs}))}, recorded by {len(merged['sources'])} runs "
+            "(`gap_check.json` lists them). As each site's own diagnosis named it; `gap_headline.md` judges them "
+            "with the current rules.", "",
+            "| | recorded | target |", "|---|---|---|",
+            f"| injected effect named first | {harness.percent(total['right'], total['cases'])} | >= 90 % |",
+            f"| clean cases recognised | {harness.percent(total['clean_right'], total['clean'])} | >= 90 % |",
+            f"| clean twins recognised | {harness.percent(total['twins_right'], total['twins'])} | |"]
 
 
 if __name__ == "__main__":

@@ -1,9 +1,9 @@
-"""The gap diagnosis of the default site, and what the extended model changes for the optimiser (issue 6).
+"""The gap diagnosis of the default site, and what the extended model changes for the optimiser.
 
-Copies the shipped default site, runs ``buildenv.gap.diagnose`` on it (the extended model is saved into the
+Copies the shipped default site, runs ``buildenv.diagnosis.gap.diagnose`` on it (the extended model is saved into the
 copy), then optimises week 46 with NSGA-II (equal comfort) on the base and on the extended model and runs both
 choices on the site's EnergyPlus reference. Writes ``bench/results/gap_default_site.{md,json}``;
-``--refit-step S`` diagnoses with that refit step (:class:`buildenv.gap.DiagnosisSettings`) and writes
+``--refit-step S`` diagnoses with that refit step (:class:`buildenv.diagnosis.gap.DiagnosisSettings`) and writes
 ``gap_default_site_step{S}.{md,json}`` instead.
 
     .venv/bin/python bench/gap_default_site.py [--refit-step 0.05]
@@ -11,22 +11,22 @@ choices on the site's EnergyPlus reference. Writes ``bench/results/gap_default_s
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
-import json
 import os
 import platform
 import shutil
 from pathlib import Path
 
+import harness
+from harness import RESULTS
+
 from agents.cli import make_env, optimise
 from agents.verify import verify
-from buildenv.env import DEFAULT_SITE
-from buildenv.gap import DiagnosisSettings, diagnose, save_extended_model
-from buildenv.site import load_site
-from buildenv.surrogate import load_metamodel
+from buildenv.env.building_week import DEFAULT_SITE
+from buildenv.diagnosis.gap import DiagnosisSettings, diagnose, save_extended_model
+from buildenv.sites import load_site
+from buildenv.metamodel.surrogate import load_metamodel
 
-RESULTS = Path(__file__).resolve().parent / "results"
 WEEK = 46
 KEYS = ("predicted_savings_percent", "realised_savings_percent", "comfort_historical_predicted",
         "comfort_historical", "comfort_chosen_predicted", "comfort_chosen")
@@ -34,7 +34,7 @@ KEYS = ("predicted_savings_percent", "realised_savings_percent", "comfort_histor
 
 def main() -> None:
     """Diagnose, optimise on both models, verify, write the results."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, first_line=True)
     parser.add_argument("--refit-step", type=float, default=DiagnosisSettings.refit_step)
     args = parser.parse_args()
     default_step = args.refit_step == DiagnosisSettings.refit_step
@@ -57,11 +57,8 @@ def main() -> None:
     record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command,
               "diagnosis": result, "week": WEEK, "nsga2_checks": checks}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{stem}.json").write_text(json.dumps(record, indent=1, default=float) + "\n")
     lines = ["# Gap diagnosis of the default site", "",
-             f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; "
-             f"`{record['command']}` (diagnosis {result['seconds']:.0f} s).", "",
+             f"Diagnosis {result['seconds']:.0f} s.", "",
              f"Verdict: **{result['verdict']}**. Fit weeks {result['fit_weeks']}, held-out weeks "
              f"{result['heldout_weeks']}.", "",
              "| effect | held-out gain | p-value | selected | estimated |", "|---|---|---|---|---|"]
@@ -80,8 +77,7 @@ def main() -> None:
     for label, s in checks.items():
         lines.append(f"| {label} | " + " | ".join(f"{s[k]:.3f}" for k in KEYS) + " |")
     lines += ["", f"![localisation]({stem}.png)"]
-    (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    harness.write_results(stem, lines, record, echo=True)
 
 
 if __name__ == "__main__":

@@ -9,13 +9,12 @@ EnergyPlus, in the same run.
     .venv/bin/python bench/metamodel_context.py --data data/campaign-cp-10400-r13 [--contexts 24,48,72]
         [--seeds 0,1] [--epochs 30] [--runs data/bench-runs/context] [--name metamodel_context]
 
-Finished runs are reused and unfinished ones resume (``bench/_training_runs.py``). Writes
+Finished runs are reused and unfinished ones resume (:func:`harness.trained`). Writes
 ``bench/results/NAME.{md,json}``.
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -24,15 +23,15 @@ from pathlib import Path
 
 import numpy as np
 import torch
-from _training_runs import RESULTS, speed_lines, shipped_transformer, trained
-from metamodel_speed import energyplus_weeks_per_second, surrogate_weeks_per_second
+import harness
+from harness import energyplus_weeks_per_second, shipped_transformer, speed_lines, surrogate_weeks_per_second, trained
 
 METRICS = ("loss", "r2_t_pooled", "r2_t", "rmse_t_celsius", "cv_rmse_q_percent")
 
 
 def main() -> None:
     """Train, score, time and write the results."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--data", required=True, help="campaign directory (buildenv simulate --out)")
     parser.add_argument("--contexts", default="24,48,72", help="context hours to compare (whole days)")
     parser.add_argument("--seeds", default="0,1", help="seeds of the split and the weights, one run each")
@@ -70,16 +69,13 @@ def main() -> None:
                                                                   for k, v in vars(args).items()),
               "config": config, "runs": rows, "energyplus_weeks_per_second": round(eplus, 2),
               "weeks_per_second": {str(c): round(v, 1) for c, v in speed.items()}}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(result, indent=2) + "\n")
-    (RESULTS / f"{args.name}.md").write_text(_page(result, contexts, seeds, speed, eplus))
+    harness.write_results(args.name, _page(result, contexts, seeds, speed, eplus), result)
 
 
 def _page(result: dict, contexts: list[int], seeds: list[int], speed: dict, eplus: float) -> str:
     rows = result["runs"]
     first = rows[0]
-    lines = [f"# Context hours of the metamodel: the first day's error and the speed ({result['date']})", "",
-             f"{result['machine']}. Command: `python {result['command']}`.",
+    lines = ["# Context hours of the metamodel: the first day's error and the speed", "",
              f"The shipped architecture (`{json.dumps(result['config'])}`) trained with each context on the same "
              f"campaign ({first['train_weeks']} training weeks for seed {first['seed']}), held-out weather weeks "
              "scored (`weather_weeks` split; each seed its own split). RMSE_T in degC; day 1 is the Monday.", "",

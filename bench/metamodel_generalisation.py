@@ -17,7 +17,6 @@ Writes ``bench/results/metamodel_generalisation.{md,json}`` (``--name`` changes 
 
 from __future__ import annotations
 
-import argparse
 import json
 import subprocess
 import sys
@@ -26,11 +25,12 @@ from pathlib import Path
 
 import numpy as np
 
-from _training_runs import RESULTS, machine
+import harness
+from harness import machine
 
-from buildenv import surrogate as sg
-from buildenv.dataset import open_dataset
-from buildenv.training import evaluate_metamodel, score
+from buildenv.metamodel import surrogate as sg
+from buildenv.campaign.dataset import open_dataset
+from buildenv.metamodel.training import evaluate_metamodel, score
 
 COLUMNS = [("loss", "loss", 1.0, 4), ("R2_T per week", "r2_t", 1.0, 4), ("R2_T pooled", "r2_t_pooled", 1.0, 4),
            ("R2_Q per week", "r2_q", 1.0, 4), ("RMSE_T degC", "rmse_t_celsius", 1.0, 3),
@@ -56,7 +56,7 @@ def fresh_scores(checkpoint: str, fresh: Path) -> dict[str, dict]:
 
 def main() -> None:
     """Score every ``--model`` on every test set and write the table."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--model", action="append", required=True, metavar="LABEL=CHECKPOINT",
                         help="a checkpoint path or 'default' (repeatable)")
     parser.add_argument("--data", help="the checkpoints' training dataset, for their own test split")
@@ -85,10 +85,7 @@ def main() -> None:
         results[label] = {"checkpoint": checkpoint, "scores": row}
     date = time.strftime("%Y-%m-%d")
     header = "| model | test set | weeks | " + " | ".join(c[0] for c in COLUMNS) + " |"
-    lines = [f"# Metamodels on buildings they never saw ({date})", "",
-             f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_generalisation.py "
-             + " ".join(f"--model {m}" for m in args.model) + (f" --data {args.data}" if args.data else "")
-             + f" --fresh {args.fresh}`.", "",
+    lines = ["# Metamodels on buildings they never saw", "", f"Torch machine: {machine()}.", "",
              f"Fresh buildings: `{args.fresh}`, a campaign of {manifest.get('config', {}).get('weeks', '?')} weeks "
              f"(seed {manifest.get('config', {}).get('seed', '?')}, "
              f"{manifest.get('config', {}).get('weeks_per_run', '?')} weeks per EnergyPlus run) over every "
@@ -99,11 +96,8 @@ def main() -> None:
             lines.append(f"| {label} | {part} | {s['weeks']} | "
                          + " | ".join(f"{s[key] * scale:.{digits}f}" for _, key, scale, digits in COLUMNS) + " |")
     lines += [""] + [f"- {label}: `{r['checkpoint']}`" for label, r in results.items()]
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(
-        {"date": date, "machine": machine(), "fresh": args.fresh, "models": results}, indent=2) + "\n")
-    print("\n".join(lines))
+    harness.write_results(args.name, lines, {"date": date, "machine": machine(), "fresh": args.fresh,
+                                             "models": results}, echo=True)
 
 
 if __name__ == "__main__":

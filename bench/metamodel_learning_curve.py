@@ -11,14 +11,14 @@ Writes ``bench/results/metamodel_learning_curve.{md,json,png}``.
 
 from __future__ import annotations
 
-import argparse
 import json
 import time
 from pathlib import Path
 
-from _training_runs import PREVIOUS_TRANSFORMER, RESULTS, machine, run_tag, shipped_transformer, trained
+import harness
+from harness import PREVIOUS_TRANSFORMER, RESULTS, machine, run_tag, shipped_transformer, trained
 
-from buildenv.dataset import SPLITS
+from buildenv.campaign.dataset import SPLITS
 
 
 def plot(rows: list[dict], path: Path) -> None:
@@ -46,14 +46,14 @@ def plot(rows: list[dict], path: Path) -> None:
 
 def main() -> None:
     """Train (or reuse) one run per size and write the curve."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--data", required=True)
     parser.add_argument("--sizes", default="1000,2500,5000,10000,20000")
     parser.add_argument("--epochs", type=int, default=10)
     parser.add_argument("--runs", default="data/bench-runs/learning-curve")
     parser.add_argument("--split", default="weather_weeks", choices=SPLITS)
     parser.add_argument("--previous", action="store_true",
-                        help="the architecture of the default shipped until 2026-11-22 instead of today's")
+                        help="an earlier default's architecture (harness.PREVIOUS_TRANSFORMER) instead of today's")
     args = parser.parse_args()
     config = PREVIOUS_TRANSFORMER if args.previous else shipped_transformer()
     rows = []
@@ -68,14 +68,9 @@ def main() -> None:
     date = time.strftime("%Y-%m-%d")
     RESULTS.mkdir(exist_ok=True)
     plot(rows, RESULTS / "metamodel_learning_curve.png")
-    (RESULTS / "metamodel_learning_curve.json").write_text(json.dumps(
-        {"date": date, "machine": machine(), "config": config, "split": args.split, "data": args.data,
-         "epochs": args.epochs, "rows": rows},
-        indent=2) + "\n")
-    options = (f" --split {args.split}" if args.split != "weather_weeks" else "") + (" --previous" * args.previous)
-    lines = [f"# Learning curve of the Transformer ({date})", "",
-             f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_learning_curve.py --data "
-             f"{args.data} --sizes {args.sizes} --epochs {args.epochs}{options}`.", "",
+    record = {"date": date, "machine": machine(), "config": config, "split": args.split, "data": args.data,
+              "epochs": args.epochs, "rows": rows}
+    lines = ["# Learning curve of the Transformer", "", f"Torch machine: {machine()}.", "",
              f"Config `{json.dumps(config)}`, {args.epochs} epochs at every size, test weeks of the "
              f"`{args.split}` split (seed 0). Plot: `metamodel_learning_curve.png`.", "",
              "| training weeks | loss | R2_T | R2_T pooled | R2_Q | R2_Q pooled | RMSE_T (degC) | CV(RMSE)_Q (%) "
@@ -85,7 +80,7 @@ def main() -> None:
         lines.append(f"| {r['train_weeks']} | {t['loss']:.4f} | {t['r2_t']:.4f} | {t.get('r2_t_pooled', 0):.4f} | "
                      f"{t['r2_q']:.4f} | {t.get('r2_q_pooled', 0):.4f} | {t['rmse_t_celsius']:.3f} | "
                      f"{t['cv_rmse_q_percent']:.1f} | {r['seconds']:.0f} |")
-    (RESULTS / "metamodel_learning_curve.md").write_text("\n".join(lines) + "\n")
+    harness.write_results("metamodel_learning_curve", lines, record)
     print("\n".join(lines[-len(rows) - 2:]))
 
 

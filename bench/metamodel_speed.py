@@ -5,7 +5,7 @@ each zoning of the shoebox (the single zone of the paper, the core + perimeter z
 Metamodels: batched inference (``torch.inference_mode``, all cores, ``--batch`` weeks per model call) of
 each architecture/configuration on ``--weeks`` encoded weeks, eager PyTorch, best of ``--repeats``
 timings. Speed does not depend on the weights, so untrained models are timed; accuracy belongs to
-``bench/results/metamodels_table1.md``. Then the product path end to end: :meth:`Surrogate.predict` of
+``bench/results/metamodel_table.md``. Then the product path end to end: :meth:`Surrogate.predict` of
 the shipped default checkpoint from catalogue arrays (encoding included, traced model), the call the
 environment and calibration make, against the shoebox of the zoning that default was trained on, with its
 model calls spread over worker threads (the default) and with torch alone (``workers=1``). The
@@ -27,21 +27,16 @@ import argparse
 import json
 import os
 import platform
-import shutil
-import tempfile
 import time
-from pathlib import Path
 
 import numpy as np
 import torch
-from _training_runs import RESULTS, inference_speed
+import harness
+from harness import (energyplus_weeks_per_second, inference_speed, predict_weeks_per_second,
+                     product_arrays)
 
-from buildenv import catalogue as cat
-from buildenv import surrogate as sg
-from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.metamodel import surrogate as sg
 from buildenv.energyplus.shoebox import ZONINGS
-from buildenv.sampling import sample_group, sample_weeks
-from buildenv.weather import load_weather
 from metamodels.models import build
 
 CONFIGS: list[tuple[str, dict]] = [
@@ -56,57 +51,9 @@ CONFIGS: list[tuple[str, dict]] = [
 ]
 
 
-def energyplus_weeks_per_second(weeks: int, zoning: str) -> float:
-    """Time a real campaign of ``weeks`` weeks of the ``zoning`` shoebox with all cores; weeks per second."""
-    out = Path(tempfile.mkdtemp(prefix="bench-eplus-")) / "data"
-    try:
-        started = time.perf_counter()
-        run_campaign(CampaignConfig(weeks=weeks, seed=0, epw=["usa_il_chicago", "usa_fl_miami"],
-                                    zoning=zoning), out,
-                     progress=False)
-        return weeks / (time.perf_counter() - started)
-    finally:
-        shutil.rmtree(out.parent, ignore_errors=True)
-
-
-def product_arrays(surrogate: sg.Surrogate, weeks: int) -> dict[str, np.ndarray]:
-    """Catalogue arrays of ``weeks`` dataset-like weeks for :meth:`Surrogate.predict` (Chicago's weather)."""
-    rng = np.random.default_rng(0)
-    theta = sample_group("theta_build", weeks, rng)
-    settings, occupancy = sample_weeks(weeks, rng)
-    year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
-    week_of_year = np.arange(weeks) % cat.WEEKS_PER_YEAR
-    ground = sg.ground_hours(sg.weather_ground_c("usa_il_chicago"), week_of_year * cat.HOURS_PER_WEEK,
-                             surrogate.context_hours)
-    return {"theta": theta, "settings": settings, "occupancy": occupancy, "weather": year[week_of_year],
-            "ground_c": ground}
-
-
-def surrogate_weeks_per_second(weeks: int, batch: int, repeats: int, checkpoint: str | None = None) -> float:
-    """Best-of-``repeats`` speed of ``load_metamodel(checkpoint).predict`` on dataset-like catalogue arrays
-    (``None``: the shipped default), its default workers."""
-    surrogate = sg.load_metamodel(checkpoint)
-    return predict_weeks_per_second(surrogate, product_arrays(surrogate, weeks), batch, repeats)
-
-
-def predict_weeks_per_second(surrogate: sg.Surrogate, arrays: dict[str, np.ndarray], batch: int,
-                             repeats: int, workers: int | None = None) -> float:
-    """Best-of-``repeats`` speed of ``surrogate.predict`` on ``arrays`` (:func:`product_arrays`) with ``workers``
-    threads (``None``: the default, as many as torch has threads; 1: torch alone)."""
-    surrogate.workers = workers
-    weeks = len(arrays["theta"])
-    surrogate.predict(**{k: v[:batch] for k, v in arrays.items()})
-    best = float("inf")
-    for _ in range(repeats):
-        started = time.perf_counter()
-        surrogate.predict(**arrays, batch_size=batch)
-        best = min(best, time.perf_counter() - started)
-    return weeks / best
-
-
 def main() -> None:
     """Measure and write the results."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--eplus-weeks", type=int, default=1040)
     parser.add_argument("--weeks", type=int, default=4096, help="weeks per timing")
     parser.add_argument("--batch", type=int, default=sg.INFERENCE_BATCH, help="weeks per model call")
@@ -162,17 +109,13 @@ def main() -> None:
               f"x{entry['workers']['speedup_vs_energyplus']} the {surrogate.zoning} shoebox "
               f"(rounds {entry['workers']['speedup_by_round']}); "
               f"torch alone x{entry['torch_alone']['speedup_vs_energyplus']}")
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "metamodel_speed.json").write_text(json.dumps(result, indent=2) + "\n")
-    (RESULTS / "metamodel_speed.md").write_text("\n".join(page_lines(result, args)) + "\n")
+    harness.write_results("metamodel_speed", page_lines(result, args), result)
 
 
 def page_lines(result: dict, args: argparse.Namespace) -> list[str]:
     """The Markdown page of a :func:`main` result."""
     zonings = list(result["energyplus_weeks_per_second_by_zoning"])
-    lines = [f"# Metamodel vs EnergyPlus speed ({result['date']})", "",
-             f"Machine: {result['machine']}; torch {result['torch']}. Command: `.venv/bin/python "
-             f"{result['command']}`.", ""]
+    lines = ["# Metamodel vs EnergyPlus speed", "", f"torch {result['torch']}.", ""]
     for entry in result["product_path"]:
         w, alone = entry["workers"], entry["torch_alone"]
         lines += [f"**The product path, {entry['label']}** (`buildenv.load_metamodel({entry['checkpoint']!r}).predict("

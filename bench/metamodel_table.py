@@ -1,6 +1,6 @@
 """The paper's Table 1 for our five metamodels: same data, same split, same training budget.
 
-Each model is trained by ``buildenv train`` (through :func:`buildenv.training.train_metamodel`) on the same
+Each model is trained by ``buildenv train`` (through :func:`buildenv.metamodel.training.train_metamodel`) on the same
 ``--weeks`` training weeks of a campaign, with the ``weather_weeks`` split (test weeks' weather never seen
 in training) or, with ``--split buildings``, the ``buildings`` split (test weeks' buildings never seen in
 training), the paper's loss, Adam with a cosine learning rate and ``--epochs`` epochs; then scored on the
@@ -12,20 +12,20 @@ Run it alone on the machine: a budget shared with other jobs buys less.
     .venv/bin/python bench/metamodel_table.py --data data/campaign-40000 [--weeks 10000] [--epochs 10] \
         [--minutes M] [--batch-size 64] [--split weather_weeks|buildings] [--name STEM]
 
-Writes ``bench/results/metamodels_table1.{md,json,png}`` (``--name``: another stem); the PNG plots each model's
+Writes ``bench/results/metamodel_table.{md,json,png}`` (``--name``: another stem); the PNG plots each model's
 test loss against its inference speed, all timed in turn in one run.
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import time
 from pathlib import Path
 
-from _training_runs import (PREVIOUS_TRANSFORMER, RESULTS, inference_speeds, machine, mean_std, run_tag,
-                            shipped_transformer, trained)
+import harness
+from harness import (PREVIOUS_TRANSFORMER, RESULTS, inference_speeds, machine, mean_std, run_tag, shipped_transformer,
+                     trained)
 
 SHIPPED = shipped_transformer()  # loads the default checkpoint: once, not once per variant
 MODELS: dict[str, tuple[str, dict]] = {
@@ -148,7 +148,7 @@ def plot_curves(logs: dict[str, Path], title: str, path: Path) -> None:
 
 def main() -> None:
     """Train (or reuse) every model and write the table."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--data", required=True, help="campaign directory (buildenv simulate --out)")
     parser.add_argument("--weeks", type=int, default=10000, help="training weeks per model")
     parser.add_argument("--epochs", type=int, default=10)
@@ -158,7 +158,7 @@ def main() -> None:
     parser.add_argument("--batch-size", type=int, default=64, help="training weeks per Adam step, every model")
     parser.add_argument("--runs", default="data/bench-runs/table1", help="where checkpoints are kept")
     parser.add_argument("--models", default=",".join(MODELS), help="comma-separated subset of the columns")
-    parser.add_argument("--name", help="results file stem (default metamodels_table1[_batchN])")
+    parser.add_argument("--name", help="results file stem (default metamodel_table[_batchN])")
     parser.add_argument("--split", default="weather_weeks", choices=["weather_weeks", "buildings"],
                         help="buildings: test weeks come from buildings never seen in training")
     parser.add_argument("--trained-on", help="where the runs were trained, when not on this machine (stated "
@@ -211,14 +211,7 @@ def main() -> None:
                  f"{results[c]['inference_weeks_per_second'] / first['inference_weeks_per_second']:.2f}"
                  for c in columns) + " |"]
     date = time.strftime("%Y-%m-%d")
-    lines = [f"# Table 1: metamodels compared ({date})", "",
-             f"Machine: {machine()}. Command: `.venv/bin/python bench/metamodel_table.py --data {args.data} "
-             f"--weeks {args.weeks} " + (f"--minutes {args.minutes:g}" if budget else f"--epochs {args.epochs}")
-             + f" --batch-size {args.batch_size} "
-             f"--models '{','.join(columns)}'" + (f" --name {args.name}" if args.name else "")
-             + (f" --runs {args.runs}" if args.runs != "data/bench-runs/table1" else "")
-             + (f" --split {args.split}" if args.split != "weather_weeks" else "")
-             + (f" --trained-on '{args.trained_on}'" if args.trained_on else "") + "`.", "",
+    lines = ["# Table 1: metamodels compared", "", f"Torch machine: {machine()}.", "",
              f"Every model: {first['train_weeks']} training weeks, {first['val_weeks']} validation and "
              f"{first['test_weeks']} test weeks (split `{args.split}`, seed 0: " + SPLIT_MEANING[args.split]
              + "), " + (f"{args.minutes:g} minutes of training each on this machine (wall clock, validation "
@@ -238,7 +231,7 @@ def main() -> None:
                       "this one's.", ""]
     lines += [f"- {label}: `{MODELS[label][0]}` `{json.dumps(MODELS[label][1])}`" for label in columns]
     RESULTS.mkdir(exist_ok=True)
-    stem = args.name or "metamodels_table1" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
+    stem = args.name or "metamodel_table" + (f"_batch{args.batch_size}" if args.batch_size != 64 else "")
     plot_tradeoff(results, columns, f"{first['train_weeks']} training weeks, "
                   + (f"{args.minutes:g} minutes each, " if budget else f"{args.epochs} epochs, ") +
                   f"{first['test_weeks']} test weeks ({args.split})", RESULTS / f"{stem}.png")
@@ -247,13 +240,10 @@ def main() -> None:
         plot_curves(logs, f"{first['train_weeks']} training weeks, {args.minutes:g} minutes each, cosine decay "
                     "over the minutes", RESULTS / f"{stem}_curves.png")
         lines += [f"Validation loss against training minutes: `{stem}_curves.png`."]
-    (RESULTS / f"{stem}.md").write_text("\n".join(lines) + "\n")
-    (RESULTS / f"{stem}.json").write_text(json.dumps(
-        {"date": date, "machine": machine(), "weeks": args.weeks, "epochs": None if budget else args.epochs,
-         "minutes": args.minutes,
-         "batch_size": args.batch_size,
-         "models": {c: {"model": MODELS[c][0], "config": MODELS[c][1], **results[c]} for c in columns}},
-        indent=2) + "\n")
+    harness.write_results(stem, lines, {
+        "date": date, "machine": machine(), "weeks": args.weeks, "epochs": None if budget else args.epochs,
+        "minutes": args.minutes, "batch_size": args.batch_size,
+        "models": {c: {"model": MODELS[c][0], "config": MODELS[c][1], **results[c]} for c in columns}})
     print("\n".join(header + body))
 
 

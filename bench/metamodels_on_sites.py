@@ -2,7 +2,7 @@
 
 A metamodel closer to the EnergyPlus shoebox is not necessarily one that calibrates a real building better:
 what is left is the shoebox's own mismatch with the building. This bench calibrates the same sites with each
-checkpoint (``buildenv.calibration.calibrate_site``, CMA-ES, the first half of the weeks fit, nothing saved into
+checkpoint (``buildenv.calibration.problem.calibrate_site``, CMA-ES, the first half of the weeks fit, nothing saved into
 the sites) and tabulates the held-out metrics side by side, per CMA-ES seed and their mean.
 
     .venv/bin/python bench/metamodels_on_sites.py --model shipped=default --model other=data/runs/other.pt
@@ -15,7 +15,6 @@ otherwise. Writes ``bench/results/metamodels_on_sites.{md,json}`` (``--name`` ch
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
 import json
 import os
@@ -25,11 +24,13 @@ import sys
 import time
 from pathlib import Path
 
-from _training_runs import RESULTS, machine
+import harness
+from harness import machine
 
-from buildenv import calibration as cal
-from buildenv import surrogate as sg
-from buildenv.site import load_site
+
+from buildenv.calibration.calibrate import calibrate_site
+from buildenv.metamodel import surrogate as sg
+from buildenv.sites import load_site
 
 OTHER_SITES = (("medium_office", "usa_ok_oklahoma"), ("medium_office", "usa_az_phoenix"),
                ("large_office", "usa_az_phoenix"))
@@ -42,7 +43,7 @@ def sites(out: Path) -> dict[str, str]:
     for building, epw in OTHER_SITES:
         path = out / f"{building}_{epw}"
         if not (path / "site.toml").is_file():
-            subprocess.run([sys.executable, "-m", "buildenv.cli", "site", "reference", "--building", building,
+            subprocess.run([sys.executable, "-m", "buildenv.cli.main", "site", "reference", "--building", building,
                             "--epw", epw, "--start", "01-14", "--weeks", "4", "--out", str(path)], check=True)
         found[f"{building}, {epw}, 4 weeks from 01-14"] = str(path)
     return found
@@ -50,7 +51,7 @@ def sites(out: Path) -> dict[str, str]:
 
 def main() -> None:
     """Calibrate every site with every model and write the table."""
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser = harness.parser(__doc__, first_line=True)
     parser.add_argument("--model", action="append", required=True, help="LABEL=CHECKPOINT (default: the shipped one)")
     parser.add_argument("--out", default="out/model-sites", help="folder of the reference sites")
     parser.add_argument("--name", default="metamodels_on_sites")
@@ -72,7 +73,7 @@ def main() -> None:
         for site_label, site in loaded.items():
             effects = tuple(dict.fromkeys((site.effects if args.site_effects else ()) + tuple(args.effect)))
             for seed in seeds:
-                result = cal.calibrate_site(site, surrogate, seed=seed, save=False, effects=effects)
+                result = calibrate_site(site, surrogate, seed=seed, save=False, effects=effects)
                 rows.append({"model": label, "checkpoint": checkpoint, "site": site_label, "seed": seed,
                              "effects": list(effects), "cost": result["cost"], "seconds": result["seconds"],
                              **{k: result["heldout"][k] for k in METRICS}})
@@ -81,10 +82,8 @@ def main() -> None:
     record = {"date": dt.date.today().isoformat(), "machine": machine(), "load_average_at_start": load,
               "command": command,
               "seconds": round(time.perf_counter() - started, 1), "rows": rows}
-    (RESULTS / f"{args.name}.json").write_text(json.dumps(record, indent=1) + "\n")
     lines = ["# Metamodels compared on calibrated sites (held-out weeks)", "",
-             f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}. "
-             f"Command: `{command}`.", "",
+             f"Torch machine: {record['machine']}.", "",
              f"Each site calibrated by each model (CMA-ES, 6,000 evaluations, seeds {args.seeds}, first half of the "
              "weeks fit; effects calibrated: "
              + ("each site's declared ones" if args.site_effects else "none declared")
@@ -100,7 +99,7 @@ def main() -> None:
             lines.append(f"| {site_label} | {label} | {mean['cost']:.4f} | {mean['r2_t']:.3f} | {mean['r2_q']:.3f} | "
                          f"{mean['rmse_t_celsius']:.3f} | {mean['cv_rmse_q_percent']:.1f} | "
                          f"{mean['nmbe_q_percent']:.1f} | {by_seed} |")
-    (RESULTS / f"{args.name}.md").write_text("\n".join(lines) + "\n")
+    harness.write_results(args.name, lines, record)
 
 
 if __name__ == "__main__":

@@ -3,32 +3,30 @@
 One seeded run of ``factor x max(G)`` generations is made; pymoo draws the same random numbers whatever the
 termination, so the first G generations of it *are* the G-generation run, and its hypervolume and wall time
 after generation G are read from the run's history. For each G the gap is
-``1 - HV(G) / HV(factor x G)``. Target (issue 5): within 1 % in under 2 minutes on 2 cores.
+``1 - HV(G) / HV(factor x G)``. Target: within 1 % in under 2 minutes on 2 cores.
 
 Writes ``bench/results/nsga2_convergence.{md,json}``.
 """
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
-import json
 import os
 import platform
-from pathlib import Path
 
 import gymnasium as gym
+
+import harness
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from agents.nsga2 import pareto_front
 
-RESULTS = Path(__file__).resolve().parent / "results"
 PAPER_WEEK = 46  # the default site's first held-out week (2019-11-25)
 
 
 def main() -> None:
     """Run the long NSGA-II and write the convergence table."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--generations", default="150,300,500,1000,1500",
                         help="comma-separated G to report (the run lasts factor x the largest)")
     parser.add_argument("--factor", type=int, default=10)
@@ -54,10 +52,7 @@ def main() -> None:
                                   ("population", args.population), ("week", args.week), ("seed", args.seed)))
     result = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
               "load_average_at_start": load, "command": command, "week": args.week, "rows": rows}
-    RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "nsga2_convergence.json").write_text(json.dumps(result, indent=1) + "\n")
     lines = [f"# NSGA-II convergence (week {args.week}, population {args.population}, seed {args.seed})", "",
-             f"{result['date']}, {result['machine']}, 1-min load average at start {load:.2f}; `{command}`.",
              f"One run of {args.factor * gens[-1]} generations; G generations are its first G (same seed, same "
              "random stream). Target: gap within 1 % in under 2 minutes.", "",
              "| G | evaluations | seconds | HV(G) | 10 G seconds | HV(10 G) | gap % | target met |",
@@ -67,8 +62,7 @@ def main() -> None:
         lines.append(f"| {r['generations']} | {r['evaluations']:,} | {r['seconds']} | {r['hypervolume']:.4f} | "
                      f"{r['seconds_long']} | {r['hypervolume_long']:.4f} | {r['gap_percent']:.2f} | "
                      f"{'yes' if ok else 'no'} |")
-    (RESULTS / "nsga2_convergence.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    harness.write_results("nsga2_convergence", lines, result, echo=True)
 
 
 if __name__ == "__main__":

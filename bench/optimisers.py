@@ -1,7 +1,7 @@
-"""Issue 5's comparison: NSGA-II, CMA-ES, PPO, the historical and a rule-based schedule on held-out weeks,
+"""The optimisers compared: NSGA-II, CMA-ES, PPO, the historical and a rule-based schedule on held-out weeks,
 NSGA-II convergence, batched evaluation speed, and realised vs predicted savings on the real building.
 
-    .venv/bin/python bench/optimisers.py [--weeks 44,45,46,47] [--policy bench/results/ppo_policy.zip]
+    .venv/bin/python bench/optimisers.py [--weeks 44,45,46,47] [--policy out/ppo/ppo_default_seed0.zip]
 
 Everything runs on ``BuildingWeek-v0`` with the shipped metamodel and calibrated default site; the held-out
 weeks default to the env's ``test`` split (weeks 12-15, 28-31, 44-47). Writes ``bench/results/optimisers.md``
@@ -10,16 +10,15 @@ and ``.json``, ``optimisers_pareto_week46.png`` and ``optimisers_before_after_we
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
-import json
 import os
 import platform
 import time
-from pathlib import Path
 
 import gymnasium as gym
+import harness
 import numpy as np
+from harness import RESULTS
 
 import buildenv  # noqa: F401
 from agents.cli import optimise
@@ -27,7 +26,6 @@ from agents.nsga2 import hypervolume
 from agents.report import markdown_table, plot_before_after, plot_pareto
 from agents.verify import verify
 
-RESULTS = Path(__file__).resolve().parent / "results"
 PAPER_WEEK = 46  # the default site's first held-out measured week (2019-11-25)
 METHODS = ("historical", "rules", "nsga2", "cmaes", "ppo")
 LABELS = {"historical": "historical settings", "rules": "rule-based schedule", "nsga2": "NSGA-II, equal comfort",
@@ -48,7 +46,7 @@ def evaluation_speed(env, n: int = 4096, repeats: int = 3) -> float:
 
 def main() -> None:
     """Run the comparison and write the results."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--weeks", default=None, help="comma-separated weeks (default: the test split)")
     parser.add_argument("--policy", default=None, help="a trained PPO policy (agents.ppo) to include")
     parser.add_argument("--generations", type=int, default=1000)
@@ -108,7 +106,6 @@ def main() -> None:
               "mean": rows, "per_week": per_week, "energyplus_checks": checks,
               "seconds_total": round(time.perf_counter() - started, 1)}
     RESULTS.mkdir(exist_ok=True)
-    (RESULTS / "optimisers.json").write_text(json.dumps(record, indent=1))
     cols = [("method", "label", ""), ("energy vs historical", "energy_term", ".3f"),
             ("predicted savings %", "savings_percent", ".1f"), ("comfort K", "comfort_k", ".3f"),
             ("reward", "reward", ".3f"), ("hypervolume", "hypervolume", ".3f"), ("evaluations", "evaluations", ".0f"),
@@ -120,10 +117,9 @@ def main() -> None:
                   ("comfort hist. realised K", "comfort_historical", ".3f"),
                   ("comfort chosen predicted K", "comfort_chosen_predicted", ".3f"),
                   ("comfort chosen realised K", "comfort_chosen", ".3f")]
-    text = f"""# Optimisers on BuildingWeek-v0 (issue 5)
+    text = f"""# Optimisers on BuildingWeek-v0
 
-{record['date']}, {record['machine']}, 1-min load average at start {load:.2f};
-`{record['command']}` ({record['seconds_total']:.0f} s in all). NSGA-II: population 100, {args.generations}
+{record['seconds_total']:.0f} s in all. NSGA-II: population 100, {args.generations}
 generations per week (convergence: `nsga2_convergence.md`).
 Default site (DOE medium office, Chicago, calibrated), shipped metamodel, comfort weight 1 per K, T* 22.5 degC.
 
@@ -140,8 +136,7 @@ single-setting methods, that of their one point.
 ![Pareto front](optimisers_pareto_week{PAPER_WEEK}.png)
 ![before and after](optimisers_before_after_week{PAPER_WEEK}.png)
 """
-    (RESULTS / "optimisers.md").write_text(text)
-    print(text)
+    harness.write_results("optimisers", text, record, echo=True)
 
 
 if __name__ == "__main__":

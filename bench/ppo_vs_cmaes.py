@@ -34,11 +34,12 @@ import numpy as np
 import torch
 from stable_baselines3.common.callbacks import BaseCallback
 
+import harness
+
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from agents.cmaes import optimise_week
 from agents.ppo import PPO_DEFAULTS, evaluate_policy_weeks, load_policy, policy_actions, train_ppo
 
-RESULTS = Path(__file__).resolve().parent / "results"
 ROOT = Path(__file__).resolve().parent.parent
 TERMS = ("reward", "energy_term", "comfort_k")
 
@@ -132,7 +133,7 @@ def gap_percent(reference: float, reward: float) -> float:
 
 def main() -> None:
     """Train (or load) PPO, run CMA-ES and the historical settings on every test week, write the results."""
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser = harness.parser(__doc__)
     parser.add_argument("--variant", default="default", choices=sorted(VARIANTS))
     parser.add_argument("--timesteps", type=int, default=300_000, help="PPO training weeks per seed")
     parser.add_argument("--num-envs", type=int, default=64, help="weeks stepped per PPO step (one model call)")
@@ -226,9 +227,7 @@ def main() -> None:
     }
     print(json.dumps({k: v for k, v in summary.items()}, indent=1), flush=True)
     if not args.validation:
-        RESULTS.mkdir(exist_ok=True)
-        (RESULTS / "ppo_vs_cmaes.json").write_text(json.dumps(result, indent=1, default=str) + "\n")
-        (RESULTS / "ppo_vs_cmaes.md").write_text(markdown(result))
+        harness.write_results("ppo_vs_cmaes", markdown(result), result)
 
 
 def markdown(result: dict) -> str:
@@ -310,8 +309,7 @@ def markdown(result: dict) -> str:
         "on other weeks PPO beats CMA-ES's 6000-evaluation search, which is not a true optimum in 84 dimensions.",
         "",
         "## Tuning (training weeks only)", "",
-        "Tuned on 2026-11-21 with the single-zone default metamodel of that day and kept for the core + perimeter "
-        "one. Hyper-parameters were chosen without the test weeks: PPO trained on the training weeks less "
+        "Tuned with an earlier, single-zone default metamodel and kept. Hyper-parameters were chosen without the test weeks: PPO trained on the training weeks less "
         f"{result['tuning']['validation_weeks']} and was compared with CMA-ES on those "
         "(`bench/ppo_vs_cmaes.py --validation --variant V --timesteps N --ppo-seeds S`). Gap of the mean reward "
         "over the validation weeks (positive = PPO worse):", "",

@@ -12,9 +12,7 @@ Run:  .venv/bin/python bench/simulation_speed.py [--repeats N] [--skip-reference
 
 from __future__ import annotations
 
-import argparse
 import datetime as dt
-import json
 import os
 import platform
 import re
@@ -24,18 +22,18 @@ import tempfile
 import time
 from pathlib import Path
 
+import harness
 import numpy as np
 
 import buildenv.energyplus.simulate as sim
 from buildenv.defaults import default_theta
 from buildenv.energyplus.idf import format_idf, read_idf
 from buildenv.energyplus.runner import energyplus_version, run_energyplus
-from buildenv.sampling import sample_weeks
-from buildenv.weather import resolve_epw
+from buildenv.campaign.sampling import sample_weeks
+from buildenv.weather.epw import resolve_epw
 
 EPW = "usa_il_chicago"
 CAMPAIGN_WEEKS, CAMPAIGN_CORES = 40_000, 2
-RESULTS = Path(__file__).resolve().parent / "results"
 OUTPUT_FILES = ("csv mtr eso eio tabular sqlite json audit space_sizing zone_sizing system_sizing dxf bnd rdd mdd "
                 "mtd end shd dfs glhe delightin delighteldmp delightdfdmp edd dbg perflog sln sci wrl screen extshd "
                 "tarcog plant_component_sizing").split()  # OutputControl:Files field order (IDD / model.py)
@@ -125,7 +123,7 @@ def time_reference(repeats: int) -> dict:
 
 def main(argv: list[str] | None = None) -> None:
     """Run the benchmark, print a table and write the results files."""
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    p = harness.parser(__doc__, first_line=True)
     p.add_argument("--repeats", type=int, default=3, help="runs per model (median reported)")
     p.add_argument("--skip-reference", action="store_true", help="time only the shoebox")
     args = p.parse_args(argv)
@@ -159,16 +157,12 @@ def main(argv: list[str] | None = None) -> None:
                   f"- Reference eplusout.err: {'; '.join(ref['err_summary'])}. Warnings: "
                   + " / ".join(f"`{w.replace('** Warning **', '').strip(' *')}`" for w in ref["warnings"]) + ".",
                   f"- Speed ratio shoebox / reference (weeks/s/core): **{ratio:.1f}x**."]
-    md = [f"# Simulation speed ({record['date']})", "", f"Machine: {record['machine']['processor']}, "
-          f"{os.cpu_count()} CPUs, {platform.platform()}; EnergyPlus {record['energyplus']}.", "",
-          f"Command: `{record['command']}` ({args.repeats} repeats, median reported).", "",
+    md = ["# Simulation speed", "", f"EnergyPlus {record['energyplus']}; {args.repeats} repeats, median reported. "
           "Single-process measurement (one core); other processes may have been running on the machine at the "
           "same time.", "", *lines, "", *notes,
           "- The last column is a **projection**, not a measurement: 40,000 weeks / (weeks/s/core x 2 cores), "
           "assuming perfect scaling over 2 processes.", ""]
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "simulation_speed.md").write_text("\n".join(md))
-    (RESULTS / "simulation_speed.json").write_text(json.dumps(record, indent=2))
+    harness.write_results("simulation_speed", md, record)
 
 
 if __name__ == "__main__":

@@ -1,24 +1,16 @@
 """The variable catalogue: every input and output of the building model, defined once.
 
-This module is the single source of truth for names, units, ranges, steps and granularity. Sampling
-(:mod:`buildenv.campaign`), the hourly encoding of daily settings (:mod:`buildenv.schedules`), the
-EnergyPlus model (:mod:`buildenv.energyplus.shoebox`), the Gymnasium action space and the calibration
-bounds all read their ranges from here; no range is typed anywhere else.
+The single source of truth for names, units, ranges, steps and granularity: sampling
+(:mod:`buildenv.campaign.sampling`), the hourly schedules (:mod:`buildenv.schedules`), the EnergyPlus model
+(:mod:`buildenv.energyplus.shoebox`), the action space and the calibration bounds all read their ranges here.
 
-Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize
-energy loads"):
+Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize energy loads"):
 
 ``theta_build`` (static, one value per building)
-    The paper's 17 building parameters plus the geometry (floor area, number of floors) = 19 variables.
-    Extensive quantities are expressed per m2 of floor area so that one model covers offices of any size:
-    the paper's 28,733 m2 building with 1,000-2,000 occupants gives 0.035-0.070 occupants/m2, and its
-    0-1,000 kW fan-coil power gives 0-35 W/m2. Two deliberate departures, both to cover the offices we
-    calibrate against (DOE/ASHRAE reference offices in climates colder and hotter than Paris):
-    fan-coil heating/cooling power spans 10-100 W/m2 (the paper's 0-35 W/m2 leaves a Chicago or Phoenix
-    office unable to hold its setpoint for whole summer days: measured with the shoebox, 50 W/m2 of cooling
-    ran at its limit from 08:00 to 18:00 all week in a Chicago July with a 28 degC night setback; 0 would be
-    a building with no plant), and the window-to-wall ratio spans 20-60 % (the paper's 40-50 % excludes
-    the reference offices' 21-38 %).
+    The paper's 17 building parameters plus floor area and number of floors = 19 variables; extensive
+    quantities are per m2 of floor area, so one model covers offices of any size. To cover the reference
+    offices in colder and hotter climates than Paris, fan-coil power spans 10-100 W/m2 (the paper's
+    0-35 W/m2 cannot hold a Chicago or Phoenix summer) and the window-to-wall ratio 20-60 %.
 ``settings`` (I_k, per day of the week: 12 settings x 7 days = 84 values a week)
     Heating, cooling and ventilation schedules and setpoints of the building management system (BMS).
 ``occupancy`` (O_k, per weekday Monday-Friday: 2 x 5 = 10 values a week)
@@ -26,12 +18,10 @@ energy loads"):
 ``weather`` (W_k, per hour)
     The paper's seven series plus wind speed and direction (needed for sim-to-real diagnosis).
 ``outputs`` (per hour)
-    The paper's 8 simulated outputs. Energies are hourly amounts per m2 of floor area (Wh/m2 in the hour,
-    numerically the mean power in W/m2); multiply by floor area / 1000 for kWh.
+    The paper's 8 outputs; energies in Wh per m2 of floor area in the hour (x floor area / 1000 for kWh).
 
-A variable with a ``step`` is sampled on the grid ``min, min + step, ...`` up to ``max`` (the paper's
-uniform sampling over its ranges); ``vol_ventilation`` (0.7-1.7 step 0.3) therefore takes 0.7, 1.0, 1.3
-and 1.6, exactly as the paper's table reads.
+A variable with a ``step`` is sampled on the grid ``min, min + step, ...`` up to ``max`` (the paper's uniform
+sampling): ``vol_ventilation`` (0.7-1.7 step 0.3) takes 0.7, 1.0, 1.3 and 1.6, as the paper's table reads.
 """
 
 from __future__ import annotations

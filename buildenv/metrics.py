@@ -1,4 +1,4 @@
-"""Accuracy metrics of predicted weeks, computed in one place.
+"""Accuracy metrics of predicted weeks, a week's summary and the site metrics (Guideline 14), in one place.
 
 Conventions (the paper's Table 1, stated once):
 
@@ -15,14 +15,10 @@ Conventions (the paper's Table 1, stated once):
   its mean over the week, in percent (the ASHRAE Guideline 14 statistic without the degrees-of-freedom
   correction, which belongs to calibration).
 
-Two pooled scores complement the per-week ones (:func:`pooled_scores`): ``r2_t_pooled`` and ``r2_q_pooled``
-are ``r2_score`` over every test hour of every week taken as one series (what ``r2_score(y.ravel(),
-p.ravel())`` gives on the test set). A week whose indoor temperature barely moves (tight setpoints) has a
-tiny per-week variance, so a 0.2 K error costs it a large per-week R2; the pooled score measures the same
-errors against the spread of temperatures across weeks. Both are reported; neither is hidden.
-
-:func:`daily_errors` splits the errors by day of the week (day 1 starts from the previous week's state,
-which the model sees only through its context hours).
+:func:`pooled_scores` gives ``r2_t_pooled`` and ``r2_q_pooled``: ``r2_score`` over every hour of every week as
+one series, which measures errors against the spread across weeks (a week whose temperature barely moves has
+a tiny per-week variance). :func:`daily_errors` splits the errors by day of the week. :func:`week_summary`
+totals one week; :func:`site_metrics` scores predictions against a site's measurements.
 """
 
 from __future__ import annotations
@@ -109,4 +105,74 @@ def summarise(per_week: dict[str, np.ndarray]) -> dict[str, float]:
         out[name] = float(np.mean(values))
         out[f"{name}_std"] = float(np.std(values))
     out["weeks"] = int(len(next(iter(per_week.values()))))
+    return out
+
+def week_summary(outputs: np.ndarray, occupancy_fraction: np.ndarray, floor_area_m2: float) -> dict[str, float]:
+    """Totals and means of one week.
+
+    Args:
+        outputs: ``(168, 8)`` hourly outputs (Wh/m2 per hour, degC).
+        occupancy_fraction: ``(168,)`` hourly occupancy (0-1).
+        floor_area_m2: floor area used to turn Wh/m2 into kWh.
+    Returns:
+        ``{"<OUTPUT>_kwh": weekly total for each energy output, "heat_consumption_kwh": the paper's measured
+        heat consumption (Q_HEAT_OFFICE + Q_AHU_H + Q_EQP + Q_LIGHT), "t_int_occupied_mean_c",
+        "t_int_unoccupied_mean_c", "t_int_min_c", "t_int_max_c"}``.
+    """
+    out = {name: outputs[:, i] for i, name in enumerate(cat.OUTPUT_NAMES)}
+    occupied = np.asarray(occupancy_fraction) > 0
+    summary: dict[str, float] = {}
+    for name in cat.OUTPUT_NAMES:
+        if name not in cat.TEMPERATURE_OUTPUTS:
+            summary[f"{name}_kwh"] = float(out[name].sum() * floor_area_m2 / 1000.0)
+    summary["heat_consumption_kwh"] = float(sum(summary[f"{n}_kwh"] for n in cat.HEAT_CONSUMPTION_OUTPUTS))
+    t_int = out["T_INT_OFFICE"]
+    summary["t_int_occupied_mean_c"] = float(t_int[occupied].mean()) if occupied.any() else float("nan")
+    summary["t_int_unoccupied_mean_c"] = float(t_int[~occupied].mean()) if (~occupied).any() else float("nan")
+    summary["t_int_min_c"] = float(t_int.min())
+    summary["t_int_max_c"] = float(t_int.max())
+    return summary
+
+
+# Site metrics: predictions against a site's measurements, hours ``(weeks, 168)``; NaN marks a missing hour.
+
+GUIDELINE14_P = 1  # parameters counted in ASHRAE Guideline 14's n - p degrees of freedom
+
+
+def r2_masked(y: np.ndarray, p: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """R2 of each candidate's ``p (pop, weeks, 168)`` against ``y (weeks, 168)`` over ``mask`` hours."""
+    yv = y[mask]
+    ss_tot = ((yv - yv.mean()) ** 2).sum()
+    ss_res = ((p[:, mask] - yv) ** 2).sum(-1)
+    return 1.0 - ss_res / max(ss_tot, 1e-12)
+
+
+def guideline14(measured: np.ndarray, predicted: np.ndarray, p: int = GUIDELINE14_P) -> tuple[float, float]:
+    """ASHRAE Guideline 14 CV(RMSE) and NMBE in percent over the finite measured hours."""
+    ok = np.isfinite(measured)
+    y, yhat = measured[ok], predicted[ok]
+    dof = max(len(y) - p, 1)
+    mean = y.mean()
+    return (float(100.0 * np.sqrt(((y - yhat) ** 2).sum() / dof) / mean),
+            float(100.0 * (y - yhat).sum() / (dof * mean)))
+
+
+def site_metrics(temperature: np.ndarray, consumption: np.ndarray, pred_t: np.ndarray, pred_q: np.ndarray,
+                 occupied: np.ndarray, scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+    """Metrics of predictions against measurements (R2, standardised MSE, RMSE, Guideline 14); arrays ``(weeks, 168)``."""
+    out: dict[str, float] = {}
+    for key, y, p in (("t", temperature, pred_t), ("q", consumption, pred_q)):
+        ok = np.isfinite(y)
+        mean, std = scale[key]
+        z = ((p - y) / std) ** 2
+        out[f"r2_{key}"] = float(r2_masked(y, p[None], ok)[0])
+        out[f"mse_{key}"] = float(z[ok].mean())
+        occ = ok & occupied
+        out[f"mse_{key}_occ"] = float(z[occ].mean()) if occ.any() else float("nan")
+    ok = np.isfinite(temperature)
+    out["rmse_t_celsius"] = float(np.sqrt(((pred_t - temperature)[ok] ** 2).mean()))
+    ok_q = np.isfinite(consumption)
+    out["rmse_q_wh_m2"] = float(np.sqrt(((pred_q - consumption)[ok_q] ** 2).mean()))
+    out["cv_rmse_q_percent"], out["nmbe_q_percent"] = guideline14(consumption, pred_q)
+    out["hours"] = int(np.isfinite(consumption).sum())
     return out

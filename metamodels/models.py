@@ -4,27 +4,8 @@
 store). All models see the whole input sequence of a week (its inputs are known in advance: weather,
 settings, occupancy), so the bidirectional ones may look ahead.
 
-- ``transformer``: the paper's. Linear embedding to ``d_model`` (64), sinusoidal positions, ``layers``
-  (4) encoder layers of local self-attention, then ``layers`` decoder layers of local self-attention and
-  local attention onto the encoder's latent vectors, and a linear read-out. 8 heads with query/key/value
-  size 8. "Local" is the paper's attention size Delta = 12: hour k attends to hours k-12 .. k+12.
-  ``patch_hours`` > 1 (our addition for speed) makes each token a block of that many consecutive hours
-  (embedded together, read out hour by hour); the window then spans ``ceil(window / patch_hours)`` tokens.
-  ``patch_hours=1`` is the paper's model. ``hourly_head`` > 0 (our addition) replaces the linear read-out
-  by a small per-hour network (that many hidden units, ReLU) on the hour's own inputs, its token's latent
-  vector and its place in the token: a token then need not squeeze all its hours' outputs through
-  ``d_model`` numbers, and hour-level drivers (the setpoint in force this hour) reach the output directly.
-  ``hourly_gru`` > 0 (with ``hourly_head``) runs a bidirectional GRU of that many units per direction over the
-  head's hourly features before the read-out, so that each hour also sees the thermal state carried from the
-  hours before and after it (about 2x slower; see ``bench/results/metamodels_progress.md``).
-  ``hourly_state`` > 0 (with ``hourly_head``, our addition) gives each hour that many *thermal states* per
-  direction instead: exponentially weighted means of learnt hourly drives over the hours before it (and, in
-  the other direction, after it), each with its own learnt time constant (initialised from 1 h to 4 days,
-  log-spaced). A building's temperature is, to first order, such a filtered heat balance, clamped by the
-  thermostat; the states are linear filters (one matrix product per direction, no sequential loop, so they
-  run at matrix speed on a CPU, unlike a GRU) and a ReLU layer after them does the clamping.
-  ``hourly_state_layers`` > 1 stacks further such stages (residual): each filters the previous stage's
-  clamped features again, so that a response to a state can itself drive slower states.
+- ``transformer``: the paper's encoder-decoder Transformer with local attention (:class:`Transformer`), with
+  optional hour patches and a per-hour read-out head (our additions, off by default);
 - ``bigru``: bidirectional GRU, linear read-out.
 - ``lstm``: (forward) LSTM, linear read-out.
 - ``convgru``: two 1-D convolutions (kernel 5, ReLU) then a bidirectional GRU.
@@ -113,7 +94,25 @@ class _Block(nn.Module):
 
 
 class Transformer(nn.Module):
-    """The paper's encoder-decoder Transformer with local attention (see module docstring)."""
+    """The paper's encoder-decoder Transformer with local attention.
+
+    A linear embedding to ``d_model``, sinusoidal positions, ``layers`` encoder layers of local self-attention,
+    then ``layers`` decoder layers of local self-attention and local attention onto the encoder's latent
+    vectors, and a linear read-out; ``heads`` heads of size ``head_dim``. "Local" is the paper's attention size
+    Delta = ``window``: hour k attends to hours k - window .. k + window. The defaults are the paper's model.
+
+    Args (our additions):
+        patch_hours: > 1 makes each token a block of that many consecutive hours (embedded together, read out
+            hour by hour); the window then spans ``ceil(window / patch_hours)`` tokens.
+        hourly_head: > 0 replaces the linear read-out by a per-hour network of that many hidden units
+            (:class:`HourlyHead`) on the hour's inputs, its token's latent vector and its place in the token.
+        hourly_gru: > 0 (with ``hourly_head``) runs a bidirectional GRU of that many units per direction over
+            the head's hourly features (about 2x slower).
+        hourly_state: > 0 (with ``hourly_head``) gives each hour that many :class:`ThermalStates` per direction
+            instead, clamped by a ReLU layer; linear filters, so they run at matrix speed, unlike a GRU.
+        hourly_state_layers: > 1 stacks further such stages (residual), so that a response to a state can
+            itself drive slower states.
+    """
 
     #: a patch's inputs are flattened hour by hour (all channels of its first hour, then of the next)
     hour_major_inputs = True
@@ -162,6 +161,8 @@ class ThermalStates(nn.Module):
     the drive over hours ``s <= t`` (``s >= t`` backward) weighted by ``exp(-|t - s| / tau_c)``, normalised
     by the weights present, so that the first hours of a sequence are not biased towards zero:
     ``num_t = a num_{t-1} + u_t``, ``den_t = a den_{t-1} + 1``, state ``num_t / den_t`` with ``a = exp(-1 / tau)``.
+    The time constants start log-spaced from ``tau_min_h`` to ``tau_max_h``. A building's temperature is, to
+    first order, such a filtered heat balance, clamped by the thermostat.
 
     The recurrence is evaluated in blocks of ``block`` hours, with no loop over hours: one small matrix product
     within each block, one across the blocks' end values, ``(batch, hours, channels) -> (batch, hours, channels)``.

@@ -9,8 +9,7 @@ import numpy as np
 import torch
 
 
-#: Values per float64 chunk when fitting (256 MiB): the training inputs of 100,000+ weeks are several GiB in
-#: float32, and a whole float64 copy of them doubled the peak memory of training.
+#: Values per float64 chunk when fitting (256 MiB), so that fitting never copies the whole training set to float64
 FIT_CHUNK_VALUES = 32 * 1024 * 1024
 
 

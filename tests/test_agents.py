@@ -61,7 +61,7 @@ def test_rule_based_schedule_follows_occupancy(env):
 
 
 def test_optimize_command_prints_json(capsys):
-    from buildenv.cli import main
+    from buildenv.cli.main import main
 
     assert main(["optimize", "--method", "rules", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)

@@ -10,11 +10,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from buildenv import calibration as cal
+from buildenv.calibration import problem as cal
+
+from buildenv.calibration.calibrate import calibrate_site
 from buildenv import catalogue as cat
-from buildenv import surrogate as sg
+from buildenv.metamodel import surrogate as sg
 from buildenv.energyplus.idf import read_idf
-from buildenv.reference import (
+from buildenv.energyplus.reference import (
     REFERENCE_BUILDINGS,
     add_sensor_noise,
     detect_schedule_map,
@@ -22,8 +24,8 @@ from buildenv.reference import (
     make_reference_site,
     reference_idf,
 )
-from buildenv.site import load_site, write_site
-from buildenv.surrogate import load_metamodel
+from buildenv.sites import load_site, write_site
+from buildenv.metamodel.surrogate import load_metamodel
 
 START = dt.date(2019, 11, 4)
 
@@ -92,7 +94,7 @@ def surrogate():
 def test_calibration_recovers_known_parameters(tmp_path, surrogate):
     truth = _truth()
     site = _synthetic_site(tmp_path, surrogate, truth)
-    result = cal.calibrate_site(site, surrogate, weeks=[0], method="cmaes", seed=0, max_evaluations=2500)
+    result = calibrate_site(site, surrogate, weeks=[0], method="cmaes", seed=0, max_evaluations=2500)
     assert result["fit"]["r2_t"] > 0.97 and result["fit"]["r2_q"] > 0.97
     assert result["heldout"]["cv_rmse_q_percent"] < 10.0
     # the parameters that drive the two series: occupied hours (a period covers the whole hours h with
@@ -126,7 +128,7 @@ def test_parameters_at_a_bound_of_the_catalogue_are_reported():
 
 
 def test_calibrate_command_prints_its_parameters_at_a_bound(tmp_path, surrogate, capsys):
-    from buildenv.cli import main
+    from buildenv.cli.main import main
 
     _synthetic_site(tmp_path, surrogate, _truth(), weeks=1)
     assert main(["calibrate", "--site", str(tmp_path), "--evaluations", "200", "--quiet", "--json"]) == 0
@@ -150,7 +152,7 @@ def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, sur
     np.testing.assert_array_equal(params[:, fixed], np.broadcast_to([25.0, 40.0, 50.0], (4, 3)))
     np.testing.assert_allclose(problem.to_unit(params[1]), z[1])
     for method, kwargs in (("cmaes", {"max_evaluations": 400}), ("adam", {})):
-        result = cal.calibrate_site(site, surrogate, weeks=[0], method=method, seed=0, save=False, **kwargs)
+        result = calibrate_site(site, surrogate, weeks=[0], method=method, seed=0, save=False, **kwargs)
         assert {n: result["theta"][n] for n in known} == known and result["known"] == sorted(known)
 
 
@@ -172,12 +174,12 @@ def test_restarts_keep_the_best_of_independent_runs(tmp_path, surrogate):
 
 def test_a_calibration_with_restarts_scores_each_run_on_the_heldout_weeks(tmp_path, surrogate):
     site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=2)
-    result = cal.calibrate_site(site, surrogate, seed=3, max_evaluations=150, restarts=2, save=False)
+    result = calibrate_site(site, surrogate, seed=3, max_evaluations=150, restarts=2, save=False)
     assert [r["seed"] for r in result["runs"]] == [3, 4] and min(r["cost"] for r in result["runs"]) == pytest.approx(
         result["cost"], abs=1e-5)
     best = min(result["runs"], key=lambda r: r["cost"])  # no effects: the kept run is the result's model
     assert best["heldout_rmse_t_celsius"] == pytest.approx(result["heldout"]["rmse_t_celsius"], abs=1e-4)
-    assert "runs" not in cal.calibrate_site(site, surrogate, max_evaluations=150, save=False)
+    assert "runs" not in calibrate_site(site, surrogate, max_evaluations=150, save=False)
 
 
 def test_runs_that_fit_alike_but_predict_the_heldout_weeks_apart_are_noted():
@@ -216,7 +218,7 @@ def test_anchored_refit_stays_near_its_start_unless_the_fit_pays(tmp_path, surro
 
 def test_gradient_calibration_fits_too(tmp_path, surrogate):
     site = _synthetic_site(tmp_path, surrogate, _truth())
-    result = cal.calibrate_site(site, surrogate, weeks=[0], method="adam", seed=0, save=False)
+    result = calibrate_site(site, surrogate, weeks=[0], method="adam", seed=0, save=False)
     assert result["fit"]["r2_t"] > 0.95 and result["fit"]["r2_q"] > 0.95
 
 
@@ -233,7 +235,7 @@ def test_calibration_encodes_the_context_its_metamodel_was_trained_with(tmp_path
     assert problem.x_base.shape[1] == 72 + 168
     with pytest.raises(sg.CheckpointError, match="72"):
         cal.predict(cal.build_problem(site, [0, 1]), three_days, _truth())
-    result = cal.calibrate_site(site, three_days, weeks=[0], method=method, seed=0, max_evaluations=1500,
+    result = calibrate_site(site, three_days, weeks=[0], method=method, seed=0, max_evaluations=1500,
                                 save=False)
     assert result["fit"]["r2_t"] > 0.9 and result["fit"]["r2_q"] > 0.9
 
@@ -259,7 +261,7 @@ def _reading_temperature_before(surrogate: sg.Surrogate) -> sg.Surrogate:
 def test_calibration_feeds_the_temperature_measured_before_each_week(tmp_path, surrogate, method):
     """A metamodel that reads the temperature measured before the week (the shipped default does) gets the end
     of the site's previous measured week (unknown before the first), less the sensor bias the model carries."""
-    from buildenv import effects_model as em
+    from buildenv.diagnosis import model_effects as em
 
     site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=3)  # simulated with nothing known before
     reading = surrogate if surrogate.uses_temperature_before else _reading_temperature_before(surrogate)
@@ -276,7 +278,7 @@ def test_calibration_feeds_the_temperature_measured_before_each_week(tmp_path, s
                                    cal.predict(plain, surrogate, _truth())[0], rtol=0, atol=1e-3)
     unbiased = em.transform_inputs(problem.x_base.copy(), {"temperature_sensor_bias": np.array([[0.5]])})
     np.testing.assert_allclose(unbiased[1, :ctx, value], problem.x_base[1, :ctx, value] - 0.5, rtol=1e-6)
-    result = cal.calibrate_site(site, reading, weeks=[0, 1], method=method, seed=0, max_evaluations=1500, save=False)
+    result = calibrate_site(site, reading, weeks=[0, 1], method=method, seed=0, max_evaluations=1500, save=False)
     assert result["fit"]["r2_t"] > 0.9 and result["fit"]["r2_q"] > 0.9
 
 
@@ -302,12 +304,12 @@ def test_masked_gaps_change_nothing_else(tmp_path, surrogate):
 
 
 def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model(tmp_path, surrogate):
-    from buildenv.calibration_plot import plot_calibration
-    from buildenv.site_model import SiteModel
+    from buildenv.calibration.plot import plot_calibration
+    from buildenv.sites.week_simulator import SiteModel
 
     effect = ("night_cycle_cold_air",)
     site = _synthetic_site(tmp_path, surrogate, np.r_[_truth(), 0.15, 0.3, 5.0], effects=effect, declared=effect)
-    result = cal.calibrate_site(site, surrogate, weeks=[0], seed=0, max_evaluations=2500)  # site.toml's effect
+    result = calibrate_site(site, surrogate, weeks=[0], seed=0, max_evaluations=2500)  # site.toml's effect
     fitted = result["effects"]["night_cycle_cold_air"]
     assert result["declared_effects"] == list(effect) and result["cost"] < result["cost_without_effects"]
     assert fitted["cooling_k_per_wh_m2"] > 0.05 and fitted["reheat_share"] > 0.1
@@ -328,7 +330,7 @@ def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model
     np.testing.assert_array_equal(cal.build_problem(saved, [0, 1], context_hours=ctx).x_base[..., -1], expected)
     np.testing.assert_array_equal(model.ground(np.array([model.week_of(START), model.week_of(START) + 1])), expected)
     from buildenv.energyplus.shoebox import ground_temperatures_c
-    from buildenv.weather import load_weather
+    from buildenv.weather.epw import load_weather
 
     np.testing.assert_allclose(expected, ground_temperatures_c(load_weather(saved.weather))[10])  # November's
 

@@ -7,11 +7,11 @@ import datetime as dt
 import numpy as np
 import pytest
 
-from buildenv import calibration as cal
-from buildenv import calibration_energyplus as ce
+from buildenv.calibration import problem as cal
+from buildenv.calibration import energyplus as ce
 from buildenv.energyplus.simulate import simulate_weeks
-from buildenv.reference import historical_settings
-from buildenv.site import load_site, write_site
+from buildenv.energyplus.reference import historical_settings
+from buildenv.sites import load_site, write_site
 
 # 2018-01-01 is a Monday and the first row of the EPW year: 2018-01-08 is the shoebox's week of year 1
 START = dt.date(2018, 1, 8)

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.campaign import CampaignConfig, plan_campaign, run_campaign
-from buildenv.dataset import ARRAYS, open_dataset
+from buildenv.campaign.runs import CampaignConfig, plan_campaign, run_campaign
+from buildenv.campaign.dataset import ARRAYS, open_dataset
 from buildenv.errors import DatasetError
 
 SMALL = dict(weeks=4, seed=3, epw=["usa_il_chicago", "usa_fl_miami"], weeks_per_run=2)
@@ -63,7 +63,7 @@ def test_dataset_contents(small_dataset):
         assert list(prev) == [-1, 0, -1, 2]
         np.testing.assert_array_equal(ds.week_of_year[1::2], ds.week_of_year[0::2] + 1)
         # the stored weather is the EPW's weather of that week of the year
-        from buildenv.weather import load_weather
+        from buildenv.weather.epw import load_weather
 
         w = load_weather(ds.weather_names[int(ds.weather_index[0])]).weeks(int(ds.week_of_year[0]), 1)[0]
         np.testing.assert_allclose(ds.weather[0], w, rtol=1e-6)
@@ -92,7 +92,7 @@ def test_resume_after_kill_redoes_nothing(tmp_path):
     out = tmp_path / "killed"
     args = ["--weeks", "6", "--seed", "5", "--epw", "usa_co_golden", "--weeks-per-run", "1", "--workers", "1",
             "--quiet", "--out", str(out)]
-    cmd = [sys.executable, "-m", "buildenv.cli", "simulate", *args]
+    cmd = [sys.executable, "-m", "buildenv.cli.main", "simulate", *args]
     proc = subprocess.Popen(cmd, start_new_session=True)
     deadline = time.time() + 120
     while time.time() < deadline and len(list((out / "shards").glob("run_*[0-9].npz"))) < 2:
@@ -111,7 +111,7 @@ def test_resume_after_kill_redoes_nothing(tmp_path):
     assert manifest["runs_simulated_last_session"] == 6 - done_before
 
     reference = tmp_path / "reference"
-    subprocess.run([sys.executable, "-m", "buildenv.cli", "simulate", *args[:-1], str(reference)], check=True)
+    subprocess.run([sys.executable, "-m", "buildenv.cli.main", "simulate", *args[:-1], str(reference)], check=True)
     resumed, clean = _arrays(out), _arrays(reference)
     for name in ARRAYS:
         np.testing.assert_array_equal(resumed[name], clean[name], err_msg=name)
@@ -202,7 +202,7 @@ def test_too_many_failed_runs_stop_the_campaign_and_a_rerun_retries_them(tmp_pat
 
 
 def test_simulate_command_reports_the_runs_it_left_out(tmp_path, monkeypatch, capsys):
-    from buildenv.cli import main
+    from buildenv.cli.main import main
 
     config = CampaignConfig(weeks=8, seed=3, epw=["usa_il_chicago"], weeks_per_run=2)
     refused = plan_campaign(config)[2]

@@ -8,7 +8,7 @@ import shutil
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.cli import build_parser, main
+from buildenv.cli.main import build_parser, main
 
 
 def test_catalogue_json(capsys):
@@ -166,16 +166,16 @@ def test_site_reference_rejects_a_bad_known_parameter_in_one_line(item, error, t
 
 
 def test_known_parameters_parse_from_the_command_line():
-    from buildenv.cli_sites import parse_known
+    from buildenv.cli.sites import parse_known
 
     assert parse_known(["pc_night_percent=44.4", "occupant_density_per_m2=0.0538"]) == {
         "pc_night_percent": 44.4, "occupant_density_per_m2": 0.0538}
 
 
 def test_calibrate_models_the_sites_declared_effects_and_the_extra_ones_unless_told_not_to():
-    from buildenv.cli_sites import declared_for_calibration
-    from buildenv.env import DEFAULT_SITE
-    from buildenv.site import load_site
+    from buildenv.cli.sites import declared_for_calibration
+    from buildenv.env.building_week import DEFAULT_SITE
+    from buildenv.sites import load_site
 
     site = load_site(DEFAULT_SITE)
     own = ("night_cycle_cold_air", "evening_departure", "temperature_sensor_bias")
@@ -186,7 +186,7 @@ def test_calibrate_models_the_sites_declared_effects_and_the_extra_ones_unless_t
 
 
 def test_site_show_lists_what_the_site_declares_known(tmp_path, capsys):
-    from buildenv.env import DEFAULT_SITE
+    from buildenv.env.building_week import DEFAULT_SITE
 
     shutil.copytree(DEFAULT_SITE, tmp_path / "s")
     with open(tmp_path / "s" / "site.toml", "a") as f:

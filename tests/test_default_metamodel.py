@@ -8,8 +8,8 @@ import pytest
 from buildenv import catalogue as cat
 from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.metrics import r2_score
-from buildenv.sampling import sample_group, sample_weeks
-from buildenv.surrogate import DEFAULT_CHECKPOINT, ground_hours, load_metamodel, weather_ground_c
+from buildenv.campaign.sampling import sample_group, sample_weeks
+from buildenv.metamodel.surrogate import DEFAULT_CHECKPOINT, ground_hours, load_metamodel, weather_ground_c
 
 # Stated in README ("The default metamodel"): on fresh EnergyPlus weeks of random buildings.
 MIN_R2_T_POOLED, MIN_R2_Q_POOLED, MAX_RMSE_T_C = 0.93, 0.97, 0.6

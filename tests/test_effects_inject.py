@@ -1,4 +1,4 @@
-"""Injection of the unmodelled effects into the reference-building stand-in (buildenv.effects_inject).
+"""Injection of the unmodelled effects into the reference-building stand-in (buildenv.energyplus.injections).
 
 Short runs: medium_office, Chicago, one measured week from 2019-11-04 after one warm-up week (about 3 s each);
 the baseline is run once per module.
@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.cli import main
-from buildenv.effects import EFFECTS, NO_EFFECT_MAGNITUDE, EffectError
-from buildenv.effects_inject import (
+from buildenv.cli.main import main
+from buildenv.diagnosis.effects import EFFECTS, NO_EFFECT_MAGNITUDE, EffectError
+from buildenv.energyplus.injections import (
     InjectedEffect,
     assign_holidays,
     choose_holidays,
@@ -27,14 +27,14 @@ from buildenv.effects_inject import (
 )
 from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.errors import ReferenceBuildingError
-from buildenv.reference import (
+from buildenv.energyplus.reference import (
     REFERENCE_BUILDINGS,
     historical_settings,
     make_reference_site,
     reference_idf,
     run_reference,
 )
-from buildenv.weather import epw_day_of_year, load_weather
+from buildenv.weather.epw import epw_day_of_year, load_weather
 
 START = dt.date(2019, 11, 4)
 WEEKS = 1

@@ -7,8 +7,8 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.defaults import DEFAULT_THETA, default_week
-from buildenv.effects import night_electricity_w_m2
-from buildenv.campaign import CampaignConfig, plan_campaign
+from buildenv.diagnosis.effects import night_electricity_w_m2
+from buildenv.campaign.runs import CampaignConfig, plan_campaign
 from buildenv.energyplus.runner import run_energyplus, warmup_settled
 from buildenv.energyplus.shoebox import (
     DEFAULT_ZONING,
@@ -20,7 +20,7 @@ from buildenv.energyplus.shoebox import (
 from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.errors import CatalogueError, SimulationError
 from buildenv.schedules import hourly_schedules
-from buildenv.weather import load_weather
+from buildenv.weather.epw import load_weather
 
 JANUARY, JULY = 2, 28
 OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
@@ -192,24 +192,3 @@ def test_campaign_run_whose_thermostat_alternates_in_warmup_still_simulates():
                          zoning=task.zoning).outputs
     assert np.isfinite(out).all() and 18.0 < out[..., OUT["T_INT_OFFICE"]].mean() < 30.0
 
-
-def test_the_wind_probe_adds_its_infiltration_to_the_shoebox(monkeypatch):
-    """bench/wind_response.py: its second infiltration object changes nothing at zero, and at 0.03 air changes
-    per hour per m/s raises the heat consumption, hourly with the wind and as a constant level alike."""
-    import importlib.util
-    from pathlib import Path
-
-    bench = Path(__file__).resolve().parents[1] / "bench"
-    monkeypatch.syspath_prepend(str(bench))
-    spec = importlib.util.spec_from_file_location("wind_response", bench / "wind_response.py")
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
-    q = [OUT[n] for n in cat.HEAT_CONSUMPTION_OUTPUTS]
-    still = probe.energyplus_runs(DEFAULT_THETA, "usa_il_chicago", 44, 2, k=0.0)
-    np.testing.assert_allclose(still["wind"], still["base"], atol=1e-6)
-    np.testing.assert_allclose(still["level"], still["base"], atol=1e-6)
-    runs = probe.energyplus_runs(DEFAULT_THETA, "usa_il_chicago", 44, 2, k=0.03)
-    base, wind, level = (runs[v][..., q].sum() for v in ("base", "wind", "level"))
-    assert wind > 1.02 * base and level > 1.02 * base
-    assert 0.02 < float(runs["level_ach"]) < 0.03 * 15  # the mean of 0.03 x share x a November wind (m/s)
-    assert not np.allclose(runs["wind"], runs["level"])

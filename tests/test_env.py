@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
-from buildenv import actions as act
-from buildenv.env import BuildingWeekEnv, BuildingWeekVectorEnv, split_weeks
+from buildenv.env import actions as act
+from buildenv.env.building_week import BuildingWeekEnv, BuildingWeekVectorEnv, split_weeks
 from buildenv.errors import BuildingEnvError
 
 
@@ -129,7 +129,7 @@ def test_energyplus_backend_runs_the_reference_building():
 def test_a_metamodel_with_a_longer_context_runs_the_environment(tmp_path):
     """A checkpoint trained with two days of context (``buildenv train --context-hours 48``; here the default's
     weights, which take any length) simulates the site's weeks with its site effects, encoded with two days."""
-    from buildenv.surrogate import load_metamodel
+    from buildenv.metamodel.surrogate import load_metamodel
 
     checkpoint = load_metamodel().checkpoint
     checkpoint.metadata = {**checkpoint.metadata, "context_hours": 48}

@@ -11,13 +11,13 @@ import shutil
 import numpy as np
 import pytest
 
-from buildenv.cli import main
-from buildenv.env import DEFAULT_SITE
-from buildenv.effects import CHECKED_DIAGNOSIS
-from buildenv.effects_inject import choose_holidays
-from buildenv.gap import DiagnosisSettings, split_weeks
-from buildenv.surrogate import load_metamodel
-from buildenv.gap_check import (NONE, REFERENCE_START, StandIn, _site, diagnose_twin, latest_first_monday,
+from buildenv.cli.main import main
+from buildenv.env.building_week import DEFAULT_SITE
+from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS
+from buildenv.energyplus.injections import choose_holidays
+from buildenv.diagnosis.gap import DiagnosisSettings, split_weeks
+from buildenv.metamodel.surrogate import load_metamodel
+from buildenv.diagnosis.blind_check import (NONE, REFERENCE_START, StandIn, _site, diagnose_twin, latest_first_monday,
                                 plan_cases, ranked_first, reference_start, run_check, summarise)
 
 
@@ -128,12 +128,12 @@ def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
                                              ("holidays", "not calibrated jointly")])
 def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monkeypatch, capsys, effect, message):
     # the default site declares a sensor bias: it is in both models of a joint test, so there is nothing to test
-    import buildenv.gap
+    import buildenv.diagnosis.gap
 
     def no_diagnosis(*args, **kwargs):
         raise AssertionError("the joint test was refused only after a diagnosis of minutes")
 
-    monkeypatch.setattr(buildenv.gap, "diagnose", no_diagnosis)
+    monkeypatch.setattr(buildenv.diagnosis.gap, "diagnose", no_diagnosis)
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--joint-test", effect, "--no-save", "--quiet"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and message in err[0] and effect in err[0]
@@ -143,15 +143,15 @@ def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monke
     ([], True), (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone", "--no-night-load-first"],
                  False)])
 def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
-    import buildenv.gap
+    import buildenv.diagnosis.gap
 
     seen = {}
 
     def record(site, surrogate, settings, **kwargs):
         seen["settings"] = settings
-        raise buildenv.gap.cal.CalibrationError("stopped after reading the settings")
+        raise buildenv.diagnosis.gap.cal.CalibrationError("stopped after reading the settings")
 
-    monkeypatch.setattr(buildenv.gap, "diagnose", record)
+    monkeypatch.setattr(buildenv.diagnosis.gap, "diagnose", record)
     assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
     assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
     assert seen["settings"].joint_fallback is expected and seen["settings"].estimate_alone is expected
@@ -213,8 +213,8 @@ def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path)
 
 
 def _bench_module(name: str, monkeypatch):
-    """A script of bench/ imported as a module, with bench/ on the path as the bench runs it (it imports its
-    neighbours, bench/gap_headline.py among them)."""
+    """A script of bench/ imported as a module, with bench/ on the path as the bench runs it (it imports
+    bench/harness.py)."""
     import importlib.util
     from pathlib import Path
 
@@ -224,40 +224,6 @@ def _bench_module(name: str, monkeypatch):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
-
-
-def test_the_gap_bound_counts_a_site_findable_when_any_of_its_records_left_a_gap(tmp_path, monkeypatch):
-    """bench/gap_check_bound.py: two checks of the same plan and a third of another seed; a site is findable
-    when some record left a gap (> 0, or at least the naming bar)."""
-    bound = _bench_module("gap_check_bound", monkeypatch)
-
-    def row(case, true, share, correct):
-        return {"case": case, "true": true, "start": "2019-10-07", "magnitude": 50.0, "named": true if correct
-                else "none", "correct": correct, "gap_left": {"share": share, "left": share >= 0.15}}
-
-    def page(seed, rows):
-        return {"date": "2026-11-27", "plan": {"seed": seed, "weeks": 8, "settings": {"split": "alternate",
-                                                                                          "min_gain": 0.15}},
-                "cases": rows + [{"case": 9, "true": "none", "start": "2019-10-07", "magnitude": None}]}
-
-    files = []
-    pages = {"a": page(0, [row(0, "solar_shading", -0.2, False), row(1, "wind_infiltration", 0.1, False)]),
-             "b": page(0, [row(0, "solar_shading", -0.05, False), row(1, "wind_infiltration", 0.2, True)]),
-             "b_first": page(0, [row(0, "solar_shading", -0.05, False)]),  # the first case of "b" again
-             "c": page(1, [row(0, "solar_shading", 0.3, True)])}
-    for name, content in pages.items():
-        files.append(tmp_path / f"{name}.json")
-        files[-1].write_text(json.dumps(content))
-    sites, checks = bound.collect(files)
-    effects = bound.by_effect(sites)
-    assert len(sites) == 3 and [c["effect_cases"] for c in checks] == [2, 2, 1, 1]
-    assert effects["solar_shading"] == {"sites": 2, "records": 3, "never_a_gap": 1, "never_over_bar": 1,
-                                        "named_in_a_record": 1, "median_best_share": 0.3}
-    assert effects["wind_infiltration"]["never_a_gap"] == 0 and effects["wind_infiltration"]["records"] == 2
-    summary = bound.reach(effects)
-    assert summary["effect_sites"] == 3
-    assert summary["share_with_a_gap"] == pytest.approx(2 / 3)
-    assert summary["share_over_the_bar"] == pytest.approx(2 / 3)
 
 
 def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeypatch):
@@ -299,138 +265,6 @@ def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeyp
     assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "alone": 0, "wrong": 1}
 
 
-def test_the_floor_replay_names_an_exchanger_refit_under_its_floor_and_restores_the_catalogue(tmp_path, monkeypatch):
-    """bench/gap_floor_replay.py: a heat exchanger refit at 0.27 (under the 0.3 floor) with the best held-out gain
-    is named at a floor of 0.25, not at 0.28; the catalogue's floor is the same after the replay."""
-    from buildenv.effects import EFFECTS
-
-    replay = _bench_module("gap_floor_replay", monkeypatch)
-
-    def case(number, true, exchanger):
-        return {"case": number, "true": true, "named": "none", "ranked": ["heat_recovery", "solar_shading"],
-                "scores": {"heat_recovery": 0.14, "solar_shading": 0.01},
-                "p_values": {"heat_recovery": 1e-7, "solar_shading": 0.3},
-                "estimates": {"heat_recovery": {"effectiveness": exchanger},
-                              "solar_shading": {"blocked_fraction": 0.1}},
-                "gains_by_series": {"heat_recovery": {"temperature": -0.03, "consumption": 0.22},
-                                    "solar_shading": {"temperature": 0.01, "consumption": 0.0}}}
-
-    page = {"plan": {"seed": 3}, "cases": [case(0, "heat_recovery", 0.27), case(1, "none", 0.05)]}
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
-    records, before, _, _ = replay.judged_sources(sources)
-    assert before == {"seed3_case_000": "none", "seed3_case_001": "none"}
-    floor = EFFECTS["heat_recovery"]
-    assert replay.renamed(records, floor, 0.28, before) == []
-    assert replay.renamed(records, floor, 0.25, before) == [
-        {"site": "seed3_case_000", "true": "heat_recovery", "before": "none", "after": "heat_recovery"}]
-    assert EFFECTS["heat_recovery"] is floor and floor.smallest == 0.3
-    assert replay.estimates_by_truth(records, floor) == {"heat_recovery": [0.27], "none": [0.05]}
-
-
-def test_the_guard_replay_holds_back_a_wind_a_guard_contradicts_and_restores_no_guard(tmp_path, monkeypatch):
-    """bench/gap_guard_replay.py: a wind refit beyond every clean site's (0.030 1/h per m/s) but 13.7 % worse on
-    its held-out weeks (seed 43's case 10) is named by its estimate alone now, held back by a guard at -12 %, not
-    at -15 %; the diagnosis has no guard again after."""
-    import buildenv.gap as gap
-
-    replay = _bench_module("gap_guard_replay", monkeypatch)
-
-    def case(number, true, wind):
-        return {"case": number, "true": true, "named": "none", "ranked": ["solar_shading", "wind_infiltration"],
-                "scores": {"wind_infiltration": -0.137, "solar_shading": 0.013},
-                "p_values": {"wind_infiltration": 0.9, "solar_shading": 0.3},
-                "estimates": {"wind_infiltration": {"ach_per_m_s": wind}, "solar_shading": {"blocked_fraction": 0.1}},
-                "gains_by_series": {"wind_infiltration": {"temperature": -0.01, "consumption": -0.2},
-                                    "solar_shading": {"temperature": 0.01, "consumption": 0.0}}}
-
-    page = {"plan": {"seed": 43}, "cases": [case(0, "wind_infiltration", 0.030), case(1, "none", 0.012)]}
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
-    records, before, right, _ = replay.judged_sources(sources)
-    assert before == {"seed43_case_000": "wind_infiltration", "seed43_case_001": "none"} and right == 2
-    assert replay.renamed(records, -0.15, before) == []
-    held_back = replay.renamed(records, -0.12, before)
-    assert held_back == [
-        {"site": "seed43_case_000", "true": "wind_infiltration", "before": "wind_infiltration", "after": "none",
-         "gain": -0.137, "estimate": 0.030}]
-    assert gap.ESTIMATE_ALONE_LOWEST_GAIN is None
-    assert replay.renamed(records, None, before) == []
-    assert replay.net_change(held_back) == "-1 named right, +0 named another effect, +0 clean sites named"
-    twin = {"true": "none", "before": "none", "after": "temperature_sensor_lag"}
-    assert replay.net_change(held_back + [twin]) == "-1 named right, +0 named another effect, +1 clean sites named"
-
-
-def test_the_guard_replay_lists_the_sites_named_by_the_estimate_alone_worst_series_first(tmp_path, monkeypatch):
-    """bench/gap_guard_replay.py: a positive sensor bias refit past every clean site's (+0.35 K), reading the
-    temperature 30 % better held out and the consumption 40 % worse, is named by the estimate alone and listed
-    before a wind whose worst series is 5 % worse; a clean site's sensor lag refit past every clean site's (0.80 h)
-    but reading the temperature 26 % worse held out is held back by the sensor rule (listed there, named without
-    it); a lag refit at 0.30 h, among the clean sites', names nothing and is listed nowhere."""
-    replay = _bench_module("gap_guard_replay", monkeypatch)
-
-    def case(number, true, named, gain, series, estimate):
-        other = "solar_shading"
-        return {"case": number, "true": true, "named": "none", "ranked": [other, named],
-                "scores": {named: gain, other: 0.013}, "p_values": {named: 0.9, other: 0.3},
-                "estimates": {named: estimate, other: {"blocked_fraction": 0.1}},
-                "gains_by_series": {named: series, other: {"temperature": 0.01, "consumption": 0.0}}}
-
-    page = {"plan": {"seed": 70}, "cases": [
-        case(0, "wind_infiltration", "wind_infiltration", -0.02, {"temperature": -0.05, "consumption": 0.01},
-             {"ach_per_m_s": 0.030}),
-        case(1, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.80}),
-        case(2, "none", "temperature_sensor_lag", -0.08, {"temperature": -0.26, "consumption": 0.05}, {"tau_h": 0.30}),
-        case(3, "temperature_sensor_bias", "temperature_sensor_bias", -0.05,
-             {"temperature": 0.30, "consumption": -0.40}, {"bias_k": 0.35})]}
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
-    records, before, _, _ = replay.judged_sources(sources)
-    rows = replay.by_worst_series(records, before)
-    assert [(r["site"], r["named"], r["worst"]) for r in rows] == [
-        ("seed70_case_003", "temperature_sensor_bias", -0.40), ("seed70_case_000", "wind_infiltration", -0.05)]
-    assert rows[0]["gain"] == -0.05 and rows[0]["true"] == "temperature_sensor_bias"
-    held = replay.held_back_by_sensor_rule(records, before)
-    assert [(r["site"], r["before"], r["after"], r["estimate"]) for r in held] == [
-        ("seed70_case_001", "none", "temperature_sensor_lag", 0.80)]
-    assert replay.net_change(held) == "+0 named right, +0 named another effect, +1 clean sites named"
-    assert records["seed70_case_001"][0]["gains_by_series"]["temperature_sensor_lag"]["temperature"] == -0.26
-
-
-def test_the_joint_replay_names_a_lag_whose_joint_estimate_fell_among_the_clean_sites_only_without_the_ceiling(
-        tmp_path, monkeypatch):
-    """bench/gap_joint_replay.py: a clean site's sensor lag refit at 0.766 h (beyond every clean site's) whose joint
-    test gained 4.6 % with its estimate back at 0.414 h is named only with the ceiling off; a wind whose joint
-    estimate stays beyond (0.031 1/h per m/s) is named either way, and the joint test's judge is restored after."""
-    replay = _bench_module("gap_joint_replay", monkeypatch)
-    rejudge = replay.gap_check_rejudge
-    judge_joint = rejudge.joint_test_qualifies
-
-    def case(number, true, tested, refit, joint):
-        other = "solar_shading"
-        return {"case": number, "true": true, "named": "none", "ranked": [other, tested],
-                "scores": {tested: -0.12, other: 0.013}, "p_values": {tested: 0.9, other: 0.3},
-                "estimates": {tested: refit, other: {"blocked_fraction": 0.1}},
-                "gains_by_series": {tested: {"temperature": -0.1, "consumption": -0.1},
-                                    other: {"temperature": 0.01, "consumption": 0.0}},
-                "joint_tests": {tested: {"gain": 0.046, "p_value": 5.8e-4, "estimate": joint}}}
-
-    page = {"plan": {"seed": 47}, "cases": [
-        case(0, "none", "temperature_sensor_lag", {"tau_h": 0.766}, {"tau_h": 0.414}),
-        case(1, "wind_infiltration", "wind_infiltration", {"ach_per_m_s": 0.033}, {"ach_per_m_s": 0.031})]}
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
-    records, before, right, _ = replay.judged_sources(sources)
-    assert before == {"seed47_case_000": "none", "seed47_case_001": "wind_infiltration"} and right == 2
-    without = replay.judged_without_ceiling(records)
-    assert without == {"seed47_case_000": ("temperature_sensor_lag", "joint test"),
-                       "seed47_case_001": ("wind_infiltration", "joint test")}
-    assert rejudge.joint_test_qualifies is judge_joint
-    rows = replay.joint_namings(records, without, before)
-    assert [(r["site"], r["joint"], r["with_ceiling"]) for r in rows] == [
-        ("seed47_case_000", 0.414, "none"), ("seed47_case_001", 0.031, "wind_infiltration")]
-
-
 def test_a_replay_takes_the_headline_s_sources_from_its_recorded_command(tmp_path, monkeypatch):
     """bench/gap_headline.py: ``--sources-of`` reads a headline json's ``--rediagnosed`` and ``--run`` pages off
     its command, puts them before the pages given (each page once), and refuses a headline of replayed pages."""
@@ -469,113 +303,12 @@ def test_the_size_page_bins_cases_by_equal_count_and_finds_the_size_from_which_n
     assert page.effect_rows(cases, least=17)["night_plug_loads"]["reliable"] is None
 
 
-def test_the_bias_reading_keeps_the_sites_diagnosed_again_from_its_page_and_refuses_a_missing_folder(
-        tmp_path, monkeypatch):
-    """bench/gap_bias_reading.py --again: a folder of diagnosis records gives one row per site; the page's .json
-    keeps the rows it listed (a checkout without out/ regenerates the page); a missing folder is an error."""
-    reading = _bench_module("gap_bias_reading", monkeypatch)
-    folder = tmp_path / "again"
-    folder.mkdir()
-    joint = {"gain": 0.05, "p_value": 1e-4, "estimate": {"bias_k": 0.37}, "qualifies": True}
-    (folder / "seed55_case_012.json").write_text(json.dumps({
-        "estimates": {"temperature_sensor_bias": {"bias_k": 0.19}}, "named": "temperature_sensor_bias",
-        "joint_tests": {"temperature_sensor_bias": joint}}))
-    records = {"seed55_case_012": ({"magnitude": 0.65}, "temperature_sensor_bias", "")}
-    rows = reading.diagnosed_again([str(folder)], records)
-    assert rows == [{"site": "seed55_case_012", "true": "temperature_sensor_bias", "magnitude": 0.65, "bias_k": 0.19,
-                     "joint": joint, "named": "temperature_sensor_bias"}]
-    (tmp_path / "page.json").write_text(json.dumps({"again": rows}))
-    assert reading.diagnosed_again([str(tmp_path / "page.json")], {}) == rows
-    with pytest.raises(SystemExit, match="no such folder"):
-        reading.diagnosed_again([str(tmp_path / "gone")], records)
-
-
-def test_the_night_first_replay_names_a_large_night_load_taken_for_blinds_and_leaves_a_warm_bias(tmp_path,
-                                                                                                  monkeypatch):
-    """bench/gap_night_first.py: a night load carried at 7.82 W/m2 with the bias refit cold, which the held-out
-    gains name blinds (seed 89's case 11), is named night plug loads by the headline's judging; a +2.9 K bias
-    carried at 9.35 W/m2 stays a bias; a clean twin at 3.60 W/m2 names nothing. Off, or at 2.5 times the ceiling,
-    the night load is blinds again; the rule is back at its value after."""
-    import buildenv.gap as gap
-
-    replay = _bench_module("gap_night_first", monkeypatch)
-
-    def case(number, true, night, bias, best):
-        return {"case": number, "true": true, "named": best, "ranked": [best, "night_plug_loads"],
-                "scores": {best: 0.33, "night_plug_loads": -0.4, "temperature_sensor_bias": -0.1}
-                | ({best: 0.37} if best == "temperature_sensor_bias" else {}),
-                "p_values": {best: 1e-12, "night_plug_loads": 1.0, "temperature_sensor_bias": 1.0}
-                | ({best: 1e-12} if best == "temperature_sensor_bias" else {}),
-                "estimates": {"solar_shading": {"blocked_fraction": 0.8},
-                              "night_plug_loads": {"light_night_percent": 61.0, "night_electricity_w_m2": night},
-                              "temperature_sensor_bias": {"bias_k": bias}},
-                "gains_by_series": {"solar_shading": {"temperature": 0.5, "consumption": 0.1},
-                                    "temperature_sensor_bias": {"temperature": 0.6, "consumption": 0.0},
-                                    "night_plug_loads": {"temperature": -0.88, "consumption": 0.03}}}
-
-    page = {"plan": {"seed": 89}, "cases": [case(0, "night_plug_loads", 7.82, -0.46, "solar_shading"),
-                                            case(1, "temperature_sensor_bias", 9.35, 2.9, "temperature_sensor_bias")]}
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
-    records, before, right, _ = replay.judged_sources(sources)
-    assert before == {"seed89_case_000": "night_plug_loads", "seed89_case_001": "temperature_sensor_bias"}
-    assert replay.judge(records["seed89_case_000"][0]) == ("night_plug_loads", "night electricity")
-    off = replay.renamed(records, None, before)
-    assert off == [{"site": "seed89_case_000", "true": "night_plug_loads", "before": "night_plug_loads",
-                    "after": "solar_shading", "night_electricity_w_m2": 7.82, "bias_k": -0.46}]
-    assert replay.renamed(records, 2.5, before) == off and replay.renamed(records, 2.0, before) == []
-    assert gap.NIGHT_LOAD_FIRST_BEYOND == 1.25
-    records["seed89_case_000_twin"] = (case(0, "none", 3.60, -0.3, "solar_shading") | {"scores": {
-        "solar_shading": 0.01, "night_plug_loads": 0.0, "temperature_sensor_bias": 0.0}}, "none", "run")
-    kinds = replay.by_kind(records, [1.25, 2.5])
-    assert kinds["night_plug_loads"]["beyond"] == {1.25: {"warm": 0, "cold": 1}, 2.5: {"warm": 0, "cold": 0}}
-    assert kinds["temperature_sensor_bias"]["beyond"][2.5] == {"warm": 1, "cold": 0}
-    assert kinds["clean twin"] == {"sites": 1, "largest": 3.60, "beyond": {1.25: {"warm": 0, "cold": 0},
-                                                                            2.5: {"warm": 0, "cold": 0}}}
-
-
-def test_the_night_alone_replay_names_a_small_load_on_the_equipments_share_and_leaves_a_warm_bias(tmp_path,
-                                                                                                monkeypatch):
-    """bench/gap_night_alone.py: a 1.12 W/m2 night load carried at 4.47 W/m2 on a 0.3 % lights' share with the bias
-    refit cold (seed 25's case 12), whose gains name nothing, is named night plug loads by its estimate alone; with
-    the floor kept it names nothing again. A +0.03 K bias carried at 3.85 W/m2 on 0 % names nothing, and night
-    loads only without the bias condition; the rule is back after each variant."""
-    import buildenv.gap as gap
-
-    replay = _bench_module("gap_night_alone", monkeypatch)
-
-    def case(number, true, night, share, bias):
-        return {"case": number, "true": true, "named": "none", "ranked": ["night_plug_loads"],
-                "scores": {"night_plug_loads": -0.06, "temperature_sensor_bias": -0.2},
-                "p_values": {"night_plug_loads": 1.0, "temperature_sensor_bias": 1.0},
-                "estimates": {"night_plug_loads": {"light_night_percent": share, "night_electricity_w_m2": night},
-                              "temperature_sensor_bias": {"bias_k": bias}},
-                "gains_by_series": {"night_plug_loads": {"temperature": -0.1, "consumption": 0.02},
-                                    "temperature_sensor_bias": {"temperature": -0.3, "consumption": 0.0}}}
-
-    page = {"plan": {"seed": 25}, "cases": [case(12, "night_plug_loads", 4.47, 0.3, -0.29),
-                                            case(13, "temperature_sensor_bias", 3.85, 0.0, 0.03)]}
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    sources = argparse.Namespace(rediagnosed=[], run=[str(tmp_path / "run.json")], sources_of="")
-    records, before, right, _ = replay.judged_sources(sources)
-    assert before == {"seed25_case_012": "night_plug_loads", "seed25_case_013": "none"} and right == 1
-    assert replay.judge(records["seed25_case_012"][0]) == ("night_plug_loads", "estimate alone")
-    kept = replay.renamed(records, replay._floor_kept, before)
-    assert kept == [{"site": "seed25_case_012", "true": "night_plug_loads", "before": "night_plug_loads",
-                     "after": "none", "night_electricity_w_m2": 4.47, "light_night_percent": 0.3, "bias_k": -0.29}]
-    assert [r["site"] for r in replay.renamed(records, replay._no_bias_condition, before)] == ["seed25_case_013"]
-    assert gap.plausible_alone is replay.gap.plausible_alone and gap.plausible_alone.__module__ == "buildenv.gap"
-    kinds = replay.by_kind(records)
-    assert kinds["night_plug_loads"] == {"sites": 1, "largest": 4.47, "warm": 0, "cold": 1}
-    assert kinds["temperature_sensor_bias"] == {"sites": 1, "largest": 3.85, "warm": 1, "cold": 0}
-
-
 def test_the_headline_judges_blinds_at_the_fit_weeks_irradiance_of_each_recorded_site(tmp_path, monkeypatch):
-    """bench/gap_headline.py and bench/gap_sunshine_ceiling.py: a record from before the irradiance was kept gets
-    its fit weeks' irradiance from its page (its first Monday, the page's weather, weeks and split), its twin
-    from its case; 0.45 blinds with a significant gain are named in November weeks (ceiling 0.412) and not under
-    the constant 0.574, nor in sunny October weeks (0.58)."""
-    replay = _bench_module("gap_sunshine_ceiling", monkeypatch)
+    """bench/harness.py, as bench/gap_headline.py judges: a record from before the irradiance was kept gets its
+    fit weeks' irradiance from its page (its first Monday, the page's weather, weeks and split), its twin from its
+    case; 0.45 blinds with a significant gain are named in November weeks (ceiling 0.412), not in sunny October
+    weeks (0.58)."""
+    replay = _bench_module("harness", monkeypatch)
 
     def case(number, true, start, blinds):
         return {"case": number, "true": true, "named": "none", "start": start, "ranked": ["solar_shading"],
@@ -600,6 +333,35 @@ def test_the_headline_judges_blinds_at_the_fit_weeks_irradiance_of_each_recorded
     assert irradiance["seed5_case_000"] == irradiance["seed5_case_000_twin"] == pytest.approx(66.88, abs=0.01)
     assert irradiance["seed5_case_001"] == pytest.approx(94.4, abs=0.05)
     assert now == {"seed5_case_000": "solar_shading", "seed5_case_001": "none", "seed5_case_000_twin": "none"}
-    assert replay.judged(records["seed5_case_000"][0], None) == "none"  # the constant ceiling
-    assert replay.judged(records["seed5_case_000"][0], 0.007) == "none"  # a ceiling of 0.468
-    assert replay.judged(records["seed5_case_001"][0], 0.004) == "solar_shading"  # 0.378 in October
+
+
+def test_the_merged_records_judge_as_the_run_they_came_from(tmp_path, monkeypatch):
+    """bench/gap_check.py merges a run's cases into one json of slim records (bench/harness.py); read back, each
+    expands to the fields the judging reads and is judged as the run's own record, and a new run of a seed
+    replaces that seed's cases and keeps its clean twins."""
+    check = _bench_module("gap_check", monkeypatch)
+    harness = check.harness  # the harness the script imported
+    monkeypatch.setattr(harness, "RESULTS", tmp_path)
+    record = {"case": 3, "true": "wind_infiltration", "named": "none", "magnitude": 0.03, "start": "2019-11-04",
+              "ranked": ["solar_shading", "wind_infiltration"], "seconds": 12, "fit_irradiance_w_m2": 66.9,
+              "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
+              "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
+              "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}},
+              "gains_by_series": {"wind_infiltration": {"temperature": -0.01, "consumption": -0.05},
+                                  "solar_shading": {"temperature": 0.0, "consumption": 0.02}}}
+    back = harness.expand_record(harness.slim_record(record))
+    assert {k: back[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")} == \
+        {k: record[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")}
+    run = {"date": "2026-12-01", "machine": "m", "command": "c", "base_effects": [], "plan": {"seed": 7},
+           "cases": [record]}
+    merged = check.merge_run("checks", run)
+    merged["sites"]["seed7_case_003_twin"] = harness.slim_record(record | {"true": "none", "twin_of": "x",
+                                                                          "source": "again"})
+    (tmp_path / "checks.json").write_text(harness.checks_json(merged["sites"], merged["sources"], "test"))
+    again = check.merge_run("checks", run | {"date": "2026-12-02", "cases": [record | {"named": "wind_infiltration"}]})
+    assert sorted(again["sites"]) == ["seed7_case_003", "seed7_case_003_twin"]
+    assert [s["source"] for s in again["sources"]] == ["checks_seed7_2026-12-02"]
+    (tmp_path / "checks.json").write_text(harness.checks_json(again["sites"], again["sources"], "test"))
+    records = harness.records_from_checks(tmp_path / "checks.json")
+    assert records["seed7_case_003_twin"][1] == "none" and records["seed7_case_003"][1] == "wind_infiltration"
+    assert harness.judge(records["seed7_case_003"][0]) == harness.judge(record)

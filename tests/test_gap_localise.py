@@ -1,4 +1,4 @@
-"""Residual localisation (buildenv.gap_localise) on synthetic residuals: fast, no EnergyPlus, no torch."""
+"""Residual localisation (buildenv.diagnosis.localise) on synthetic residuals: fast, no EnergyPlus, no torch."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.gap_localise import LocalisationError, localise, plot_localisation, residual_tests
+from buildenv.diagnosis.localise import LocalisationError, localise, plot_localisation, residual_tests
 
 WEEKS = 6
 H = cat.HOURS_PER_WEEK
@@ -95,7 +95,7 @@ def test_constant_bias_is_significant(site):
 
 
 def test_startup_residual_is_the_top_hotspot(site):
-    from buildenv.gap_localise import heating_startup
+    from buildenv.diagnosis.localise import heating_startup
 
     startup = heating_startup(site["heating_on"])
     # weekdays 06-09 and Saturday 09-12

@@ -7,10 +7,10 @@ import pytest
 import torch
 
 from buildenv import catalogue as cat
-from buildenv import surrogate as sg
-from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.metamodel import surrogate as sg
+from buildenv.campaign.runs import CampaignConfig, run_campaign
 from buildenv.errors import BuildenvError
-from buildenv.training import evaluate_metamodel, train_metamodel
+from buildenv.metamodel.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.loss import paper_loss
 from metamodels.models import MODELS, band_mask, build, with_more_inputs
@@ -146,7 +146,7 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
     assert evaluated["subset"] == "test" and evaluated["weeks"] == result["test_weeks"]
     assert evaluated["loss"] == pytest.approx(again["test"]["loss"], rel=1e-5)
     surrogate = sg.load_metamodel(ckpt)
-    from buildenv.dataset import open_dataset
+    from buildenv.campaign.dataset import open_dataset
 
     with open_dataset(tiny_dataset) as ds:
         x, y = sg.encode_dataset(ds, np.arange(3))
@@ -162,7 +162,7 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
 
 
 def test_a_longer_context_carries_the_previous_days_or_repeats_the_first_day(tiny_dataset):
-    from buildenv.dataset import open_dataset
+    from buildenv.campaign.dataset import open_dataset
 
     with open_dataset(tiny_dataset) as ds:
         previous = ds.previous_week()
@@ -204,9 +204,9 @@ def test_a_model_widened_by_an_input_computes_what_it_did_and_can_learn_its_use(
 
 
 def test_the_ground_temperature_is_the_weather_files_monthly_value_in_every_encoded_hour(tiny_dataset):
-    from buildenv.dataset import open_dataset
+    from buildenv.campaign.dataset import open_dataset
     from buildenv.energyplus.shoebox import ground_temperatures_c
-    from buildenv.weather import load_weather, month_of_hour
+    from buildenv.weather.epw import load_weather, month_of_hour
 
     with open_dataset(tiny_dataset) as ds:
         x, _ = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=48)
@@ -224,14 +224,14 @@ def test_the_ground_temperature_is_the_weather_files_monthly_value_in_every_enco
 
 
 def _one_week(dataset) -> list[np.ndarray]:
-    from buildenv.dataset import open_dataset
+    from buildenv.campaign.dataset import open_dataset
 
     with open_dataset(dataset) as ds:
         return [a[0] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
 
 
 def test_a_checkpoint_without_the_ground_temperature_is_fine_tuned_with_it(tiny_dataset, tmp_path):
-    from buildenv.dataset import open_dataset
+    from buildenv.campaign.dataset import open_dataset
 
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
     base, tuned = tmp_path / "noground.pt", tmp_path / "ground.pt"
@@ -265,8 +265,8 @@ def test_a_checkpoint_without_the_ground_temperature_is_fine_tuned_with_it(tiny_
 def test_a_metamodel_reads_the_temperature_measured_before_the_week(tiny_dataset, tmp_path):
     """``--temperature-before``: the previous week's simulated indoor temperature over the context hours (unknown
     on a run's first week), added to a checkpoint with zero weights, hidden on a share of the training weeks."""
-    from buildenv.dataset import open_dataset
-    from buildenv.training import hide_temperature_before
+    from buildenv.campaign.dataset import open_dataset
+    from buildenv.metamodel.training import hide_temperature_before
 
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
     base, tuned, scratch = tmp_path / "base.pt", tmp_path / "before.pt", tmp_path / "scratch.pt"
@@ -333,7 +333,7 @@ def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, 
     assert np.isfinite(result["test"]["loss"])
     surrogate = sg.load_metamodel(ckpt)
     assert surrogate.context_hours == 48 and surrogate.checkpoint.metadata["context_hours"] == 48
-    from buildenv.dataset import open_dataset
+    from buildenv.campaign.dataset import open_dataset
 
     with open_dataset(tiny_dataset) as ds:
         week = [a[:3] for a in (ds.theta, ds.settings, ds.occupancy, ds.weather)]
@@ -376,49 +376,6 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
     with pytest.raises(BuildenvError, match="leave --model-config out"):
         train_metamodel(tiny_dataset, "transformer", tmp_path / "z.pt", split="random", init=base,
                         model_config={**config, "layers": 2}, progress=False)
-
-
-def test_a_carried_campaign_trains_on_the_same_weeks_and_is_rescored_on_the_full_one(tiny_dataset, tmp_path):
-    import importlib.util
-    import json
-    from pathlib import Path
-
-    from buildenv.dataset import open_dataset
-    from buildenv.training import training_split
-
-    path = Path(__file__).resolve().parents[1] / "bench" / "carry_dataset.py"
-    spec = importlib.util.spec_from_file_location("carry_dataset", path)
-    carry = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(carry)
-    summary = carry.pack(tiny_dataset, tmp_path / "pack.npz", split="random", max_weeks=4)
-    copy = carry.unpack(tmp_path / "pack.npz", tmp_path / "copy")
-    with open_dataset(tiny_dataset) as full, open_dataset(copy) as carried:
-        parts, again = training_split(full, "random", 0, max_weeks=4), training_split(carried, "random", 0, max_weeks=4)
-        for name in parts:
-            np.testing.assert_array_equal(parts[name], again[name])
-        used = np.union1d(parts["train"], parts["val"])
-        assert summary["outputs_carried"] == len(used) and len(used) < len(full)
-        for name in ("theta", "settings", "occupancy", "weather", "run_id", "week_in_run"):
-            np.testing.assert_array_equal(full._h5[name][:], carried._h5[name][:])
-        np.testing.assert_array_equal(full.outputs[:][used], carried.outputs[:][used])
-        assert np.isnan(carried.outputs[:][parts["test"]]).all()  # never read by training, never scored there
-    ckpt = tmp_path / "ffn.pt"
-    run = train_metamodel(copy, "ffn", ckpt, split="random", max_weeks=4, model_config={"layers": 1}, epochs=1,
-                          batch_size=4, progress=False)
-    assert np.isfinite(run["fit"]["best_val_loss"]) and np.isnan(run["test"]["loss"])
-    with pytest.raises(BuildenvError, match="training weeks have outputs that are not finite"):
-        train_metamodel(copy, "ffn", tmp_path / "all.pt", split="random", epochs=1, progress=False)  # uncarried
-    (tmp_path / "ffn.json").write_text(json.dumps(run))
-    rescored = carry.rescore(tiny_dataset, tmp_path / "ffn.json")
-    here = train_metamodel(tiny_dataset, "ffn", tmp_path / "here.pt", split="random", max_weeks=4,
-                           model_config={"layers": 1}, epochs=1, batch_size=4, progress=False)
-    assert rescored["test"]["loss"] == pytest.approx(here["test"]["loss"], rel=1e-5)
-    rounded = carry._rounded(np.array([20.123456, -3.3e-4, 0.0], np.float32), 14)
-    np.testing.assert_allclose(rounded, [20.123456, -3.3e-4, 0.0], rtol=2**-15)
-    carry.pack(tiny_dataset, tmp_path / "small.npz", split="random", max_weeks=4, lzma_outputs=True)
-    with open_dataset(carry.unpack(tmp_path / "small.npz", tmp_path / "small")) as small, \
-            open_dataset(copy) as carried:
-        np.testing.assert_array_equal(small.outputs[:], carried.outputs[:])  # NaN where not carried, as there
 
 
 @pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
@@ -563,23 +520,3 @@ def test_attention_paths_agree():
             mm.DENSE_MATMUL_MAX_TOKENS = old
     torch.testing.assert_close(fused, explicit, rtol=1e-4, atol=1e-5)
 
-
-def test_the_first_day_probe_scores_a_linear_dependence_and_no_dependence(monkeypatch):
-    """bench/first_day_memory.py: its cross-validated R2 finds a linear dependence and none in noise; its day
-    RMSEs put Monday first."""
-    import importlib.util
-    from pathlib import Path
-
-    bench = Path(__file__).resolve().parents[1] / "bench"
-    monkeypatch.syspath_prepend(str(bench))
-    spec = importlib.util.spec_from_file_location("first_day_memory", bench / "first_day_memory.py")
-    probe = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(probe)
-    rng = np.random.default_rng(0)
-    x = rng.normal(size=(2000, 2))
-    assert probe.cv_r2(x, 2.0 * x[:, 0] + 0.1 * rng.normal(size=2000)) > 0.99
-    assert abs(probe.cv_r2(x, rng.normal(size=2000))) < 0.01
-    residual = np.full((3, 168), 0.1)
-    residual[:, :24] = 0.2
-    daily = probe.by_day(residual)
-    assert daily[0] == pytest.approx(0.2) and probe.monday_over_rest(daily) == pytest.approx(2.0)

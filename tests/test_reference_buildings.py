@@ -10,7 +10,7 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.energyplus.idf import of_type, read_idf
-from buildenv.reference import (
+from buildenv.energyplus.reference import (
     _run_period_rows,
     detect_schedule_map,
     historical_settings,

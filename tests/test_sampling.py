@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.sampling import METHODS, sample_group, sample_weeks
+from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
 
 SAMPLED_GROUPS = ("theta_build", "settings", "occupancy")
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.sampling import sample_weeks
+from buildenv.campaign.sampling import sample_weeks
 from buildenv.schedules import DEADBAND_K, HOURLY_CHANNELS, hourly_encoding, hourly_schedules, usage_fraction
 
 S = {name: i for i, name in enumerate(cat.SETTING_NAMES)}

@@ -11,8 +11,8 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError, SiteError
-from buildenv.site import Site, load_site, save_calibration, write_site
-from buildenv.weather import load_weather
+from buildenv.sites import Site, load_site, save_calibration, write_site
+from buildenv.weather.epw import load_weather
 
 START = dt.date(2024, 1, 1)  # a Monday
 AREA = 4982.0  # not on the catalogue's 1000 m2 step: must be kept as is

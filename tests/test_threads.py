@@ -1,5 +1,5 @@
 """numpy's BLAS on one thread while the metamodel runs, and the metamodel's calls spread over workers
-(buildenv.threads)."""
+(buildenv.metamodel.threads)."""
 
 from __future__ import annotations
 
@@ -12,12 +12,12 @@ import torch
 from threadpoolctl import threadpool_info
 
 from buildenv import catalogue as cat
-from buildenv.calibration import calibrate_site
-from buildenv.gap import diagnose
-from buildenv.sampling import sample_group, sample_weeks
-from buildenv.surrogate import CheckpointError, encode_weeks, ground_hours, load_metamodel, weather_ground_c
-from buildenv.threads import MIN_WEEKS_PER_CALL, MetamodelWorkers, one_blas_thread, split_calls
-from buildenv.weather import load_weather
+from buildenv.calibration.calibrate import calibrate_site
+from buildenv.diagnosis.gap import diagnose
+from buildenv.campaign.sampling import sample_group, sample_weeks
+from buildenv.metamodel.surrogate import CheckpointError, encode_weeks, ground_hours, load_metamodel, weather_ground_c
+from buildenv.metamodel.threads import MIN_WEEKS_PER_CALL, MetamodelWorkers, one_blas_thread, split_calls
+from buildenv.weather.epw import load_weather
 
 
 def _blas_threads() -> list[int]:
@@ -43,8 +43,8 @@ def test_calibration_and_diagnosis_run_with_one_blas_thread(monkeypatch):
         seen.append(_blas_threads())
         raise InterruptedError
 
-    monkeypatch.setattr("buildenv.calibration.check_declared_effects", first_step)
-    monkeypatch.setattr("buildenv.gap.with_declared_effects", first_step)
+    monkeypatch.setattr("buildenv.calibration.calibrate.check_declared_effects", first_step)
+    monkeypatch.setattr("buildenv.diagnosis.gap.with_declared_effects", first_step)
     for call in (lambda: calibrate_site(SimpleNamespace(effects=()), None), lambda: diagnose(None, None)):
         with pytest.raises(InterruptedError):
             call()

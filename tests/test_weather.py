@@ -9,7 +9,7 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError, WeatherError
-from buildenv.weather import HOURS_PER_YEAR, Weather, load_weather, resolve_epw, shipped_weather
+from buildenv.weather.epw import HOURS_PER_YEAR, Weather, load_weather, resolve_epw, shipped_weather
 
 DAYS_PER_MONTH = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
 MONTH_START_H = np.concatenate([[0], np.cumsum(DAYS_PER_MONTH * 24)])

@@ -8,10 +8,10 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.cli import main
+from buildenv.cli.main import main
 from buildenv.errors import WeatherError
-from buildenv.weather import load_weather, resolve_epw
-from buildenv.weather_morph import MORPH_RANGES, Morph, draw_morph, morph_epw, morph_many, morph_rows, morph_source
+from buildenv.weather.epw import load_weather, resolve_epw
+from buildenv.weather.morph import MORPH_RANGES, Morph, draw_morph, morph_epw, morph_many, morph_rows, morph_source
 
 DAYS = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
 

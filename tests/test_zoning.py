@@ -9,7 +9,7 @@ import pandas as pd
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.campaign import CampaignConfig, run_campaign
+from buildenv.campaign.runs import CampaignConfig, run_campaign
 from buildenv.defaults import DEFAULT_THETA, default_week
 from buildenv.energyplus.shoebox import (
     CORE,
@@ -21,14 +21,14 @@ from buildenv.energyplus.shoebox import (
 )
 from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.errors import BuildenvError
-from buildenv.reference import (
+from buildenv.energyplus.reference import (
     _schedule_columns,
     design_outdoor_air_ach,
     historical_settings,
     historical_ventilation_ach,
     reference_idf,
 )
-from buildenv.weather import load_weather, resolve_epw
+from buildenv.weather.epw import load_weather, resolve_epw
 
 OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
 JANUARY = 2

@@ -2,7 +2,7 @@
 
 One call runs one model in the calling process with a fresh EnergyPlus state. EnergyPlus states are not
 thread-safe and each run leaves a few MB behind in the process, so parallel campaigns run this in worker
-processes that are recycled (see :mod:`buildenv.campaign`).
+processes that are recycled (see :mod:`buildenv.campaign.runs`).
 """
 
 from __future__ import annotations
@@ -62,12 +62,11 @@ def warmup_settled(severe: list[str]) -> bool:
     less than a tolerance from one day to the next, and reports a zone that did not within the maximum number
     of warm-up days as Severe, then simulates the run period anyway. Two such reports leave a sound run:
 
-    - only the loads comparison failed (a zone whose small cooling load keeps changing by a few % a day, e.g.
-      a perimeter in Miami in January), so the temperatures the run starts from have converged;
+    - only the loads comparison failed (a zone whose small cooling load keeps changing by a few % a day), so
+      the temperatures the run starts from have converged;
     - a temperature comparison failed by less than 0.5 K, the largest temperature tolerance EnergyPlus
-      accepts (``Building``): a thermostat whose heating and cooling setpoints lie 0.5 K apart can switch
-      between the two on alternate warm-up days (run 3408 of the seed-0 80,000-week campaign with 13 weeks per
-      run: Tampa in January, the perimeter's minimum temperature changing 0.46 K a day for 50 days).
+      accepts (``Building``): a thermostat whose setpoints lie 0.5 K apart can switch between heating and
+      cooling on alternate warm-up days.
 
     A larger day-to-day temperature change, or any other severe error, still fails the run.
     """
@@ -87,9 +86,8 @@ def run_energyplus(model: dict | Path, epw: Path, workdir: Path, label: str = "m
         workdir: directory for the model and EnergyPlus outputs (created).
         label: file stem of the written model, used in error messages.
     Raises:
-        SimulationError: EnergyPlus returned non-zero or reported a severe error; the message names the
-            model and quotes the first severe lines of ``eplusout.err``. A warm-up whose thermal state settled
-            without meeting every tolerance (:func:`warmup_settled`) is logged as a warning instead.
+        SimulationError: EnergyPlus returned non-zero or reported a severe error (quoting ``eplusout.err``);
+            a warm-up that settled without meeting every tolerance (:func:`warmup_settled`) only logs a warning.
     """
     from pyenergyplus.api import EnergyPlusAPI
 

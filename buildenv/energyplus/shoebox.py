@@ -1,54 +1,27 @@
-"""The building energy model: a single-thermal-zone office generated from theta_build as epJSON.
+"""The building energy model: a shoebox office generated from theta_build as epJSON.
 
 Modelling choices (each a constant below, so that a reader can find and change it):
 
-Geometry
-    A square footprint of side ``sqrt(floor_area / floors)`` and a height of ``floors * FLOOR_HEIGHT_M``;
-    the zones' floor areas add up to the full floor area and their volumes to ``floor_area * FLOOR_HEIGHT_M``.
-    Facades face north, east, south and west (catalogue order 1-4). Each facade carries one horizontal window
-    band, centred, of the facade's window-to-wall ratio.
-Zoning (``zoning=``)
-    ``single``: the whole building is one thermal zone (the paper's "single thermal zone including vertical
-    walls, a horizontal roof and a horizontal ground").
-    ``core_perimeter``: a perimeter ring ``PERIMETER_DEPTH_M`` deep (at most a quarter of the side) holds the
-    facades, windows and infiltration; the core, the rest of the footprint, only meets the perimeter
-    (plasterboard / air / plasterboard partitions), the roof and the ground. Internal gains, internal mass,
-    fan coils and air handling unit are split between the zones by floor area; both follow the same
-    thermostat. This is how multi-zone offices behave and a single zone cannot: at night the perimeter sits
-    at the setback and heats while the core, warmed by the day's gains, keeps the mean temperature higher.
-Envelope
-    Walls: concrete ``WALL_CONCRETE_M`` / insulation (theta) / plasterboard, from outside in. Roof: membrane /
-    insulation (theta) / concrete slab. Ground floor: insulation ``GROUND_INSULATION_M`` under a concrete
-    slab, on ground at a monthly temperature of annual mean + ``GROUND_SWING`` x (previous month's mean -
-    annual mean) of the weather file. Glazing: a simple glazing system (``GLAZING_U``, ``GLAZING_SHGC``).
-Capacitance
-    The catalogue's effective heat capacity per m3 (50-300 kJ/K/m3) is an InternalMass of concrete with
-    both faces exposed (surface ``2 x floor area``, split between zones by floor area) whose thickness gives
-    ``capacitance x volume``.
-Infiltration
-    Constant air changes per hour of the building's volume, through the envelope (no wind or stack
-    dependence: that is one of the effects the gap diagnosis looks for).
-Internal gains
-    Occupants at ``PERSON_ACTIVITY_W`` each; workstations at ``PC_POWER_W`` each; lighting at
-    ``LIGHTING_W_M2``. All follow the hourly occupancy; lights and equipment stay at the night percentage
-    of theta_build outside occupied hours.
-Zone heating and cooling (fan coils)
-    ``ZoneHVAC:IdealLoadsAirSystem`` on a dual-setpoint thermostat, capacity-limited to the heating and
-    cooling power of theta_build, sensible only (no humidity control). Q_HEAT_OFFICE / Q_AC_OFFICE are its
-    delivered heating / cooling energy. Setpoints follow the hourly schedules of :mod:`buildenv.schedules`.
-Air handling unit
-    ``ZoneHVAC:OutdoorAirUnit``: 100 % outdoor air, ``ventilation_ach`` x volume while the ventilation
-    schedule is on, heated by an electric coil (Q_AHU_H, efficiency 1 so energy = heat) or cooled by a DX
-    coil (Q_AHU_C, total coil cooling including dehumidification) to the day's supply air temperature
-    (``TemperatureControl`` with equal high and low control temperatures: outdoor air below it is heated
-    to it, above it cooled to it; ``NeutralControl`` would supply at zone temperature and ignore the
-    setting), then blown into the zone, the supply fan's heat included; a matching
-    exhaust fan keeps the zone balanced. The zone ideal loads then meet what is left of the zone load.
-Schedules
-    Every hourly schedule is a column of one Schedule:File (absolute path), so every week may differ.
-Outputs
-    Hourly: the floor-area weighted mean of the zones' air temperatures (a building's sensors read the mean
-    of its zones) and the seven energies summed over the zones, converted to Wh per m2 of floor area.
+- Geometry: a square footprint of side ``sqrt(floor_area / floors)``, ``floors * FLOOR_HEIGHT_M`` high; facades
+  face north, east, south and west (catalogue order 1-4), each with one centred window band of its ratio.
+- Zoning (``zoning=``): ``single`` is one thermal zone (the paper's); ``core_perimeter`` a perimeter ring
+  ``PERIMETER_DEPTH_M`` deep with the facades, windows and infiltration around a core that meets only the
+  perimeter, roof and ground. Gains, mass and HVAC are split by floor area; both follow one thermostat.
+- Envelope: walls concrete / insulation (theta) / plasterboard; roof membrane / insulation / slab; ground
+  floor insulation under a slab, on ground at the annual mean + ``GROUND_SWING`` x (previous month's mean -
+  annual mean) of the weather file; simple glazing (``GLAZING_U``, ``GLAZING_SHGC``).
+- Capacitance: an InternalMass of concrete (both faces exposed) whose thickness gives ``capacitance x volume``.
+- Infiltration: constant air changes per hour of the volume (no wind or stack dependence).
+- Internal gains: ``PERSON_ACTIVITY_W`` per occupant, ``PC_POWER_W`` per workstation and ``LIGHTING_W_M2``,
+  following the hourly occupancy; lights and equipment at theta's night percentage outside it.
+- Fan coils: ``ZoneHVAC:IdealLoadsAirSystem`` on a dual-setpoint thermostat, limited to theta's heating and
+  cooling power, sensible only (Q_HEAT_OFFICE / Q_AC_OFFICE), setpoints from :mod:`buildenv.schedules`.
+- Air handling unit: ``ZoneHVAC:OutdoorAirUnit``, 100 % outdoor air (``ventilation_ach`` x volume while on)
+  heated by an electric coil (Q_AHU_H) or cooled by a DX coil (Q_AHU_C) to the day's supply temperature
+  (``TemperatureControl``), supply fan heat included, balanced by an exhaust fan.
+- Schedules: every hourly schedule is a column of one Schedule:File, so every week may differ.
+- Outputs: hourly, the zones' floor-area weighted mean air temperature and the seven energies summed over
+  the zones, in Wh per m2 of floor area.
 """
 
 from __future__ import annotations
@@ -62,7 +35,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.schedules import hourly_schedules, usage_fraction
-from buildenv.weather import Weather, month_of_hour
+from buildenv.weather.epw import Weather, month_of_hour
 
 FLOOR_HEIGHT_M = 3.5
 WALL_CONCRETE_M = 0.20
@@ -73,11 +46,8 @@ GLAZING_U = 2.4  # W/(m2 K)
 GLAZING_SHGC = 0.40
 PERIMETER_DEPTH_M = 4.57  # depth of the perimeter zone (the DOE reference offices' 15 ft), at most side / 4
 PARTITION_AIR_GAP_M2K_W = 0.15  # thermal resistance of the air gap in the core/perimeter partition
-# EnergyPlus's warm-up check compares each zone's loads day to day within a fraction (default 0.04): a core's
-# few watts of cooling can miss it by a hair for 25 days (measured: 4.4 % in Golden, run 53 of the 40,000-week
-# campaign), which EnergyPlus reports as Severe; the loads of two zones converge within 10 % nearly always (a
-# perimeter's small cooling load in Miami in January kept changing 12 % a day for 50 days: run 2 of the seed-0
-# 1,040-week campaign), and a warm-up whose temperatures converged is accepted (runner.warmup_settled)
+# EnergyPlus's day-to-day warm-up loads tolerance for two zones (its default 0.04 is missed by a core's few watts);
+# a warm-up whose temperatures converged is accepted anyway (runner.warmup_settled)
 CORE_WARMUP_LOADS_TOLERANCE = 0.1
 WINDOW_MARGIN = 0.05  # share of the facade width left opaque at each end of the window band
 PERSON_ACTIVITY_W = 120.0

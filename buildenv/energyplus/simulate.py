@@ -23,7 +23,7 @@ from buildenv.energyplus.shoebox import (
     zone_shares,
 )
 from buildenv.errors import SimulationError
-from buildenv.weather import load_weather
+from buildenv.weather.epw import load_weather
 
 J_PER_WH = 3600.0
 

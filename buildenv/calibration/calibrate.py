@@ -1,0 +1,132 @@
+"""Calibrating a site: the metamodel fitted to a site's fit weeks and scored on its held-out weeks.
+
+:func:`calibrate_site` builds the problem (:mod:`buildenv.calibration.problem`), runs CMA-ES or Adam, fits the
+declared effects in a second stage, scores fit and held-out weeks and writes ``calibration.json``.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.calibration.gradient import calibrate_adam
+from buildenv.calibration.problem import (
+    CalibrationError,
+    _metamodel_name,
+    _scale,
+    _split,
+    build_problem,
+    calibrate_cmaes,
+    check_declared_effects,
+    default_weeks,
+    fit_declared_effects,
+    parameters_at_bounds,
+    predict,
+    score_series,
+    score_weeks,
+)
+from buildenv.diagnosis import model_effects as em
+from buildenv.diagnosis.effects import get_effect
+from buildenv.metamodel import surrogate as sg
+from buildenv.metamodel.threads import one_blas_thread
+from buildenv.metrics import GUIDELINE14_P
+
+
+@one_blas_thread()  # buildenv.metamodel.threads: numpy's BLAS threads would fight the metamodel's
+def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None, method: str = "cmaes",
+                   seed: int = 0, max_evaluations: int = 6000, progress: bool = False, save: bool = True,
+                   restarts: int = 1, effects: tuple[str, ...] | None = None) -> dict:
+    """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
+
+    Args:
+        site: a :class:`buildenv.sites.Site`.
+        surrogate: the metamodel.
+        weeks: calibration weeks (0-based); the site's other weeks are held out. Default
+            :func:`buildenv.calibration.problem.default_weeks`.
+        method: ``cmaes`` or ``adam``.
+        seed: seed of the optimiser.
+        max_evaluations: budget of cost evaluations (one evaluation = one candidate on every calibration week)
+            of each CMA-ES run.
+        restarts: independent CMA-ES runs, the best kept
+            (:func:`buildenv.calibration.problem.calibrate_cmaes`).
+        progress: progress bar.
+        save: write ``calibration.json`` into the site folder.
+        effects: declared effects, fitted after the building and occupancy; None (default)
+            takes the site's own (``site.toml``'s ``effects``, :attr:`buildenv.sites.Site.effects`), ``()`` none.
+    Returns:
+        ``{"fit", "heldout"}`` metrics (:func:`buildenv.metrics.site_metrics`, with ``weeks``; ``heldout`` only
+        when there are held-out weeks), ``"theta": {name: value}`` (catalogue units), ``"occupancy"``
+        (``[[start, end] x 5]``, h), ``"known"``, ``"method"``, ``"seconds"``, ``"evaluations"``, ``"cost"``
+        (CMA-ES also ``"run_costs"``), ``"fit_weeks"``, ``"heldout_weeks"``, ``"guideline14_p"``,
+        ``"metamodel"``, ``"catalogue_hash"`` and ``"at_bounds"``
+        (:func:`buildenv.calibration.problem.parameters_at_bounds`). With ``effects``:
+        ``"declared_effects": [names]``, ``"effects": {effect: {parameter: value}}`` and
+        ``"cost_without_effects"``. With CMA-ES ``restarts`` > 1 and held-out weeks, ``"runs"``: each run's
+        ``seed``, ``cost`` (before the declared effects) and ``heldout_rmse_t_celsius`` (degC) and
+        ``heldout_r2_t`` without the declared effects (:func:`buildenv.calibration.problem.runs_note`).
+    Raises:
+        CalibrationError: an unknown ``method``, a declared effect that is not declarable, or bad ``weeks``.
+    """
+    effects = check_declared_effects(site.effects if effects is None else effects)
+    started = time.perf_counter()
+    fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
+        sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
+    problem = build_problem(site, fit_weeks, context_hours=surrogate.context_hours,
+                            temperature_before=surrogate.uses_temperature_before)
+    if method == "cmaes":
+        best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
+        run_parameters = info.pop("run_parameters")
+    elif method == "adam":
+        best, info = calibrate_adam(problem, surrogate, seed, progress=progress)
+    else:
+        raise CalibrationError(f"unknown calibration method {method!r}; choose cmaes or adam")
+    declared: dict = {}
+    if effects:
+        declared["cost_without_effects"] = info["cost"]
+        problem = build_problem(site, fit_weeks, effects, context_hours=surrogate.context_hours,
+                                temperature_before=surrogate.uses_temperature_before)
+        best, stage = fit_declared_effects(problem, surrogate, best, seed)
+        info = {**info, "evaluations": info["evaluations"] + stage["evaluations"], "cost": stage["cost"]}
+        values = em.split_parameters(effects, best[None, problem.n_base:])
+        declared.update(declared_effects=list(effects),
+                        effects={e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters,
+                                                                                  values[e][0])}
+                                 for e in effects})
+    seconds = time.perf_counter() - started
+    theta, occ = _split(problem, best[None])
+    result = {"method": method, "seconds": round(seconds, 2), **info, "fit_weeks": fit_weeks,
+              "heldout_weeks": heldout, "guideline14_p": GUIDELINE14_P,
+              "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
+              "known": sorted(site.known),
+              "occupancy": np.round(occ[0], 3).tolist(),
+              "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known),
+              "metamodel": _metamodel_name(surrogate),
+              "catalogue_hash": cat.catalogue_hash(), **declared}
+    scale = _scale(problem)
+    for key, ws in (("fit", fit_weeks), ("heldout", heldout)):
+        if ws:
+            result[key] = score_weeks(site, surrogate, ws, best, scale, effects)
+            result[key]["seconds"], result[key]["evaluations"] = result["seconds"], result["evaluations"]
+    if method == "cmaes" and restarts > 1 and heldout:
+        result["runs"] = _score_runs(site, surrogate, heldout, info["run_costs"], run_parameters, scale, seed)
+    if save:
+        from buildenv.sites import save_calibration
+
+        save_calibration(site.path, result)
+    return result
+
+
+def _score_runs(site, surrogate: sg.Surrogate, heldout: list[int], run_costs: list[float],
+                run_parameters: np.ndarray, scale: dict[str, tuple[float, float]], seed: int) -> list[dict]:
+    """``calibrate_site``'s ``runs``: each CMA-ES run's seed, cost and held-out RMSE_T (degC) and R2_T of its
+    parameters without the declared effects, the held-out weeks encoded once."""
+    problem = build_problem(site, heldout, context_hours=surrogate.context_hours,
+                            temperature_before=surrogate.uses_temperature_before)
+    runs = []
+    for k, (cost, params) in enumerate(zip(run_costs, run_parameters)):
+        metrics = score_series(problem, *predict(problem, surrogate, params), params, scale)
+        runs.append({"seed": seed + k, "cost": round(cost, 5),
+                     **{f"heldout_{m}": round(metrics[m], 4) for m in ("rmse_t_celsius", "r2_t")}})
+    return runs

@@ -1,0 +1,165 @@
+"""Reading a campaign's dataset and splitting it for training.
+
+A dataset directory holds ``dataset.h5`` (chunked HDF5, read lazily: nothing is loaded until sliced) and
+``manifest.json`` (package versions, seed, catalogue hash). Arrays, all float32 in catalogue units:
+
+==============  =========================  ==========================================================
+name            shape                      content
+==============  =========================  ==========================================================
+theta           (weeks, 19)                theta_build of the week's building
+settings        (weeks, 7, 12)             I_k, day x setting
+occupancy       (weeks, 5, 2)              O_k, weekday x (start hour, end hour)
+weather         (weeks, 168, 9)            W_k, hourly
+outputs         (weeks, 168, 8)            simulated outputs, hourly
+run_id          (weeks,)                   EnergyPlus run the week comes from
+week_in_run     (weeks,)                   0 for a run's first week; week i-1 of a run precedes week i
+week_of_year    (weeks,)                   0-51 (weeks start on Mondays)
+weather_index   (weeks,)                   index into ``weather_names`` (the climate)
+==============  =========================  ==========================================================
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.errors import DatasetError
+
+SPLITS = ("random", "weather_weeks", "buildings", "climate")
+ARRAYS = ("theta", "settings", "occupancy", "weather", "outputs", "run_id", "week_in_run", "week_of_year",
+          "weather_index")
+
+
+@dataclass
+class Dataset:
+    """An open dataset. Arrays are ``h5py.Dataset`` objects: slice them to read (``ds.outputs[:100]``)."""
+
+    path: Path
+    manifest: dict
+    weather_names: list[str]
+    _h5: object
+
+    def __getattr__(self, name: str):
+        if name in ARRAYS:
+            return self._h5[name]
+        raise AttributeError(name)
+
+    def __len__(self) -> int:
+        return int(self._h5["outputs"].shape[0])
+
+    @property
+    def zoning(self) -> str:
+        """The zoning of the simulated shoebox (``single`` for campaigns made before it was a choice)."""
+        return str(self.manifest.get("config", {}).get("zoning", "single"))
+
+    def close(self) -> None:
+        """Close the HDF5 file."""
+        self._h5.close()
+
+    def __enter__(self) -> Dataset:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def previous_week(self) -> np.ndarray:
+        """Index of the week that precedes each week in its EnergyPlus run, or -1 for a run's first week."""
+        run = self._h5["run_id"][:]
+        week = self._h5["week_in_run"][:]
+        index = np.full(len(run), -1, dtype=np.int64)
+        key = {(int(r), int(w)): i for i, (r, w) in enumerate(zip(run, week))}
+        for i, (r, w) in enumerate(zip(run, week)):
+            if w > 0:
+                index[i] = key.get((int(r), int(w) - 1), -1)
+        return index
+
+    def _climate_ids(self, names: list[str]) -> list[int]:
+        unknown = [c for c in names if c not in self.weather_names]
+        if unknown:
+            raise DatasetError(f"climate(s) {unknown} not in {self.path} ({', '.join(self.weather_names)})")
+        return [self.weather_names.index(c) for c in names]
+
+    def split(self, kind: str = "random", fractions: tuple[float, float, float] = (0.8, 0.1, 0.1),
+              seed: int = 0, test_climates: list[str] | None = None,
+              holdout_climates: list[str] | None = None) -> dict[str, np.ndarray]:
+        """Indices of train / validation / test weeks.
+
+        Args:
+            kind: ``random`` (weeks shuffled), or whole groups to one split only: ``weather_weeks`` (a climate's
+                week of year), ``buildings`` (EnergyPlus runs, as a calibrated site's building is unseen) or
+                ``climate`` (``test_climates`` names the test ones, else the fractions pick).
+            fractions: train, validation, test shares (by weeks for ``random``, by groups otherwise).
+            seed: shuffling seed.
+            test_climates: weather names held out as test set (``climate`` split only).
+            holdout_climates: weather names whose weeks are taken out of all three parts and returned apart
+                as ``"holdout_climate"`` (``random`` or ``weather_weeks`` only).
+        Returns:
+            ``{"train": idx, "val": idx, "test": idx}`` (plus ``"holdout_climate"``), sorted int arrays.
+        Raises:
+            DatasetError: an unknown kind or climate, or fractions that are negative or do not sum to 1.
+        """
+        if holdout_climates:
+            if kind == "climate":
+                raise DatasetError("holdout_climates goes with the random or weather_weeks split, not climate")
+            ids = self._climate_ids(holdout_climates)
+            apart = np.isin(self._h5["weather_index"][:], ids)
+            parts = self.split(kind, fractions, seed)
+            parts = {name: idx[~apart[idx]] for name, idx in parts.items()}
+            return {**parts, "holdout_climate": np.flatnonzero(apart)}
+        if kind not in SPLITS:
+            raise DatasetError(f"unknown split {kind!r}; choose one of {', '.join(SPLITS)}")
+        if not np.isclose(sum(fractions), 1.0) or min(fractions) < 0:
+            raise DatasetError(f"split fractions must be >= 0 and sum to 1 (got {fractions})")
+        rng = np.random.default_rng(seed)
+        n = len(self)
+        climate = self._h5["weather_index"][:].astype(np.int64)
+        if kind == "random":
+            groups = np.arange(n)
+        elif kind == "weather_weeks":
+            groups = climate * 100 + self._h5["week_of_year"][:].astype(np.int64)
+        elif kind == "buildings":
+            groups = self._h5["run_id"][:].astype(np.int64)
+        else:
+            groups = climate
+            if test_climates:
+                is_test = np.isin(climate, self._climate_ids(test_climates))
+                rest = np.unique(climate[~is_test])
+                rest = rest[rng.permutation(len(rest))]
+                n_val = max(1, int(round(fractions[1] / max(fractions[0] + fractions[1], 1e-9) * len(rest))))
+                val_ids = set(rest[:n_val].tolist()) if len(rest) > 1 else set()
+                is_val = np.isin(climate, list(val_ids))
+                return {"train": np.flatnonzero(~is_test & ~is_val), "val": np.flatnonzero(is_val),
+                        "test": np.flatnonzero(is_test)}
+        unique = np.unique(groups)
+        unique = unique[rng.permutation(len(unique))]
+        cuts = np.round(np.cumsum(fractions)[:2] * len(unique)).astype(int)
+        parts = np.split(unique, cuts)
+        return {name: np.flatnonzero(np.isin(groups, part)) for name, part in zip(("train", "val", "test"), parts)}
+
+
+def open_dataset(directory: str | Path) -> Dataset:
+    """Open a finished campaign directory.
+
+    Raises:
+        DatasetError: the directory is missing, unfinished (no manifest: rerun the same ``buildenv simulate``
+            command to resume it) or was made with another variable catalogue.
+    """
+    import h5py
+
+    directory = Path(directory)
+    manifest_path = directory / "manifest.json"
+    if not directory.is_dir():
+        raise DatasetError(f"dataset directory not found: {directory}")
+    if not manifest_path.is_file():
+        raise DatasetError(f"{directory} is not a finished dataset (no manifest.json); rerun the same "
+                           "`buildenv simulate` command to resume it")
+    manifest = json.loads(manifest_path.read_text())
+    if manifest.get("catalogue_hash") != cat.catalogue_hash():
+        raise DatasetError(f"{directory} was made with catalogue {manifest.get('catalogue_hash')}, this buildenv "
+                           f"has {cat.catalogue_hash()}: re-simulate it")
+    h5 = h5py.File(directory / "dataset.h5", "r")
+    return Dataset(directory, manifest, json.loads(h5.attrs["weather_names"]), h5)

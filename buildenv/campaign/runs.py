@@ -1,0 +1,335 @@
+"""Simulation campaigns: sample buildings, weeks and weather, run EnergyPlus in parallel, write a dataset.
+
+A campaign of N weeks is cut into *runs*: one building (theta_build), one weather file and up to
+``weeks_per_run`` consecutive weeks, each with its own sampled settings (I_k) and occupancy (O_k). One
+EnergyPlus run simulates the consecutive weeks in one go (whole years by default) and is cut into weeks,
+so only the first week of a run starts from EnergyPlus's warm-up state; every later week starts from the
+real end state of the week before it (and the dataset records which week precedes which).
+
+The whole plan (every sampled value) is drawn up front from the seed, so a campaign is deterministic and a
+rerun of the same command resumes it: each finished run is saved as its own shard file (written to a
+temporary name, then renamed), and finished shards are never redone. When all runs are done the shards
+are consolidated into ``dataset.h5``; ``manifest.json`` is written last, so a directory without it is
+never mistaken for a complete dataset.
+
+Runs execute in worker processes (EnergyPlus states are not thread-safe; workers are recycled because each
+run leaves a few MB behind) or, with ``scheduler``, on a Dask cluster.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import shutil
+import tempfile
+import time
+from collections.abc import Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from dataclasses import asdict, dataclass, field
+from multiprocessing import get_context
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
+from buildenv.errors import BuildenvError, DatasetError, SimulationError
+from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
+from buildenv.weather.epw import resolve_epw, shipped_weather
+
+log = logging.getLogger(__name__)
+
+#: share of a campaign's runs that may fail (and be left out) before the campaign stops: one building in
+#: thousands whose warm-up never settles must not stop a campaign that a rerun could never finish
+MAX_FAILED_SHARE = 0.01
+TASKS_PER_WORKER = 50  # recycle worker processes after this many EnergyPlus runs (each leaves ~3 MB behind)
+DEFAULT_CLIMATES: tuple[str, ...] = tuple(shipped_weather())
+
+
+@dataclass
+class CampaignConfig:
+    """What to simulate. CLI flags of ``buildenv simulate`` map one to one onto these fields.
+
+    Attributes:
+        weeks: number of weeks in the dataset.
+        seed: seed of every random draw of the campaign.
+        epw: weather short names or EPW paths; runs are spread evenly over them.
+        weeks_per_run: consecutive weeks simulated per EnergyPlus run (1-52).
+        sampling: ``uniform`` (paper) or ``lhs``.
+        zoning: the shoebox's zoning, ``core_perimeter`` or ``single`` (the paper's single zone; see
+            :mod:`buildenv.energyplus.shoebox`).
+    """
+
+    weeks: int
+    seed: int = 0
+    epw: list[str] = field(default_factory=lambda: list(DEFAULT_CLIMATES))
+    weeks_per_run: int = cat.WEEKS_PER_YEAR
+    sampling: str = "uniform"
+    zoning: str = DEFAULT_ZONING
+
+    def validate(self) -> None:
+        """Raise :class:`BuildenvError` on a value no campaign can use."""
+        if self.weeks < 1:
+            raise BuildenvError(f"--weeks must be at least 1 (got {self.weeks})")
+        if not 1 <= self.weeks_per_run <= cat.WEEKS_PER_YEAR:
+            raise BuildenvError(f"--weeks-per-run must be within 1..{cat.WEEKS_PER_YEAR} (got {self.weeks_per_run})")
+        if self.sampling not in METHODS:
+            raise BuildenvError(f"--sampling must be one of {', '.join(METHODS)} (got {self.sampling!r})")
+        if self.zoning not in ZONINGS:
+            raise BuildenvError(f"--zoning must be one of {', '.join(ZONINGS)} (got {self.zoning!r})")
+        if not self.epw:
+            raise BuildenvError("--epw: give at least one weather file")
+        for epw in self.epw:
+            resolve_epw(epw)
+
+
+@dataclass(frozen=True)
+class RunTask:
+    """One EnergyPlus run of a campaign: a building, a weather file and consecutive weeks."""
+
+    run_id: int
+    theta: np.ndarray  # (19,)
+    settings: np.ndarray  # (weeks, 7, 12)
+    occupancy: np.ndarray  # (weeks, 5, 2)
+    epw: str
+    weather_index: int
+    start_week: int
+    zoning: str = DEFAULT_ZONING
+
+    @property
+    def n_weeks(self) -> int:
+        return int(self.settings.shape[0])
+
+
+def plan_campaign(config: CampaignConfig) -> list[RunTask]:
+    """Draw every run of a campaign from its seed (deterministic; the same config gives the same plan)."""
+    config.validate()
+    rng = np.random.default_rng(config.seed)
+    n_runs = math.ceil(config.weeks / config.weeks_per_run)
+    lengths = [min(config.weeks_per_run, config.weeks - r * config.weeks_per_run) for r in range(n_runs)]
+    thetas = sample_group("theta_build", n_runs, rng, config.sampling)
+    settings, occupancy = sample_weeks(config.weeks, rng, config.sampling)
+    order = np.resize(rng.permutation(len(config.epw)), n_runs)
+    climates = rng.permutation(order)
+    starts = [int(rng.integers(0, cat.WEEKS_PER_YEAR - n + 1)) for n in lengths]
+    tasks, offset = [], 0
+    for r, n in enumerate(lengths):
+        tasks.append(RunTask(r, thetas[r], settings[offset:offset + n], occupancy[offset:offset + n],
+                             config.epw[climates[r]], int(climates[r]), starts[r], config.zoning))
+        offset += n
+    return tasks
+
+
+def run_task(task: RunTask) -> tuple[int, np.ndarray | None, str]:
+    """Simulate one run (in a worker process); returns ``(run_id, outputs (weeks, 168, 8), "")``, or
+    ``(run_id, None, message)`` when EnergyPlus refused the building (a :class:`SimulationError`)."""
+    from buildenv.energyplus.simulate import simulate_weeks
+
+    try:
+        with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-") as tmp:
+            result = simulate_weeks(task.theta, task.settings, task.occupancy, task.epw, task.start_week,
+                                    workdir=Path(tmp), zoning=task.zoning)
+    except SimulationError as exc:
+        return task.run_id, None, str(exc)
+    return task.run_id, result.outputs.astype(np.float32), ""
+
+
+def _shard_path(out: Path, run_id: int) -> Path:
+    return out / "shards" / f"run_{run_id:06d}.npz"
+
+
+def _record_failure(out: Path, task: RunTask, message: str) -> dict:
+    """Write what EnergyPlus said about a failed run beside the shards (a rerun tries the run again)."""
+    record = {"run_id": task.run_id, "epw": str(task.epw), "start_week": task.start_week, "weeks": task.n_weeks,
+              "error": message}
+    (out / "shards" / f"run_{task.run_id:06d}.failed.json").write_text(json.dumps(record, indent=2))
+    return record
+
+
+def _write_shard(out: Path, task: RunTask, outputs: np.ndarray) -> None:
+    path = _shard_path(out, task.run_id)
+    tmp = path.with_suffix(".tmp.npz")
+    np.savez(tmp, outputs=outputs)
+    os.replace(tmp, path)
+
+
+def _config_record(config: CampaignConfig) -> dict:
+    return {"config": asdict(config), "catalogue_hash": cat.catalogue_hash()}
+
+
+def _versions() -> dict[str, str]:
+    from importlib.metadata import PackageNotFoundError, version
+
+    from buildenv.energyplus.runner import energyplus_version
+
+    out = {"energyplus": energyplus_version()}
+    for pkg in ("buildenv", "pyenergyplus-lbnl", "numpy", "h5py", "pvlib", "pandas"):
+        try:
+            out[pkg] = version(pkg)
+        except PackageNotFoundError:
+            out[pkg] = "not installed"
+    return out
+
+
+def _prepare_directory(out: Path, config: CampaignConfig) -> None:
+    record = _config_record(config)
+    campaign_file = out / "campaign.json"
+    if campaign_file.exists():
+        previous = json.loads(campaign_file.read_text())
+        previous["config"].setdefault("zoning", "single")  # campaigns made before zoning was a choice
+        if previous != record:
+            raise DatasetError(f"{out} holds another campaign ({campaign_file}: {previous['config']}); "
+                               "use another --out or delete it")
+    else:
+        out.mkdir(parents=True, exist_ok=True)
+        tmp = campaign_file.with_suffix(".tmp")
+        tmp.write_text(json.dumps(record, indent=2))
+        os.replace(tmp, campaign_file)
+    (out / "shards").mkdir(exist_ok=True)
+
+
+def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np.ndarray | None, str]]:
+    if workers <= 1:
+        for task in tasks:
+            yield run_task(task)
+        return
+    ctx = get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, max_tasks_per_child=TASKS_PER_WORKER) as pool:
+        pending = {pool.submit(run_task, t) for t in tasks[: 2 * workers]}
+        queue = iter(tasks[2 * workers:])
+        try:
+            while pending:
+                done, pending = wait(pending, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    yield fut.result()
+                    nxt = next(queue, None)
+                    if nxt is not None:
+                        pending.add(pool.submit(run_task, nxt))
+        finally:
+            for fut in pending:
+                fut.cancel()
+
+
+def _execute_dask(tasks: list[RunTask], scheduler: str) -> Iterator[tuple[int, np.ndarray | None, str]]:
+    from distributed import Client, as_completed
+
+    with Client(scheduler) as client:
+        futures = client.map(run_task, tasks, pure=False)
+        try:
+            for fut in as_completed(futures):
+                yield fut.result()
+        finally:
+            client.cancel(futures)
+
+
+def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, scheduler: str | None = None,
+                 progress: bool = True, max_failed_share: float = MAX_FAILED_SHARE) -> Path:
+    """Run (or resume) a campaign into ``out`` and return the path of the finished ``dataset.h5``.
+
+    Args:
+        config: what to simulate.
+        out: dataset directory (created; an existing one is resumed if it holds the same campaign).
+        workers: local worker processes (default: all cores); ignored with ``scheduler``.
+        scheduler: address of a Dask scheduler (``tcp://host:port``) to run on instead of local processes.
+        progress: show a progress bar (weeks done / total).
+        max_failed_share: share of the planned runs EnergyPlus may refuse (a building whose warm-up never
+            settles, say): those are left out of the dataset and listed in the manifest's ``failed_runs``.
+    Raises:
+        DatasetError: ``out`` holds a different campaign.
+        SimulationError: more runs failed than ``max_failed_share`` allows (the message quotes the first);
+            finished runs stay saved and a rerun resumes, trying the failed runs again.
+    """
+    from tqdm import tqdm
+
+    out = Path(out)
+    tasks = plan_campaign(config)
+    _prepare_directory(out, config)
+    if (out / "manifest.json").exists():
+        log.info("%s is already complete", out)
+        return out / "dataset.h5"
+    todo = [t for t in tasks if not _shard_path(out, t.run_id).exists()]
+    done_weeks = config.weeks - sum(t.n_weeks for t in todo)
+    by_id = {t.run_id: t for t in tasks}
+    started = time.perf_counter()
+    workers = workers or os.cpu_count() or 1
+    results = _execute_dask(todo, scheduler) if scheduler else _execute_local(todo, workers)
+    failed: dict[int, dict] = {}
+    with tqdm(total=config.weeks, initial=done_weeks, unit="week", desc="simulate", disable=not progress) as bar:
+        for run_id, outputs, error in results:
+            if outputs is None:
+                failed[run_id] = _record_failure(out, by_id[run_id], error)
+                log.warning("run %d left out of the campaign: %s", run_id, error)
+                if len(failed) > max_failed_share * len(tasks):
+                    raise SimulationError(f"{out}: {len(failed)} of {len(tasks)} EnergyPlus runs failed (more than "
+                                          f"{max_failed_share:.0%}); first: {next(iter(failed.values()))['error']}")
+            else:
+                _write_shard(out, by_id[run_id], outputs)
+            bar.update(by_id[run_id].n_weeks)
+    elapsed = time.perf_counter() - started
+    kept = [t for t in tasks if t.run_id not in failed]
+    path = _consolidate(out, config, kept)
+    manifest = {**_config_record(config), "complete": True, "weeks": sum(t.n_weeks for t in kept),
+                "weeks_planned": config.weeks, "runs": len(kept),
+                "failed_runs": [failed[r] for r in sorted(failed)],
+                "weather": [str(resolve_epw(e)) for e in config.epw], "versions": _versions(),
+                "seconds_last_session": round(elapsed, 1), "runs_simulated_last_session": len(todo),
+                "weeks_simulated_last_session": config.weeks - done_weeks, "workers": None if scheduler else workers,
+                "scheduler": scheduler, "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    tmp = out / "manifest.json.tmp"
+    tmp.write_text(json.dumps(manifest, indent=2))
+    os.replace(tmp, out / "manifest.json")
+    shutil.rmtree(out / "shards", ignore_errors=True)
+    return path
+
+
+def _consolidate(out: Path, config: CampaignConfig, tasks: list[RunTask]) -> Path:
+    """Gather the shards into one chunked HDF5 file (written under a temporary name, then renamed)."""
+    import h5py
+
+    from buildenv.weather.epw import load_weather
+
+    n = sum(t.n_weeks for t in tasks)
+    tmp, final = out / "dataset.h5.tmp", out / "dataset.h5"
+    chunk = min(64, n)
+    with h5py.File(tmp, "w") as h5:
+        def make(name, shape, dtype=np.float32):
+            return h5.create_dataset(name, shape=shape, dtype=dtype,
+                                     chunks=(chunk,) + tuple(shape[1:]) if len(shape) > 1 else (chunk,))
+        d = {
+            "theta": make("theta", (n, len(cat.THETA_NAMES))),
+            "settings": make("settings", (n, 7, len(cat.SETTING_NAMES))),
+            "occupancy": make("occupancy", (n, 5, len(cat.OCCUPANCY_NAMES))),
+            "weather": make("weather", (n, cat.HOURS_PER_WEEK, len(cat.WEATHER_NAMES))),
+            "outputs": make("outputs", (n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES))),
+            "run_id": make("run_id", (n,), np.int32),
+            "week_in_run": make("week_in_run", (n,), np.int16),
+            "week_of_year": make("week_of_year", (n,), np.int16),
+            "weather_index": make("weather_index", (n,), np.int16),
+        }
+        offset = 0
+        for task in tasks:
+            k = task.n_weeks
+            sl = slice(offset, offset + k)
+            with np.load(_shard_path(out, task.run_id)) as shard:
+                d["outputs"][sl] = shard["outputs"]
+            d["theta"][sl] = np.broadcast_to(task.theta, (k, len(task.theta)))
+            d["settings"][sl] = task.settings
+            d["occupancy"][sl] = task.occupancy
+            d["weather"][sl] = load_weather(task.epw).weeks(task.start_week, k)
+            d["run_id"][sl] = task.run_id
+            d["week_in_run"][sl] = np.arange(k)
+            d["week_of_year"][sl] = task.start_week + np.arange(k)
+            d["weather_index"][sl] = task.weather_index
+            offset += k
+        h5.attrs["catalogue_hash"] = cat.catalogue_hash()
+        h5.attrs["weather_names"] = json.dumps(list(config.epw))
+        for group, names in (("theta", cat.THETA_NAMES), ("settings", cat.SETTING_NAMES),
+                             ("occupancy", cat.OCCUPANCY_NAMES), ("weather", cat.WEATHER_NAMES),
+                             ("outputs", cat.OUTPUT_NAMES)):
+            h5[group].attrs["names"] = json.dumps(list(names))
+        units = {v.name: v.unit for v in cat.ALL_VARIABLES}
+        h5.attrs["units"] = json.dumps(units)
+    os.replace(tmp, final)
+    return final

@@ -1,0 +1,500 @@
+"""The "real building" stand-in: a DOE reference office run under given BMS settings, read like sensors.
+
+A real building is stood in for by an EnergyPlus model none of us wrote: a reference office shipped with
+pyenergyplus-lbnl (:data:`REFERENCE_BUILDINGS`) or a user's IDF. The site's settings I_k replace, hour by hour
+through one Schedule:File, the schedules of four roles (:data:`SCHEDULE_ROLES`, :func:`prepare_model`): the
+heating and cooling setpoints of every ``ThermostatSetpoint:DualSetpoint``, the HVAC availability (the union
+of the heating, cooling and ventilation periods) and the minimum outdoor air of every ``Controller:OutdoorAir``
+(``ventilation_on * min(1, ventilation_ach / design_ach)``, :func:`design_outdoor_air_ach`); ``supply_air_c``
+is not mapped. Schedules are re-pointed, not rewritten. Systems of 24/7 spaces keep their own schedules
+(:func:`serves_24h_space`); occupancy, lighting, equipment, constructions and systems are untouched; public
+holidays and daylight-saving time are removed. The run starts ``warmup_weeks`` before the first measured week.
+
+Unmodelled effects (:mod:`buildenv.diagnosis.effects`) are put in by :mod:`buildenv.energyplus.injections`:
+model edits after the schedules are re-pointed, sensor effects on the true temperature before the noise.
+
+The two sensors (:func:`read_sensors`): the occupied-zone mean air temperature (floor-area weighted, zone
+multipliers counted) and the heat consumption, kWh per hour: heating coils (``HeatingCoils:EnergyTransfer``) +
+interior lighting + interior equipment, the counterpart of the model's Q_HEAT_OFFICE + Q_AHU_H + Q_EQP +
+Q_LIGHT. The HVAC energy (heating + cooling coils, no noise), for verifying optimised settings, is the
+counterpart of :data:`buildenv.catalogue.HVAC_OUTPUTS`.
+
+Sensor noise (seeded, :func:`add_sensor_noise`): temperature ``N(0, 0.1 K)`` with a 0.1 K resolution (a
+class-B Pt1000 read by a BMS); consumption ``N(0, 1 %)`` multiplicative with a 0.1 kWh meter resolution.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import functools
+import re
+import tempfile
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.defaults import default_week
+from buildenv.energyplus.injections import (
+    InjectedEffect,
+    inject_energyplus,
+    plan_effects,
+    sensor_effect_series,
+    sizing_objects,
+)
+from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
+from buildenv.energyplus.runner import clean_outputs, run_energyplus
+from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
+from buildenv.errors import ReferenceBuildingError, SimulationError
+from buildenv.schedules import hourly_schedules
+from buildenv.weather.epw import epw_day_of_year, resolve_epw
+
+#: Reference offices shipped with pyenergyplus-lbnl: name -> (IDF file name, storeys).
+REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
+    "small_office": ("RefBldgSmallOfficeNew2004_Chicago.idf", 1),
+    "medium_office": ("RefBldgMediumOfficeNew2004_Chicago.idf", 3),
+    "large_office": ("RefBldgLargeOfficeNew2004_Chicago.idf", 12),
+    "small_office_2019": ("ASHRAE901_OfficeSmall_STD2019_Denver.idf", 1),
+    "medium_office_2019": ("ASHRAE901_OfficeMedium_STD2019_Denver.idf", 3),
+    "large_office_2019": ("ASHRAE901_OfficeLarge_STD2019_Denver.idf", 12),
+}
+SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
+TEMPERATURE_NOISE_K, TEMPERATURE_RESOLUTION_K = 0.1, 0.1
+CONSUMPTION_NOISE_FRACTION, CONSUMPTION_RESOLUTION_KWH = 0.01, 0.1
+HOURS_PER_YEAR = 8760
+# the weather of the sizing run that gives a model's design outdoor air (which does not depend on the weather;
+# some models fail to size their cooling coils with other files)
+OUTDOOR_AIR_SIZING_WEATHER = "usa_il_chicago"
+_DATA_CENTRE_COIL_ERROR = (
+    "{}: EnergyPlus failed (Severe FindRootSimpleController) on the data centre's zero-capacity extra heating "
+    "coil, which the model's EMS switches on when the data centre heats below 10 degC outdoors, with its setpoint "
+    "at its inlet temperature (the BMS setbacks of the offices around it make it heat): try a warmer period")
+# names of the systems of 24/7 spaces, which keep their own schedules (see serves_24h_space)
+_24H_NAME = re.compile(r"data[\s_-]*cent(er|re)|server[\s_-]*room", re.IGNORECASE)
+
+
+@dataclass
+class ScheduleMap:
+    """Names of the model's schedules each role replaces (see the module docstring)."""
+
+    heating_setpoint: list[str] = field(default_factory=list)
+    cooling_setpoint: list[str] = field(default_factory=list)
+    hvac_availability: list[str] = field(default_factory=list)
+    outdoor_air: list[str] = field(default_factory=list)
+
+
+@dataclass
+class ReferenceRun:
+    """Hourly sensor readings of a reference run (before noise), one row per measured week."""
+
+    temperature_c: np.ndarray  # (weeks, 168) occupied-zone mean air temperature
+    consumption_kwh: np.ndarray  # (weeks, 168) heat consumption per hour
+    floor_area_m2: float  # occupied (people-bearing) floor area, multipliers counted
+    zones: list[str]  # zones averaged into the temperature
+    hvac_kwh: np.ndarray | None = None  # (weeks, 168) heat delivered by heating coils + cooling coils per hour
+    warmup_temperature_c: np.ndarray | None = None  # (warmup_weeks*168,) true temperature of the warm-up hours
+    effects: list[dict[str, Any]] = field(default_factory=list)  # injected effects, truth.json entries
+
+
+def reference_idf(building: str | Path) -> Path:
+    """Path of a shipped reference office (a name of :data:`REFERENCE_BUILDINGS`) or of a user's IDF."""
+    if str(building) in REFERENCE_BUILDINGS:
+        import pyenergyplus
+
+        path = Path(pyenergyplus.__file__).parent / "data" / "model" / REFERENCE_BUILDINGS[str(building)][0]
+    else:
+        path = Path(building)
+    if not path.is_file():
+        known = ", ".join(REFERENCE_BUILDINGS)
+        raise ReferenceBuildingError(f"reference building not found: {building} (shipped: {known}; or an IDF path)")
+    return path
+
+
+def _unoccupied_thermostats(objects: list[IdfObject]) -> set[str]:
+    """Names (lower case) of the dual-setpoint thermostats that control only zones without ``People``."""
+    occupied = {o[2].lower() for o in of_type(objects, "People") if len(o) > 2}
+    lists = {o[1].lower(): {z.lower() for z in o[2:]} for o in of_type(objects, "ZoneList")}
+    for o in of_type(objects, "People"):  # People may name a ZoneList
+        occupied |= lists.get(o[2].lower(), set()) if len(o) > 2 else set()
+    controls: dict[str, bool] = {}  # dual setpoint name -> controls an occupied zone
+    for o in of_type(objects, "ZoneControl:Thermostat"):
+        zones = lists.get(o[2].lower(), {o[2].lower()}) | {o[2].lower()}
+        for kind, name in zip(o[4::2], o[5::2]):
+            if kind.lower() == "thermostatsetpoint:dualsetpoint":
+                controls[name.lower()] = controls.get(name.lower(), False) or bool(zones & occupied)
+    return {name for name, occ in controls.items() if not occ}
+
+
+def serves_24h_space(obj: IdfObject, unoccupied_thermostats: set[str] = frozenset()) -> bool:
+    """Whether ``obj`` belongs to a system of a 24/7 space (data centre, server room): it keeps its schedules.
+
+    A dual-setpoint thermostat of zones without people, or an object named after a data centre or server
+    room (the ASHRAE 90.1 large office's ``AirLoop DataCenter ...`` air loops, which share the offices'
+    minimum outdoor-air schedule). Such objects are neither used to detect the schedules nor re-pointed.
+    """
+    name = obj[1] if len(obj) > 1 else ""
+    if obj[0].lower() == "thermostatsetpoint:dualsetpoint" and name.lower() in unoccupied_thermostats:
+        return True
+    return bool(_24H_NAME.search(name))
+
+
+def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
+    """Find the schedules each role replaces, from the office systems that use them (not 24/7 spaces')."""
+    unoccupied = _unoccupied_thermostats(objects)
+    objects = [o for o in objects if not serves_24h_space(o, unoccupied)]
+    dual = of_type(objects, "ThermostatSetpoint:DualSetpoint")
+    found = ScheduleMap(heating_setpoint=sorted({o[2] for o in dual}), cooling_setpoint=sorted({o[3] for o in dual}),
+                        outdoor_air=sorted({o[17] for o in of_type(objects, "Controller:OutdoorAir")
+                                            if len(o) > 17 and o[17]}))
+    hvac = {o[3] for o in of_type(objects, "AvailabilityManager:NightCycle") if len(o) > 3 and o[3]}
+    for kind in ("Fan:VariableVolume", "Fan:ConstantVolume", "Fan:OnOff", "Fan:SystemModel"):
+        hvac |= {o[2] for o in of_type(objects, kind) if len(o) > 2 and o[2]}
+    found.hvac_availability = sorted(hvac - {"ALWAYS_ON", "Always_On", "Always On"})
+    return found
+
+
+def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.ndarray]:
+    """Hourly values of the four roles for ``settings`` ``(weeks, 7, 12)`` -> ``{role: (weeks*168,)}``, for a
+    model whose design minimum outdoor air is ``design_ach`` (1/h, see :func:`design_outdoor_air_ach`).
+
+    Outside the HVAC availability the systems only cycle on to hold the setbacks (the model's night-cycle
+    managers); outdoor air above the design cannot be expressed (EnergyPlus caps the schedule at 1).
+    """
+    occupancy = np.zeros((len(settings), len(cat.WEEKDAYS), len(cat.GROUPS["occupancy"])))
+    occupancy[..., 0], occupancy[..., 1] = cat.get("occupancy_start_hour").min, cat.get("occupancy_end_hour").max
+    s = {k: v.reshape(-1) for k, v in hourly_schedules(settings, occupancy).items()}
+    hvac = np.maximum.reduce([s["heating_comfort_on"], s["cooling_comfort_on"], s["ventilation_on"]])
+    return {"heating_setpoint": s["heating_setpoint_c"], "cooling_setpoint": s["cooling_setpoint_c"],
+            "hvac_availability": hvac, "outdoor_air": s["ventilation_on"] * np.minimum(
+                1.0, s["ventilation_ach"] / design_ach)}
+
+
+def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdir: Path,
+                  schedule_map: ScheduleMap | None = None, effects: Sequence[InjectedEffect] = (),
+                  epw: Path | None = None) -> tuple[Path, ScheduleMap]:
+    """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
+
+    ``effects`` (planned with :func:`buildenv.energyplus.injections.plan_effects`): the ``kind="energyplus"`` ones
+    are injected into the model (:func:`buildenv.energyplus.injections.inject_energyplus`); none gives the model of
+    a run without effects, unchanged. ``epw`` (an EPW path) is needed by ``heating_capacity_limit``, whose
+    design capacities come from a sizing run in ``workdir/sizing``.
+
+    Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule.
+    """
+    objects = read_idf(source)
+    mapping = schedule_map or detect_schedule_map(objects)
+    missing = [r for r in SCHEDULE_ROLES if not getattr(mapping, r)]
+    if missing:
+        raise ReferenceBuildingError(f"{source}: no schedule found for {', '.join(missing)}; "
+                              "name them with --map ROLE=SCHEDULE")
+    last_day = first_day + dt.timedelta(days=7 * len(settings) - 1)
+    if last_day.year != first_day.year:
+        raise ReferenceBuildingError(f"the run {first_day}..{last_day} crosses a new year; "
+                                     "start it earlier or shorten it")
+    # the Schedule:File: a year of hourly values, the run's hours filled from the settings
+    columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
+    start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
+    table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
+    for j, role in enumerate(SCHEDULE_ROLES):
+        values = columns[role]
+        table[:, j] = values[:cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
+        stop = min(start + len(values), HOURS_PER_YEAR)
+        table[start:stop, j] = values[:stop - start]
+    csv = (workdir / "buildenv_schedules.csv").resolve()
+    workdir.mkdir(parents=True, exist_ok=True)
+    np.savetxt(csv, table, fmt="%.4f", delimiter=",", header=",".join(SCHEDULE_ROLES), comments="")
+    # re-point every reference to a replaced schedule (definitions and EMS objects keep the old names)
+    rename = {old.lower(): f"buildenv_{role}" for role in SCHEDULE_ROLES for old in getattr(mapping, role)}
+    kept_kinds = ("schedule:", "energymanagementsystem:", "output:")
+    unoccupied = _unoccupied_thermostats(objects)
+    edited = []
+    for o in without(objects, kinds={"RunPeriod", "RunPeriodControl:SpecialDays",
+                                     "RunPeriodControl:DaylightSavingTime", "OutputControl:Files",
+                                     "Output:SQLite", "OutputControl:Table:Style", "Output:Variable",
+                                     "Output:Meter", "Output:Meter:MeterFileOnly", "Output:Table:Monthly",
+                                     "Output:Table:SummaryReports", "Output:Table:TimeBins"}):
+        if not o[0].lower().startswith(kept_kinds) and not serves_24h_space(o, unoccupied):
+            o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
+        edited.append(o)
+    sim = of_type(edited, "SimulationControl")
+    if sim:
+        sim[0][1:6] = ["Yes", "Yes", "Yes", "No", "Yes"]  # autosize on design days, simulate the run period only
+    edited += [["Schedule:File", f"buildenv_{role}", "", str(csv), str(j + 1), "1", str(HOURS_PER_YEAR), "Comma",
+                "No", "60"] for j, role in enumerate(SCHEDULE_ROLES)]
+    edited.append(["RunPeriod", "buildenv", str(first_day.month), str(first_day.day), str(first_day.year),
+                   str(last_day.month), str(last_day.day), str(last_day.year), "", "No", "No", "No", "No", "No",
+                   "No"])
+    edited += [["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
+               ["Output:Meter", "HeatingCoils:EnergyTransfer", "Hourly"],
+               ["Output:Meter", "CoolingCoils:EnergyTransfer", "Hourly"],
+               ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
+               ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
+               ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29]
+    if any(e.active and e.effect.kind == "energyplus" for e in effects):
+        edited = inject_energyplus(edited, effects, source.stem, sizing=_sizing_run(source, workdir, epw))
+    idf = workdir / f"{source.stem}_buildenv.idf"
+    idf.write_text(format_idf(edited))
+    return idf, mapping
+
+
+@functools.lru_cache(maxsize=32)
+def design_outdoor_air_ach(source: Path, epw: Path | None) -> float:
+    """The design minimum outdoor air of a model's occupied zones, in air changes per hour of
+    ``floor area x FLOOR_HEIGHT_M`` (our model's ``ventilation_ach``), from a sizing run (cached).
+
+    The sum over zones with ``People`` of the larger of each zone's heating and cooling "Calc Outdoor Air Flow
+    Rate" (``eplusout.eio`` Zone Sizing Information), divided by the same zones' floor area. Raises
+    :class:`ReferenceBuildingError` without a weather file or without zone outdoor air.
+    """
+    if epw is None:
+        raise ReferenceBuildingError(f"{source.stem}: the design outdoor air needs a sizing run with a weather file")
+    objects = read_idf(source)
+    occupied = {o[2].upper() for o in of_type(objects, "People")}
+    with tempfile.TemporaryDirectory(prefix="buildenv-oa-") as tmp:
+        eio = _sizing_run(source, Path(tmp), Path(epw))(sizing_objects(objects))
+        flows = zone_outdoor_air_m3_s(eio)
+        areas = zone_areas(eio)
+    zones = [z for z in flows if z in occupied and z in areas]
+    total = sum(flows[z] for z in zones)
+    if total <= 0.0:
+        raise ReferenceBuildingError(f"{source}: no design outdoor air in its occupied zones (sizing run)")
+    return total * 3600.0 / (sum(areas[z] for z in zones) * FLOOR_HEIGHT_M)
+
+
+def historical_ventilation_ach(building: str | Path) -> float:
+    """The ventilation a reference building's site records as its historical setting: its design minimum
+    outdoor air (:func:`design_outdoor_air_ach`) on the catalogue's grid of ``ventilation_ach`` (1/h)."""
+    var = cat.get("ventilation_ach")
+    design = design_outdoor_air_ach(reference_idf(building), resolve_epw(OUTDOOR_AIR_SIZING_WEATHER))
+    return float(var.snap(np.clip(design, var.min, var.max)))
+
+
+def zone_outdoor_air_m3_s(eio: Path) -> dict[str, float]:
+    """``{zone name (upper case): design outdoor air (m3/s)}`` from the Zone Sizing Information of
+    ``eplusout.eio`` (the larger of the heating and cooling lines, as EnergyPlus reports them)."""
+    header: list[str] | None = None
+    flows: dict[str, float] = {}
+    for line in Path(eio).read_text(errors="replace").splitlines():
+        fields = [f.strip() for f in line.split(",")]
+        if fields[0] == "! <Zone Sizing Information>":
+            header = [h.split("{")[0].strip().lower() for h in fields]
+        elif fields[0] == "Zone Sizing Information" and header and "calc outdoor air flow rate" in header:
+            value = float(fields[header.index("calc outdoor air flow rate")])
+            flows[fields[1].upper()] = max(flows.get(fields[1].upper(), 0.0), value)
+    return flows
+
+
+def _sizing_run(source: Path, workdir: Path, epw: Path | None):
+    """A callback running the sizing of a model in ``workdir/sizing``; returns its ``eplusout.eio``."""
+
+    def size(objects: list[IdfObject]) -> Path:
+        if epw is None:
+            raise ReferenceBuildingError(f"{source.stem}: a sizing run needs the weather file (prepare_model(epw=))")
+        folder = workdir / "sizing"
+        folder.mkdir(parents=True, exist_ok=True)
+        idf = folder / f"{source.stem}_sizing.idf"
+        idf.write_text(format_idf(objects))
+        run_energyplus(idf, epw, folder, label=f"{source.stem} sizing")
+        return folder / "eplusout.eio"
+
+    return size
+
+
+def zone_areas(eio: Path) -> dict[str, float]:
+    """``{zone name (upper case): floor area x multipliers (m2)}`` from EnergyPlus's ``eplusout.eio``."""
+    header: list[str] | None = None
+    areas: dict[str, float] = {}
+    for line in eio.read_text(errors="replace").splitlines():
+        fields = [f.strip() for f in line.split(",")]
+        if fields[0] == "! <Zone Information>":
+            header = fields
+        elif fields[0] == "Zone Information" and header:
+            col = {name.split("{")[0].strip().lower(): i for i, name in enumerate(header)}
+            area = float(fields[col["floor area"]])
+            mult = float(fields[col["zone multiplier"]]) * float(fields[col["zone list multiplier"]])
+            areas[fields[1].upper()] = area * mult
+    if not areas:
+        raise ReferenceBuildingError(f"{eio}: no Zone Information lines")
+    return areas
+
+
+def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
+    """The rows of ``frame`` (an ``eplusout.csv``) stamped with the run period's ``hours`` hours from ``first_day``.
+
+    Models with "Do HVAC Sizing Simulation for Sizing Periods" (the DOE large office: coincident plant
+    sizing) also report their design days. EnergyPlus's CSV keys rows by their ``MM/DD  HH:MM:SS`` stamp:
+    the design days' rows come on top of the run's, and on a date the run shares with a design day the
+    run period (simulated last) has overwritten them (checked against ``eplusout.eso``, EnergyPlus 25.2).
+    """
+    day0 = dt.datetime(first_day.year, first_day.month, first_day.day)
+    expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00"
+                for h in range(hours)]
+    stamps = frame["Date/Time"].astype(str).str.strip()
+    rows = frame[stamps.isin(set(expected)).to_numpy()]
+    if list(stamps[rows.index]) != expected:
+        raise ReferenceBuildingError(f"{csv}: {len(rows)} hourly rows stamped {first_day} and after ({len(frame)} "
+                                     f"in all), expected {hours} consecutive hours")
+    return rows.reset_index(drop=True)
+
+
+def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int,
+                 first_day: dt.date | None = None) -> ReferenceRun:
+    """Aggregate a finished reference run as the two sensors (see the module docstring).
+
+    ``first_day`` (the run period's first day): read only the rows stamped with the run period's hours
+    (:func:`_run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run period's.
+    """
+    import pandas as pd
+
+    frame = pd.read_csv(out / "eplusout.csv")
+    if first_day is not None:
+        frame = _run_period_rows(frame, first_day, (weeks + warmup_weeks) * cat.HOURS_PER_WEEK,
+                                 out / "eplusout.csv")
+    areas = zone_areas(out / "eplusout.eio")
+    zones = [z for z in occupied if z.upper() in areas]
+    temps, weights = [], []
+    for zone in zones:
+        col = [c for c in frame.columns if c.upper().startswith(f"{zone.upper()}:ZONE MEAN AIR TEMPERATURE [")]
+        if col:
+            temps.append(frame[col[0]].to_numpy(float))
+            weights.append(areas[zone.upper()])
+    if not temps:
+        raise ReferenceBuildingError(f"{out}: no zone temperatures of the occupied zones {zones}")
+    temperature = np.average(np.stack(temps), axis=0, weights=weights)
+
+    def meter_kwh(meter: str) -> np.ndarray:  # a building without heating coils (or lights) simply adds nothing
+        col = [c for c in frame.columns if c.upper().startswith(meter.upper() + " [")]
+        return frame[col[0]].to_numpy(float) / 3.6e6 if col else np.zeros(len(frame))  # J -> kWh
+
+    heating = meter_kwh("HeatingCoils:EnergyTransfer")
+    consumption = heating + meter_kwh("InteriorLights:Electricity") + meter_kwh("InteriorEquipment:Electricity")
+    hvac = heating + meter_kwh("CoolingCoils:EnergyTransfer")
+    hours = (weeks + warmup_weeks) * cat.HOURS_PER_WEEK
+    if len(frame) != hours:
+        raise ReferenceBuildingError(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
+    skip = warmup_weeks * cat.HOURS_PER_WEEK
+    shape = (weeks, cat.HOURS_PER_WEEK)
+    return ReferenceRun(temperature[skip:].reshape(shape), consumption[skip:].reshape(shape),
+                        float(sum(areas[z.upper()] for z in zones)), zones, hvac[skip:].reshape(shape),
+                        warmup_temperature_c=temperature[:skip].copy())
+
+
+def run_reference(building: str | Path, epw: str | Path, start: dt.date, settings: np.ndarray,
+                  warmup_weeks: int = 1, workdir: Path | None = None, schedule_map: ScheduleMap | None = None,
+                  effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
+                  effect_seed: int = 0) -> ReferenceRun:
+    """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
+
+    Args:
+        building: a name of :data:`REFERENCE_BUILDINGS` or an IDF path.
+        epw: weather short name or EPW path.
+        start: Monday of the first measured week.
+        settings: I_k per measured week ``(weeks, 7, 12)``; the warm-up weeks repeat the first week's.
+        warmup_weeks: weeks simulated before ``start`` and discarded.
+        workdir: where EnergyPlus runs (temporary if ``None``); its outputs are deleted afterwards.
+        schedule_map: schedules to replace (detected from the model if ``None``).
+        effects: unmodelled effects to inject, ``(name, magnitude or None for the default)`` pairs (see
+            :mod:`buildenv.energyplus.injections`); the sensor effects act on the returned ``temperature_c`` (before
+            noise), ``hvac_kwh`` and ``warmup_temperature_c`` stay true. Recorded in ``ReferenceRun.effects``.
+        effect_seed: seed of the effects' random choices (holiday dates).
+    Returns:
+        the :class:`ReferenceRun` of the measured weeks (true readings, no noise).
+    Raises:
+        ReferenceBuildingError: ``start`` is not a Monday, the model lacks a schedule role or zones, or the
+            ASHRAE 90.1 large office's data-centre coil fails (EnergyPlus, in cold periods): try a warmer one.
+    """
+    if start.weekday() != 0:
+        raise ReferenceBuildingError(f"start {start} is a {start.strftime('%A')}; measured weeks start on a Monday")
+    settings = np.asarray(settings, float)
+    cat.check_values("settings", settings, "settings")
+    source = reference_idf(building)
+    full = np.concatenate([np.repeat(settings[:1], warmup_weeks, axis=0), settings])
+    first_day = start - dt.timedelta(weeks=warmup_weeks)
+    planned = plan_effects(effects, start, len(settings), effect_seed)
+    with tempfile.TemporaryDirectory(prefix="buildenv-ref-") as tmp:
+        work = Path(workdir) if workdir else Path(tmp)
+        weather = resolve_epw(epw)
+        idf, _ = prepare_model(source, full, first_day, work, schedule_map, effects=planned, epw=weather)
+        occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
+        try:
+            run_energyplus(idf, weather, work, label=source.stem)
+        except SimulationError as error:
+            if "FindRootSimpleController" in str(error) and "DATACENTER" in str(error).upper():
+                raise ReferenceBuildingError(_DATA_CENTRE_COIL_ERROR.format(source.stem)) from error
+            raise
+        result = read_sensors(work, occupied, len(settings), warmup_weeks, first_day)
+        clean_outputs(work, keep=("eplusout.err",))
+    result.temperature_c = sensor_effect_series(result.temperature_c, result.warmup_temperature_c, planned)
+    result.effects = [e.truth() for e in planned]
+    return result
+
+
+def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """Measured series: ``(temperature_c, consumption_kwh)`` with seeded noise and meter resolution."""
+    rng = np.random.default_rng(seed)
+    t = run.temperature_c + rng.normal(0.0, TEMPERATURE_NOISE_K, run.temperature_c.shape)
+    q = run.consumption_kwh * (1.0 + rng.normal(0.0, CONSUMPTION_NOISE_FRACTION, run.consumption_kwh.shape))
+    t = np.round(t / TEMPERATURE_RESOLUTION_K) * TEMPERATURE_RESOLUTION_K
+    q = np.round(np.maximum(q, 0.0) / CONSUMPTION_RESOLUTION_KWH) * CONSUMPTION_RESOLUTION_KWH
+    return t, q
+
+
+def historical_settings(weeks: int, ventilation_ach: float | None = None) -> np.ndarray:
+    """The default building's typical historical settings on every day, ``(weeks, 7, 12)``; ``ventilation_ach``
+    (1/h) replaces the default ventilation (a reference building's: :func:`historical_ventilation_ach`)."""
+    settings = default_week(weeks)[0]
+    if ventilation_ach is not None:
+        settings[..., cat.SETTING_NAMES.index("ventilation_ach")] = ventilation_ach
+    return settings
+
+
+def make_reference_site(out: str | Path, building: str | Path = "medium_office", epw: str | Path = "usa_il_chicago",
+                        start: dt.date = dt.date(2019, 11, 4), weeks: int = 4, settings: np.ndarray | None = None,
+                        seed: int = 0, floors: int | None = None, schedule_map: ScheduleMap | None = None,
+                        effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
+                        effect_seed: int = 0, known: dict[str, float] | None = None) -> Path:
+    """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.sites`).
+
+    Args:
+        out: site folder to write.
+        building: a name of :data:`REFERENCE_BUILDINGS` or an IDF path (then ``floors`` is required).
+        epw: weather short name or EPW path.
+        start: Monday of the first measured week.
+        weeks: measured weeks.
+        settings: I_k per week ``(weeks, 7, 12)``; default :func:`historical_settings` with the building's
+            design ventilation (:func:`historical_ventilation_ach`).
+        seed: seed of the sensor noise.
+        floors: storeys (known geometry); taken from :data:`REFERENCE_BUILDINGS` for shipped buildings.
+        schedule_map: schedules to replace (detected if ``None``).
+        effects: unmodelled effects to inject, ``(name, magnitude or None for the default)`` pairs (see
+            :mod:`buildenv.energyplus.injections`); written to ``truth.json`` as ``{"name", "magnitude", "unit",
+            "details"}`` entries, never to ``site.toml`` (the diagnosis must find them blind).
+        effect_seed: seed of the effects' random choices (holiday dates).
+        known: building parameters the site declares known (``site.toml``'s ``[known]``, catalogue units):
+            what the building's documents say, which calibration then keeps fixed.
+    """
+    from buildenv.sites import write_site
+
+    if floors is None:
+        if str(building) not in REFERENCE_BUILDINGS:
+            raise ReferenceBuildingError(f"{building}: give the number of floors of a user IDF (--floors)")
+        floors = REFERENCE_BUILDINGS[str(building)][1]
+    if settings is None:
+        settings = historical_settings(weeks, historical_ventilation_ach(building))
+    settings = np.asarray(settings, float)
+    run = run_reference(building, epw, start, settings, schedule_map=schedule_map, effects=effects,
+                        effect_seed=effect_seed)
+    temperature, consumption = add_sensor_noise(run, seed)
+    source = {"kind": "reference building stand-in", "building": str(building),
+              "idf": reference_idf(building).name, "weather": str(epw), "seed": seed,
+              "temperature_sensor": f"occupied-zone mean of {len(run.zones)} zones, noise {TEMPERATURE_NOISE_K} K, "
+                                    f"resolution {TEMPERATURE_RESOLUTION_K} K",
+              "consumption_meter": "heating coils + interior lights + interior equipment, noise "
+                                   f"{CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh"}
+    return write_site(out, name=f"{building} in {epw} (reference-building stand-in)", weather=str(epw), start=start,
+                      floor_area_m2=round(run.floor_area_m2, 1), number_of_floors=int(floors), settings=settings,
+                      temperature_c=temperature, consumption_kwh=consumption, source=source,
+                      truth={"building": str(building), "effects": run.effects}, known=known)

@@ -1,0 +1,19 @@
+"""Registers ``BuildingWeek-v0`` with gymnasium without importing the environment module (cheap on import)."""
+
+from __future__ import annotations
+
+ENV_ID = "BuildingWeek-v0"
+
+
+def register_envs() -> None:
+    """Register ``BuildingWeek-v0`` (single and native vector entry points) if not registered yet.
+
+    Called by ``import buildenv``; also declared as the ``gymnasium.envs`` entry point for gymnasium versions
+    that load environment plugins (gymnasium 1.x no longer does: there, ``import buildenv`` or
+    ``gymnasium.make("buildenv:BuildingWeek-v0")`` registers it).
+    """
+    import gymnasium
+
+    if ENV_ID not in gymnasium.registry:
+        gymnasium.register(id=ENV_ID, entry_point="buildenv.env.building_week:BuildingWeekEnv",
+                           vector_entry_point="buildenv.env.building_week:BuildingWeekVectorEnv")

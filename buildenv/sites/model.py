@@ -1,0 +1,166 @@
+"""The site model: :class:`Site` (a loaded, validated site) and the site format's names and limits.
+
+Holds the file names (:data:`DESCRIPTOR`, ...), the CSV columns (:data:`MEASUREMENT_COLUMNS`,
+:data:`SETTINGS_COLUMNS`), the ``site.toml`` keys and the plausibility limits that :mod:`buildenv.sites.reader`
+checks and :mod:`buildenv.sites.writer` writes. A site folder holds (for users: ``docs/site-format.md``)::
+
+    site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional effects, [known],
+                       [source]
+    measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
+    settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
+    calibration.json   optional, written by calibration (:func:`buildenv.sites.writer.save_calibration`)
+    truth.json         optional, true parameters of a synthetic stand-in site
+
+Conventions:
+
+- Timestamps are local *standard* time (no daylight-saving shift, like the EPW file) of the START of the
+  hour; weeks start Monday 00:00.
+- ``indoor_temperature_c`` is the occupied zone's mean air temperature over the hour, degC; it is compared
+  with the catalogue output ``T_INT_OFFICE``.
+- ``heat_consumption_kwh`` is the energy used during the hour, kWh, for heating + equipment + lighting; it is
+  compared with :data:`buildenv.catalogue.HEAT_CONSUMPTION_OUTPUTS` summed (Wh/m2 in the hour) times floor
+  area / 1000.
+- Missing rows and empty / ``NaN`` cells are gaps: the hour is NaN and masked, never interpolated.
+  Temperature and consumption have separate masks.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.errors import SiteError
+from buildenv.weather.epw import epw_day_of_year, epw_hours
+
+DESCRIPTOR = "site.toml"
+CALIBRATION_FILE = "calibration.json"
+TRUTH_FILE = "truth.json"
+DEFAULT_MEASUREMENTS = "measurements.csv"
+DEFAULT_SETTINGS = "settings.csv"
+MEASUREMENT_COLUMNS: tuple[str, ...] = ("timestamp", "indoor_temperature_c", "heat_consumption_kwh")
+SETTINGS_COLUMNS: tuple[str, ...] = ("date", *cat.SETTING_NAMES)
+TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "effects", "geometry", "known",
+                                   "source")
+GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
+#: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
+KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
+
+#: Plausible indoor air temperature, degC; a value outside is a unit or sensor error.
+TEMPERATURE_RANGE_C: tuple[float, float] = (-20.0, 50.0)
+#: Largest plausible consumption in one hour, kWh per m2 of floor area.
+MAX_KWH_PER_M2_PER_HOUR = 1.0
+
+
+@dataclass(eq=False)
+class Site:
+    """A loaded, validated site (build one with :func:`buildenv.sites.load_site`).
+
+    Attributes:
+        path: the site folder.
+        name: free text from ``site.toml``.
+        weather: an EPW short name (see :func:`buildenv.weather.epw.shipped_weather`) or an absolute EPW path.
+        start: Monday of the first measured week (local standard time).
+        floor_area_m2: conditioned floor area, m2 (known, fixed during calibration).
+        number_of_floors: number of storeys (known, fixed during calibration).
+        settings: BMS settings in force, ``(weeks, 7, 12)``, Monday..Sunday, catalogue order of the
+            ``settings`` group (units of :data:`buildenv.catalogue.SETTINGS`: h, degC, 1/h).
+        temperature_c: occupied-zone mean air temperature of each hour, degC, ``(weeks, 168)``, NaN where
+            missing.
+        consumption_kwh: heat consumption (heating + equipment + lighting) in each hour, kWh,
+            ``(weeks, 168)``, NaN where missing.
+        source: the free ``[source]`` table of ``site.toml`` (what produced the data), not interpreted.
+        known: the ``[known]`` table: building parameters the owner knows (design documents, BMS), in catalogue
+            units, ``{theta_build name: value}``; calibration keeps them fixed like the geometry.
+        effects: the ``effects`` list: effects of :mod:`buildenv.diagnosis.effects` the owner knows the building
+            has; calibration fits them (declared effects) and the gap diagnosis takes them as part of the base
+            model, not as candidates.
+        calibration: parsed ``calibration.json`` or None.
+        truth: parsed ``truth.json`` (true parameters of a synthetic site) or None.
+    """
+
+    path: Path
+    name: str
+    weather: str
+    start: dt.date
+    floor_area_m2: float
+    number_of_floors: int
+    settings: np.ndarray
+    temperature_c: np.ndarray
+    consumption_kwh: np.ndarray
+    source: dict = field(default_factory=dict)
+    known: dict[str, float] = field(default_factory=dict)
+    effects: tuple[str, ...] = ()
+    calibration: dict | None = None
+    truth: dict | None = None
+
+    @property
+    def weeks(self) -> int:
+        """Number of measured weeks."""
+        return int(self.temperature_c.shape[0])
+
+    @property
+    def temperature_mask(self) -> np.ndarray:
+        """``(weeks, 168)`` bool, True where the indoor temperature was measured."""
+        return np.isfinite(self.temperature_c)
+
+    @property
+    def consumption_mask(self) -> np.ndarray:
+        """``(weeks, 168)`` bool, True where the heat consumption was measured."""
+        return np.isfinite(self.consumption_kwh)
+
+    def consumption_wh_m2(self) -> np.ndarray:
+        """Heat consumption per m2 of floor area, Wh/m2 in each hour, ``(weeks, 168)``, NaN where missing.
+
+        The unit of the catalogue outputs: compare with the sum of
+        :data:`buildenv.catalogue.HEAT_CONSUMPTION_OUTPUTS`.
+        """
+        return self.consumption_kwh * 1000.0 / self.floor_area_m2
+
+    def week_starts(self) -> list[dt.date]:
+        """The Monday of each measured week (``weeks`` dates)."""
+        return [self.start + dt.timedelta(days=7 * k) for k in range(self.weeks)]
+
+    def start_hour_of_year(self, week: int) -> int:
+        """Row of an EPW year (8760 hourly rows) where week ``week`` (0-based) starts.
+
+        Hours since Jan 1 00:00 of the year the week's Monday falls in, counted on a 365-day year: in a
+        leap year, days after Feb 28 are shifted back one day (EPW TMY files have no Feb 29; Feb 29 itself
+        gets Feb 28's row). Range ``0 .. 8736``.
+        """
+        if not 0 <= week < self.weeks:
+            raise SiteError(f"{self.path}: week {week} out of range 0..{self.weeks - 1}")
+        return epw_day_of_year(self.start + dt.timedelta(days=7 * week)) * cat.HOURS_PER_DAY
+
+    def epw_hours(self) -> np.ndarray:
+        """Row of the EPW year for every measured hour, ``(weeks, 168)`` int in ``0 .. 8759``.
+
+        Each day is matched to the same calendar day of the EPW year (Feb 29 to Feb 28); a week that runs
+        past Dec 31 continues at the start of the EPW year.
+        """
+        return epw_hours(self.start, self.weeks)
+
+    def weather_hours(self, shift_hours: int = 0) -> np.ndarray:
+        """The site's weather over the measured weeks, ``(weeks, 168, len(catalogue.WEATHER_NAMES))``
+        (``shift_hours`` later; -168: the week before each, the context of a site's first week included).
+
+        Taken from ``buildenv.weather.epw.load_weather(self.weather).hourly`` (catalogue channels and units) at
+        :meth:`epw_hours`: week ``k`` starts at :meth:`start_hour_of_year` and wraps to the start of the EPW
+        year past Dec 31.
+
+        Raises:
+            WeatherError: the EPW file is missing or unreadable.
+        """
+        from buildenv.weather.epw import load_weather
+
+        hourly = np.asarray(load_weather(self.weather).hourly)
+        return hourly[(self.epw_hours() + shift_hours) % len(hourly)]
+
+    def theta_known(self) -> dict[str, float]:
+        """The building parameters the site fixes, catalogue units: the geometry (``floor_area_m2`` in m2,
+        ``number_of_floors``) and whatever ``[known]`` declares."""
+        return {"floor_area_m2": float(self.floor_area_m2), "number_of_floors": float(self.number_of_floors),
+                **{k: float(v) for k, v in self.known.items()}}

@@ -1,0 +1,540 @@
+"""Reading a site folder with strict validation: :func:`load_site` and :func:`known_parameter`.
+
+:func:`load_site` parses ``site.toml``, ``measurements.csv`` and ``settings.csv`` (and ``calibration.json`` and
+``truth.json`` when present) into a :class:`buildenv.sites.model.Site`, whose module gives the format's names
+and conventions; :func:`known_parameter` checks one ``[known]`` value. Every problem raises
+:class:`~buildenv.errors.SiteError` with a one-line ``"<file>:<line>: <what is wrong>"`` message (line 1 is the
+CSV header). The format for users is ``docs/site-format.md``.
+"""
+
+from __future__ import annotations
+
+import calendar
+import csv
+import datetime as dt
+import difflib
+import json
+import logging
+import math
+import os
+import re
+from collections.abc import Iterator, Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.diagnosis.effects import EffectError, check_declarable
+from buildenv.errors import CatalogueError, SiteError
+from buildenv.sites.model import (
+    CALIBRATION_FILE,
+    DEFAULT_MEASUREMENTS,
+    DEFAULT_SETTINGS,
+    DESCRIPTOR,
+    GEOMETRY_KEYS,
+    KNOWN_KEYS,
+    MAX_KWH_PER_M2_PER_HOUR,
+    MEASUREMENT_COLUMNS,
+    SETTINGS_COLUMNS,
+    TEMPERATURE_RANGE_C,
+    TOP_LEVEL_KEYS,
+    TRUTH_FILE,
+    Site,
+)
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+log = logging.getLogger(__name__)
+
+_TEMPERATURE_UNITS = {"f": "degF", "degf": "degF", "fahrenheit": "degF", "k": "K", "kelvin": "K",
+                      "degk": "K"}
+_ENERGY_UNITS = {"wh": "Wh", "mwh": "MWh", "gwh": "GWh", "j": "J", "kj": "kJ", "mj": "MJ", "gj": "GJ",
+                 "btu": "Btu", "kbtu": "kBtu", "mmbtu": "MMBtu", "therm": "therm", "therms": "therm",
+                 "w": "W", "kw": "kW", "mw": "MW"}
+_TIMESTAMP = re.compile(r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2})(?::(\d{2}))?")
+_TIMESTAMP_WITH_ZONE = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2})?(?:\.\d+)?\s*(?:Z|[+-]\d{2}:?\d{2})")
+_DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
+
+
+def load_site(path: str | os.PathLike) -> Site:
+    """Read and validate a site folder (or its ``site.toml``).
+
+    Checks the descriptor, every row of ``measurements.csv`` and ``settings.csv`` (conventions:
+    :mod:`buildenv.sites.model`) and that the weather exists (the EPW itself is read only by
+    :meth:`Site.weather_hours`).
+
+    Args:
+        path: the site folder, or the path of its ``site.toml``.
+
+    Returns:
+        the :class:`Site`.
+
+    Raises:
+        SiteError: on the first problem, as ``"<file>:<line>: <what is wrong>"``.
+    """
+    folder = Path(path).expanduser()
+    if folder.is_file() and folder.suffix == ".toml":
+        descriptor, folder = folder, folder.parent
+    else:
+        descriptor = folder / DESCRIPTOR
+    if not folder.is_dir():
+        raise SiteError(f"site folder not found: {folder}")
+    if not descriptor.is_file():
+        raise SiteError(f"{folder}: not a site folder: {DESCRIPTOR} is missing (see docs/site-format.md)")
+    folder = folder.resolve()
+    descriptor = descriptor.resolve()
+
+    desc = _read_descriptor(descriptor)
+    measurements_path = _data_file(descriptor, desc, "measurements", DEFAULT_MEASUREMENTS)
+    settings_path = _data_file(descriptor, desc, "settings", DEFAULT_SETTINGS)
+    start, temperature, consumption = _read_measurements(measurements_path, desc["floor_area_m2"])
+    settings = _read_settings(settings_path, start, temperature.shape[0])
+    for values, column in ((temperature, MEASUREMENT_COLUMNS[1]), (consumption, MEASUREMENT_COLUMNS[2])):
+        if not np.isfinite(values).any():
+            log.warning("%s: column %s has no measured value", measurements_path, column)
+    return Site(
+        path=folder,
+        name=desc["name"],
+        weather=desc["weather"],
+        start=start,
+        floor_area_m2=desc["floor_area_m2"],
+        number_of_floors=desc["number_of_floors"],
+        settings=settings,
+        temperature_c=temperature,
+        consumption_kwh=consumption,
+        source=desc["source"],
+        known=desc["known"],
+        effects=desc["effects"],
+        calibration=_read_json(folder / CALIBRATION_FILE),
+        truth=_read_json(folder / TRUTH_FILE),
+    )
+
+
+def _toml_line(text: str, key: str, table: str | None = None) -> int | None:
+    """1-based line where ``key = ...`` is set (inside ``[table]`` when given), or None."""
+    current: str | None = None
+    assign = re.compile(rf"\s*(?:{re.escape(key)}|\"{re.escape(key)}\"|'{re.escape(key)}')\s*=")
+    header = re.compile(r"\s*\[\s*([^\]]+?)\s*\]")
+    for number, line in enumerate(text.splitlines(), start=1):
+        m = header.match(line)
+        if m:
+            current = m.group(1).strip("\"'")
+            if table is None and current == key:
+                return number
+            continue
+        if current == table and assign.match(line):
+            return number
+    return None
+
+
+def _where(descriptor: Path, text: str, key: str, table: str | None = None) -> str:
+    line = _toml_line(text, key, table)
+    return f"{descriptor}:{line}" if line else str(descriptor)
+
+
+def _allowed(keys: tuple[str, ...]) -> str:
+    return ", ".join(keys)
+
+
+def _reject_unknown_keys(descriptor: Path, text: str, table: Mapping[str, Any], allowed: tuple[str, ...],
+                         name: str | None = None) -> None:
+    """SiteError naming the first key of ``table`` (the top level, or ``[name]``) not in ``allowed``."""
+    for key in table:
+        if key not in allowed:
+            close = difflib.get_close_matches(key, allowed, n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            where = f" in [{name}]" if name else ""
+            raise SiteError(f"{_where(descriptor, text, key, name)}: unknown key {key!r}{where}{hint}; "
+                            f"allowed: {_allowed(allowed)}")
+
+
+def _read_descriptor(descriptor: Path) -> dict[str, Any]:
+    """Parse and validate ``site.toml`` into plain values (weather resolved)."""
+    try:
+        text = descriptor.read_text(encoding="utf-8-sig")
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SiteError(f"{descriptor}: cannot read: {exc}") from exc
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        m = re.search(r"at line (\d+)", str(exc))
+        raise SiteError(f"{descriptor}:{m.group(1) if m else '?'}: invalid TOML: {exc}") from exc
+
+    _reject_unknown_keys(descriptor, text, data, TOP_LEVEL_KEYS)
+    for key in ("name", "weather", "geometry"):
+        if key not in data:
+            what = {"name": "free text", "weather": "an EPW short name such as 'usa_il_chicago' or a path",
+                    "geometry": f"a table with {_allowed(GEOMETRY_KEYS)}"}[key]
+            raise SiteError(f"{descriptor}: missing {key!r} ({what})")
+    for key in ("name", "weather", "measurements", "settings"):
+        if key in data and (not isinstance(data[key], str) or not data[key].strip()):
+            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, "
+                            f"got {data[key]!r}")
+    for key in ("geometry", "known", "source"):
+        if key in data and not isinstance(data[key], dict):
+            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a table ([{key}]), "
+                            f"got {data[key]!r}")
+
+    geometry = data["geometry"]
+    _reject_unknown_keys(descriptor, text, geometry, GEOMETRY_KEYS, "geometry")
+    for key in GEOMETRY_KEYS:
+        if key not in geometry:
+            raise SiteError(f"{descriptor}: [geometry] is missing {key!r} ({cat.get(key).description})")
+    area = geometry["floor_area_m2"]
+    where = _where(descriptor, text, "floor_area_m2", "geometry")
+    if isinstance(area, bool) or not isinstance(area, (int, float)) or not math.isfinite(area):
+        raise SiteError(f"{where}: floor_area_m2 must be a number (m2), got {area!r}")
+    floors = geometry["number_of_floors"]
+    where_floors = _where(descriptor, text, "number_of_floors", "geometry")
+    if isinstance(floors, float) and floors.is_integer():
+        floors = int(floors)
+    if isinstance(floors, bool) or not isinstance(floors, int):
+        raise SiteError(f"{where_floors}: number_of_floors must be a whole number, got {floors!r}")
+    for key, value, loc in (("floor_area_m2", float(area), where), ("number_of_floors", floors, where_floors)):
+        try:
+            cat.get(key).check(value)  # the catalogue range, not its sampling step
+        except CatalogueError as exc:
+            raise SiteError(f"{loc}: {exc}") from exc
+
+    return {
+        "known": _read_known(descriptor, text, data.get("known", {})),
+        "effects": _read_effects(descriptor, text, data.get("effects", [])),
+        "name": data["name"].strip(),
+        "weather": _resolve_weather(descriptor, text, data["weather"]),
+        "floor_area_m2": float(area),
+        "number_of_floors": int(floors),
+        "measurements": data.get("measurements", DEFAULT_MEASUREMENTS),
+        "settings": data.get("settings", DEFAULT_SETTINGS),
+        "source": dict(data.get("source", {})),
+        "text": text,
+    }
+
+
+def known_parameter(name: str, value: Any) -> float:
+    """A value a site may declare known (``[known]``): ``name`` a theta_build variable other than the geometry,
+    ``value`` a number in its catalogue range and unit. Raises :class:`SiteError` (no location) otherwise."""
+    if name in GEOMETRY_KEYS:
+        raise SiteError(f"{name!r} belongs in [geometry], not [known]")
+    if name not in KNOWN_KEYS:
+        close = difflib.get_close_matches(name, KNOWN_KEYS, n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise SiteError(f"unknown key {name!r} in [known]{hint}; allowed: {_allowed(KNOWN_KEYS)}")
+    variable = cat.get(name)
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        raise SiteError(f"{name} must be a number ({variable.unit}), got {value!r}")
+    try:
+        variable.check(float(value))
+    except CatalogueError as exc:
+        raise SiteError(str(exc)) from exc
+    return float(value)
+
+
+def _read_known(descriptor: Path, text: str, table: Mapping[str, Any]) -> dict[str, float]:
+    """Validate ``[known]`` (:func:`known_parameter`), errors located at the key's line."""
+    known: dict[str, float] = {}
+    for key, value in table.items():
+        try:
+            known[key] = known_parameter(key, value)
+        except SiteError as exc:
+            raise SiteError(f"{_where(descriptor, text, key, 'known')}: {exc}") from exc
+    return known
+
+
+def _read_effects(descriptor: Path, text: str, value: Any) -> tuple[str, ...]:
+    """Validate ``effects`` (:func:`buildenv.diagnosis.effects.check_declarable`), errors located at the key's
+    line."""
+    where = _where(descriptor, text, "effects")
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise SiteError(f"{where}: 'effects' must be a list of effect names (`buildenv effects` lists them), "
+                        f"got {value!r}")
+    try:
+        return check_declarable(value)
+    except EffectError as exc:
+        raise SiteError(f"{where}: {exc}") from None
+
+
+def _resolve_weather(descriptor: Path, text: str, weather: str) -> str:
+    """A shipped short name stays as is; a path (relative to the site folder) becomes absolute."""
+    from buildenv.weather.epw import shipped_weather
+
+    try:
+        shipped = shipped_weather()
+    except Exception:  # pragma: no cover - pyenergyplus is a dependency, but do not fail on its absence
+        shipped = {}
+    if weather in shipped:
+        return weather
+    path = Path(weather).expanduser()
+    if not path.is_absolute():
+        path = descriptor.parent / path
+    if path.is_file():
+        return str(path.resolve())
+    where = _where(descriptor, text, "weather")
+    names = ", ".join(shipped) if shipped else "(none installed)"
+    raise SiteError(f"{where}: weather {weather!r} is neither a shipped EPW short name nor a file "
+                    f"(looked for {path}); short names: {names}")
+
+
+def _data_file(descriptor: Path, desc: dict[str, Any], key: str, default: str) -> Path:
+    path = Path(desc[key]).expanduser()
+    if not path.is_absolute():
+        path = descriptor.parent / path
+    if not path.is_file():
+        raise SiteError(f"{_where(descriptor, desc['text'], key)}: {key} file not found: {path}")
+    return path
+
+
+def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
+    """``(line number, cells)`` of a CSV file, header included, blank lines skipped; cells stripped."""
+    try:
+        with path.open(encoding="utf-8-sig", newline="") as handle:
+            reader = csv.reader(handle)
+            try:
+                for cells in reader:
+                    if not cells or (len(cells) == 1 and not cells[0].strip()):
+                        continue  # blank line
+                    yield reader.line_num, [c.strip() for c in cells]
+            except csv.Error as exc:
+                raise SiteError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from exc
+    except UnicodeDecodeError as exc:
+        raise SiteError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); "
+                        "save the export as UTF-8 CSV") from exc
+    except OSError as exc:
+        raise SiteError(f"{path}: cannot read: {exc}") from exc
+
+
+def _check_width(path: Path, line: int, cells: list[str], columns: tuple[str, ...]) -> None:
+    if len(cells) != len(columns):
+        many = "too many" if len(cells) > len(columns) else "too few"
+        raise SiteError(f"{path}:{line}: {many} columns: {len(cells)} instead of {len(columns)} "
+                        f"({','.join(columns)})")
+
+
+def _separator_hint(header: list[str]) -> str:
+    if len(header) == 1 and ";" in header[0]:
+        return " (columns must be separated by commas, this file uses ';')"
+    if len(header) == 1 and "\t" in header[0]:
+        return " (columns must be separated by commas, this file uses tabs)"
+    return ""
+
+
+def _check_measurement_header(path: Path, header: list[str]) -> None:
+    if tuple(header) == MEASUREMENT_COLUMNS:
+        return
+    for column in header:
+        low = column.lower()
+        for prefix, units, expected in (("indoor_temperature_", _TEMPERATURE_UNITS, "indoor_temperature_c (degC)"),
+                                        ("heat_consumption_", _ENERGY_UNITS, "heat_consumption_kwh (kWh)")):
+            if low.startswith(prefix) and low != expected.split()[0]:
+                unit = low[len(prefix):]
+                label = f" is in {units[unit]}" if unit in units else f" has unit {unit!r}"
+                raise SiteError(f"{path}:1: wrong unit: column {column!r}{label}; expected {expected}: "
+                                "convert the values and rename the column")
+    if header and _TIMESTAMP.fullmatch(header[0]):
+        raise SiteError(f"{path}:1: missing header: the first line must be {','.join(MEASUREMENT_COLUMNS)}")
+    raise SiteError(f"{path}:1: header is {','.join(header)!r}, expected the columns "
+                    f"{','.join(MEASUREMENT_COLUMNS)!r}{_separator_hint(header)}")
+
+
+def _parse_timestamp(path: Path, line: int, text: str) -> dt.datetime:
+    m = _TIMESTAMP.fullmatch(text)
+    if m is None:
+        if _TIMESTAMP_WITH_ZONE.fullmatch(text):
+            raise SiteError(f"{path}:{line}: timestamp {text!r} has a UTC offset: give local standard time "
+                            "without an offset, as 'YYYY-MM-DD HH:MM'")
+        raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM' "
+                        "(or with a 'T'), local standard time of the start of the hour")
+    year, month, day, hour, minute, second = (int(g) if g else 0 for g in m.groups())
+    try:
+        stamp = dt.datetime(year, month, day, hour, minute, second)
+    except ValueError as exc:
+        raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: {exc}") from exc
+    if minute or second:
+        raise SiteError(f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "
+                        "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)")
+    return stamp
+
+
+def _parse_value(path: Path, line: int, column: str, text: str, *, missing_ok: bool = True) -> float:
+    """A cell as float; empty or NaN -> NaN (when ``missing_ok``)."""
+    if text == "" or text.lower() == "nan":
+        if missing_ok:
+            return math.nan
+        raise SiteError(f"{path}:{line}: {column} is missing: every day needs the value in force")
+    try:
+        value = float(text)
+    except ValueError:
+        blank = ", leave the cell empty for a missing value" if missing_ok else ""
+        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a number (use '.' as decimal mark{blank})") \
+            from None
+    if not math.isfinite(value):
+        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a finite number")
+    return value
+
+
+def _check_temperature(path: Path, line: int, value: float) -> None:
+    lo, hi = TEMPERATURE_RANGE_C
+    if lo <= value <= hi:
+        return
+    hint = ""
+    if 50 < value < 130:
+        hint = f"; looks like degF ({value:g} degF = {(value - 32) / 1.8:.1f} degC)"
+    elif 240 < value < 340:
+        hint = f"; looks like K ({value:g} K = {value - 273.15:.1f} degC)"
+    raise SiteError(f"{path}:{line}: indoor_temperature_c={value:g} is outside [{lo:g}, {hi:g}] degC{hint}; "
+                    "fix the unit or leave the cell empty if the sensor failed")
+
+
+def _check_consumption(path: Path, line: int, value: float, floor_area_m2: float) -> None:
+    if value < 0:
+        raise SiteError(f"{path}:{line}: heat_consumption_kwh={value:g} is negative: give the energy used "
+                        "during the hour (not a meter difference across a reset); leave it empty if unknown")
+    limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
+    if value > limit:
+        hint = "; looks like Wh (divide by 1000)" if value / 1000.0 <= limit else ""
+        raise SiteError(f"{path}:{line}: heat_consumption_kwh={value:g} is above "
+                        f"{MAX_KWH_PER_M2_PER_HOUR:g} kWh/m2 in one hour ({limit:g} kWh for "
+                        f"{floor_area_m2:g} m2){hint}")
+
+
+def _fmt(stamp: dt.datetime) -> str:
+    return stamp.strftime("%Y-%m-%d %H:%M")
+
+
+def _read_measurements(path: Path, floor_area_m2: float) -> tuple[dt.date, np.ndarray, np.ndarray]:
+    """Parse ``measurements.csv`` into ``(start Monday, temperature (weeks, 168), consumption (weeks, 168))``."""
+    rows = _rows(path)
+    first = next(rows, None)
+    if first is None:
+        raise SiteError(f"{path}:1: empty file: expected the header {','.join(MEASUREMENT_COLUMNS)}")
+    _check_measurement_header(path, first[1])
+
+    start: dt.datetime | None = None
+    previous: tuple[int, dt.datetime] | None = None
+    hours: list[int] = []
+    temperature: list[float] = []
+    consumption: list[float] = []
+    for line, cells in rows:
+        _check_width(path, line, cells, MEASUREMENT_COLUMNS)
+        stamp = _parse_timestamp(path, line, cells[0])
+        if start is None:
+            if stamp.weekday() != 0 or stamp.hour != 0:
+                raise SiteError(f"{path}:{line}: the first timestamp {_fmt(stamp)} is a "
+                                f"{calendar.day_name[stamp.weekday()]} at {stamp:%H:%M}: data must start on a "
+                                "Monday at 00:00 (drop the rows before the next Monday, or add empty rows "
+                                "from the previous Monday 00:00)")
+            start = stamp
+        elif previous is not None:
+            if stamp == previous[1]:
+                raise SiteError(f"{path}:{line}: duplicate timestamp {_fmt(stamp)} (also on line {previous[0]}); "
+                                "if the BMS exports daylight-saving time, export in local standard time")
+            if stamp < previous[1]:
+                raise SiteError(f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
+                                f"{_fmt(previous[1])} (line {previous[0]}): sort the rows by time")
+        t = _parse_value(path, line, MEASUREMENT_COLUMNS[1], cells[1])
+        q = _parse_value(path, line, MEASUREMENT_COLUMNS[2], cells[2])
+        if not math.isnan(t):
+            _check_temperature(path, line, t)
+        if not math.isnan(q):
+            _check_consumption(path, line, q, floor_area_m2)
+        hours.append(int((stamp - start).total_seconds()) // 3600)
+        temperature.append(t)
+        consumption.append(q)
+        previous = (line, stamp)
+
+    if start is None or previous is None:
+        raise SiteError(f"{path}:2: no data rows after the header")
+    last_line, last = previous
+    if hours[-1] % cat.HOURS_PER_WEEK != cat.HOURS_PER_WEEK - 1:
+        week_end = start + dt.timedelta(hours=(hours[-1] // cat.HOURS_PER_WEEK + 1) * cat.HOURS_PER_WEEK - 1)
+        raise SiteError(f"{path}:{last_line}: the data end at {calendar.day_name[last.weekday()]} {_fmt(last)}: "
+                        f"they must cover whole weeks, ending on a Sunday at 23:00; add rows up to "
+                        f"{_fmt(week_end)} with empty cells for the hours not measured")
+    weeks = hours[-1] // cat.HOURS_PER_WEEK + 1
+    t_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
+    q_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
+    index = np.asarray(hours)
+    t_out[index] = temperature
+    q_out[index] = consumption
+    shape = (weeks, cat.HOURS_PER_WEEK)
+    return start.date(), t_out.reshape(shape), q_out.reshape(shape)
+
+
+def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
+    """Parse ``settings.csv`` into ``(weeks, 7, 12)``: one row per day from ``start``, catalogue ranges checked."""
+    rows = _rows(path)
+    first = next(rows, None)
+    expected = ",".join(SETTINGS_COLUMNS)
+    if first is None:
+        raise SiteError(f"{path}:1: empty file: expected the header {expected}")
+    header = first[1]
+    if tuple(header) != SETTINGS_COLUMNS:
+        missing = [c for c in SETTINGS_COLUMNS if c not in header]
+        unknown = [c for c in header if c not in SETTINGS_COLUMNS]
+        parts = []
+        if missing:
+            parts.append("missing " + ", ".join(missing))
+        for column in unknown:
+            close = difflib.get_close_matches(column, SETTINGS_COLUMNS, n=1)
+            parts.append(f"unknown {column!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
+        if not parts:
+            parts.append("columns in the wrong order" if len(set(header)) == len(header) else "repeated columns")
+        raise SiteError(f"{path}:1: wrong header ({'; '.join(parts)}{_separator_hint(header)}); expected "
+                        f"{expected} (the catalogue's settings in order; see `buildenv catalogue --group settings`)")
+
+    days = weeks * 7
+    last_day = start + dt.timedelta(days=days - 1)
+    values = np.empty((days, len(cat.SETTINGS)))
+    count = 0
+    last_line = 1
+    for line, cells in rows:
+        if count == days:
+            raise SiteError(f"{path}:{line}: one row too many: the measurements end on Sunday {last_day} "
+                            f"({weeks} week(s) from {start}); settings need one row per day of those weeks")
+        _check_width(path, line, cells, SETTINGS_COLUMNS)
+        m = _DATE.fullmatch(cells[0])
+        try:
+            day = dt.date(*(int(g) for g in m.groups())) if m else None
+        except ValueError:
+            day = None
+        if day is None:
+            raise SiteError(f"{path}:{line}: cannot read date {cells[0]!r}: expected 'YYYY-MM-DD'")
+        wanted = start + dt.timedelta(days=count)
+        if day != wanted:
+            what = "the first measured Monday" if count == 0 else "the day after the previous row"
+            raise SiteError(f"{path}:{line}: date {day} should be {wanted} ({what}): one row per day, "
+                            f"consecutive, from {start} to {last_day}")
+        for i, var in enumerate(cat.SETTINGS):
+            value = _parse_value(path, line, var.name, cells[i + 1], missing_ok=False)
+            try:
+                var.check(value)  # range only: a BMS may use values between grid steps
+            except CatalogueError as exc:
+                raise SiteError(f"{path}:{line}: {exc}") from exc
+            values[count, i] = value
+        count += 1
+        last_line = line
+    if count < days:
+        seen = f"end on {start + dt.timedelta(days=count - 1)}" if count else "have no data rows"
+        raise SiteError(f"{path}:{last_line}: the settings {seen}, but the measurements run to Sunday {last_day}: "
+                        f"expected {days} rows (one per day), found {count}")
+    return values.reshape(weeks, 7, len(cat.SETTINGS))
+
+
+def _read_json(path: Path) -> dict | None:
+    """A JSON object file as a dict, or None when the file does not exist."""
+    if not path.exists():
+        return None
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise SiteError(f"{path}:{exc.lineno}: invalid JSON: {exc.msg}") from exc
+    except (OSError, UnicodeDecodeError) as exc:
+        raise SiteError(f"{path}: cannot read: {exc}") from exc
+    if not isinstance(data, dict):
+        raise SiteError(f"{path}:1: expected a JSON object, got {type(data).__name__}")
+    return data
+
+

@@ -1,0 +1,209 @@
+"""Writing a site folder that :func:`buildenv.sites.reader.load_site` reads back, and a site's calibration.
+
+:func:`write_site` writes ``site.toml`` (with ``tomli_w``), ``measurements.csv``, ``settings.csv`` and
+``truth.json``; :func:`save_calibration` writes ``calibration.json`` atomically.
+"""
+
+from __future__ import annotations
+
+import calendar
+import datetime as dt
+import json
+import math
+import os
+import tempfile
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import tomli_w
+
+from buildenv import catalogue as cat
+from buildenv.errors import SiteError
+from buildenv.sites.model import (
+    CALIBRATION_FILE,
+    DEFAULT_MEASUREMENTS,
+    DEFAULT_SETTINGS,
+    DESCRIPTOR,
+    MEASUREMENT_COLUMNS,
+    SETTINGS_COLUMNS,
+    TRUTH_FILE,
+)
+from buildenv.sites.reader import _fmt, load_site
+
+
+def _toml_plain(value: Any, where: str) -> Any:
+    """``value`` as the plain Python types ``tomli_w`` writes (numpy scalars and arrays, paths, tuples)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        return float(value)
+    if isinstance(value, (str, Path)):
+        return str(value)
+    if isinstance(value, (dt.date, dt.datetime)):
+        return value
+    if isinstance(value, Mapping):
+        return {str(k): _toml_plain(v, f"{where}.{k}") for k, v in value.items()}
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return [_toml_plain(v, where) for v in list(value)]
+    raise SiteError(f"{where}: cannot write a {type(value).__name__} to TOML ({value!r})")
+
+
+def _toml_number(value: float) -> int | float:
+    """A whole number as an int (``5000`` rather than ``5000.0``), any other as a float."""
+    value = float(value)
+    return int(value) if value.is_integer() and abs(value) < 2**53 else value
+
+
+def _cell(value: float, decimals: int) -> str:
+    return "" if not math.isfinite(value) else f"{value:.{decimals}f}"
+
+
+def _setting_cell(value: float) -> str:
+    return np.format_float_positional(round(float(value), 6), trim="-")
+
+
+def _atomic_write(path: Path, text: str) -> None:
+    with tempfile.NamedTemporaryFile("w", encoding="utf-8", dir=path.parent, prefix=f".{path.name}.",
+                                     suffix=".tmp", delete=False, newline="") as handle:
+        handle.write(text)
+        tmp = Path(handle.name)
+    try:
+        os.chmod(tmp, 0o644)  # mkstemp's 0600 would make the file private to its writer
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, (Path, dt.date)):
+        return str(value)
+    raise TypeError(f"{type(value).__name__} is not JSON serialisable")
+
+
+def write_site(
+    path: str | os.PathLike,
+    *,
+    name: str,
+    weather: str | os.PathLike,
+    start: dt.date,
+    floor_area_m2: float,
+    number_of_floors: int,
+    settings: np.ndarray,
+    temperature_c: np.ndarray,
+    consumption_kwh: np.ndarray,
+    source: Mapping[str, Any] | None = None,
+    truth: Mapping[str, Any] | None = None,
+    known: Mapping[str, float] | None = None,
+    effects: tuple[str, ...] = (),
+) -> Path:
+    """Write a site folder that :func:`buildenv.sites.load_site` reads back, then validate it by loading it.
+
+    Writes ``site.toml``, ``measurements.csv`` (NaN -> empty cell; temperature with 3 decimals, kWh with 4;
+    every hour of every week gets a row), ``settings.csv`` (6 decimals at most) and ``truth.json`` when
+    ``truth`` is given. A ``calibration.json`` or ``truth.json`` left from an earlier site in the folder is
+    removed (it described other data).
+
+    Args:
+        path: the site folder (created if needed).
+        name: free text.
+        weather: an EPW short name or path (a relative path is read relative to the site folder).
+        start: Monday of the first week (a ``datetime`` is reduced to its date).
+        floor_area_m2: floor area, m2, within the catalogue range.
+        number_of_floors: storeys, within the catalogue range.
+        settings: ``(weeks, 7, 12)`` BMS settings, catalogue order, in catalogue units.
+        temperature_c: ``(weeks, 168)`` hourly indoor temperature, degC, NaN where missing.
+        consumption_kwh: ``(weeks, 168)`` hourly heat consumption, kWh, NaN where missing.
+        source: free ``[source]`` table (strings, numbers, booleans, lists, nested tables).
+        known: ``[known]`` table, ``{theta_build name: value}`` in catalogue units (:attr:`buildenv.sites.Site.known`).
+        effects: effects the building is known to have (:attr:`buildenv.sites.Site.effects`).
+        truth: true parameters of a synthetic site, written as ``truth.json``.
+
+    Returns:
+        the site folder.
+
+    Raises:
+        SiteError: wrong shapes, a start that is not a Monday, or values :func:`buildenv.sites.load_site` rejects.
+    """
+    folder = Path(path).expanduser()
+    if isinstance(start, dt.datetime):
+        start = start.date()
+    if start.weekday() != 0:
+        raise SiteError(f"write_site: start {start} is a {calendar.day_name[start.weekday()]}, not a Monday")
+    temperature = np.asarray(temperature_c, dtype=float)
+    consumption = np.asarray(consumption_kwh, dtype=float)
+    setting_values = np.asarray(settings, dtype=float)
+    if temperature.ndim != 2 or temperature.shape[1] != cat.HOURS_PER_WEEK or temperature.shape[0] < 1:
+        raise SiteError(f"write_site: temperature_c has shape {temperature.shape}, expected (weeks, 168)")
+    weeks = temperature.shape[0]
+    if consumption.shape != temperature.shape:
+        raise SiteError(f"write_site: consumption_kwh has shape {consumption.shape}, expected {temperature.shape}")
+    if setting_values.shape != (weeks, 7, len(cat.SETTINGS)):
+        raise SiteError(f"write_site: settings has shape {setting_values.shape}, "
+                        f"expected ({weeks}, 7, {len(cat.SETTINGS)})")
+
+    folder.mkdir(parents=True, exist_ok=True)
+    descriptor: dict[str, Any] = {"name": str(name), "weather": str(weather)}
+    if effects:
+        descriptor["effects"] = [str(e) for e in effects]
+    descriptor["geometry"] = {"floor_area_m2": _toml_number(floor_area_m2), "number_of_floors": int(number_of_floors)}
+    if known:
+        descriptor["known"] = {k: float(v) for k, v in known.items()}
+    if source:
+        descriptor["source"] = _toml_plain(dict(source), "source")
+    (folder / DESCRIPTOR).write_text(tomli_w.dumps(descriptor), encoding="utf-8")
+
+    out = [",".join(MEASUREMENT_COLUMNS)]
+    t_flat, q_flat = temperature.ravel(), consumption.ravel()
+    first = dt.datetime.combine(start, dt.time())
+    for h in range(weeks * cat.HOURS_PER_WEEK):
+        stamp = first + dt.timedelta(hours=h)
+        out.append(f"{_fmt(stamp)},{_cell(t_flat[h], 3)},{_cell(q_flat[h], 4)}")
+    (folder / DEFAULT_MEASUREMENTS).write_text("\n".join(out) + "\n", encoding="utf-8")
+
+    out = [",".join(SETTINGS_COLUMNS)]
+    for d, row in enumerate(setting_values.reshape(weeks * 7, -1)):
+        out.append(",".join([(start + dt.timedelta(days=d)).isoformat(), *(_setting_cell(v) for v in row)]))
+    (folder / DEFAULT_SETTINGS).write_text("\n".join(out) + "\n", encoding="utf-8")
+
+    (folder / CALIBRATION_FILE).unlink(missing_ok=True)
+    (folder / TRUTH_FILE).unlink(missing_ok=True)
+    if truth is not None:
+        _atomic_write(folder / TRUTH_FILE, json.dumps(dict(truth), indent=2, default=_json_default) + "\n")
+    load_site(folder)  # what is written must load: raises SiteError with file:line otherwise
+    return folder
+
+
+def save_calibration(site_path: str | os.PathLike, result: Mapping[str, Any]) -> Path:
+    """Write ``result`` as the site's ``calibration.json``, atomically (temporary file + ``os.replace``).
+
+    Args:
+        site_path: the site folder.
+        result: a JSON-serialisable mapping (numpy arrays and scalars are converted to lists and numbers).
+
+    Returns:
+        the path of ``calibration.json``.
+
+    Raises:
+        SiteError: the folder is not a site folder or ``result`` cannot be written as JSON.
+    """
+    folder = Path(site_path).expanduser()
+    if not (folder / DESCRIPTOR).is_file():
+        raise SiteError(f"{folder}: not a site folder ({DESCRIPTOR} is missing)")
+    try:
+        text = json.dumps(dict(result), indent=2, default=_json_default) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise SiteError(f"{folder / CALIBRATION_FILE}: cannot write the calibration as JSON: {exc}") from exc
+    target = folder / CALIBRATION_FILE
+    _atomic_write(target, text)
+    return target
+
+

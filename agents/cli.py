@@ -19,8 +19,9 @@ def make_env(site: str, metamodel: str = "default", comfort_weight: float = 1.0,
 
     import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 
-    return gym.make("BuildingWeek-v0", site=site, metamodel=metamodel, comfort_weight=comfort_weight,
-                    weeks="all", **kwargs)
+    return gym.make(
+        "BuildingWeek-v0", site=site, metamodel=metamodel, comfort_weight=comfort_weight, weeks="all", **kwargs
+    )
 
 
 def default_week(env) -> int:
@@ -34,8 +35,17 @@ def default_week(env) -> int:
     return base.site_model.week_of(site.start + dt.timedelta(days=7 * int(held[0])))
 
 
-def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000, generations: int = 1000,
-             population: int = 100, policy: str | None = None, progress: bool = False) -> dict:
+def optimise(
+    env,
+    method: str,
+    week: int,
+    seed: int = 0,
+    evaluations: int = 6000,
+    generations: int = 1000,
+    population: int = 100,
+    policy: str | None = None,
+    progress: bool = False,
+) -> dict:
     """Run one method on one week; returns the chosen action, its scores and the method's figures.
 
     ``nsga2`` picks the front's point of equal comfort to the historical settings (the paper's choice);
@@ -59,11 +69,14 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
     if method == "nsga2":
         from agents.nsga2 import equal_comfort_choice, pareto_front
 
-        front = pareto_front(env, week, population=population, generations=generations, seed=seed,
-                             progress=progress)
+        front = pareto_front(env, week, population=population, generations=generations, seed=seed, progress=progress)
         action = front.actions[equal_comfort_choice(front, hist["comfort_k"])]
-        extra = {"hypervolume": front.hypervolume, "evaluations": front.evaluations, "front": front,
-                 "pareto": np.column_stack([front.energy_term, front.comfort_k]).round(4).tolist()}
+        extra = {
+            "hypervolume": front.hypervolume,
+            "evaluations": front.evaluations,
+            "front": front,
+            "pareto": np.column_stack([front.energy_term, front.comfort_k]).round(4).tolist(),
+        }
     elif method == "cmaes":
         from agents.cmaes import optimise_week
 
@@ -73,8 +86,9 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
         from agents.ppo import load_policy, policy_actions
 
         if not policy:
-            raise SystemExit("buildenv optimize --method ppo: give --policy PATH "
-                             "(train a policy with agents.ppo.train_ppo)")
+            raise SystemExit(
+                "buildenv optimize --method ppo: give --policy PATH (train a policy with agents.ppo.train_ppo)"
+            )
         obs, _ = env.reset(options={"week": week})
         action, extra = policy_actions(load_policy(policy), obs[None])[0], {"evaluations": 1}
     elif method == "rules":
@@ -85,11 +99,19 @@ def optimise(env, method: str, week: int, seed: int = 0, evaluations: int = 6000
         raise SystemExit(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     seconds = time.perf_counter() - started
     chosen = scalar_scores(base.evaluate(np.asarray(action)[None], week=week), 0)
-    return {"method": method, "week": int(week), "week_start": base.week_start(week).isoformat(),
-            "seconds": round(seconds, 2), "action": np.asarray(action, dtype=np.float32), "chosen": chosen,
-            "historical": hist, "predicted_savings_percent": chosen["savings_percent"],
-            "comfort_historical_predicted": hist["comfort_k"], "comfort_chosen_predicted": chosen["comfort_k"],
-            **extra}
+    return {
+        "method": method,
+        "week": int(week),
+        "week_start": base.week_start(week).isoformat(),
+        "seconds": round(seconds, 2),
+        "action": np.asarray(action, dtype=np.float32),
+        "chosen": chosen,
+        "historical": hist,
+        "predicted_savings_percent": chosen["savings_percent"],
+        "comfort_historical_predicted": hist["comfort_k"],
+        "comfort_chosen_predicted": chosen["comfort_k"],
+        **extra,
+    }
 
 
 def _public(result: dict, env) -> dict:
@@ -104,9 +126,17 @@ def _public(result: dict, env) -> dict:
 def _cmd_optimize(args: argparse.Namespace) -> int:
     env = make_env(args.site, args.metamodel, args.comfort_weight)
     week = default_week(env) if args.week is None else args.week
-    result = optimise(env, args.method, week, seed=args.seed, evaluations=args.evaluations,
-                      generations=args.generations, population=args.population, policy=args.policy,
-                      progress=not args.json)
+    result = optimise(
+        env,
+        args.method,
+        week,
+        seed=args.seed,
+        evaluations=args.evaluations,
+        generations=args.generations,
+        population=args.population,
+        policy=args.policy,
+        progress=not args.json,
+    )
     out = _public(result, env)
     if args.verify:
         from agents.verify import verify
@@ -132,18 +162,24 @@ def register(sub) -> None:
     p = sub.add_parser("optimize", help="find the week's settings that save energy at equal comfort")
     p.add_argument("--method", required=True, choices=METHODS)
     p.add_argument("--site", default="default", help="calibrated site folder or 'default'")
-    p.add_argument("--week", type=int, default=None,
-                   help="week of the site's year (0-based Mondays); default: its first held-out measured week")
+    p.add_argument(
+        "--week",
+        type=int,
+        default=None,
+        help="week of the site's year (0-based Mondays); default: its first held-out measured week",
+    )
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--comfort-weight", type=float, default=1.0, help="w of reward = -(energy + w * comfort)")
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of scored weeks")
-    p.add_argument("--generations", type=int, default=1000,
-                   help="NSGA-II generations")
+    p.add_argument("--generations", type=int, default=1000, help="NSGA-II generations")
     p.add_argument("--population", type=int, default=100, help="NSGA-II population")
     p.add_argument("--policy", default=None, help="trained PPO policy (for --method ppo)")
     p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--verify", action="store_true",
-                   help="run the historical and chosen settings on the site's EnergyPlus model (about 10 s)")
+    p.add_argument(
+        "--verify",
+        action="store_true",
+        help="run the historical and chosen settings on the site's EnergyPlus model (about 10 s)",
+    )
     p.add_argument("--out", default=None, help="also write the JSON into this folder")
     p.add_argument("--json", action="store_true", help="one-line JSON, no progress bar")
     p.set_defaults(func=_cmd_optimize)

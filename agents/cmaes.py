@@ -34,8 +34,15 @@ def scalar_scores(scores: dict, i: int) -> dict[str, float]:
     return {k: float(np.asarray(v)[i]) for k, v in scores.items() if np.ndim(v) == 1}
 
 
-def optimise_week(env, week: int, evaluations: int = 6000, population: int = 64, sigma0: float = 0.3,
-                  seed: int = 0, x0: np.ndarray | None = None) -> WeekResult:
+def optimise_week(
+    env,
+    week: int,
+    evaluations: int = 6000,
+    population: int = 64,
+    sigma0: float = 0.3,
+    seed: int = 0,
+    x0: np.ndarray | None = None,
+) -> WeekResult:
     """Maximise the reward of one week with CMA-ES over the 84 action components.
 
     Args:
@@ -52,8 +59,18 @@ def optimise_week(env, week: int, evaluations: int = 6000, population: int = 64,
     base = env.unwrapped
     started = time.perf_counter()
     mean0 = np.asarray(base.historical_action if x0 is None else x0, dtype=float)
-    es = cma.CMAEvolutionStrategy(mean0, sigma0, {"bounds": [-1.0, 1.0], "popsize": population, "seed": seed + 1,
-                                                  "verbose": -9, "maxfevals": evaluations, "tolfun": 1e-7})
+    es = cma.CMAEvolutionStrategy(
+        mean0,
+        sigma0,
+        {
+            "bounds": [-1.0, 1.0],
+            "popsize": population,
+            "seed": seed + 1,
+            "verbose": -9,
+            "maxfevals": evaluations,
+            "tolfun": 1e-7,
+        },
+    )
     best_x, best_f, history = mean0, -np.inf, []
     while not es.stop():
         x = np.asarray(es.ask())
@@ -63,5 +80,11 @@ def optimise_week(env, week: int, evaluations: int = 6000, population: int = 64,
             best_f, best_x = float(reward.max()), x[int(reward.argmax())]
         history.append(best_f)
     scores = base.evaluate(best_x[None], week=week)
-    return WeekResult(int(week), best_x.astype(np.float32), scalar_scores(scores, 0), int(es.result.evaluations),
-                      time.perf_counter() - started, history)
+    return WeekResult(
+        int(week),
+        best_x.astype(np.float32),
+        scalar_scores(scores, 0),
+        int(es.result.evaluations),
+        time.perf_counter() - started,
+        history,
+    )

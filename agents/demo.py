@@ -16,20 +16,24 @@ import shutil
 import time
 from pathlib import Path
 
-
-
 from agents.report import markdown_table, plot_before_after, plot_pareto
 
-COLUMNS = [("settings", "label", ""), ("energy vs historical", "energy_term", ".3f"),
-           ("predicted savings %", "savings_percent", ".1f"), ("comfort K", "comfort_k", ".3f"),
-           ("reward", "reward", ".3f"), ("evaluations", "evaluations", "d"), ("seconds", "seconds", ".1f")]
+COLUMNS = [
+    ("settings", "label", ""),
+    ("energy vs historical", "energy_term", ".3f"),
+    ("predicted savings %", "savings_percent", ".1f"),
+    ("comfort K", "comfort_k", ".3f"),
+    ("reward", "reward", ".3f"),
+    ("evaluations", "evaluations", "d"),
+    ("seconds", "seconds", ".1f"),
+]
 
 
 def _calibrate(site_dir: Path, seed: int, progress: bool) -> dict:
     from buildenv.calibration.calibrate import calibrate_site
     from buildenv.calibration.plot import plot_calibration
-    from buildenv.sites import load_site
     from buildenv.metamodel.surrogate import load_metamodel
+    from buildenv.sites import load_site
 
     surrogate = load_metamodel()
     site = load_site(site_dir)
@@ -40,27 +44,46 @@ def _calibrate(site_dir: Path, seed: int, progress: bool) -> dict:
 
 def _diagnose(site_dir: Path, out: Path, seed: int, progress: bool) -> dict:
     from buildenv.diagnosis.gap import DiagnosisSettings, diagnose
-    from buildenv.sites import load_site
     from buildenv.metamodel.surrogate import load_metamodel
+    from buildenv.sites import load_site
 
-    result = diagnose(load_site(site_dir), load_metamodel(), DiagnosisSettings(seed=seed), progress=progress,
-                      plot=out / "diagnosis.png")
+    result = diagnose(
+        load_site(site_dir),
+        load_metamodel(),
+        DiagnosisSettings(seed=seed),
+        progress=progress,
+        plot=out / "diagnosis.png",
+    )
     result.pop("_fit")
     return result
 
 
 def _diagnosis_text(d: dict) -> str:
-    rows = [{"label": e["name"], "score": 100 * e["score"], "p": e["significance"]["p_value"],
-             "selected": "yes" if e["selected"] else "no",
-             "parameters": ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items())} for e in d["effects"]]
-    cols = [("effect", "label", ""), ("held-out gain %", "score", ".1f"), ("p-value", "p", ".2g"),
-            ("selected", "selected", ""), ("estimated", "parameters", "")]
+    rows = [
+        {
+            "label": e["name"],
+            "score": 100 * e["score"],
+            "p": e["significance"]["p_value"],
+            "selected": "yes" if e["selected"] else "no",
+            "parameters": ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items()),
+        }
+        for e in d["effects"]
+    ]
+    cols = [
+        ("effect", "label", ""),
+        ("held-out gain %", "score", ".1f"),
+        ("p-value", "p", ".2g"),
+        ("selected", "selected", ""),
+        ("estimated", "parameters", ""),
+    ]
     text = f"Verdict: **{d['verdict']}** ({d['seconds']:.0f} s).\n\n{markdown_table(rows, cols)}"
     if d.get("heldout_after"):
         b, a = d["heldout_before"], d["heldout_after"]
-        text += (f"\nWith {', '.join(d['selected'])} in the model, held-out CV(RMSE)_Q {b['cv_rmse_q_percent']:.1f} "
-                 f"-> {a['cv_rmse_q_percent']:.1f} %, RMSE_T {b['rmse_t_celsius']:.2f} -> {a['rmse_t_celsius']:.2f} "
-                 f"degC, R2_Q {b['r2_q']:.3f} -> {a['r2_q']:.3f}.\n")
+        text += (
+            f"\nWith {', '.join(d['selected'])} in the model, held-out CV(RMSE)_Q {b['cv_rmse_q_percent']:.1f} "
+            f"-> {a['cv_rmse_q_percent']:.1f} %, RMSE_T {b['rmse_t_celsius']:.2f} -> {a['rmse_t_celsius']:.2f} "
+            f"degC, R2_Q {b['r2_q']:.3f} -> {a['r2_q']:.3f}.\n"
+        )
     if d.get("settings_note"):  # the demo fits the first half, reusing its calibration
         text += f"\nNote: {d['settings_note']} (`buildenv diagnose` runs theirs).\n"
     loc = d["localisation"]
@@ -90,20 +113,26 @@ def run_demo(out: Path, seed: int = 0, progress: bool = False) -> Path:
     hist = chosen["historical"]
     rows = [{"label": "historical", **hist, "evaluations": None, "seconds": None}]
     names = {"nsga2": "NSGA-II, equal comfort", "cmaes": "CMA-ES, reward", "rules": "rule-based schedule"}
-    rows += [{"label": names[m], **r["chosen"], "evaluations": r["evaluations"], "seconds": r["seconds"]}
-             for m, r in runs.items()]
+    rows += [
+        {"label": names[m], **r["chosen"], "evaluations": r["evaluations"], "seconds": r["seconds"]}
+        for m, r in runs.items()
+    ]
     points = {row["label"]: (row["energy_term"], row["comfort_k"]) for row in rows}
     week_start = env.unwrapped.week_start(week)
     plot_pareto(chosen["front"], points, out / "pareto.png", f"week of {week_start}: energy vs comfort (metamodel)")
-    plot_before_after(check, out / "before_after.png",
-                      title=f"week of {week_start}: historical vs NSGA-II equal-comfort settings")
+    plot_before_after(
+        check, out / "before_after.png", title=f"week of {week_start}: historical vs NSGA-II equal-comfort settings"
+    )
     s = check.summary
-    summary = {"week": week, "week_start": week_start.isoformat(), "calibration": {k: calib[k] for k in
-               ("fit", "heldout", "seconds", "evaluations")}, "verification": s,
-               "methods": {m: {k: v for k, v in r.items() if k not in ("action", "front", "pareto")}
-                           for m, r in runs.items()},
-               "chosen_settings": settings_table(env.unwrapped.decode(chosen["action"])),
-               "seconds_total": round(time.perf_counter() - started, 1)}
+    summary = {
+        "week": week,
+        "week_start": week_start.isoformat(),
+        "calibration": {k: calib[k] for k in ("fit", "heldout", "seconds", "evaluations")},
+        "verification": s,
+        "methods": {m: {k: v for k, v in r.items() if k not in ("action", "front", "pareto")} for m, r in runs.items()},
+        "chosen_settings": settings_table(env.unwrapped.decode(chosen["action"])),
+        "seconds_total": round(time.perf_counter() - started, 1),
+    }
     diagnosis = _diagnose(site_dir, out, seed, progress)
     summary["diagnosis"] = {k: diagnosis[k] for k in ("verdict", "selected", "effects", "seconds")}
     summary["seconds_total"] = round(time.perf_counter() - started, 1)
@@ -112,11 +141,11 @@ def run_demo(out: Path, seed: int = 0, progress: bool = False) -> Path:
     text = f"""# buildenv demo: calibrate, optimise, verify
 
 Site: `{site_dir}` (the shipped default: a DOE medium office in Chicago standing in for a real building).
-Total time {summary['seconds_total']:.0f} s.
+Total time {summary["seconds_total"]:.0f} s.
 
-## 1. Calibration (CMA-ES, {calib['evaluations']} evaluations, {calib['seconds']:.1f} s)
-Held-out weeks {calib['heldout_weeks']}: R2_T {held['r2_t']:.3f}, R2_Q {held['r2_q']:.3f}, RMSE_T
-{held['rmse_t_celsius']:.2f} degC, CV(RMSE)_Q {held['cv_rmse_q_percent']:.1f} %, NMBE_Q {held['nmbe_q_percent']:.1f} %
+## 1. Calibration (CMA-ES, {calib["evaluations"]} evaluations, {calib["seconds"]:.1f} s)
+Held-out weeks {calib["heldout_weeks"]}: R2_T {held["r2_t"]:.3f}, R2_Q {held["r2_q"]:.3f}, RMSE_T
+{held["rmse_t_celsius"]:.2f} degC, CV(RMSE)_Q {held["cv_rmse_q_percent"]:.1f} %, NMBE_Q {held["nmbe_q_percent"]:.1f} %
 (ASHRAE Guideline 14 hourly limits: 30 % and 10 %).
 
 ![calibration](site/calibration.png)
@@ -128,15 +157,15 @@ Held-out weeks {calib['heldout_weeks']}: R2_T {held['r2_t']:.3f}, R2_Q {held['r2
 ## 3. The chosen settings on the real building (EnergyPlus)
 | | predicted (metamodel) | realised (EnergyPlus) |
 |---|---|---|
-| savings vs historical % | {s['predicted_savings_percent']:.1f} | {s['realised_savings_percent']:.1f} |
-| comfort, historical settings (K) | {s['comfort_historical_predicted']:.3f} | {s['comfort_historical']:.3f} |
-| comfort, chosen settings (K) | {s['comfort_chosen_predicted']:.3f} | {s['comfort_chosen']:.3f} |
-| HVAC energy, historical (kWh) | {s['energy_historical_predicted_kwh']:.0f} | {s['energy_historical_kwh']:.0f} |
-| HVAC energy, chosen (kWh) | {s['energy_chosen_predicted_kwh']:.0f} | {s['energy_chosen_kwh']:.0f} |
+| savings vs historical % | {s["predicted_savings_percent"]:.1f} | {s["realised_savings_percent"]:.1f} |
+| comfort, historical settings (K) | {s["comfort_historical_predicted"]:.3f} | {s["comfort_historical"]:.3f} |
+| comfort, chosen settings (K) | {s["comfort_chosen_predicted"]:.3f} | {s["comfort_chosen"]:.3f} |
+| HVAC energy, historical (kWh) | {s["energy_historical_predicted_kwh"]:.0f} | {s["energy_historical_kwh"]:.0f} |
+| HVAC energy, chosen (kWh) | {s["energy_chosen_predicted_kwh"]:.0f} | {s["energy_chosen_kwh"]:.0f} |
 
 ![before and after](before_after.png)
 
-Chosen settings (Monday): {json.dumps(summary['chosen_settings']['monday'])}
+Chosen settings (Monday): {json.dumps(summary["chosen_settings"]["monday"])}
 
 ## 4. The sim-to-real gap: where the calibrated model misses and why
 {_diagnosis_text(diagnosis)}
@@ -144,5 +173,3 @@ Chosen settings (Monday): {json.dumps(summary['chosen_settings']['monday'])}
 """
     (out / "report.md").write_text(text)
     return out / "report.md"
-
-

@@ -62,8 +62,9 @@ def hypervolume(energy_term: np.ndarray, comfort_k: np.ndarray) -> float:
     return float(HV(ref_point=np.array(HV_REFERENCE))(points[inside])) if inside.any() else 0.0
 
 
-def pareto_front(env, week: int, population: int = 100, generations: int = 1000, seed: int = 0,
-                 progress: bool = False) -> ParetoResult:
+def pareto_front(
+    env, week: int, population: int = 100, generations: int = 1000, seed: int = 0, progress: bool = False
+) -> ParetoResult:
     """Run NSGA-II on one week of a ``BuildingWeek-v0`` environment.
 
     Args:
@@ -113,18 +114,32 @@ def pareto_front(env, week: int, population: int = 100, generations: int = 1000,
     start = rng.uniform(-1.0, 1.0, (population, n_var))
     start[0] = base.historical_action
     corners = min(CONSTANT_STARTS, population - 1)
-    start[1:1 + corners] = np.linspace(-1.0, 1.0, corners)[:, None]
+    start[1 : 1 + corners] = np.linspace(-1.0, 1.0, corners)[:, None]
     track = Track()
     started = time.perf_counter()
-    algorithm = NSGA2(pop_size=population, sampling=start, crossover=SBX(prob=0.9, eta=SBX_ETA),
-                      mutation=PM(eta=PM_ETA), eliminate_duplicates=True)
+    algorithm = NSGA2(
+        pop_size=population,
+        sampling=start,
+        crossover=SBX(prob=0.9, eta=SBX_ETA),
+        mutation=PM(eta=PM_ETA),
+        eliminate_duplicates=True,
+    )
     result = minimize(WeekProblem(), algorithm, ("n_gen", generations), seed=seed, callback=track, verbose=False)
     bar.close()
     seconds = time.perf_counter() - started
     order = np.argsort(result.F[:, 0])
     f, x = result.F[order], np.atleast_2d(result.X)[order]
-    return ParetoResult(int(week), x.astype(np.float32), f[:, 0], f[:, 1], hypervolume(f[:, 0], f[:, 1]),
-                        int(result.algorithm.evaluator.n_eval), seconds, track.hv, track.seconds)
+    return ParetoResult(
+        int(week),
+        x.astype(np.float32),
+        f[:, 0],
+        f[:, 1],
+        hypervolume(f[:, 0], f[:, 1]),
+        int(result.algorithm.evaluator.n_eval),
+        seconds,
+        track.hv,
+        track.seconds,
+    )
 
 
 def equal_comfort_choice(front: ParetoResult, comfort_reference_k: float) -> int:

@@ -83,11 +83,14 @@ class BuildingVecEnv(VecEnv):
                 raise BuildingEnvError(f"num_envs={num_envs}: give 1 or more environments")
             env = gym.make_vec(ENV_ID, num_envs=int(num_envs), **env_kwargs)
         elif env_kwargs:
-            raise BuildingEnvError(f"BuildingVecEnv: give either env or environment arguments, not both "
-                                   f"({', '.join(env_kwargs)})")
+            raise BuildingEnvError(
+                f"BuildingVecEnv: give either env or environment arguments, not both ({', '.join(env_kwargs)})"
+            )
         if not hasattr(env.unwrapped, "evaluate") or not hasattr(env, "single_action_space"):
-            raise BuildingEnvError("BuildingVecEnv wraps the native BuildingWeek-v0 vector env: "
-                                   "gymnasium.make_vec('BuildingWeek-v0', num_envs=N)")
+            raise BuildingEnvError(
+                "BuildingVecEnv wraps the native BuildingWeek-v0 vector env: "
+                "gymnasium.make_vec('BuildingWeek-v0', num_envs=N)"
+            )
         self.venv = env
         self._actions: np.ndarray | None = None
         super().__init__(env.num_envs, env.single_observation_space, env.single_action_space)
@@ -222,10 +225,18 @@ class _TqdmProgress(BaseCallback):
         self.bar.close()
 
 
-def train_ppo(env_kwargs: dict | None = None, timesteps: int = 300_000, num_envs: int = 64, seed: int = 0,
-              save: Path | str | None = None, progress: bool = False, historical_start: bool = True,
-              observation_noise: float = 0.0, callback: BaseCallback | list[BaseCallback] | None = None,
-              **ppo_kwargs: Any) -> PPO:
+def train_ppo(
+    env_kwargs: dict | None = None,
+    timesteps: int = 300_000,
+    num_envs: int = 64,
+    seed: int = 0,
+    save: Path | str | None = None,
+    progress: bool = False,
+    historical_start: bool = True,
+    observation_noise: float = 0.0,
+    callback: BaseCallback | list[BaseCallback] | None = None,
+    **ppo_kwargs: Any,
+) -> PPO:
     """Train PPO on BuildingWeek-v0 (by default on the training weeks), stepping ``num_envs`` weeks a call.
 
     Args:
@@ -282,8 +293,9 @@ def policy_actions(model: PPO, observations: np.ndarray) -> np.ndarray:
     return np.asarray(actions, dtype=np.float32)
 
 
-def evaluate_policy_weeks(model: PPO, env_kwargs: dict | None = None, weeks: Iterable[int] | str = "test",
-                          env: gym.Env | None = None) -> list[WeekResult]:
+def evaluate_policy_weeks(
+    model: PPO, env_kwargs: dict | None = None, weeks: Iterable[int] | str = "test", env: gym.Env | None = None
+) -> list[WeekResult]:
     """Score the policy's deterministic settings on each of ``weeks`` (default: the held-out test weeks).
 
     For each week: the observation of the week's start (``reset(options={"week": k})``), the policy's

@@ -14,10 +14,22 @@ import numpy as np
 
 from buildenv import catalogue as cat
 
-WORKDAY = {"heating_comfort_c": 22.5, "heating_setback_c": 17.0, "cooling_comfort_c": 24.0,
-           "cooling_setback_c": 30.0, "supply_air_c": 19.0, "ventilation_ach": 1.0}
-WEEKEND = {"heating_comfort_c": 22.0, "heating_setback_c": 17.0, "cooling_comfort_c": 24.0,
-           "cooling_setback_c": 30.0, "supply_air_c": 19.0, "ventilation_ach": 0.7}
+WORKDAY = {
+    "heating_comfort_c": 22.5,
+    "heating_setback_c": 17.0,
+    "cooling_comfort_c": 24.0,
+    "cooling_setback_c": 30.0,
+    "supply_air_c": 19.0,
+    "ventilation_ach": 1.0,
+}
+WEEKEND = {
+    "heating_comfort_c": 22.0,
+    "heating_setback_c": 17.0,
+    "cooling_comfort_c": 24.0,
+    "cooling_setback_c": 30.0,
+    "supply_air_c": 19.0,
+    "ventilation_ach": 0.7,
+}
 
 
 def rule_based_settings(occupancy: np.ndarray) -> np.ndarray:
@@ -27,12 +39,24 @@ def rule_based_settings(occupancy: np.ndarray) -> np.ndarray:
     for d in range(len(cat.DAYS)):
         if d < len(cat.WEEKDAYS):
             arrive, leave = np.round(occupancy[d])
-            hours = {"heating_start_hour": arrive - 1, "heating_end_hour": leave - 1, "cooling_start_hour": arrive,
-                     "cooling_end_hour": leave, "ventilation_start_hour": arrive, "ventilation_end_hour": leave}
+            hours = {
+                "heating_start_hour": arrive - 1,
+                "heating_end_hour": leave - 1,
+                "cooling_start_hour": arrive,
+                "cooling_end_hour": leave,
+                "ventilation_start_hour": arrive,
+                "ventilation_end_hour": leave,
+            }
             values = {**WORKDAY, **hours}
         else:
-            values = {**WEEKEND, **{n: cat.get(n).min if n.endswith("_end_hour") else cat.get(n).max
-                                    for n in cat.SETTING_NAMES if n.endswith("_hour")}}
+            values = {
+                **WEEKEND,
+                **{
+                    n: cat.get(n).min if n.endswith("_end_hour") else cat.get(n).max
+                    for n in cat.SETTING_NAMES
+                    if n.endswith("_hour")
+                },
+            }
         for name, value in values.items():
             settings[d, col[name]] = cat.get(name).snap(value)
     return settings

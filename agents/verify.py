@@ -56,11 +56,16 @@ def verify(env, week: int, action: np.ndarray) -> Verification:
     seconds = time.perf_counter() - started
     p, r = scalar_scores(predicted, 1), scalar_scores(realised, 1)
     summary = {
-        "predicted_savings_percent": p["savings_percent"], "realised_savings_percent": r["savings_percent"],
-        "comfort_historical": r["comfort_historical_k"], "comfort_chosen": r["comfort_k"],
-        "comfort_historical_predicted": p["comfort_historical_k"], "comfort_chosen_predicted": p["comfort_k"],
-        "energy_historical_kwh": r["energy_historical_kwh"], "energy_chosen_kwh": r["energy_kwh"],
-        "energy_historical_predicted_kwh": p["energy_historical_kwh"], "energy_chosen_predicted_kwh": p["energy_kwh"],
+        "predicted_savings_percent": p["savings_percent"],
+        "realised_savings_percent": r["savings_percent"],
+        "comfort_historical": r["comfort_historical_k"],
+        "comfort_chosen": r["comfort_k"],
+        "comfort_historical_predicted": p["comfort_historical_k"],
+        "comfort_chosen_predicted": p["comfort_k"],
+        "energy_historical_kwh": r["energy_historical_kwh"],
+        "energy_chosen_kwh": r["energy_kwh"],
+        "energy_historical_predicted_kwh": p["energy_historical_kwh"],
+        "energy_chosen_predicted_kwh": p["energy_kwh"],
         "seconds_energyplus": round(seconds, 1),
     }
     return Verification(summary, predicted, realised, base.occupied_hours)

@@ -23,7 +23,6 @@ from pathlib import Path
 import harness
 
 
-
 def main() -> None:
     """Run the campaign and write the results files."""
     parser = harness.parser(__doc__)
@@ -35,8 +34,17 @@ def main() -> None:
     out = Path(args.out)
     if out.exists():
         sys.exit(f"{out} exists: the benchmark times a campaign from scratch; remove it or pick another --out")
-    cmd = [str(Path(sys.executable).with_name("buildenv")), "simulate", "--weeks", str(args.weeks), "--seed",
-           str(args.seed), "--out", str(out), "--quiet"]
+    cmd = [
+        str(Path(sys.executable).with_name("buildenv")),
+        "simulate",
+        "--weeks",
+        str(args.weeks),
+        "--seed",
+        str(args.seed),
+        "--out",
+        str(out),
+        "--quiet",
+    ]
     started = time.perf_counter()
     subprocess.run(cmd, check=True)
     seconds = time.perf_counter() - started
@@ -45,19 +53,28 @@ def main() -> None:
     from buildenv.energyplus.runner import energyplus_version
 
     result = {
-        "date": time.strftime("%Y-%m-%d"), "command": " ".join(["buildenv", *cmd[1:]]),
+        "date": time.strftime("%Y-%m-%d"),
+        "command": " ".join(["buildenv", *cmd[1:]]),
         "machine": {"platform": platform.platform(), "processor": platform.processor(), "cores": os.cpu_count()},
-        "energyplus": energyplus_version(), "weeks": args.weeks, "runs": manifest["runs"],
-        "climates": len(manifest["weather"]), "wall_seconds": round(seconds, 1),
-        "wall_minutes": round(seconds / 60, 2), "weeks_per_second": round(args.weeks / seconds, 2),
+        "energyplus": energyplus_version(),
+        "weeks": args.weeks,
+        "runs": manifest["runs"],
+        "climates": len(manifest["weather"]),
+        "wall_seconds": round(seconds, 1),
+        "wall_minutes": round(seconds / 60, 2),
+        "weeks_per_second": round(args.weeks / seconds, 2),
         "weeks_per_second_per_core": round(args.weeks / seconds / (os.cpu_count() or 1), 2),
         "dataset_mb": round(size_mb, 1),
     }
-    table_row = (f"| {args.weeks} | {result['runs']} | {result['climates']} | {result['wall_minutes']} min | "
-                 f"{result['weeks_per_second']} | {result['weeks_per_second_per_core']} | {result['dataset_mb']} MB |")
-    harness.write_results("campaign_scale", f"""# Simulation campaign at the paper's scale
+    table_row = (
+        f"| {args.weeks} | {result['runs']} | {result['climates']} | {result['wall_minutes']} min | "
+        f"{result['weeks_per_second']} | {result['weeks_per_second_per_core']} | {result['dataset_mb']} MB |"
+    )
+    harness.write_results(
+        "campaign_scale",
+        f"""# Simulation campaign at the paper's scale
 
-EnergyPlus {result['energyplus']} (pyenergyplus-lbnl); the campaign's command: `{result['command']}`.
+EnergyPlus {result["energyplus"]} (pyenergyplus-lbnl); the campaign's command: `{result["command"]}`.
 
 | weeks | EnergyPlus runs | climates | wall time | weeks/s | weeks/s/core | dataset.h5 |
 |---|---|---|---|---|---|---|
@@ -65,7 +82,9 @@ EnergyPlus {result['energyplus']} (pyenergyplus-lbnl); the campaign's command: `
 
 Target: under 30 minutes on a 2-core machine. The wall time includes planning,
 worker start-up, every EnergyPlus run (one building-year of 52 weeks per run) and writing `dataset.h5`.
-""", result)
+""",
+        result,
+    )
     print(json.dumps(result, indent=2))
     if not args.keep:
         shutil.rmtree(out)

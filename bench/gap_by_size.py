@@ -3,7 +3,8 @@
 The blind checks draw each effect's magnitude uniformly from the range real buildings show
 (:attr:`buildenv.diagnosis.effects.Effect.magnitude_range`, ``bench/gap_check.py``), so the headline's share named right
 mixes effects the sensors barely see with effects they cannot miss. This page splits every effect's cases counted by
-the headline (``bench/results/gap_check.json`` by default, judged as ``bench/gap_headline.py`` judges them) by injected size:
+the headline (``bench/results/gap_check.json`` by default, judged as ``bench/gap_headline.py`` judges them)
+by injected size:
 ``|magnitude - the magnitude at which the injection changes nothing|`` in the effect's own unit (the heating
 capacity limit as % of the design capacity removed, the sensor bias as |K|). For each effect it gives
 
@@ -29,8 +30,8 @@ import numpy as np
 from harness import RESULTS, add_sources, judged_sources, replay_scope
 from harness import percent as _percent
 
-from buildenv.diagnosis.effects import NO_EFFECT_MAGNITUDE, get_effect
 from buildenv.diagnosis.blind_check import NONE
+from buildenv.diagnosis.effects import NO_EFFECT_MAGNITUDE, get_effect
 
 SHARE = 0.9  # the share named right that "reliably seen" asks for
 
@@ -86,19 +87,30 @@ def effect_rows(cases: dict[str, list[tuple[float, str, str]]], least: int) -> d
         bins = []
         for k, b in enumerate(bounds):
             named = [n for size, n, _ in rows if in_bin(size, b, k == len(bounds) - 1)]
-            bins.append({"low": b[0], "high": b[1], "cases": len(named),
-                         "right": sum(n == effect for n in named),
-                         "wrong": sum(n not in (effect, NONE) for n in named),
-                         "nothing": sum(n == NONE for n in named)})
+            bins.append(
+                {
+                    "low": b[0],
+                    "high": b[1],
+                    "cases": len(named),
+                    "right": sum(n == effect for n in named),
+                    "wrong": sum(n not in (effect, NONE) for n in named),
+                    "nothing": sum(n == NONE for n in named),
+                }
+            )
         catalogued = get_effect(effect)
         unit, (low, high) = catalogued.magnitude_unit, catalogued.magnitude_range
         if effect == "heating_capacity_limit":
             unit = "% of the design heating capacity removed"
         elif low < NO_EFFECT_MAGNITUDE[effect] < high:
             unit += ", either sign"
-        out[effect] = {"unit": unit, "bins": bins, "cases": len(rows), "right": sum(n == effect for _, n, _ in rows),
-                       "reliable": reliable_size([(s, n) for s, n, _ in rows], effect, least),
-                       "smallest_right": min((s for s, n, _ in rows if n == effect), default=None)}
+        out[effect] = {
+            "unit": unit,
+            "bins": bins,
+            "cases": len(rows),
+            "right": sum(n == effect for _, n, _ in rows),
+            "reliable": reliable_size([(s, n) for s, n, _ in rows], effect, least),
+            "smallest_right": min((s for s, n, _ in rows if n == effect), default=None),
+        }
     return out
 
 
@@ -134,8 +146,9 @@ def plot(rows: dict[str, dict], path: Path) -> None:
 def main() -> None:
     parser = harness.parser(__doc__)
     add_sources(parser)
-    parser.add_argument("--least", type=int, default=10,
-                        help="the fewest cases at or above a size that may call it reliably seen")
+    parser.add_argument(
+        "--least", type=int, default=10, help="the fewest cases at or above a size that may call it reliably seen"
+    )
     parser.add_argument("--name", default="gap_by_size")
     args = parser.parse_args()
     records, named, right, sources = judged_sources(args)
@@ -148,28 +161,50 @@ def main() -> None:
     above = [b for r in rows.values() for b in r["bins"][1:]]  # every bin but each effect's smallest sizes
     above_right, above_cases = sum(b["right"] for b in above), sum(b["cases"] for b in above)
     command = f"python bench/gap_by_size.py{sources} --least {args.least} --name {args.name}"
-    lines = ["# Gap diagnosis: named first by injected size", "",
-             replay_scope(records, right) + " Size: the injection's distance from the magnitude that changes "
-             "nothing, in the effect's unit. Bins hold equal counts (size quartiles; the holidays by size). "
-             f"Figure: `{args.name}.png`.", "",
-             f"Above each effect's lowest size bin: {_percent(above_right, above_cases)} named right, against "
-             f"{_percent(sum(r['right'] for r in rows.values()), sum(r['cases'] for r in rows.values()))} "
-             "over all sizes.", "",
-             "| effect | unit of size | cases | named right | by size bin: named right (named another effect) | "
-             f"smallest named right | seen from ({SHARE:.0%} of the cases that large or larger) |",
-             "|---|---|---|---|---|---|---|"]
+    lines = [
+        "# Gap diagnosis: named first by injected size",
+        "",
+        replay_scope(records, right) + " Size: the injection's distance from the magnitude that changes "
+        "nothing, in the effect's unit. Bins hold equal counts (size quartiles; the holidays by size). "
+        f"Figure: `{args.name}.png`.",
+        "",
+        f"Above each effect's lowest size bin: {_percent(above_right, above_cases)} named right, against "
+        f"{_percent(sum(r['right'] for r in rows.values()), sum(r['cases'] for r in rows.values()))} "
+        "over all sizes.",
+        "",
+        "| effect | unit of size | cases | named right | by size bin: named right (named another effect) | "
+        f"smallest named right | seen from ({SHARE:.0%} of the cases that large or larger) |",
+        "|---|---|---|---|---|---|---|",
+    ]
     for effect, row in rows.items():
-        bins = "; ".join(f"{bin_label(b)}: {b['right']}/{b['cases']}" + (f" ({b['wrong']})" if b["wrong"] else "")
-                         for b in row["bins"])
+        bins = "; ".join(
+            f"{bin_label(b)}: {b['right']}/{b['cases']}" + (f" ({b['wrong']})" if b["wrong"] else "")
+            for b in row["bins"]
+        )
         seen = "none" if row["reliable"] is None else f"{row['reliable']:.3g}"
         smallest = "-" if row["smallest_right"] is None else f"{row['smallest_right']:.3g}"
-        lines.append(f"| {effect} | {row['unit']} | {row['cases']} | {_percent(row['right'], row['cases'])} | "
-                     f"{bins} | {smallest} | {seen} |")
-    sites = [{"true": effect, "site": site, "size": size, "named": n}
-             for effect in sorted(cases) for size, n, site in sorted(cases[effect], key=lambda c: c[2])]
-    harness.write_results(args.name, lines, {"command": command, "least": args.least, "share": SHARE, "effects": rows,
-                                     "above_lowest_bin": {"right": above_right, "cases": above_cases},
-                                     "sites": sites}, echo=True)
+        lines.append(
+            f"| {effect} | {row['unit']} | {row['cases']} | {_percent(row['right'], row['cases'])} | "
+            f"{bins} | {smallest} | {seen} |"
+        )
+    sites = [
+        {"true": effect, "site": site, "size": size, "named": n}
+        for effect in sorted(cases)
+        for size, n, site in sorted(cases[effect], key=lambda c: c[2])
+    ]
+    harness.write_results(
+        args.name,
+        lines,
+        {
+            "command": command,
+            "least": args.least,
+            "share": SHARE,
+            "effects": rows,
+            "above_lowest_bin": {"right": above_right, "cases": above_cases},
+            "sites": sites,
+        },
+        echo=True,
+    )
 
 
 if __name__ == "__main__":

@@ -22,14 +22,20 @@ from harness import RESULTS
 
 from agents.cli import make_env, optimise
 from agents.verify import verify
-from buildenv.env.building_week import DEFAULT_SITE
 from buildenv.diagnosis.gap import DiagnosisSettings, diagnose, save_extended_model
-from buildenv.sites import load_site
+from buildenv.env.building_week import DEFAULT_SITE
 from buildenv.metamodel.surrogate import load_metamodel
+from buildenv.sites import load_site
 
 WEEK = 46
-KEYS = ("predicted_savings_percent", "realised_savings_percent", "comfort_historical_predicted",
-        "comfort_historical", "comfort_chosen_predicted", "comfort_chosen")
+KEYS = (
+    "predicted_savings_percent",
+    "realised_savings_percent",
+    "comfort_historical_predicted",
+    "comfort_historical",
+    "comfort_chosen_predicted",
+    "comfort_chosen",
+)
 
 
 def main() -> None:
@@ -45,8 +51,9 @@ def main() -> None:
         shutil.rmtree(out)
     shutil.copytree(DEFAULT_SITE, out)
     load = os.getloadavg()[0]
-    result = diagnose(load_site(out), load_metamodel(), DiagnosisSettings(refit_step=args.refit_step),
-                      plot=RESULTS / f"{stem}.png")
+    result = diagnose(
+        load_site(out), load_metamodel(), DiagnosisSettings(refit_step=args.refit_step), plot=RESULTS / f"{stem}.png"
+    )
     save_extended_model(load_site(out), result)
     result.pop("_fit")
     checks = {}
@@ -54,26 +61,49 @@ def main() -> None:
         env = make_env(site)
         run = optimise(env, "nsga2", WEEK)
         checks[label] = verify(env, WEEK, run["action"]).summary
-    record = {"date": dt.date.today().isoformat(), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
-              "load_average_at_start": load, "command": command,
-              "diagnosis": result, "week": WEEK, "nsga2_checks": checks}
-    lines = ["# Gap diagnosis of the default site", "",
-             f"Diagnosis {result['seconds']:.0f} s.", "",
-             f"Verdict: **{result['verdict']}**. Fit weeks {result['fit_weeks']}, held-out weeks "
-             f"{result['heldout_weeks']}.", "",
-             "| effect | held-out gain | p-value | selected | estimated |", "|---|---|---|---|---|"]
+    record = {
+        "date": dt.date.today().isoformat(),
+        "machine": f"{platform.platform()}, {os.cpu_count()} cores",
+        "load_average_at_start": load,
+        "command": command,
+        "diagnosis": result,
+        "week": WEEK,
+        "nsga2_checks": checks,
+    }
+    lines = [
+        "# Gap diagnosis of the default site",
+        "",
+        f"Diagnosis {result['seconds']:.0f} s.",
+        "",
+        f"Verdict: **{result['verdict']}**. Fit weeks {result['fit_weeks']}, held-out weeks {result['heldout_weeks']}.",
+        "",
+        "| effect | held-out gain | p-value | selected | estimated |",
+        "|---|---|---|---|---|",
+    ]
     for e in result["effects"]:
         est = ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items())
-        lines.append(f"| {e['name']} | {100 * e['score']:.1f} % | {e['significance']['p_value']:.2g} | "
-                     f"{'yes' if e['selected'] else 'no'} | {est} |")
+        lines.append(
+            f"| {e['name']} | {100 * e['score']:.1f} % | {e['significance']['p_value']:.2g} | "
+            f"{'yes' if e['selected'] else 'no'} | {est} |"
+        )
     if result.get("heldout_after"):
         b, a = result["heldout_before"], result["heldout_after"]
         lines += ["", "| held-out | base model | extended model |", "|---|---|---|"]
-        for key, name in (("cv_rmse_q_percent", "CV(RMSE)_Q %"), ("nmbe_q_percent", "NMBE_Q %"),
-                          ("rmse_t_celsius", "RMSE_T degC"), ("r2_t", "R2_T"), ("r2_q", "R2_Q")):
+        for key, name in (
+            ("cv_rmse_q_percent", "CV(RMSE)_Q %"),
+            ("nmbe_q_percent", "NMBE_Q %"),
+            ("rmse_t_celsius", "RMSE_T degC"),
+            ("r2_t", "R2_T"),
+            ("r2_q", "R2_Q"),
+        ):
             lines.append(f"| {name} | {b[key]:.3f} | {a[key]:.3f} |")
-    lines += ["", f"## NSGA-II (equal comfort) on week {WEEK}, checked on the EnergyPlus reference", "",
-              "| model | " + " | ".join(KEYS) + " |", "|---" * (len(KEYS) + 1) + "|"]
+    lines += [
+        "",
+        f"## NSGA-II (equal comfort) on week {WEEK}, checked on the EnergyPlus reference",
+        "",
+        "| model | " + " | ".join(KEYS) + " |",
+        "|---" * (len(KEYS) + 1) + "|",
+    ]
     for label, s in checks.items():
         lines.append(f"| {label} | " + " | ".join(f"{s[k]:.3f}" for k in KEYS) + " |")
     lines += ["", f"![localisation]({stem}.png)"]

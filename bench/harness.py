@@ -29,6 +29,7 @@ _LOAD_AT_START = os.getloadavg()
 
 # --- arguments -----------------------------------------------------------------------------------------------
 
+
 def parser(doc: str | None, first_line: bool = False) -> argparse.ArgumentParser:
     """An argument parser described by the first paragraph of a script's docstring (its first line only with
     ``first_line``)."""
@@ -38,23 +39,29 @@ def parser(doc: str | None, first_line: bool = False) -> argparse.ArgumentParser
 
 # --- provenance and the writer -------------------------------------------------------------------------------
 
+
 def provenance(argv: list[str] | None = None) -> dict:
     """When, where and how a benchmark ran: ISO date and time, the machine (platform, CPU count), the command
     line as run from the repository root, and the 1/5/15-minute load averages at the start and now."""
     argv = sys.argv if argv is None else argv
     script = Path(argv[0]) if argv else Path("bench")
     shown = f"bench/{script.name}" if script.suffix == ".py" else str(script)
-    return {"date": dt.datetime.now().isoformat(timespec="seconds"),
-            "machine": f"{platform.platform()}, {platform.machine()}", "cpu_count": os.cpu_count(),
-            "command": shlex.join(["python", shown, *argv[1:]]),
-            "load_average_at_start": [round(x, 2) for x in _LOAD_AT_START],
-            "load_average_at_end": [round(x, 2) for x in os.getloadavg()]}
+    return {
+        "date": dt.datetime.now().isoformat(timespec="seconds"),
+        "machine": f"{platform.platform()}, {platform.machine()}",
+        "cpu_count": os.cpu_count(),
+        "command": shlex.join(["python", shown, *argv[1:]]),
+        "load_average_at_start": [round(x, 2) for x in _LOAD_AT_START],
+        "load_average_at_end": [round(x, 2) for x in os.getloadavg()],
+    }
 
 
 def provenance_line(p: Mapping) -> str:
     """The provenance as one Markdown line."""
-    return (f"Run {p['date']} on {p['machine']}, {p['cpu_count']} CPUs, load average {p['load_average_at_start'][0]}"
-            f" at start, {p['load_average_at_end'][0]} at end: `{p['command']}`.")
+    return (
+        f"Run {p['date']} on {p['machine']}, {p['cpu_count']} CPUs, load average {p['load_average_at_start'][0]}"
+        f" at start, {p['load_average_at_end'][0]} at end: `{p['command']}`."
+    )
 
 
 def _jsonable(value):
@@ -68,8 +75,14 @@ def _jsonable(value):
     return str(value)
 
 
-def write_results(name: str, page: str | list[str], data: Mapping | str, out: Path | None = None,
-                  keep: str | None = None, echo: bool = False) -> Path:
+def write_results(
+    name: str,
+    page: str | list[str],
+    data: Mapping | str,
+    out: Path | None = None,
+    keep: str | None = None,
+    echo: bool = False,
+) -> Path:
     """Write ``<out>/<name>.md`` and ``<out>/<name>.json`` (``out``: ``bench/results``) and return the page's path.
 
     ``page``: Markdown text or lines, its first line the title; the provenance line goes under it. ``data``: the
@@ -86,7 +99,7 @@ def write_results(name: str, page: str | list[str], data: Mapping | str, out: Pa
     path = out / f"{name}.md"
     if keep:
         old = path.read_text() if path.is_file() else ""
-        text += ("\n" + old[old.index(keep):]) if keep in old else ""
+        text += ("\n" + old[old.index(keep) :]) if keep in old else ""
     path.write_text(text)
     if isinstance(data, str):
         (out / f"{name}.json").write_text(data if data.endswith("\n") else data + "\n")
@@ -105,6 +118,7 @@ def percent(part: int, whole: int, digits: int = 0) -> str:
 
 # --- machines and CPU time (calibration benches) --------------------------------------------------------------
 
+
 def machine() -> str:
     """One line describing this machine and torch."""
     import torch
@@ -121,13 +135,23 @@ def machine_details() -> dict:
     model = platform.processor() or platform.machine()
     cpuinfo = Path("/proc/cpuinfo")
     if cpuinfo.is_file():
-        names = [line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines()
-                 if line.startswith("model name")]
+        names = [
+            line.split(":", 1)[1].strip() for line in cpuinfo.read_text().splitlines() if line.startswith("model name")
+        ]
         model = names[0] if names else model
-    return {"cpu": model, "cores": os.cpu_count(), "platform": platform.platform(),
-            "python": platform.python_version(), "load_average_1min_at_start": round(os.getloadavg()[0], 2),
-            "versions": {"energyplus": energyplus_version(), "cma": version("cma"), "torch": version("torch"),
-                         "numpy": version("numpy")}}
+    return {
+        "cpu": model,
+        "cores": os.cpu_count(),
+        "platform": platform.platform(),
+        "python": platform.python_version(),
+        "load_average_1min_at_start": round(os.getloadavg()[0], 2),
+        "versions": {
+            "energyplus": energyplus_version(),
+            "cma": version("cma"),
+            "torch": version("torch"),
+            "numpy": version("numpy"),
+        },
+    }
 
 
 class CpuMeter:
@@ -148,8 +172,13 @@ class CpuMeter:
         busy, own = self._machine_busy() - self._busy, self._own_cpu() - self._own
         cores = os.cpu_count() or 1
         others = float("nan") if math.isnan(busy) else max(busy - own, 0.0)
-        return {"wall_s": round(wall, 1), "machine_busy_cpu_s": round(busy, 1), "own_cpu_s": round(own, 1),
-                "others_cpu_s": round(others, 1), "others_share_of_capacity": round(others / (cores * wall), 3)}
+        return {
+            "wall_s": round(wall, 1),
+            "machine_busy_cpu_s": round(busy, 1),
+            "own_cpu_s": round(own, 1),
+            "others_cpu_s": round(others, 1),
+            "others_share_of_capacity": round(others / (cores * wall), 3),
+        }
 
     @staticmethod
     def _machine_busy() -> float:
@@ -173,8 +202,10 @@ class CpuMeter:
 
 def cpu_sentence(cpu: dict) -> str:
     """What the CPU meter saw, in words."""
-    return (f"During the {cpu['wall_s']:.0f} s of the bench, other processes used {cpu['others_cpu_s']:.0f} CPU s "
-            f"({100 * cpu['others_share_of_capacity']:.1f} % of the {os.cpu_count()} cores' capacity).")
+    return (
+        f"During the {cpu['wall_s']:.0f} s of the bench, other processes used {cpu['others_cpu_s']:.0f} CPU s "
+        f"({100 * cpu['others_share_of_capacity']:.1f} % of the {os.cpu_count()} cores' capacity)."
+    )
 
 
 # --- metamodel runs and timings -------------------------------------------------------------------------------
@@ -211,15 +242,15 @@ def trained(tag: str, runs: Path, data: str, model: str, config: dict, **options
     return result
 
 
-def inference_speed(model: str, config: dict, batch: int | None = None, weeks: int = 4096,
-                    repeats: int = 3) -> float:
+def inference_speed(model: str, config: dict, batch: int | None = None, weeks: int = 4096, repeats: int = 3) -> float:
     """Best-of-``repeats`` weeks per second of batched inference (all cores, random encoded weeks, eager
     PyTorch) for an architecture; weights do not matter."""
     return inference_speeds({"": (model, config)}, batch, weeks, repeats)[""]
 
 
-def inference_speeds(archs: dict[str, tuple[str, dict]], batch: int | None = None, weeks: int = 4096,
-                     repeats: int = 3) -> dict[str, float]:
+def inference_speeds(
+    archs: dict[str, tuple[str, dict]], batch: int | None = None, weeks: int = 4096, repeats: int = 3
+) -> dict[str, float]:
     """:func:`inference_speed` of several architectures (label -> (model, config)), timed in turn within each
     of ``repeats`` rounds, so that a slow spell of a shared machine falls on all of them alike."""
     import torch
@@ -239,7 +270,7 @@ def inference_speeds(archs: dict[str, tuple[str, dict]], batch: int | None = Non
             for label, net in nets.items():
                 started = time.perf_counter()
                 for start in range(0, weeks, batch):
-                    net(x[start:start + batch])
+                    net(x[start : start + batch])
                 best[label] = min(best[label], time.perf_counter() - started)
     return {label: weeks / seconds for label, seconds in best.items()}
 
@@ -254,8 +285,11 @@ def energyplus_weeks_per_second(weeks: int, zoning: str) -> float:
     out = Path(tempfile.mkdtemp(prefix="bench-eplus-")) / "data"
     try:
         started = time.perf_counter()
-        run_campaign(CampaignConfig(weeks=weeks, seed=0, epw=["usa_il_chicago", "usa_fl_miami"], zoning=zoning), out,
-                     progress=False)
+        run_campaign(
+            CampaignConfig(weeks=weeks, seed=0, epw=["usa_il_chicago", "usa_fl_miami"], zoning=zoning),
+            out,
+            progress=False,
+        )
         return weeks / (time.perf_counter() - started)
     finally:
         shutil.rmtree(out.parent, ignore_errors=True)
@@ -275,10 +309,16 @@ def product_arrays(surrogate, weeks: int) -> dict:
     settings, occupancy = sample_weeks(weeks, rng)
     year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
     week_of_year = np.arange(weeks) % cat.WEEKS_PER_YEAR
-    ground = sg.ground_hours(sg.weather_ground_c("usa_il_chicago"), week_of_year * cat.HOURS_PER_WEEK,
-                             surrogate.context_hours)
-    return {"theta": theta, "settings": settings, "occupancy": occupancy, "weather": year[week_of_year],
-            "ground_c": ground}
+    ground = sg.ground_hours(
+        sg.weather_ground_c("usa_il_chicago"), week_of_year * cat.HOURS_PER_WEEK, surrogate.context_hours
+    )
+    return {
+        "theta": theta,
+        "settings": settings,
+        "occupancy": occupancy,
+        "weather": year[week_of_year],
+        "ground_c": ground,
+    }
 
 
 def predict_weeks_per_second(surrogate, arrays: dict, batch: int, repeats: int, workers: int | None = None) -> float:
@@ -313,9 +353,15 @@ def mean_std(result: dict, key: str, scale: float = 1.0, digits: int = 3) -> str
 def speed_lines(speed: dict, eplus: float, label: str = "model") -> list[str]:
     """Markdown lines of a speed table: ``speed`` ``{name: weeks/s}`` of ``load_metamodel(CKPT).predict``
     against the core + perimeter EnergyPlus shoebox's ``eplus`` weeks/s, timed in the same run."""
-    lines = ["", "Speed in the same run, `load_metamodel(CKPT).predict` of 4,096 weeks from catalogue arrays "
-             "(encoding included, traced, batches of 128, best of 3), against the core + perimeter EnergyPlus "
-             f"shoebox ({eplus:.1f} weeks/s):", "", f"| {label} | weeks/s | x EnergyPlus |", "|---|---|---|"]
+    lines = [
+        "",
+        "Speed in the same run, `load_metamodel(CKPT).predict` of 4,096 weeks from catalogue arrays "
+        "(encoding included, traced, batches of 128, best of 3), against the core + perimeter EnergyPlus "
+        f"shoebox ({eplus:.1f} weeks/s):",
+        "",
+        f"| {label} | weeks/s | x EnergyPlus |",
+        "|---|---|---|",
+    ]
     return lines + [f"| {name} | {value:,.0f} | {value / eplus:.0f} |" for name, value in speed.items()]
 
 
@@ -341,9 +387,15 @@ def slim_record(record: dict) -> dict:
     if record.get("joint_tests"):
         out["joint_tests"] = record["joint_tests"]
     gains = record.get("gains_by_series", {})
-    out["candidates"] = {name: [record["scores"][name], record["p_values"][name],
-                                *(gains.get(name, {}).get(s) for s in SERIES), record["estimates"][name]]
-                         for name in record["scores"]}
+    out["candidates"] = {
+        name: [
+            record["scores"][name],
+            record["p_values"][name],
+            *(gains.get(name, {}).get(s) for s in SERIES),
+            record["estimates"][name],
+        ]
+        for name in record["scores"]
+    }
     return out
 
 
@@ -354,8 +406,9 @@ def expand_record(slim: dict) -> dict:
     candidates = slim["candidates"]
     record["scores"] = {n: c[0] for n, c in candidates.items()}
     record["p_values"] = {n: c[1] for n, c in candidates.items()}
-    record["gains_by_series"] = {n: dict(zip(SERIES, c[2:4])) for n, c in candidates.items()
-                                 if c[2] is not None or c[3] is not None}
+    record["gains_by_series"] = {
+        n: dict(zip(SERIES, c[2:4])) for n, c in candidates.items() if c[2] is not None or c[3] is not None
+    }
     record["estimates"] = {n: c[4] for n, c in candidates.items()}
     record["ranked"] = sorted(record["scores"], key=lambda n: -record["scores"][n])
     return record
@@ -364,18 +417,25 @@ def expand_record(slim: dict) -> dict:
 def checks_json(sites: Mapping[str, dict], sources: list[dict], about: str) -> str:
     """``gap_check.json``'s text: ``about``, the ``sources`` (the runs that recorded the sites) and the slim
     ``sites`` in seed and case order, one a line."""
+
     def order(site: str) -> tuple:
         seed, case, twin = SITE.match(site).groups()
         return int(seed), int(case), bool(twin)
 
-    body = ",\n".join(f"{json.dumps(site)}:{json.dumps(sites[site], separators=(',', ':'))}"
-                      for site in sorted(sites, key=order))
+    body = ",\n".join(
+        f"{json.dumps(site)}:{json.dumps(sites[site], separators=(',', ':'))}" for site in sorted(sites, key=order)
+    )
     listed = ",\n".join(json.dumps(source, separators=(",", ":")) for source in sources)
     return f'{{"about": {json.dumps(about)},\n"sources": [\n{listed}\n],\n"sites": {{\n{body}\n}}}}\n'
 
 
-def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapping[str, float] = True,
-           estimate_ceilings: bool | Mapping[str, float] = False) -> tuple[str, str]:
+def naming(
+    row: dict,
+    alpha: float,
+    min_gain: float,
+    clean_ceilings: bool | Mapping[str, float] = True,
+    estimate_ceilings: bool | Mapping[str, float] = False,
+) -> tuple[str, str]:
     """The effect a recorded case's first step names under the current plausibility rules, and how: ``(name,
     "held-out gain" | "joint test" | "estimate alone" | "night electricity")``, or ``("none", "")``.
 
@@ -400,8 +460,13 @@ def naming(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapp
     return name, how
 
 
-def _naming_by_gain(row: dict, alpha: float, min_gain: float, clean_ceilings: bool | Mapping[str, float],
-                    estimate_ceilings: bool | Mapping[str, float]) -> tuple[str, str]:
+def _naming_by_gain(
+    row: dict,
+    alpha: float,
+    min_gain: float,
+    clean_ceilings: bool | Mapping[str, float],
+    estimate_ceilings: bool | Mapping[str, float],
+) -> tuple[str, str]:
     """:func:`naming` without the night-electricity rule."""
     from buildenv.diagnosis.blind_check import NONE
     from buildenv.diagnosis.gap import absorbed_candidate, candidate_qualifies, joint_test_qualifies, named_by_estimate
@@ -409,16 +474,28 @@ def _naming_by_gain(row: dict, alpha: float, min_gain: float, clean_ceilings: bo
     threshold = alpha / len(row["p_values"])
     ranked = sorted(row["scores"], key=lambda n: -row["scores"][n])
     for name in ranked:
-        if candidate_qualifies(name, row["scores"][name], row["p_values"][name], threshold, min_gain,
-                               row["estimates"][name], row.get("gains_by_series", {}).get(name), clean_ceilings):
+        if candidate_qualifies(
+            name,
+            row["scores"][name],
+            row["p_values"][name],
+            threshold,
+            min_gain,
+            row["estimates"][name],
+            row.get("gains_by_series", {}).get(name),
+            clean_ceilings,
+        ):
             return name, "held-out gain"
     joint = row.get("joint_tests", {})
     for name in ranked:
         if absorbed_candidate(name, row["estimates"][name], clean_ceilings):
             if name in joint and joint_test_qualifies(name, joint[name], threshold, clean_ceilings):
                 return name, "joint test"
-    alone = named_by_estimate(row["estimates"], row["scores"], False if clean_ceilings is False else estimate_ceilings,
-                              row.get("gains_by_series"))
+    alone = named_by_estimate(
+        row["estimates"],
+        row["scores"],
+        False if clean_ceilings is False else estimate_ceilings,
+        row.get("gains_by_series"),
+    )
     return (alone[0], ALONE) if alone else (NONE, "")
 
 
@@ -436,8 +513,10 @@ def records_from_checks(path: str | Path) -> dict[str, tuple[dict, str, str]]:
     from buildenv.diagnosis.blind_check import NONE
 
     sites = json.loads(_path(path).read_text())["sites"]
-    return {site: (expand_record(s), NONE if s.get("twin_of") else s["true"], s.get("source", Path(path).stem))
-            for site, s in sites.items()}
+    return {
+        site: (expand_record(s), NONE if s.get("twin_of") else s["true"], s.get("source", Path(path).stem))
+        for site, s in sites.items()
+    }
 
 
 def records_from_rediagnosis(path: str) -> dict[str, tuple[dict, str, str]]:
@@ -456,7 +535,9 @@ def records_from_run(path: str) -> dict[str, tuple[dict, str, str]]:
     return {f"seed{seed}_case_{r['case']:03d}": (r, r["true"], Path(path).stem) for r in page["cases"]}
 
 
-def diagnosed_records(rediagnosed: list[str], runs: list[str], checks: list[str] = ()) -> dict[str, tuple[dict, str, str]]:
+def diagnosed_records(
+    rediagnosed: list[str], runs: list[str], checks: list[str] = ()
+) -> dict[str, tuple[dict, str, str]]:
     """Every diagnosed site's latest record (``checks`` first, then rediagnoses, then runs; later pages over
     earlier ones), each with its fit weeks' irradiance (``fit_irradiance_w_m2``, W/m2: :func:`irradiance_of_sites`
     where the record lacks it and a page gives the weeks' weather)."""
@@ -513,12 +594,20 @@ def add_sources(p: argparse.ArgumentParser) -> None:
     """The blind checks' records as options: ``--checks`` files (default ``bench/results/gap_check.json`` when no
     other source is given), ``--rediagnosed`` and ``--run`` pages (repeatable), or ``--sources-of`` a headline's
     json, whose recorded command gives them."""
-    p.add_argument("--checks", action="append", default=[], help="a merged gap_check.json (default: "
-                   "bench/results/gap_check.json when no other source is given)")
+    p.add_argument(
+        "--checks",
+        action="append",
+        default=[],
+        help="a merged gap_check.json (default: bench/results/gap_check.json when no other source is given)",
+    )
     p.add_argument("--rediagnosed", action="append", default=[], help="a rediagnosis json (its records)")
     p.add_argument("--run", action="append", default=[], help="one run's json of bench/gap_check.py")
-    p.add_argument("--sources-of", default="", metavar="HEADLINE_JSON",
-                   help="take the sources from this headline's recorded command")
+    p.add_argument(
+        "--sources-of",
+        default="",
+        metavar="HEADLINE_JSON",
+        help="take the sources from this headline's recorded command",
+    )
 
 
 def _options(path: str | Path) -> list[tuple[str, str]]:
@@ -563,13 +652,18 @@ def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str,
     before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
     right = sum(before[site] == truth for site, (_, truth, _) in records.items())
     shown = list(getattr(args, "checks", []) or []) if args.sources_of else checks
-    options = ("".join(f" --checks {p}" for p in shown)
-               + "".join(f" --rediagnosed {p}" for p in args.rediagnosed) + "".join(f" --run {p}" for p in args.run)
-               + (f" --sources-of {args.sources_of}" if args.sources_of else ""))
+    options = (
+        "".join(f" --checks {p}" for p in shown)
+        + "".join(f" --rediagnosed {p}" for p in args.rediagnosed)
+        + "".join(f" --run {p}" for p in args.run)
+        + (f" --sources-of {args.sources_of}" if args.sources_of else "")
+    )
     return records, before, right, options
 
 
 def replay_scope(records: dict, right: int) -> str:
     """A sentence on what a page judges: ``records`` from :func:`judged_sources`, ``right`` of them named right."""
-    return (f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
-            "in-sample.")
+    return (
+        f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
+        "in-sample."
+    )

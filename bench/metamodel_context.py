@@ -21,9 +21,9 @@ import platform
 import time
 from pathlib import Path
 
+import harness
 import numpy as np
 import torch
-import harness
 from harness import energyplus_weeks_per_second, shipped_transformer, speed_lines, surrogate_weeks_per_second, trained
 
 METRICS = ("loss", "r2_t_pooled", "r2_t", "rmse_t_celsius", "cv_rmse_q_percent")
@@ -50,43 +50,72 @@ def main() -> None:
     rows = []
     for seed in seeds:
         for ctx in contexts:
-            result = trained(f"ctx{ctx}_seed{seed}_e{args.epochs}", runs, args.data, "transformer", config,
-                             seed=seed, context_hours=ctx, epochs=args.epochs, batch_size=args.batch_size,
-                             progress=False)
+            result = trained(
+                f"ctx{ctx}_seed{seed}_e{args.epochs}",
+                runs,
+                args.data,
+                "transformer",
+                config,
+                seed=seed,
+                context_hours=ctx,
+                epochs=args.epochs,
+                batch_size=args.batch_size,
+                progress=False,
+            )
             test = result["test"]
-            rows.append({"context_hours": ctx, "seed": seed, "train_weeks": result["train_weeks"],
-                         "test_weeks": result["test_weeks"], "seconds": result["seconds"],
-                         **{m: round(test[m], 5) for m in METRICS},
-                         "rmse_t_by_day": [round(v, 4) for v in test["rmse_t_celsius_by_day"]]})
+            rows.append(
+                {
+                    "context_hours": ctx,
+                    "seed": seed,
+                    "train_weeks": result["train_weeks"],
+                    "test_weeks": result["test_weeks"],
+                    "seconds": result["seconds"],
+                    **{m: round(test[m], 5) for m in METRICS},
+                    "rmse_t_by_day": [round(v, 4) for v in test["rmse_t_celsius_by_day"]],
+                }
+            )
             print(json.dumps(rows[-1]))
     eplus = energyplus_weeks_per_second(args.eplus_weeks, "core_perimeter")
-    speed = {ctx: surrogate_weeks_per_second(args.weeks, 128, 3,
-                                             str(runs / f"ctx{ctx}_seed{seeds[0]}_e{args.epochs}.pt"))
-             for ctx in contexts}
+    speed = {
+        ctx: surrogate_weeks_per_second(args.weeks, 128, 3, str(runs / f"ctx{ctx}_seed{seeds[0]}_e{args.epochs}.pt"))
+        for ctx in contexts
+    }
     print({"energyplus": round(eplus, 1), **{c: round(v, 1) for c, v in speed.items()}})
-    result = {"date": time.strftime("%Y-%m-%d"), "machine": f"{platform.platform()}, {os.cpu_count()} cores",
-              "command": "bench/metamodel_context.py " + " ".join(f"--{k.replace('_', '-')} {v}"
-                                                                  for k, v in vars(args).items()),
-              "config": config, "runs": rows, "energyplus_weeks_per_second": round(eplus, 2),
-              "weeks_per_second": {str(c): round(v, 1) for c, v in speed.items()}}
+    result = {
+        "date": time.strftime("%Y-%m-%d"),
+        "machine": f"{platform.platform()}, {os.cpu_count()} cores",
+        "command": "bench/metamodel_context.py "
+        + " ".join(f"--{k.replace('_', '-')} {v}" for k, v in vars(args).items()),
+        "config": config,
+        "runs": rows,
+        "energyplus_weeks_per_second": round(eplus, 2),
+        "weeks_per_second": {str(c): round(v, 1) for c, v in speed.items()},
+    }
     harness.write_results(args.name, _page(result, contexts, seeds, speed, eplus), result)
 
 
 def _page(result: dict, contexts: list[int], seeds: list[int], speed: dict, eplus: float) -> str:
     rows = result["runs"]
     first = rows[0]
-    lines = ["# Context hours of the metamodel: the first day's error and the speed", "",
-             f"The shipped architecture (`{json.dumps(result['config'])}`) trained with each context on the same "
-             f"campaign ({first['train_weeks']} training weeks for seed {first['seed']}), held-out weather weeks "
-             "scored (`weather_weeks` split; each seed its own split). RMSE_T in degC; day 1 is the Monday.", "",
-             "| context h | seed | test loss | R2_T pooled | R2_T per week | RMSE_T | RMSE_T day 1 | RMSE_T days 2-7 "
-             "| CV(RMSE)_Q % | training s |", "|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "# Context hours of the metamodel: the first day's error and the speed",
+        "",
+        f"The shipped architecture (`{json.dumps(result['config'])}`) trained with each context on the same "
+        f"campaign ({first['train_weeks']} training weeks for seed {first['seed']}), held-out weather weeks "
+        "scored (`weather_weeks` split; each seed its own split). RMSE_T in degC; day 1 is the Monday.",
+        "",
+        "| context h | seed | test loss | R2_T pooled | R2_T per week | RMSE_T | RMSE_T day 1 | RMSE_T days 2-7 "
+        "| CV(RMSE)_Q % | training s |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         day = r["rmse_t_by_day"]
         rest = np.sqrt(np.mean(np.square(day[1:])))  # the days' RMSEs pooled (equal hours per day)
-        lines.append(f"| {r['context_hours']} | {r['seed']} | {r['loss']:.4f} | {r['r2_t_pooled']:.4f} | "
-                     f"{r['r2_t']:.4f} | {r['rmse_t_celsius']:.4f} | {day[0]:.3f} | {rest:.3f} "
-                     f"| {r['cv_rmse_q_percent']:.2f} | {r['seconds']:.0f} |")
+        lines.append(
+            f"| {r['context_hours']} | {r['seed']} | {r['loss']:.4f} | {r['r2_t_pooled']:.4f} | "
+            f"{r['r2_t']:.4f} | {r['rmse_t_celsius']:.4f} | {day[0]:.3f} | {rest:.3f} "
+            f"| {r['cv_rmse_q_percent']:.2f} | {r['seconds']:.0f} |"
+        )
     lines += speed_lines(speed, eplus, "context h")
     return "\n".join(lines) + "\n"
 

@@ -23,18 +23,22 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 import harness
+import numpy as np
 from harness import machine
 
-from buildenv.metamodel import surrogate as sg
 from buildenv.campaign.dataset import open_dataset
+from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.training import evaluate_metamodel, score
 
-COLUMNS = [("loss", "loss", 1.0, 4), ("R2_T per week", "r2_t", 1.0, 4), ("R2_T pooled", "r2_t_pooled", 1.0, 4),
-           ("R2_Q per week", "r2_q", 1.0, 4), ("RMSE_T degC", "rmse_t_celsius", 1.0, 3),
-           ("CV(RMSE)_Q %", "cv_rmse_q_percent", 1.0, 2)]
+COLUMNS = [
+    ("loss", "loss", 1.0, 4),
+    ("R2_T per week", "r2_t", 1.0, 4),
+    ("R2_T pooled", "r2_t_pooled", 1.0, 4),
+    ("R2_Q per week", "r2_q", 1.0, 4),
+    ("RMSE_T degC", "rmse_t_celsius", 1.0, 3),
+    ("CV(RMSE)_Q %", "cv_rmse_q_percent", 1.0, 2),
+]
 
 
 def fresh_scores(checkpoint: str, fresh: Path) -> dict[str, dict]:
@@ -42,23 +46,31 @@ def fresh_scores(checkpoint: str, fresh: Path) -> dict[str, dict]:
     surrogate = sg.load_metamodel(None if checkpoint == "default" else checkpoint)
     unseen = surrogate.checkpoint.metadata.get("holdout_climates") or []
     with open_dataset(fresh) as ds:
-        x, y = sg.encode_dataset(ds, np.arange(len(ds)), context_hours=surrogate.context_hours,
-                                 temperature_before=surrogate.uses_temperature_before)
+        x, y = sg.encode_dataset(
+            ds,
+            np.arange(len(ds)),
+            context_hours=surrogate.context_hours,
+            temperature_before=surrogate.uses_temperature_before,
+        )
         climate = ds.weather_index[:]
         unseen_ids = [ds.weather_names.index(c) for c in unseen if c in ds.weather_names]
     out = {"fresh buildings": score(surrogate, x, y) | {"weeks": len(x)}}
     apart = np.isin(climate, unseen_ids)
     if apart.any():
-        out["unseen climate"] = score(surrogate, x[apart], y[apart]) | {"weeks": int(apart.sum()),
-                                                                       "climates": unseen}
+        out["unseen climate"] = score(surrogate, x[apart], y[apart]) | {"weeks": int(apart.sum()), "climates": unseen}
     return out
 
 
 def main() -> None:
     """Score every ``--model`` on every test set and write the table."""
     parser = harness.parser(__doc__)
-    parser.add_argument("--model", action="append", required=True, metavar="LABEL=CHECKPOINT",
-                        help="a checkpoint path or 'default' (repeatable)")
+    parser.add_argument(
+        "--model",
+        action="append",
+        required=True,
+        metavar="LABEL=CHECKPOINT",
+        help="a checkpoint path or 'default' (repeatable)",
+    )
     parser.add_argument("--data", help="the checkpoints' training dataset, for their own test split")
     parser.add_argument("--fresh", required=True, help="campaign of new buildings (made if missing)")
     parser.add_argument("--fresh-weeks", type=int, default=4160)
@@ -68,9 +80,21 @@ def main() -> None:
     args = parser.parse_args()
     fresh = Path(args.fresh)
     if not (fresh / "manifest.json").is_file():
-        subprocess.run([str(Path(sys.executable).with_name("buildenv")), "simulate", "--weeks", str(args.fresh_weeks),
-                        "--seed", str(args.fresh_seed), "--weeks-per-run", str(args.fresh_weeks_per_run),
-                        "--out", str(fresh)], check=True)
+        subprocess.run(
+            [
+                str(Path(sys.executable).with_name("buildenv")),
+                "simulate",
+                "--weeks",
+                str(args.fresh_weeks),
+                "--seed",
+                str(args.fresh_seed),
+                "--weeks-per-run",
+                str(args.fresh_weeks_per_run),
+                "--out",
+                str(fresh),
+            ],
+            check=True,
+        )
     manifest = json.loads((fresh / "manifest.json").read_text())
     results: dict[str, dict] = {}
     for item in args.model:
@@ -85,19 +109,31 @@ def main() -> None:
         results[label] = {"checkpoint": checkpoint, "scores": row}
     date = time.strftime("%Y-%m-%d")
     header = "| model | test set | weeks | " + " | ".join(c[0] for c in COLUMNS) + " |"
-    lines = ["# Metamodels on buildings they never saw", "", f"Torch machine: {machine()}.", "",
-             f"Fresh buildings: `{args.fresh}`, a campaign of {manifest.get('config', {}).get('weeks', '?')} weeks "
-             f"(seed {manifest.get('config', {}).get('seed', '?')}, "
-             f"{manifest.get('config', {}).get('weeks_per_run', '?')} weeks per EnergyPlus run) over every "
-             "shipped climate; unseen climate: its weeks of the climates the checkpoint kept out of training. "
-             "Definitions in `buildenv/metrics.py`.", "", header, "|---" * (len(COLUMNS) + 3) + "|"]
+    lines = [
+        "# Metamodels on buildings they never saw",
+        "",
+        f"Torch machine: {machine()}.",
+        "",
+        f"Fresh buildings: `{args.fresh}`, a campaign of {manifest.get('config', {}).get('weeks', '?')} weeks "
+        f"(seed {manifest.get('config', {}).get('seed', '?')}, "
+        f"{manifest.get('config', {}).get('weeks_per_run', '?')} weeks per EnergyPlus run) over every "
+        "shipped climate; unseen climate: its weeks of the climates the checkpoint kept out of training. "
+        "Definitions in `buildenv/metrics.py`.",
+        "",
+        header,
+        "|---" * (len(COLUMNS) + 3) + "|",
+    ]
     for label, result in results.items():
         for part, s in result["scores"].items():
-            lines.append(f"| {label} | {part} | {s['weeks']} | "
-                         + " | ".join(f"{s[key] * scale:.{digits}f}" for _, key, scale, digits in COLUMNS) + " |")
+            lines.append(
+                f"| {label} | {part} | {s['weeks']} | "
+                + " | ".join(f"{s[key] * scale:.{digits}f}" for _, key, scale, digits in COLUMNS)
+                + " |"
+            )
     lines += [""] + [f"- {label}: `{r['checkpoint']}`" for label, r in results.items()]
-    harness.write_results(args.name, lines, {"date": date, "machine": machine(), "fresh": args.fresh,
-                                             "models": results}, echo=True)
+    harness.write_results(
+        args.name, lines, {"date": date, "machine": machine(), "fresh": args.fresh, "models": results}, echo=True
+    )
 
 
 if __name__ == "__main__":

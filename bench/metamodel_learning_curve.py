@@ -30,8 +30,12 @@ def plot(rows: list[dict], path: Path) -> None:
 
     weeks = [r["train_weeks"] for r in rows]
     fig, (ax_r2, ax_rmse) = plt.subplots(1, 2, figsize=(10, 4))
-    for key, label in (("r2_t", "R2_T (per week)"), ("r2_t_pooled", "R2_T (pooled)"),
-                       ("r2_q", "R2_Q (per week)"), ("r2_q_pooled", "R2_Q (pooled)")):
+    for key, label in (
+        ("r2_t", "R2_T (per week)"),
+        ("r2_t_pooled", "R2_T (pooled)"),
+        ("r2_q", "R2_Q (per week)"),
+        ("r2_q_pooled", "R2_Q (pooled)"),
+    ):
         ax_r2.plot(weeks, [r["test"][key] for r in rows], marker="o", label=label)
     ax_r2.set(xscale="log", xlabel="training weeks", ylabel="R2 on test weeks", title="Accuracy")
     ax_r2.grid(alpha=0.3)
@@ -52,8 +56,11 @@ def main() -> None:
     parser.add_argument("--epochs", type=int, default=10)
     parser.add_argument("--runs", default="data/bench-runs/learning-curve")
     parser.add_argument("--split", default="weather_weeks", choices=SPLITS)
-    parser.add_argument("--previous", action="store_true",
-                        help="an earlier default's architecture (harness.PREVIOUS_TRANSFORMER) instead of today's")
+    parser.add_argument(
+        "--previous",
+        action="store_true",
+        help="an earlier default's architecture (harness.PREVIOUS_TRANSFORMER) instead of today's",
+    )
     args = parser.parse_args()
     config = PREVIOUS_TRANSFORMER if args.previous else shipped_transformer()
     rows = []
@@ -61,27 +68,58 @@ def main() -> None:
         print(f"== {size} training weeks", flush=True)
         split = "" if args.split == "weather_weeks" else f"-{args.split}"
         tag = f"transformer-{run_tag(config)}-{size}-{args.epochs}{split}"
-        result = trained(tag, Path(args.runs), args.data, "transformer", config, max_weeks=size, split=args.split,
-                         epochs=args.epochs, patience=args.epochs, progress=False)
-        rows.append({"train_weeks": result["train_weeks"], "seconds": result["fit"]["seconds"],
-                     "test": {k: v for k, v in result["test"].items() if not isinstance(v, list)}})
+        result = trained(
+            tag,
+            Path(args.runs),
+            args.data,
+            "transformer",
+            config,
+            max_weeks=size,
+            split=args.split,
+            epochs=args.epochs,
+            patience=args.epochs,
+            progress=False,
+        )
+        rows.append(
+            {
+                "train_weeks": result["train_weeks"],
+                "seconds": result["fit"]["seconds"],
+                "test": {k: v for k, v in result["test"].items() if not isinstance(v, list)},
+            }
+        )
     date = time.strftime("%Y-%m-%d")
     RESULTS.mkdir(exist_ok=True)
     plot(rows, RESULTS / "metamodel_learning_curve.png")
-    record = {"date": date, "machine": machine(), "config": config, "split": args.split, "data": args.data,
-              "epochs": args.epochs, "rows": rows}
-    lines = ["# Learning curve of the Transformer", "", f"Torch machine: {machine()}.", "",
-             f"Config `{json.dumps(config)}`, {args.epochs} epochs at every size, test weeks of the "
-             f"`{args.split}` split (seed 0). Plot: `metamodel_learning_curve.png`.", "",
-             "| training weeks | loss | R2_T | R2_T pooled | R2_Q | R2_Q pooled | RMSE_T (degC) | CV(RMSE)_Q (%) "
-             "| training time (s) |", "|---|---|---|---|---|---|---|---|---|"]
+    record = {
+        "date": date,
+        "machine": machine(),
+        "config": config,
+        "split": args.split,
+        "data": args.data,
+        "epochs": args.epochs,
+        "rows": rows,
+    }
+    lines = [
+        "# Learning curve of the Transformer",
+        "",
+        f"Torch machine: {machine()}.",
+        "",
+        f"Config `{json.dumps(config)}`, {args.epochs} epochs at every size, test weeks of the "
+        f"`{args.split}` split (seed 0). Plot: `metamodel_learning_curve.png`.",
+        "",
+        "| training weeks | loss | R2_T | R2_T pooled | R2_Q | R2_Q pooled | RMSE_T (degC) | CV(RMSE)_Q (%) "
+        "| training time (s) |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in rows:
         t = r["test"]
-        lines.append(f"| {r['train_weeks']} | {t['loss']:.4f} | {t['r2_t']:.4f} | {t.get('r2_t_pooled', 0):.4f} | "
-                     f"{t['r2_q']:.4f} | {t.get('r2_q_pooled', 0):.4f} | {t['rmse_t_celsius']:.3f} | "
-                     f"{t['cv_rmse_q_percent']:.1f} | {r['seconds']:.0f} |")
+        lines.append(
+            f"| {r['train_weeks']} | {t['loss']:.4f} | {t['r2_t']:.4f} | {t.get('r2_t_pooled', 0):.4f} | "
+            f"{t['r2_q']:.4f} | {t.get('r2_q_pooled', 0):.4f} | {t['rmse_t_celsius']:.3f} | "
+            f"{t['cv_rmse_q_percent']:.1f} | {r['seconds']:.0f} |"
+        )
     harness.write_results("metamodel_learning_curve", lines, record)
-    print("\n".join(lines[-len(rows) - 2:]))
+    print("\n".join(lines[-len(rows) - 2 :]))
 
 
 if __name__ == "__main__":

@@ -27,13 +27,15 @@ from pathlib import Path
 import harness
 from harness import machine
 
-
 from buildenv.calibration.calibrate import calibrate_site
 from buildenv.metamodel import surrogate as sg
 from buildenv.sites import load_site
 
-OTHER_SITES = (("medium_office", "usa_ok_oklahoma"), ("medium_office", "usa_az_phoenix"),
-               ("large_office", "usa_az_phoenix"))
+OTHER_SITES = (
+    ("medium_office", "usa_ok_oklahoma"),
+    ("medium_office", "usa_az_phoenix"),
+    ("large_office", "usa_az_phoenix"),
+)
 METRICS = ("r2_t", "r2_q", "rmse_t_celsius", "cv_rmse_q_percent", "nmbe_q_percent")
 
 
@@ -43,8 +45,26 @@ def sites(out: Path) -> dict[str, str]:
     for building, epw in OTHER_SITES:
         path = out / f"{building}_{epw}"
         if not (path / "site.toml").is_file():
-            subprocess.run([sys.executable, "-m", "buildenv.cli.main", "site", "reference", "--building", building,
-                            "--epw", epw, "--start", "01-14", "--weeks", "4", "--out", str(path)], check=True)
+            subprocess.run(
+                [
+                    sys.executable,
+                    "-m",
+                    "buildenv.cli.main",
+                    "site",
+                    "reference",
+                    "--building",
+                    building,
+                    "--epw",
+                    epw,
+                    "--start",
+                    "01-14",
+                    "--weeks",
+                    "4",
+                    "--out",
+                    str(path),
+                ],
+                check=True,
+            )
         found[f"{building}, {epw}, 4 weeks from 01-14"] = str(path)
     return found
 
@@ -74,31 +94,53 @@ def main() -> None:
             effects = tuple(dict.fromkeys((site.effects if args.site_effects else ()) + tuple(args.effect)))
             for seed in seeds:
                 result = calibrate_site(site, surrogate, seed=seed, save=False, effects=effects)
-                rows.append({"model": label, "checkpoint": checkpoint, "site": site_label, "seed": seed,
-                             "effects": list(effects), "cost": result["cost"], "seconds": result["seconds"],
-                             **{k: result["heldout"][k] for k in METRICS}})
+                rows.append(
+                    {
+                        "model": label,
+                        "checkpoint": checkpoint,
+                        "site": site_label,
+                        "seed": seed,
+                        "effects": list(effects),
+                        "cost": result["cost"],
+                        "seconds": result["seconds"],
+                        **{k: result["heldout"][k] for k in METRICS},
+                    }
+                )
                 print(json.dumps(rows[-1]), flush=True)
     command = "python bench/metamodels_on_sites.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
-    record = {"date": dt.date.today().isoformat(), "machine": machine(), "load_average_at_start": load,
-              "command": command,
-              "seconds": round(time.perf_counter() - started, 1), "rows": rows}
-    lines = ["# Metamodels compared on calibrated sites (held-out weeks)", "",
-             f"Torch machine: {record['machine']}.", "",
-             f"Each site calibrated by each model (CMA-ES, 6,000 evaluations, seeds {args.seeds}, first half of the "
-             "weeks fit; effects calibrated: "
-             + ("each site's declared ones" if args.site_effects else "none declared")
-             + (f", and {', '.join(args.effect)}" if args.effect else "") + "); held-out metrics of the site's other "
-             "weeks, the mean over the seeds (R2_T of each seed in the last column).", "",
-             "| site | model | fit cost | R2_T | R2_Q | RMSE_T degC | CV(RMSE)_Q % | NMBE_Q % | R2_T by seed |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    record = {
+        "date": dt.date.today().isoformat(),
+        "machine": machine(),
+        "load_average_at_start": load,
+        "command": command,
+        "seconds": round(time.perf_counter() - started, 1),
+        "rows": rows,
+    }
+    lines = [
+        "# Metamodels compared on calibrated sites (held-out weeks)",
+        "",
+        f"Torch machine: {record['machine']}.",
+        "",
+        f"Each site calibrated by each model (CMA-ES, 6,000 evaluations, seeds {args.seeds}, first half of the "
+        "weeks fit; effects calibrated: "
+        + ("each site's declared ones" if args.site_effects else "none declared")
+        + (f", and {', '.join(args.effect)}" if args.effect else "")
+        + "); held-out metrics of the site's other "
+        "weeks, the mean over the seeds (R2_T of each seed in the last column).",
+        "",
+        "| site | model | fit cost | R2_T | R2_Q | RMSE_T degC | CV(RMSE)_Q % | NMBE_Q % | R2_T by seed |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for site_label in dict.fromkeys(r["site"] for r in rows):
         for label in models:
             mine = [r for r in rows if r["site"] == site_label and r["model"] == label]
             mean = {k: sum(r[k] for r in mine) / len(mine) for k in ("cost",) + METRICS}
             by_seed = " / ".join(f"{r['r2_t']:.3f}" for r in mine)
-            lines.append(f"| {site_label} | {label} | {mean['cost']:.4f} | {mean['r2_t']:.3f} | {mean['r2_q']:.3f} | "
-                         f"{mean['rmse_t_celsius']:.3f} | {mean['cv_rmse_q_percent']:.1f} | "
-                         f"{mean['nmbe_q_percent']:.1f} | {by_seed} |")
+            lines.append(
+                f"| {site_label} | {label} | {mean['cost']:.4f} | {mean['r2_t']:.3f} | {mean['r2_q']:.3f} | "
+                f"{mean['rmse_t_celsius']:.3f} | {mean['cv_rmse_q_percent']:.1f} | "
+                f"{mean['nmbe_q_percent']:.1f} | {by_seed} |"
+            )
     harness.write_results(args.name, lines, record)
 
 

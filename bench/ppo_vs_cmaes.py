@@ -30,11 +30,10 @@ import time
 from pathlib import Path
 
 import gymnasium as gym
+import harness
 import numpy as np
 import torch
 from stable_baselines3.common.callbacks import BaseCallback
-
-import harness
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from agents.cmaes import optimise_week
@@ -61,20 +60,45 @@ VARIANTS: dict[str, dict] = {
 #: reward over VALIDATION_WEEKS, % of CMA-ES's (positive = PPO worse); ``weekly_gaps`` per validation week.
 
 TUNING: list[dict] = [
-    {"variant": "default", "timesteps": 250_000, "seed": 0, "gap": -0.33,
-     "weekly_gaps": [10.2, 19.0, -5.0, -6.9, -1.0, -11.8]},
-    {"variant": "obsnoise0.05", "timesteps": 250_000, "seed": 0, "gap": -0.81,
-     "weekly_gaps": [7.7, -2.6, -1.3, -3.4, 5.7, -13.2]},
-    {"variant": "obsnoise0.05", "timesteps": 300_000, "seed": 1, "gap": 2.78,
-     "weekly_gaps": [3.6, 10.8, -2.8, -5.1, 0.9, 16.0]},
-    {"variant": "obsnoise0.1", "timesteps": 300_000, "seed": 0, "gap": 1.45,
-     "weekly_gaps": [6.8, 7.5, 0.4, -0.5, 6.3, -12.4]},
+    {
+        "variant": "default",
+        "timesteps": 250_000,
+        "seed": 0,
+        "gap": -0.33,
+        "weekly_gaps": [10.2, 19.0, -5.0, -6.9, -1.0, -11.8],
+    },
+    {
+        "variant": "obsnoise0.05",
+        "timesteps": 250_000,
+        "seed": 0,
+        "gap": -0.81,
+        "weekly_gaps": [7.7, -2.6, -1.3, -3.4, 5.7, -13.2],
+    },
+    {
+        "variant": "obsnoise0.05",
+        "timesteps": 300_000,
+        "seed": 1,
+        "gap": 2.78,
+        "weekly_gaps": [3.6, 10.8, -2.8, -5.1, 0.9, 16.0],
+    },
+    {
+        "variant": "obsnoise0.1",
+        "timesteps": 300_000,
+        "seed": 0,
+        "gap": 1.45,
+        "weekly_gaps": [6.8, 7.5, 0.4, -0.5, 6.3, -12.4],
+    },
 ]
 #: In-sample runs (all 39 training weeks; deterministic reward on them, and on the same 6 weeks as
 #: VALIDATION_WEEKS, which were then training weeks, the gap to CMA-ES).
 TUNING_IN_SAMPLE: list[dict] = [
-    {"variant": "lr3e-4", "timesteps": 150_000, "train_reward": -0.983, "gap_on_validation_weeks": -2.8,
-     "note": "trained before HVAC energy was counted from 0 (commit 0fcbc7d)"},
+    {
+        "variant": "lr3e-4",
+        "timesteps": 150_000,
+        "train_reward": -0.983,
+        "gap_on_validation_weeks": -2.8,
+        "note": "trained before HVAC energy was counted from 0 (commit 0fcbc7d)",
+    },
     {"variant": "default", "timesteps": 300_000, "train_reward": -0.945, "gap_on_validation_weeks": -6.83},
     {"variant": "std0.2", "timesteps": 250_000, "train_reward": -0.977, "gap_on_validation_weeks": None},
 ]
@@ -93,16 +117,22 @@ class _Curve(BaseCallback):
     def _on_rollout_end(self) -> None:
         log_std = getattr(self.model.policy, "log_std", None)
         std = float(torch.exp(log_std.detach()).mean()) if log_std is not None else 0.0
-        self.points.append({"timesteps": int(self.num_timesteps),
-                            "rollout_reward": float(self.model.rollout_buffer.rewards.mean()), "action_std": std})
+        self.points.append(
+            {
+                "timesteps": int(self.num_timesteps),
+                "rollout_reward": float(self.model.rollout_buffer.rewards.mean()),
+                "action_std": std,
+            }
+        )
 
 
 def train_weeks_reward(model, env: gym.Env, weeks: list[int]) -> float:
     """Mean reward of the policy's deterministic actions over ``weeks`` (in-sample, for tuning)."""
     obs = np.stack([env.reset(options={"week": w})[0] for w in weeks])
     actions = policy_actions(model, obs)
-    return float(np.mean([env.unwrapped.evaluate(actions[i:i + 1], week=w)["reward"][0]
-                          for i, w in enumerate(weeks)]))
+    return float(
+        np.mean([env.unwrapped.evaluate(actions[i : i + 1], week=w)["reward"][0] for i, w in enumerate(weeks)])
+    )
 
 
 def scores_of(result) -> dict:
@@ -113,17 +143,34 @@ def scores_of(result) -> dict:
 def train_or_load(args: argparse.Namespace, seed: int, train_weeks: list[int]) -> dict:
     """One PPO run: the model, where it is saved, its training time (s) and learning curve."""
     if args.model is not None:
-        return {"seed": None, "model": load_policy(args.model), "path": str(args.model), "train_seconds": None,
-                "curve": []}
+        return {
+            "seed": None,
+            "model": load_policy(args.model),
+            "path": str(args.model),
+            "train_seconds": None,
+            "curve": [],
+        }
     curve = _Curve()
     path = ROOT / "out" / "ppo" / f"ppo_{args.variant}{'_validation' if args.validation else ''}_seed{seed}.zip"
     started = time.perf_counter()
-    model = train_ppo({"weeks": train_weeks}, timesteps=args.timesteps, num_envs=args.num_envs, seed=seed,
-                      save=path, callback=curve, **VARIANTS[args.variant])
+    model = train_ppo(
+        {"weeks": train_weeks},
+        timesteps=args.timesteps,
+        num_envs=args.num_envs,
+        seed=seed,
+        save=path,
+        callback=curve,
+        **VARIANTS[args.variant],
+    )
     seconds = time.perf_counter() - started
     print(f"PPO seed {seed}: trained in {seconds:.0f} s", file=sys.stderr, flush=True)
-    return {"seed": seed, "model": model, "path": str(path), "train_seconds": seconds,
-            "curve": curve.points[:: max(1, len(curve.points) // 30)]}
+    return {
+        "seed": seed,
+        "model": model,
+        "path": str(path),
+        "train_seconds": seconds,
+        "curve": curve.points[:: max(1, len(curve.points) // 30)],
+    }
 
 
 def gap_percent(reference: float, reward: float) -> float:
@@ -142,8 +189,11 @@ def main() -> None:
     parser.add_argument("--cmaes-evaluations", type=int, default=6000)
     parser.add_argument("--model", type=Path, default=None, help="score this saved policy instead of training")
     parser.add_argument("--conditions", default="", help="what else ran on the machine, for the report")
-    parser.add_argument("--validation", action="store_true",
-                        help="tuning protocol: hold out VALIDATION_WEEKS of the training weeks, print only")
+    parser.add_argument(
+        "--validation",
+        action="store_true",
+        help="tuning protocol: hold out VALIDATION_WEEKS of the training weeks, print only",
+    )
     args = parser.parse_args()
     load_at_start = os.getloadavg()
 
@@ -168,17 +218,27 @@ def main() -> None:
     for week in eval_weeks:
         hist = base.evaluate(hist_action[None], week=week)
         cma = optimise_week(env, week, evaluations=args.cmaes_evaluations, seed=args.seed)
-        ppo = [{"seed": run["seed"], **scores_of(run["weeks"][week]), "seconds": run["weeks"][week].seconds}
-               for run in runs]
+        ppo = [
+            {"seed": run["seed"], **scores_of(run["weeks"][week]), "seconds": run["weeks"][week].seconds}
+            for run in runs
+        ]
         for p in ppo:
             p["gap_percent"] = gap_percent(cma.scores["reward"], p["reward"])
-        rows.append({"week": week, "week_start": base.week_start(week).isoformat(),
-                     "historical": {k: float(hist[k][0]) for k in TERMS},
-                     "cmaes": {**scores_of(cma), "seconds": cma.seconds, "evaluations": cma.evaluations},
-                     "ppo": ppo})
-        print(f"week {week}: historical {rows[-1]['historical']['reward']:.4f}, CMA-ES {cma.scores['reward']:.4f} "
-              f"({cma.seconds:.0f} s), PPO " + ", ".join(f"{p['reward']:.4f}" for p in ppo), file=sys.stderr,
-              flush=True)
+        rows.append(
+            {
+                "week": week,
+                "week_start": base.week_start(week).isoformat(),
+                "historical": {k: float(hist[k][0]) for k in TERMS},
+                "cmaes": {**scores_of(cma), "seconds": cma.seconds, "evaluations": cma.evaluations},
+                "ppo": ppo,
+            }
+        )
+        print(
+            f"week {week}: historical {rows[-1]['historical']['reward']:.4f}, CMA-ES {cma.scores['reward']:.4f} "
+            f"({cma.seconds:.0f} s), PPO " + ", ".join(f"{p['reward']:.4f}" for p in ppo),
+            file=sys.stderr,
+            flush=True,
+        )
 
     def mean_of(method: str, key: str, i: int | None = None) -> float:
         return float(np.mean([(r[method][i] if i is not None else r[method])[key] for r in rows]))
@@ -188,41 +248,68 @@ def main() -> None:
     for i, run in enumerate(runs):
         gaps = [r["ppo"][i]["gap_percent"] for r in rows]
         m = {k: mean_of("ppo", k, i) for k in (*TERMS, "seconds")}
-        per_seed.append({
-            "seed": run["seed"], "model": run["path"], "train_seconds": run["train_seconds"], "mean": m,
-            "gap_percent_of_mean_reward": gap_percent(cma_mean["reward"], m["reward"]),
-            "gap_percent_mean_of_weeks": float(np.mean(gaps)), "gap_percent_worst_week": float(np.max(gaps)),
-            "weeks_within_5_percent": int(sum(g <= 5.0 for g in gaps)),
-            "train_weeks_deterministic_reward": run["train_weeks_reward"], "learning_curve": run["curve"]})
+        per_seed.append(
+            {
+                "seed": run["seed"],
+                "model": run["path"],
+                "train_seconds": run["train_seconds"],
+                "mean": m,
+                "gap_percent_of_mean_reward": gap_percent(cma_mean["reward"], m["reward"]),
+                "gap_percent_mean_of_weeks": float(np.mean(gaps)),
+                "gap_percent_worst_week": float(np.max(gaps)),
+                "weeks_within_5_percent": int(sum(g <= 5.0 for g in gaps)),
+                "train_weeks_deterministic_reward": run["train_weeks_reward"],
+                "learning_curve": run["curve"],
+            }
+        )
     gaps = [p["gap_percent_of_mean_reward"] for p in per_seed]
     ppo_seconds = float(np.mean([p["mean"]["seconds"] for p in per_seed]))
     summary = {
-        "historical": {k: mean_of("historical", k) for k in TERMS}, "cmaes": cma_mean,
+        "historical": {k: mean_of("historical", k) for k in TERMS},
+        "cmaes": cma_mean,
         "ppo_reward_mean_over_seeds": float(np.mean([p["mean"]["reward"] for p in per_seed])),
         "gap_percent_of_mean_reward_per_seed": gaps,
         "gap_percent_of_mean_reward_mean_over_seeds": float(np.mean(gaps)),
-        "ppo_inference_seconds": ppo_seconds, "cmaes_seconds": cma_mean["seconds"],
+        "ppo_inference_seconds": ppo_seconds,
+        "cmaes_seconds": cma_mean["seconds"],
         "inference_speedup": cma_mean["seconds"] / ppo_seconds,
-        "target_met_every_seed": bool(max(gaps) <= 5.0), "target_met_on_average": bool(np.mean(gaps) <= 5.0),
+        "target_met_every_seed": bool(max(gaps) <= 5.0),
+        "target_met_on_average": bool(np.mean(gaps) <= 5.0),
     }
     if len(runs) > 1:  # post hoc: per week, the best of the seeds' actions (one scored week per seed)
         best = float(np.mean([max(p["reward"] for p in r["ppo"]) for r in rows]))
         summary["best_of_seeds"] = {"reward": best, "gap_percent_of_mean_reward": gap_percent(cma_mean["reward"], best)}
     argv = sys.argv[1:]
-    kept = [a for i, a in enumerate(argv)  # the report states the conditions; the command only what reruns it
-            if not a.startswith("--conditions") and not (i and argv[i - 1] == "--conditions")]
+    kept = [
+        a
+        for i, a in enumerate(argv)  # the report states the conditions; the command only what reruns it
+        if not a.startswith("--conditions") and not (i and argv[i - 1] == "--conditions")
+    ]
     command = "PYTHONPATH=. .venv/bin/python bench/ppo_vs_cmaes.py " + " ".join(kept)
     result = {
-        "date": dt.date.today().isoformat(), "command": command.strip(), "conditions": args.conditions,
+        "date": dt.date.today().isoformat(),
+        "command": command.strip(),
+        "conditions": args.conditions,
         "protocol": "validation" if args.validation else "test",
-        "machine": {"platform": platform.platform(), "cores": os.cpu_count(), "gpu": torch.cuda.is_available(),
-                    "torch": torch.__version__, "torch_threads": torch.get_num_threads(),
-                    "load_average_1min_at_start_and_end": [round(load_at_start[0], 2),
-                                                           round(os.getloadavg()[0], 2)]},
-        "variant": args.variant, "ppo_settings": {**PPO_DEFAULTS, **VARIANTS[args.variant]},
-        "timesteps": args.timesteps, "num_envs": args.num_envs, "cmaes_seed": args.seed,
-        "cmaes_evaluations": args.cmaes_evaluations, "train_weeks": train_weeks, "eval_weeks": eval_weeks,
-        "summary": summary, "ppo_runs": per_seed, "weeks": rows,
+        "machine": {
+            "platform": platform.platform(),
+            "cores": os.cpu_count(),
+            "gpu": torch.cuda.is_available(),
+            "torch": torch.__version__,
+            "torch_threads": torch.get_num_threads(),
+            "load_average_1min_at_start_and_end": [round(load_at_start[0], 2), round(os.getloadavg()[0], 2)],
+        },
+        "variant": args.variant,
+        "ppo_settings": {**PPO_DEFAULTS, **VARIANTS[args.variant]},
+        "timesteps": args.timesteps,
+        "num_envs": args.num_envs,
+        "cmaes_seed": args.seed,
+        "cmaes_evaluations": args.cmaes_evaluations,
+        "train_weeks": train_weeks,
+        "eval_weeks": eval_weeks,
+        "summary": summary,
+        "ppo_runs": per_seed,
+        "weeks": rows,
         "tuning": {"validation_weeks": VALIDATION_WEEKS, "runs": TUNING, "in_sample": TUNING_IN_SAMPLE},
     }
     print(json.dumps({k: v for k, v in summary.items()}, indent=1), flush=True)
@@ -236,20 +323,24 @@ def markdown(result: dict) -> str:
     seeds = ", ".join(str(r["seed"]) for r in runs)
     train = ", ".join(f"{r['train_seconds']:.0f} s" for r in runs if r["train_seconds"])
     lines = [
-        f"# PPO across weeks vs per-week CMA-ES on the held-out weeks ({result['date']})", "",
+        f"# PPO across weeks vs per-week CMA-ES on the held-out weeks ({result['date']})",
+        "",
         f"Machine: {result['machine']['platform']}, {result['machine']['cores']} cores, no GPU; torch "
         f"{result['machine']['torch']} (threads: {result['machine']['torch_threads']}); 1-minute load average "
         f"before / at the end of the run {result['machine']['load_average_1min_at_start_and_end']} (the run itself "
         f"adds about 2). {result.get('conditions', '')} "
-        f"Command: `{result['command']}`.", "",
+        f"Command: `{result['command']}`.",
+        "",
         f"PPO (`agents.ppo.train_ppo`, variant `{result['variant']}`): {result['timesteps']} training weeks "
         f"drawn from the default site's {len(result['train_weeks'])} training weeks, {result['num_envs']} "
-        f"environments per step (one metamodel call), seeds {seeds}; training time " + (train or "n/a")
+        f"environments per step (one metamodel call), seeds {seeds}; training time "
+        + (train or "n/a")
         + f". CMA-ES (`agents.cmaes.optimise_week`): per test week, {result['cmaes_evaluations']} scored weeks, "
         "population 64, from the historical settings, seed " + str(result["cmaes_seed"]) + ". Reward = "
         "-(energy_term + comfort_k): energy_term = HVAC energy / the historical settings' (1.0 = today's), "
         "comfort_k = RMS deviation from 22.5 degC over occupied hours (K). Gap = (CMA-ES reward - PPO reward) / "
-        "|CMA-ES reward|, positive when PPO is worse.", "",
+        "|CMA-ES reward|, positive when PPO is worse.",
+        "",
         "| week | start | historical reward | CMA-ES reward | CMA-ES energy / comfort K | "
         + " | ".join(f"PPO s{r['seed']} reward (gap %)" for r in runs)
         + f" | PPO s{runs[0]['seed']} energy / comfort K | CMA-ES s | PPO s{runs[0]['seed']} ms |",
@@ -257,19 +348,26 @@ def markdown(result: dict) -> str:
     ]
     for r in result["weeks"]:
         h, c, p = r["historical"], r["cmaes"], r["ppo"]
-        lines.append(f"| {r['week']} | {r['week_start']} | {h['reward']:.3f} | {c['reward']:.3f} "
-                     f"| {c['energy_term']:.3f} / {c['comfort_k']:.3f} | "
-                     + " | ".join(f"{q['reward']:.3f} ({q['gap_percent']:+.1f})" for q in p)
-                     + f" | {p[0]['energy_term']:.3f} / {p[0]['comfort_k']:.3f} | {c['seconds']:.1f} "
-                     f"| {1000 * p[0]['seconds']:.2f} |")
+        lines.append(
+            f"| {r['week']} | {r['week_start']} | {h['reward']:.3f} | {c['reward']:.3f} "
+            f"| {c['energy_term']:.3f} / {c['comfort_k']:.3f} | "
+            + " | ".join(f"{q['reward']:.3f} ({q['gap_percent']:+.1f})" for q in p)
+            + f" | {p[0]['energy_term']:.3f} / {p[0]['comfort_k']:.3f} | {c['seconds']:.1f} "
+            f"| {1000 * p[0]['seconds']:.2f} |"
+        )
     h, c = s["historical"], s["cmaes"]
-    lines.append(f"| **mean** | | {h['reward']:.3f} | {c['reward']:.3f} | {c['energy_term']:.3f} / "
-                 f"{c['comfort_k']:.3f} | "
-                 + " | ".join(f"**{q['mean']['reward']:.3f} ({q['gap_percent_of_mean_reward']:+.1f})**" for q in runs)
-                 + f" | {runs[0]['mean']['energy_term']:.3f} / {runs[0]['mean']['comfort_k']:.3f} "
-                 f"| {c['seconds']:.1f} | {1000 * runs[0]['mean']['seconds']:.2f} |")
-    lines.append(f"| historical energy / comfort K | | {h['energy_term']:.3f} / {h['comfort_k']:.3f} | | | "
-                 + " | ".join("" for _ in runs) + " | | | |")
+    lines.append(
+        f"| **mean** | | {h['reward']:.3f} | {c['reward']:.3f} | {c['energy_term']:.3f} / "
+        f"{c['comfort_k']:.3f} | "
+        + " | ".join(f"**{q['mean']['reward']:.3f} ({q['gap_percent_of_mean_reward']:+.1f})**" for q in runs)
+        + f" | {runs[0]['mean']['energy_term']:.3f} / {runs[0]['mean']['comfort_k']:.3f} "
+        f"| {c['seconds']:.1f} | {1000 * runs[0]['mean']['seconds']:.2f} |"
+    )
+    lines.append(
+        f"| historical energy / comfort K | | {h['energy_term']:.3f} / {h['comfort_k']:.3f} | | | "
+        + " | ".join("" for _ in runs)
+        + " | | | |"
+    )
     if s["target_met_every_seed"]:
         verdict = "met for every seed"
     elif s["target_met_on_average"]:
@@ -277,57 +375,82 @@ def markdown(result: dict) -> str:
     else:
         verdict = "NOT met"
     lines += [
-        "", "Per PPO seed, over the test weeks:", "",
+        "",
+        "Per PPO seed, over the test weeks:",
+        "",
         "| seed | training s | reward | energy_term | comfort_k | gap of the mean reward % | mean of weekly gaps % "
         "| worst week gap % | weeks within 5 % | deterministic reward on the training weeks |",
         "|---|---|---|---|---|---|---|---|---|---|",
     ]
     for q in runs:
         m = q["mean"]
-        lines.append(f"| {q['seed']} | {q['train_seconds'] or float('nan'):.0f} | {m['reward']:.3f} "
-                     f"| {m['energy_term']:.3f} | {m['comfort_k']:.3f} | {q['gap_percent_of_mean_reward']:+.1f} "
-                     f"| {q['gap_percent_mean_of_weeks']:+.1f} | {q['gap_percent_worst_week']:+.1f} "
-                     f"| {q['weeks_within_5_percent']}/{len(result['weeks'])} "
-                     f"| {q['train_weeks_deterministic_reward']:.3f} |")
+        lines.append(
+            f"| {q['seed']} | {q['train_seconds'] or float('nan'):.0f} | {m['reward']:.3f} "
+            f"| {m['energy_term']:.3f} | {m['comfort_k']:.3f} | {q['gap_percent_of_mean_reward']:+.1f} "
+            f"| {q['gap_percent_mean_of_weeks']:+.1f} | {q['gap_percent_worst_week']:+.1f} "
+            f"| {q['weeks_within_5_percent']}/{len(result['weeks'])} "
+            f"| {q['train_weeks_deterministic_reward']:.3f} |"
+        )
     lines += [
-        "", f"**Target** (PPO on held-out weeks within 5 % of per-week CMA-ES reward): **{verdict}**: gap of the "
-        "mean test-week reward " + ", ".join(f"{q['gap_percent_of_mean_reward']:+.1f} %" for q in runs)
+        "",
+        f"**Target** (PPO on held-out weeks within 5 % of per-week CMA-ES reward): **{verdict}**: gap of the "
+        "mean test-week reward "
+        + ", ".join(f"{q['gap_percent_of_mean_reward']:+.1f} %" for q in runs)
         + f" (seeds {seeds}), mean over seeds {s['gap_percent_of_mean_reward_mean_over_seeds']:+.1f} %.",
     ]
     if "best_of_seeds" in s:
-        lines[-1] += (f" Post hoc, not the target's method: scoring the {len(runs)} seeds' actions for each week "
-                      f"({len(runs)} metamodel-scored weeks) and keeping the best gives a mean reward of "
-                      f"{s['best_of_seeds']['reward']:.3f}, {s['best_of_seeds']['gap_percent_of_mean_reward']:+.1f} % "
-                      "from CMA-ES.")
+        lines[-1] += (
+            f" Post hoc, not the target's method: scoring the {len(runs)} seeds' actions for each week "
+            f"({len(runs)} metamodel-scored weeks) and keeping the best gives a mean reward of "
+            f"{s['best_of_seeds']['reward']:.3f}, {s['best_of_seeds']['gap_percent_of_mean_reward']:+.1f} % "
+            "from CMA-ES."
+        )
     lines += [
-        "", f"**Cost of choosing a week's settings**: PPO {1000 * s['ppo_inference_seconds']:.2f} ms (one policy "
+        "",
+        f"**Cost of choosing a week's settings**: PPO {1000 * s['ppo_inference_seconds']:.2f} ms (one policy "
         f"forward pass, scoring not included) vs CMA-ES {s['cmaes_seconds']:.1f} s ({result['cmaes_evaluations']} "
         f"metamodel-scored weeks): **{s['inference_speedup']:,.0f}x** less time, after a one-off training of "
-        + (train or "n/a") + ".", "",
+        + (train or "n/a")
+        + ".",
+        "",
         "Per-week gaps vary much more than the mean: on a held-out week the policy's deterministic action can land "
         "on poor settings that CMA-ES, optimising that very week, avoids (the worst week of each seed above); "
         "on other weeks PPO beats CMA-ES's 6000-evaluation search, which is not a true optimum in 84 dimensions.",
         "",
-        "## Tuning (training weeks only)", "",
-        "Tuned with an earlier, single-zone default metamodel and kept. Hyper-parameters were chosen without the test weeks: PPO trained on the training weeks less "
+        "## Tuning (training weeks only)",
+        "",
+        "Tuned with an earlier, single-zone default metamodel and kept. Hyper-parameters were chosen without "
+        "the test weeks: PPO trained on the training weeks less "
         f"{result['tuning']['validation_weeks']} and was compared with CMA-ES on those "
         "(`bench/ppo_vs_cmaes.py --validation --variant V --timesteps N --ppo-seeds S`). Gap of the mean reward "
-        "over the validation weeks (positive = PPO worse):", "",
-        "| variant | settings | weeks | seed | gap % | weekly gaps % |", "|---|---|---|---|---|---|",
+        "over the validation weeks (positive = PPO worse):",
+        "",
+        "| variant | settings | weeks | seed | gap % | weekly gaps % |",
+        "|---|---|---|---|---|---|",
     ]
     for t in result["tuning"]["runs"]:
-        lines.append(f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} | {t['seed']} "
-                     f"| {t['gap']:+.2f} | {', '.join(f'{g:+.1f}' for g in t['weekly_gaps'])} |")
-    lines += ["", "The variants' differences are within the spread between seeds (`obsnoise0.05`: -0.81 % and "
-              "+2.78 % for seeds 0 and 1), so the simplest, `default` (no observation noise), was kept. These "
-              "development runs also printed their test-week rewards; the choice was made on the validation gaps "
-              "above only.", "",
-              "Earlier in-sample runs (all training weeks; deterministic reward on them):", "",
-              "| variant | settings | weeks | training-week reward |", "|---|---|---|---|"]
+        lines.append(
+            f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} | {t['seed']} "
+            f"| {t['gap']:+.2f} | {', '.join(f'{g:+.1f}' for g in t['weekly_gaps'])} |"
+        )
+    lines += [
+        "",
+        "The variants' differences are within the spread between seeds (`obsnoise0.05`: -0.81 % and "
+        "+2.78 % for seeds 0 and 1), so the simplest, `default` (no observation noise), was kept. These "
+        "development runs also printed their test-week rewards; the choice was made on the validation gaps "
+        "above only.",
+        "",
+        "Earlier in-sample runs (all training weeks; deterministic reward on them):",
+        "",
+        "| variant | settings | weeks | training-week reward |",
+        "|---|---|---|---|",
+    ]
     for t in result["tuning"]["in_sample"]:
         note = f"; {t['note']}" if "note" in t else ""
-        lines.append(f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} "
-                     f"| {t['train_reward']:.3f}{note} |")
+        lines.append(
+            f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} "
+            f"| {t['train_reward']:.3f}{note} |"
+        )
     return "\n".join(lines) + "\n"
 
 

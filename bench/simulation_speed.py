@@ -26,17 +26,19 @@ import harness
 import numpy as np
 
 import buildenv.energyplus.simulate as sim
+from buildenv.campaign.sampling import sample_weeks
 from buildenv.defaults import default_theta
 from buildenv.energyplus.idf import format_idf, read_idf
 from buildenv.energyplus.runner import energyplus_version, run_energyplus
-from buildenv.campaign.sampling import sample_weeks
 from buildenv.weather.epw import resolve_epw
 
 EPW = "usa_il_chicago"
 CAMPAIGN_WEEKS, CAMPAIGN_CORES = 40_000, 2
-OUTPUT_FILES = ("csv mtr eso eio tabular sqlite json audit space_sizing zone_sizing system_sizing dxf bnd rdd mdd "
-                "mtd end shd dfs glhe delightin delighteldmp delightdfdmp edd dbg perflog sln sci wrl screen extshd "
-                "tarcog plant_component_sizing").split()  # OutputControl:Files field order (IDD / model.py)
+OUTPUT_FILES = (
+    "csv mtr eso eio tabular sqlite json audit space_sizing zone_sizing system_sizing dxf bnd rdd mdd "
+    "mtd end shd dfs glhe delightin delighteldmp delightdfdmp edd dbg perflog sln sci wrl screen extshd "
+    "tarcog plant_component_sizing"
+).split()  # OutputControl:Files field order (IDD / model.py)
 
 
 def time_shoebox(repeats: int, seed: int = 0) -> dict:
@@ -63,10 +65,16 @@ def time_shoebox(repeats: int, seed: int = 0) -> dict:
         sim.run_energyplus = inner
     assert result.outputs.shape[:2] == (52, 168)
     median = statistics.median(total)
-    return {"name": "buildenv shoebox (1 zone, ideal loads, 4 timesteps/h)", "days": 364, "weeks": 52,
-            "times_s": total, "median_s": median, "weeks_per_s_core": 52 / median,
-            "eplus_median_s": statistics.median(eplus),
-            "overhead_median_s": statistics.median(t - e for t, e in zip(total, eplus))}
+    return {
+        "name": "buildenv shoebox (1 zone, ideal loads, 4 timesteps/h)",
+        "days": 364,
+        "weeks": 52,
+        "times_s": total,
+        "median_s": median,
+        "weeks_per_s_core": 52 / median,
+        "eplus_median_s": statistics.median(eplus),
+        "overhead_median_s": statistics.median(t - e for t, e in zip(total, eplus)),
+    }
 
 
 def prepare_reference(workdir: Path, run_period: bool = True) -> tuple[Path, dict]:
@@ -88,12 +96,15 @@ def prepare_reference(workdir: Path, run_period: bool = True) -> tuple[Path, dic
     idf = workdir / (source.name if run_period else "sizing_only.idf")
     idf.write_text(format_idf(objects))
     n_design, building = sum(o[0].lower() == "sizingperiod:designday" for o in objects), kinds["building"]
-    info = {"name": f"DOE reference medium office ({source.name}, "
-                    f"{sum(o[0].lower() == 'zone' for o in objects)} zones, 3 VAV systems with DX cooling and reheat, "
-                    f"{kinds['timestep'][1]} timesteps/h)",
-            "days": days, "weeks": days / 7,
-            "sizing": f"{n_design} design days for autosizing (+ warm-up days, {building[8]}-{building[7]} "
-                      "per environment) on top of the run period; Output:SQLite/Output:Table:* objects removed"}
+    info = {
+        "name": f"DOE reference medium office ({source.name}, "
+        f"{sum(o[0].lower() == 'zone' for o in objects)} zones, 3 VAV systems with DX cooling and reheat, "
+        f"{kinds['timestep'][1]} timesteps/h)",
+        "days": days,
+        "weeks": days / 7,
+        "sizing": f"{n_design} design days for autosizing (+ warm-up days, {building[8]}-{building[7]} "
+        "per environment) on top of the run period; Output:SQLite/Output:Table:* objects removed",
+    }
     return idf, info
 
 
@@ -133,35 +144,60 @@ def main(argv: list[str] | None = None) -> None:
     for r in rows:
         r["projection_h_40k_weeks_2_cores"] = CAMPAIGN_WEEKS / (r["weeks_per_s_core"] * CAMPAIGN_CORES) / 3600
     ratio = rows[0]["weeks_per_s_core"] / rows[1]["weeks_per_s_core"] if len(rows) > 1 else None
-    record = {"date": dt.datetime.now().isoformat(timespec="seconds"),
-              "machine": {"processor": platform.processor() or platform.machine(), "cpu_count": os.cpu_count(),
-                          "platform": platform.platform()},
-              "energyplus": energyplus_version(), "command": " ".join([".venv/bin/python"] + sys.argv),
-              "repeats": args.repeats, "models": rows, "speed_ratio_shoebox_over_reference": ratio}
+    record = {
+        "date": dt.datetime.now().isoformat(timespec="seconds"),
+        "machine": {
+            "processor": platform.processor() or platform.machine(),
+            "cpu_count": os.cpu_count(),
+            "platform": platform.platform(),
+        },
+        "energyplus": energyplus_version(),
+        "command": " ".join([".venv/bin/python"] + sys.argv),
+        "repeats": args.repeats,
+        "models": rows,
+        "speed_ratio_shoebox_over_reference": ratio,
+    }
     head = "| model | simulated days | median wall s | weeks/s/core | 40k weeks on 2 cores (h, projection) |"
     lines = [head, "|---|---|---|---|---|"]
-    lines += [f"| {r['name']} | {r['days']} | {r['median_s']:.2f} | {r['weeks_per_s_core']:.3f} | "
-              f"{r['projection_h_40k_weeks_2_cores']:.2f} |" for r in rows]
+    lines += [
+        f"| {r['name']} | {r['days']} | {r['median_s']:.2f} | {r['weeks_per_s_core']:.3f} | "
+        f"{r['projection_h_40k_weeks_2_cores']:.2f} |"
+        for r in rows
+    ]
     print("\n".join(lines))
     sb = rows[0]
-    notes = [f"- Shoebox: 52 weeks from Monday January 1st (+ warm-up days, no sizing); EnergyPlus call "
-             f"{sb['eplus_median_s']:.2f} s, Python overhead (schedules, epJSON, "
-             f"CSV read) {sb['overhead_median_s']:.2f} s (medians); all times: "
-             f"{', '.join(f'{t:.2f}' for t in sb['times_s'])} s."]
+    notes = [
+        f"- Shoebox: 52 weeks from Monday January 1st (+ warm-up days, no sizing); EnergyPlus call "
+        f"{sb['eplus_median_s']:.2f} s, Python overhead (schedules, epJSON, "
+        f"CSV read) {sb['overhead_median_s']:.2f} s (medians); all times: "
+        f"{', '.join(f'{t:.2f}' for t in sb['times_s'])} s."
+    ]
     if ratio is not None:
         ref = rows[1]
         print(f"shoebox / reference speed ratio: {ratio:.1f}x")
-        notes += [f"- Reference: {ref['sizing']}; {ref['weeks']:.2f} weeks per run; all times: "
-                  f"{', '.join(f'{t:.2f}' for t in ref['times_s'])} s; autosizing alone (run period off) "
-                  f"{ref['sizing_only_s']:.2f} s; files written: {', '.join(ref['output_files'])}.",
-                  f"- Reference eplusout.err: {'; '.join(ref['err_summary'])}. Warnings: "
-                  + " / ".join(f"`{w.replace('** Warning **', '').strip(' *')}`" for w in ref["warnings"]) + ".",
-                  f"- Speed ratio shoebox / reference (weeks/s/core): **{ratio:.1f}x**."]
-    md = ["# Simulation speed", "", f"EnergyPlus {record['energyplus']}; {args.repeats} repeats, median reported. "
-          "Single-process measurement (one core); other processes may have been running on the machine at the "
-          "same time.", "", *lines, "", *notes,
-          "- The last column is a **projection**, not a measurement: 40,000 weeks / (weeks/s/core x 2 cores), "
-          "assuming perfect scaling over 2 processes.", ""]
+        notes += [
+            f"- Reference: {ref['sizing']}; {ref['weeks']:.2f} weeks per run; all times: "
+            f"{', '.join(f'{t:.2f}' for t in ref['times_s'])} s; autosizing alone (run period off) "
+            f"{ref['sizing_only_s']:.2f} s; files written: {', '.join(ref['output_files'])}.",
+            f"- Reference eplusout.err: {'; '.join(ref['err_summary'])}. Warnings: "
+            + " / ".join(f"`{w.replace('** Warning **', '').strip(' *')}`" for w in ref["warnings"])
+            + ".",
+            f"- Speed ratio shoebox / reference (weeks/s/core): **{ratio:.1f}x**.",
+        ]
+    md = [
+        "# Simulation speed",
+        "",
+        f"EnergyPlus {record['energyplus']}; {args.repeats} repeats, median reported. "
+        "Single-process measurement (one core); other processes may have been running on the machine at the "
+        "same time.",
+        "",
+        *lines,
+        "",
+        *notes,
+        "- The last column is a **projection**, not a measurement: 40,000 weeks / (weeks/s/core x 2 cores), "
+        "assuming perfect scaling over 2 processes.",
+        "",
+    ]
     harness.write_results("simulation_speed", md, record)
 
 

@@ -22,7 +22,7 @@ __version__ = "0.1.0"
 
 
 def load_metamodel(path=None):
-    """The shipped default metamodel, or the checkpoint at ``path`` (see :func:`buildenv.metamodel.surrogate.load_metamodel`)."""
+    """The shipped default metamodel, or the checkpoint at ``path`` (:func:`.metamodel.surrogate.load_metamodel`)."""
     from buildenv.metamodel.surrogate import load_metamodel as _load
 
     return _load(path)

@@ -17,18 +17,40 @@ from buildenv import catalogue as cat
 DEFAULT_EPW = "usa_il_chicago"
 
 DEFAULT_THETA: dict[str, float] = {
-    "floor_area_m2": 5000, "number_of_floors": 3, "infiltration_ach": 0.3, "capacitance_kj_per_k_m3": 150,
-    "heating_power_w_m2": 60, "cooling_power_w_m2": 80, "occupant_density_per_m2": 0.05,
-    "pc_density_per_m2": 0.055, "light_night_percent": 10, "pc_night_percent": 30,
-    "wall_insulation_north_m": 0.1, "wall_insulation_east_m": 0.1, "wall_insulation_south_m": 0.1,
-    "wall_insulation_west_m": 0.1, "roof_insulation_m": 0.1, "window_to_wall_north_percent": 35,
-    "window_to_wall_east_percent": 35, "window_to_wall_south_percent": 35, "window_to_wall_west_percent": 35,
+    "floor_area_m2": 5000,
+    "number_of_floors": 3,
+    "infiltration_ach": 0.3,
+    "capacitance_kj_per_k_m3": 150,
+    "heating_power_w_m2": 60,
+    "cooling_power_w_m2": 80,
+    "occupant_density_per_m2": 0.05,
+    "pc_density_per_m2": 0.055,
+    "light_night_percent": 10,
+    "pc_night_percent": 30,
+    "wall_insulation_north_m": 0.1,
+    "wall_insulation_east_m": 0.1,
+    "wall_insulation_south_m": 0.1,
+    "wall_insulation_west_m": 0.1,
+    "roof_insulation_m": 0.1,
+    "window_to_wall_north_percent": 35,
+    "window_to_wall_east_percent": 35,
+    "window_to_wall_south_percent": 35,
+    "window_to_wall_west_percent": 35,
 }
 
 DEFAULT_DAY_SETTINGS: dict[str, float] = {
-    "cooling_start_hour": 8, "cooling_end_hour": 19, "cooling_setback_c": 28, "cooling_comfort_c": 24,
-    "heating_start_hour": 7, "heating_end_hour": 18, "heating_setback_c": 18, "heating_comfort_c": 22,
-    "ventilation_start_hour": 7, "ventilation_end_hour": 19, "supply_air_c": 19, "ventilation_ach": 1.0,
+    "cooling_start_hour": 8,
+    "cooling_end_hour": 19,
+    "cooling_setback_c": 28,
+    "cooling_comfort_c": 24,
+    "heating_start_hour": 7,
+    "heating_end_hour": 18,
+    "heating_setback_c": 18,
+    "heating_comfort_c": 22,
+    "ventilation_start_hour": 7,
+    "ventilation_end_hour": 19,
+    "supply_air_c": 19,
+    "ventilation_ach": 1.0,
 }
 
 DEFAULT_OCCUPANCY_DAY: dict[str, float] = {"occupancy_start_hour": 8, "occupancy_end_hour": 18}

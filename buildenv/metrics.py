@@ -41,8 +41,15 @@ def r2_score(y_true: np.ndarray, y_pred: np.ndarray) -> np.ndarray:
     return np.where(ss_tot > 0, 1.0 - ss_res / safe, np.where(ss_res == 0, 1.0, 0.0))
 
 
-def week_metrics(y_true: np.ndarray, y_pred: np.ndarray, occupied: np.ndarray, mean: np.ndarray,
-                 std: np.ndarray, alpha: float = 1.0, beta: float = 0.3) -> dict[str, np.ndarray]:
+def week_metrics(
+    y_true: np.ndarray,
+    y_pred: np.ndarray,
+    occupied: np.ndarray,
+    mean: np.ndarray,
+    std: np.ndarray,
+    alpha: float = 1.0,
+    beta: float = 0.3,
+) -> dict[str, np.ndarray]:
     """Per-week metrics.
 
     Args:
@@ -80,8 +87,10 @@ def pooled_scores(y_true: np.ndarray, y_pred: np.ndarray, mean: np.ndarray, std:
     t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
     q = [i for i in range(len(cat.OUTPUT_NAMES)) if i != t]
     zt, zp = (y_true[..., q] - mean[q]) / std[q], (y_pred[..., q] - mean[q]) / std[q]
-    return {"r2_t_pooled": float(r2_score(y_true[..., t].ravel(), y_pred[..., t].ravel())),
-            "r2_q_pooled": float(r2_score(zt.ravel(), zp.ravel()))}
+    return {
+        "r2_t_pooled": float(r2_score(y_true[..., t].ravel(), y_pred[..., t].ravel())),
+        "r2_q_pooled": float(r2_score(zt.ravel(), zp.ravel())),
+    }
 
 
 def daily_errors(y_true: np.ndarray, y_pred: np.ndarray, mean: np.ndarray, std: np.ndarray) -> dict[str, list[float]]:
@@ -94,8 +103,10 @@ def daily_errors(y_true: np.ndarray, y_pred: np.ndarray, mean: np.ndarray, std: 
     days = (len(y_true), cat.HOURS_PER_WEEK // 24, 24)
     err_t = (y_pred[..., t] - y_true[..., t]).reshape(days)
     err_q = (((y_pred[..., q] - y_true[..., q]) / std[q]) ** 2).mean(-1).reshape(days)
-    return {"rmse_t_celsius_by_day": np.sqrt((err_t ** 2).mean((0, 2))).round(4).tolist(),
-            "mse_q_by_day": err_q.mean((0, 2)).round(5).tolist()}
+    return {
+        "rmse_t_celsius_by_day": np.sqrt((err_t**2).mean((0, 2))).round(4).tolist(),
+        "mse_q_by_day": err_q.mean((0, 2)).round(5).tolist(),
+    }
 
 
 def summarise(per_week: dict[str, np.ndarray]) -> dict[str, float]:
@@ -106,6 +117,7 @@ def summarise(per_week: dict[str, np.ndarray]) -> dict[str, float]:
         out[f"{name}_std"] = float(np.std(values))
     out["weeks"] = int(len(next(iter(per_week.values()))))
     return out
+
 
 def week_summary(outputs: np.ndarray, occupancy_fraction: np.ndarray, floor_area_m2: float) -> dict[str, float]:
     """Totals and means of one week.
@@ -153,13 +165,21 @@ def guideline14(measured: np.ndarray, predicted: np.ndarray, p: int = GUIDELINE1
     y, yhat = measured[ok], predicted[ok]
     dof = max(len(y) - p, 1)
     mean = y.mean()
-    return (float(100.0 * np.sqrt(((y - yhat) ** 2).sum() / dof) / mean),
-            float(100.0 * (y - yhat).sum() / (dof * mean)))
+    return (
+        float(100.0 * np.sqrt(((y - yhat) ** 2).sum() / dof) / mean),
+        float(100.0 * (y - yhat).sum() / (dof * mean)),
+    )
 
 
-def site_metrics(temperature: np.ndarray, consumption: np.ndarray, pred_t: np.ndarray, pred_q: np.ndarray,
-                 occupied: np.ndarray, scale: dict[str, tuple[float, float]]) -> dict[str, float]:
-    """Metrics of predictions against measurements (R2, standardised MSE, RMSE, Guideline 14); arrays ``(weeks, 168)``."""
+def site_metrics(
+    temperature: np.ndarray,
+    consumption: np.ndarray,
+    pred_t: np.ndarray,
+    pred_q: np.ndarray,
+    occupied: np.ndarray,
+    scale: dict[str, tuple[float, float]],
+) -> dict[str, float]:
+    """Predictions against measurements (R2, standardised MSE, RMSE, Guideline 14); arrays ``(weeks, 168)``."""
     out: dict[str, float] = {}
     for key, y, p in (("t", temperature, pred_t), ("q", consumption, pred_q)):
         ok = np.isfinite(y)

@@ -33,8 +33,9 @@ def shade_occupancy(ax, occupancy_fraction: np.ndarray) -> None:
             start = None
 
 
-def plot_week(outputs: np.ndarray, weather: np.ndarray, schedules: dict[str, np.ndarray], path: Path,
-              title: str = "") -> Path:
+def plot_week(
+    outputs: np.ndarray, weather: np.ndarray, schedules: dict[str, np.ndarray], path: Path, title: str = ""
+) -> Path:
     """Plot one simulated week: temperatures (top) and heating/cooling energies (bottom).
 
     Args:
@@ -60,14 +61,28 @@ def plot_week(outputs: np.ndarray, weather: np.ndarray, schedules: dict[str, np.
         ax.grid(alpha=0.3)
     ax_t.plot(hours, out["T_INT_OFFICE"], color="black", lw=1.6, label="indoor (T_INT_OFFICE)")
     ax_t.plot(hours, weather[:, cat.WEATHER_NAMES.index("TAMB")], color="tab:gray", lw=1, label="outdoor (TAMB)")
-    ax_t.step(hours, schedules["heating_setpoint_c"], where="post", color="tab:red", lw=0.8, ls="--",
-              label="heating setpoint")
-    ax_t.step(hours, schedules["cooling_setpoint_c"], where="post", color="tab:blue", lw=0.8, ls="--",
-              label="cooling setpoint")
+    ax_t.step(
+        hours, schedules["heating_setpoint_c"], where="post", color="tab:red", lw=0.8, ls="--", label="heating setpoint"
+    )
+    ax_t.step(
+        hours,
+        schedules["cooling_setpoint_c"],
+        where="post",
+        color="tab:blue",
+        lw=0.8,
+        ls="--",
+        label="cooling setpoint",
+    )
     ax_t.set_ylabel("temperature (degC)")
     ax_t.legend(loc="upper right", fontsize=8, ncol=4)
-    for name, color in (("Q_HEAT_OFFICE", "tab:red"), ("Q_AHU_H", "tab:orange"), ("Q_AC_OFFICE", "tab:blue"),
-                        ("Q_AHU_C", "tab:cyan"), ("Q_EQP", "tab:purple"), ("Q_LIGHT", "goldenrod")):
+    for name, color in (
+        ("Q_HEAT_OFFICE", "tab:red"),
+        ("Q_AHU_H", "tab:orange"),
+        ("Q_AC_OFFICE", "tab:blue"),
+        ("Q_AHU_C", "tab:cyan"),
+        ("Q_EQP", "tab:purple"),
+        ("Q_LIGHT", "goldenrod"),
+    ):
         ax_q.plot(hours, out[name], color=color, lw=1.1, label=name)
     ax_q.set_ylabel("energy in the hour (Wh/m2)")
     ax_q.set_xlabel("hour of the week (Monday 00:00 = 0); green: occupied")

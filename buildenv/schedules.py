@@ -72,8 +72,10 @@ def hourly_schedules(settings: np.ndarray, occupancy: np.ndarray) -> dict[str, n
     supply = np.broadcast_to(col("supply_air_c")[..., None], heat_sp.shape)
 
     occ = np.zeros((weeks, 7, cat.HOURS_PER_DAY))
-    occ[:, :5] = _period_mask(occupancy[..., _index("occupancy_start_hour", "occupancy")],
-                              occupancy[..., _index("occupancy_end_hour", "occupancy")])
+    occ[:, :5] = _period_mask(
+        occupancy[..., _index("occupancy_start_hour", "occupancy")],
+        occupancy[..., _index("occupancy_end_hour", "occupancy")],
+    )
     series = {
         "heating_setpoint_c": heat_sp,
         "cooling_setpoint_c": cool_sp,

@@ -49,10 +49,18 @@ class Checkpoint:
         """Write atomically (temporary file, then rename) and return the path."""
         path = Path(path)
         path.parent.mkdir(parents=True, exist_ok=True)
-        payload = {"format": FORMAT, "model": self.name, "config": self.config, "inputs": self.inputs,
-                   "outputs": self.outputs, "state_dict": self.model.state_dict(),
-                   "input_norm": self.input_norm.state(), "output_norm": self.output_norm.state(),
-                   "metadata": self.metadata, "training": self.training}
+        payload = {
+            "format": FORMAT,
+            "model": self.name,
+            "config": self.config,
+            "inputs": self.inputs,
+            "outputs": self.outputs,
+            "state_dict": self.model.state_dict(),
+            "input_norm": self.input_norm.state(),
+            "output_norm": self.output_norm.state(),
+            "metadata": self.metadata,
+            "training": self.training,
+        }
         tmp = path.with_name(path.name + ".tmp")
         torch.save(payload, tmp)
         os.replace(tmp, path)
@@ -67,6 +75,12 @@ def load_checkpoint(path: str | Path, map_location: str | torch.device = "cpu") 
     model = build(payload["model"], payload["inputs"], payload["outputs"], **payload["config"])
     model.load_state_dict(payload["state_dict"])
     model.eval()
-    return Checkpoint(payload["model"], payload["config"], model, Standardiser.from_state(payload["input_norm"]),
-                      Standardiser.from_state(payload["output_norm"]), payload.get("metadata", {}),
-                      payload.get("training", {}))
+    return Checkpoint(
+        payload["model"],
+        payload["config"],
+        model,
+        Standardiser.from_state(payload["input_norm"]),
+        Standardiser.from_state(payload["output_norm"]),
+        payload.get("metadata", {}),
+        payload.get("training", {}),
+    )

@@ -26,9 +26,15 @@ def _rmse(pred: torch.Tensor, target: torch.Tensor, channels: list[int], mask: t
     return torch.sqrt((err * weights).sum(dim=(1, 2)) / weights.sum(dim=(1, 2)).clamp_min(1.0) + EPS)
 
 
-def paper_loss(pred: torch.Tensor, target: torch.Tensor, temperature_channels: list[int],
-               consumption_channels: list[int], alpha: float = 1.0, beta: float = 0.3,
-               mask: torch.Tensor | None = None) -> torch.Tensor:
+def paper_loss(
+    pred: torch.Tensor,
+    target: torch.Tensor,
+    temperature_channels: list[int],
+    consumption_channels: list[int],
+    alpha: float = 1.0,
+    beta: float = 0.3,
+    mask: torch.Tensor | None = None,
+) -> torch.Tensor:
     """alpha*log(1+RMSE_T) + beta*log(1+RMSE_Q), mean over the batch.
 
     Args:

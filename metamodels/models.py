@@ -21,7 +21,6 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
-
 DENSE_MATMUL_MAX_TOKENS = 64  # up to this many tokens attention runs as explicit matmuls (faster on CPU)
 
 
@@ -65,12 +64,13 @@ class LocalAttention(nn.Module):
         q = self.q(x).view(b, t, h, d).transpose(1, 2).reshape(b * h, t, d)
         k, v = self.kv(memory).view(b, s, 2, h, d).permute(2, 0, 3, 1, 4).reshape(2, b * h, s, d)
         if t > DENSE_MATMUL_MAX_TOKENS:  # long sequences (the paper's hourly tokens): the fused kernel wins
-            z = F.scaled_dot_product_attention(q.view(b, h, t, d), k.view(b, h, s, d), v.view(b, h, s, d),
-                                               attn_mask=bias)
+            z = F.scaled_dot_product_attention(
+                q.view(b, h, t, d), k.view(b, h, s, d), v.view(b, h, s, d), attn_mask=bias
+            )
             return self.drop(self.out(z.transpose(1, 2).reshape(b, t, h * d)))
         # Explicit batched matmuls: with head size 8 and a few dozen tokens they run 2-3x faster on CPU
         # than scaled_dot_product_attention's flash kernel, and give the same result.
-        scores = torch.baddbmm(bias.expand(b * h, t, s), q, k.transpose(1, 2), alpha=d ** -0.5)
+        scores = torch.baddbmm(bias.expand(b * h, t, s), q, k.transpose(1, 2), alpha=d**-0.5)
         z = torch.bmm(scores.softmax(-1), v).view(b, h, t, d)
         return self.drop(self.out(z.transpose(1, 2).reshape(b, t, h * d)))
 
@@ -117,10 +117,24 @@ class Transformer(nn.Module):
     #: a patch's inputs are flattened hour by hour (all channels of its first hour, then of the next)
     hour_major_inputs = True
 
-    def __init__(self, inputs: int, outputs: int, d_model: int = 64, heads: int = 8, head_dim: int = 8,
-                 layers: int = 4, window: int = 12, d_ff: int = 256, dropout: float = 0.0, patch_hours: int = 1,
-                 hourly_head: int = 0, hourly_gru: int = 0, hourly_state: int = 0, hourly_state_layers: int = 1,
-                 max_hours: int = 512):
+    def __init__(
+        self,
+        inputs: int,
+        outputs: int,
+        d_model: int = 64,
+        heads: int = 8,
+        head_dim: int = 8,
+        layers: int = 4,
+        window: int = 12,
+        d_ff: int = 256,
+        dropout: float = 0.0,
+        patch_hours: int = 1,
+        hourly_head: int = 0,
+        hourly_gru: int = 0,
+        hourly_state: int = 0,
+        hourly_state_layers: int = 1,
+        max_hours: int = 512,
+    ):
         super().__init__()
         self.patch, self.outputs = patch_hours, outputs
         self.token_window = math.ceil(window / patch_hours)
@@ -129,8 +143,9 @@ class Transformer(nn.Module):
         self.encoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, False) for _ in range(layers))
         self.decoder = nn.ModuleList(_Block(d_model, heads, head_dim, d_ff, dropout, True) for _ in range(layers))
         if hourly_head:
-            self.head = HourlyHead(inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru, hourly_state,
-                                   hourly_state_layers)
+            self.head = HourlyHead(
+                inputs, d_model, patch_hours, hourly_head, outputs, hourly_gru, hourly_state, hourly_state_layers
+            )
         else:
             self.readout = nn.Linear(d_model, outputs * patch_hours)
 
@@ -169,8 +184,9 @@ class ThermalStates(nn.Module):
     (A full ``hours x hours`` filter matrix gives the same numbers at about ten times the cost on a CPU.)
     """
 
-    def __init__(self, channels: int, backward: bool = False, tau_min_h: float = 1.0, tau_max_h: float = 96.0,
-                 block: int = 8):
+    def __init__(
+        self, channels: int, backward: bool = False, tau_min_h: float = 1.0, tau_max_h: float = 96.0, block: int = 8
+    ):
         super().__init__()
         self.backward, self.block = backward, block
         self.log_tau = nn.Parameter(torch.linspace(math.log(tau_min_h), math.log(tau_max_h), channels))
@@ -188,7 +204,7 @@ class ThermalStates(nn.Module):
         u = padded.view(batch, blocks, self.block, channels).permute(3, 0, 1, 2)  # (channels, batch, blocks, block)
         local = torch.matmul(u, within.transpose(1, 2)[:, None])  # sums within each block
         b = torch.arange(blocks, device=drive.device, dtype=drive.dtype)
-        across = self._powers(decay ** self.block, b[:, None] - b[None, :])  # (channels, blocks, blocks)
+        across = self._powers(decay**self.block, b[:, None] - b[None, :])  # (channels, blocks, blocks)
         carried = torch.matmul(local[..., -1], across.transpose(1, 2))  # num at each block's last hour
         before = F.pad(carried[..., :-1], (1, 0))  # num at the hour before each block
         num = local + before[..., None] * decay[:, None, None, None] ** (k + 1)
@@ -212,8 +228,17 @@ class HourlyHead(nn.Module):
     :class:`ThermalStates` of linear drives of them feed a second ReLU layer (see the module docstring).
     """
 
-    def __init__(self, inputs: int, d_model: int, patch_hours: int, hidden: int, outputs: int, gru: int = 0,
-                 state: int = 0, state_layers: int = 1):
+    def __init__(
+        self,
+        inputs: int,
+        d_model: int,
+        patch_hours: int,
+        hidden: int,
+        outputs: int,
+        gru: int = 0,
+        state: int = 0,
+        state_layers: int = 1,
+    ):
         super().__init__()
         if gru and state:
             raise ValueError("choose hourly_gru or hourly_state, not both")
@@ -283,8 +308,14 @@ class BiGRU(nn.Module):
 
     def __init__(self, inputs: int, outputs: int, hidden: int = 64, layers: int = 4, dropout: float = 0.0):
         super().__init__()
-        self.rnn = nn.GRU(inputs, hidden, num_layers=layers, batch_first=True, bidirectional=True,
-                          dropout=dropout if layers > 1 else 0.0)
+        self.rnn = nn.GRU(
+            inputs,
+            hidden,
+            num_layers=layers,
+            batch_first=True,
+            bidirectional=True,
+            dropout=dropout if layers > 1 else 0.0,
+        )
         self.readout = nn.Linear(2 * hidden, outputs)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -296,8 +327,7 @@ class LSTM(nn.Module):
 
     def __init__(self, inputs: int, outputs: int, hidden: int = 64, layers: int = 4, dropout: float = 0.0):
         super().__init__()
-        self.rnn = nn.LSTM(inputs, hidden, num_layers=layers, batch_first=True,
-                           dropout=dropout if layers > 1 else 0.0)
+        self.rnn = nn.LSTM(inputs, hidden, num_layers=layers, batch_first=True, dropout=dropout if layers > 1 else 0.0)
         self.readout = nn.Linear(hidden, outputs)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -307,13 +337,24 @@ class LSTM(nn.Module):
 class ConvGRU(nn.Module):
     """Two temporal convolutions (kernel 5, ReLU) feeding a bidirectional GRU."""
 
-    def __init__(self, inputs: int, outputs: int, hidden: int = 64, layers: int = 2, kernel: int = 5,
-                 dropout: float = 0.0):
+    def __init__(
+        self, inputs: int, outputs: int, hidden: int = 64, layers: int = 2, kernel: int = 5, dropout: float = 0.0
+    ):
         super().__init__()
-        self.conv = nn.Sequential(nn.Conv1d(inputs, hidden, kernel, padding=kernel // 2), nn.ReLU(),
-                                  nn.Conv1d(hidden, hidden, kernel, padding=kernel // 2), nn.ReLU())
-        self.rnn = nn.GRU(hidden, hidden, num_layers=layers, batch_first=True, bidirectional=True,
-                          dropout=dropout if layers > 1 else 0.0)
+        self.conv = nn.Sequential(
+            nn.Conv1d(inputs, hidden, kernel, padding=kernel // 2),
+            nn.ReLU(),
+            nn.Conv1d(hidden, hidden, kernel, padding=kernel // 2),
+            nn.ReLU(),
+        )
+        self.rnn = nn.GRU(
+            hidden,
+            hidden,
+            num_layers=layers,
+            batch_first=True,
+            bidirectional=True,
+            dropout=dropout if layers > 1 else 0.0,
+        )
         self.readout = nn.Linear(2 * hidden, outputs)
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -340,7 +381,11 @@ class FFN(nn.Module):
 
 
 MODELS: dict[str, type[nn.Module]] = {
-    "transformer": Transformer, "bigru": BiGRU, "lstm": LSTM, "convgru": ConvGRU, "ffn": FFN,
+    "transformer": Transformer,
+    "bigru": BiGRU,
+    "lstm": LSTM,
+    "convgru": ConvGRU,
+    "ffn": FFN,
 }
 
 
@@ -363,8 +408,10 @@ def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, out
     try:
         build(name, inputs, outputs, **config).load_state_dict(old)
     except RuntimeError as exc:
-        raise ValueError(f"{name}: cannot widen a model that is not build({name!r}, {inputs}, {outputs}, "
-                         f"**config): {str(exc).splitlines()[0]}") from None
+        raise ValueError(
+            f"{name}: cannot widen a model that is not build({name!r}, {inputs}, {outputs}, "
+            f"**config): {str(exc).splitlines()[0]}"
+        ) from None
     wide = build(name, inputs + extra, outputs, **config)
     state = wide.state_dict()
     hour_major = getattr(type(model), "hour_major_inputs", False)
@@ -380,11 +427,13 @@ def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, out
         rest = tuple(source.shape[2:])
         grown = torch.zeros_like(target)
         if hour_major:
-            grown.view(target.shape[0], k, inputs + extra, *rest)[:, :, :inputs] = source.view(source.shape[0], k,
-                                                                                              inputs, *rest)
+            grown.view(target.shape[0], k, inputs + extra, *rest)[:, :, :inputs] = source.view(
+                source.shape[0], k, inputs, *rest
+            )
         else:
-            grown.view(target.shape[0], inputs + extra, k, *rest)[:, :inputs] = source.view(source.shape[0], inputs,
-                                                                                           k, *rest)
+            grown.view(target.shape[0], inputs + extra, k, *rest)[:, :inputs] = source.view(
+                source.shape[0], inputs, k, *rest
+            )
         state[key] = grown
     wide.load_state_dict(state)
     return wide.train(model.training)

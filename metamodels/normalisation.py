@@ -8,7 +8,6 @@ from dataclasses import dataclass
 import numpy as np
 import torch
 
-
 #: Values per float64 chunk when fitting (256 MiB), so that fitting never copies the whole training set to float64
 FIT_CHUNK_VALUES = 32 * 1024 * 1024
 
@@ -67,8 +66,12 @@ class StandardisedModel(torch.nn.Module):
         self.model = model
         self.skip_steps = int(skip_steps)
         self.skips_inside = "skip_hours" in inspect.signature(model.forward).parameters
-        for name, value in (("in_mean", inputs.mean), ("in_std", inputs.std), ("out_mean", outputs.mean),
-                            ("out_std", outputs.std)):
+        for name, value in (
+            ("in_mean", inputs.mean),
+            ("in_std", inputs.std),
+            ("out_mean", outputs.mean),
+            ("out_std", outputs.std),
+        ):
             self.register_buffer(name, torch.as_tensor(np.asarray(value, dtype=np.float32)))
 
     def forward(self, x: torch.Tensor) -> torch.Tensor:
@@ -77,5 +80,5 @@ class StandardisedModel(torch.nn.Module):
         if self.skips_inside:  # the model does not compute the dropped steps' outputs at all
             y = self.model(x, self.skip_steps)
         else:
-            y = self.model(x)[:, self.skip_steps:]
+            y = self.model(x)[:, self.skip_steps :]
         return y * self.out_std + self.out_mean

@@ -86,23 +86,37 @@ def _resident(tensor: torch.Tensor, device: torch.device) -> torch.Tensor:
 
 
 @torch.no_grad()
-def evaluate_loss(model: torch.nn.Module, x: torch.Tensor, y: torch.Tensor, hour_mask: torch.Tensor,
-                  cfg: TrainConfig, device: torch.device, batch_size: int = 512) -> float:
+def evaluate_loss(
+    model: torch.nn.Module,
+    x: torch.Tensor,
+    y: torch.Tensor,
+    hour_mask: torch.Tensor,
+    cfg: TrainConfig,
+    device: torch.device,
+    batch_size: int = 512,
+) -> float:
     """Mean paper loss over a dataset (batched, eval mode, no gradients)."""
     model.eval()
     total = 0.0
     for start in range(0, len(x), batch_size):
-        xb, yb = x[start:start + batch_size].to(device), y[start:start + batch_size].to(device)
+        xb, yb = x[start : start + batch_size].to(device), y[start : start + batch_size].to(device)
         mask = hour_mask.to(device).expand(len(xb), -1)
-        loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha, cfg.beta,
-                          mask)
+        loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha, cfg.beta, mask)
         total += float(loss) * len(xb)
     return total / max(len(x), 1)
 
 
-def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_val: torch.Tensor,
-        y_val: torch.Tensor, hour_mask: torch.Tensor, cfg: TrainConfig, out: Path,
-        progress: bool = True) -> dict:
+def fit(
+    checkpoint: Checkpoint,
+    x_train: torch.Tensor,
+    y_train: torch.Tensor,
+    x_val: torch.Tensor,
+    y_val: torch.Tensor,
+    hour_mask: torch.Tensor,
+    cfg: TrainConfig,
+    out: Path,
+    progress: bool = True,
+) -> dict:
     """Train ``checkpoint.model`` in place and save the best model to ``out``.
 
     Args:
@@ -131,8 +145,14 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
         raise ValueError(f"unknown learning-rate schedule {cfg.schedule!r}; choose cosine or constant")
     if cfg.minutes is not None and cfg.minutes <= 0:
         raise ValueError(f"a training-time budget must be positive minutes, not {cfg.minutes}")
-    state = {"epoch": 0, "best_val_loss": float("inf"), "best_epoch": -1, "history": [], "seconds": 0.0,
-             "weeks_seen": 0}
+    state = {
+        "epoch": 0,
+        "best_val_loss": float("inf"),
+        "best_epoch": -1,
+        "history": [],
+        "seconds": 0.0,
+        "weeks_seen": 0,
+    }
     if last.exists():
         resumed = load_checkpoint(last)
         model.load_state_dict(resumed.model.state_dict())
@@ -150,16 +170,23 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
         writer = csv.writer(handle)
         if state["epoch"] == 0:
             writer.writerow(["epoch", "train_loss", "val_loss", "seconds"])
-        while (state["epoch"] < cfg.epochs and state["epoch"] - state["best_epoch"] <= cfg.patience
-               and (budget_progress(cfg, state["seconds"]) or 0.0) < 1.0):
+        while (
+            state["epoch"] < cfg.epochs
+            and state["epoch"] - state["best_epoch"] <= cfg.patience
+            and (budget_progress(cfg, state["seconds"]) or 0.0) < 1.0
+        ):
             started = time.perf_counter()
             model.train()
             for group in optimiser.param_groups:
                 group["lr"] = learning_rate(cfg, state["epoch"])
             order = torch.randperm(len(x_train), generator=generator).to(x_train.device)
             running, seen = torch.zeros((), device=device), 0
-            bar = tqdm(range(0, len(order), cfg.batch_size), desc=f"epoch {state['epoch'] + 1}", leave=False,
-                       disable=not progress)
+            bar = tqdm(
+                range(0, len(order), cfg.batch_size),
+                desc=f"epoch {state['epoch'] + 1}",
+                leave=False,
+                disable=not progress,
+            )
             for start in bar:
                 spent = budget_progress(cfg, state["seconds"] + time.perf_counter() - started)
                 if spent is not None:
@@ -167,10 +194,17 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
                         break
                     for group in optimiser.param_groups:
                         group["lr"] = cosine_rate(cfg, spent)
-                idx = order[start:start + cfg.batch_size]
+                idx = order[start : start + cfg.batch_size]
                 xb, yb = x_train[idx].to(device), y_train[idx].to(device)
-                loss = paper_loss(model(xb), yb, cfg.temperature_channels, cfg.consumption_channels, cfg.alpha,
-                                  cfg.beta, mask.expand(len(idx), -1))
+                loss = paper_loss(
+                    model(xb),
+                    yb,
+                    cfg.temperature_channels,
+                    cfg.consumption_channels,
+                    cfg.alpha,
+                    cfg.beta,
+                    mask.expand(len(idx), -1),
+                )
                 optimiser.zero_grad(set_to_none=True)
                 loss.backward()
                 optimiser.step()
@@ -184,8 +218,14 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
             state["epoch"] += 1
             state["seconds"] += seconds
             state["weeks_seen"] += seen
-            state["history"].append({"epoch": state["epoch"], "train_loss": running / max(seen, 1),
-                                     "val_loss": val_loss, "seconds": seconds})
+            state["history"].append(
+                {
+                    "epoch": state["epoch"],
+                    "train_loss": running / max(seen, 1),
+                    "val_loss": val_loss,
+                    "seconds": seconds,
+                }
+            )
             writer.writerow([state["epoch"], f"{running / max(seen, 1):.6f}", f"{val_loss:.6f}", f"{seconds:.1f}"])
             handle.flush()
             model.cpu()
@@ -196,13 +236,16 @@ def fit(checkpoint: Checkpoint, x_train: torch.Tensor, y_train: torch.Tensor, x_
             checkpoint.training = {"config": asdict(cfg), **state, "optimiser": optimiser.state_dict()}
             checkpoint.save(last)
             model.to(device)
-            log.info("epoch %d train %.5f val %.5f (%.1fs)", state["epoch"], running / max(seen, 1), val_loss,
-                     seconds)
+            log.info("epoch %d train %.5f val %.5f (%.1fs)", state["epoch"], running / max(seen, 1), val_loss, seconds)
     model.cpu().eval()
     best = load_checkpoint(out)
     checkpoint.model.load_state_dict(best.model.state_dict())
     checkpoint.training = best.training
-    return {"best_val_loss": state["best_val_loss"], "best_epoch": state["best_epoch"],
-            "epochs_run": state["epoch"], "weeks_seen": state["weeks_seen"], "seconds": state["seconds"],
-            "history": state["history"]}
-
+    return {
+        "best_val_loss": state["best_val_loss"],
+        "best_epoch": state["best_epoch"],
+        "epochs_run": state["epoch"],
+        "weeks_seen": state["weeks_seen"],
+        "seconds": state["seconds"],
+        "history": state["history"],
+    }

@@ -10,11 +10,9 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from buildenv.calibration import problem as cal
-
-from buildenv.calibration.calibrate import calibrate_site
 from buildenv import catalogue as cat
-from buildenv.metamodel import surrogate as sg
+from buildenv.calibration import problem as cal
+from buildenv.calibration.calibrate import calibrate_site
 from buildenv.energyplus.idf import read_idf
 from buildenv.energyplus.reference import (
     REFERENCE_BUILDINGS,
@@ -24,8 +22,9 @@ from buildenv.energyplus.reference import (
     make_reference_site,
     reference_idf,
 )
-from buildenv.sites import load_site, write_site
+from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.surrogate import load_metamodel
+from buildenv.sites import load_site, write_site
 
 START = dt.date(2019, 11, 4)
 
@@ -51,15 +50,24 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
 
 
-def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=(), declared=(),
-                    noise_seed=None):
+def _synthetic_site(
+    tmp_path, surrogate, params, weeks=2, gaps=None, known=None, effects=(), declared=(), noise_seed=None
+):
     """A site whose 'measurements' are the metamodel's own prediction for known parameters (those of
     ``effects`` follow theta and occupancy in ``params``); its site.toml declares ``declared``. With
     ``noise_seed`` they carry the reference stand-in's sensor noise and meter resolution (0.1 K, 1 %)."""
     settings = historical_settings(weeks)
-    write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
-               number_of_floors=3, settings=settings, temperature_c=np.full((weeks, 168), 20.0),
-               consumption_kwh=np.full((weeks, 168), 10.0))
+    write_site(
+        tmp_path,
+        name="synthetic",
+        weather="usa_il_chicago",
+        start=START,
+        floor_area_m2=5000,
+        number_of_floors=3,
+        settings=settings,
+        temperature_c=np.full((weeks, 168), 20.0),
+        consumption_kwh=np.full((weeks, 168), 10.0),
+    )
     site = load_site(tmp_path)
     problem = cal.build_problem(site, list(range(weeks)), effects, context_hours=surrogate.context_hours)
     t, q = cal.predict(problem, surrogate, params)
@@ -69,19 +77,42 @@ def _synthetic_site(tmp_path, surrogate, params, weeks=2, gaps=None, known=None,
     if gaps is not None:
         t, q_kwh = t.copy(), q_kwh.copy()
         t[gaps], q_kwh[gaps] = np.nan, np.nan
-    write_site(tmp_path, name="synthetic", weather="usa_il_chicago", start=START, floor_area_m2=5000,
-               number_of_floors=3, settings=settings, temperature_c=t, consumption_kwh=q_kwh, known=known,
-               effects=declared)
+    write_site(
+        tmp_path,
+        name="synthetic",
+        weather="usa_il_chicago",
+        start=START,
+        floor_area_m2=5000,
+        number_of_floors=3,
+        settings=settings,
+        temperature_c=t,
+        consumption_kwh=q_kwh,
+        known=known,
+        effects=declared,
+    )
     return load_site(tmp_path)
 
 
 def _truth() -> np.ndarray:
-    theta = {"infiltration_ach": 0.5, "capacitance_kj_per_k_m3": 120, "heating_power_w_m2": 50,
-             "cooling_power_w_m2": 60, "occupant_density_per_m2": 0.05, "pc_density_per_m2": 0.06,
-             "light_night_percent": 20, "pc_night_percent": 25, "wall_insulation_north_m": 0.1,
-             "wall_insulation_east_m": 0.1, "wall_insulation_south_m": 0.1, "wall_insulation_west_m": 0.1,
-             "roof_insulation_m": 0.1, "window_to_wall_north_percent": 40, "window_to_wall_east_percent": 40,
-             "window_to_wall_south_percent": 40, "window_to_wall_west_percent": 40}
+    theta = {
+        "infiltration_ach": 0.5,
+        "capacitance_kj_per_k_m3": 120,
+        "heating_power_w_m2": 50,
+        "cooling_power_w_m2": 60,
+        "occupant_density_per_m2": 0.05,
+        "pc_density_per_m2": 0.06,
+        "light_night_percent": 20,
+        "pc_night_percent": 25,
+        "wall_insulation_north_m": 0.1,
+        "wall_insulation_east_m": 0.1,
+        "wall_insulation_south_m": 0.1,
+        "wall_insulation_west_m": 0.1,
+        "roof_insulation_m": 0.1,
+        "window_to_wall_north_percent": 40,
+        "window_to_wall_east_percent": 40,
+        "window_to_wall_south_percent": 40,
+        "window_to_wall_west_percent": 40,
+    }
     occupancy = [8, 18] * len(cat.WEEKDAYS)
     return np.array([theta[n] for n in cal.free_theta()] + occupancy, float)
 
@@ -114,12 +145,18 @@ def test_calibration_recovers_known_parameters(tmp_path, surrogate):
 
 def test_parameters_at_a_bound_of_the_catalogue_are_reported():
     theta = {n: (cat.get(n).min + cat.get(n).max) / 2 for n in cat.THETA_NAMES}
-    theta.update(capacitance_kj_per_k_m3=54.0,  # 4 of a 250 range from its minimum: at it (2 % = 5)
-                 heating_power_w_m2=97.0,  # 3 of a 90 range from its maximum: not (2 % = 1.8)
-                 pc_night_percent=70.0, light_night_percent=0.0, floor_area_m2=1000.0)
+    theta.update(
+        capacitance_kj_per_k_m3=54.0,  # 4 of a 250 range from its minimum: at it (2 % = 5)
+        heating_power_w_m2=97.0,  # 3 of a 90 range from its maximum: not (2 % = 1.8)
+        pc_night_percent=70.0,
+        light_night_percent=0.0,
+        floor_area_m2=1000.0,
+    )
     found = cal.parameters_at_bounds(theta, known={"light_night_percent": 0.0})  # known: not an estimate
     assert [(e["name"], e["bound"], e["limit"]) for e in found] == [
-        ("capacitance_kj_per_k_m3", "min", 50.0), ("pc_night_percent", "max", 70.0)]  # geometry is not either
+        ("capacitance_kj_per_k_m3", "min", 50.0),
+        ("pc_night_percent", "max", 70.0),
+    ]  # geometry is not either
     assert found[0]["value"] == 54.0
     note = cal.at_bounds_note({"at_bounds": found, "known": ["light_night_percent"]})
     assert "\n" not in note and note.startswith("note: 2 of 16 estimated building parameters")
@@ -176,7 +213,8 @@ def test_a_calibration_with_restarts_scores_each_run_on_the_heldout_weeks(tmp_pa
     site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=2)
     result = calibrate_site(site, surrogate, seed=3, max_evaluations=150, restarts=2, save=False)
     assert [r["seed"] for r in result["runs"]] == [3, 4] and min(r["cost"] for r in result["runs"]) == pytest.approx(
-        result["cost"], abs=1e-5)
+        result["cost"], abs=1e-5
+    )
     best = min(result["runs"], key=lambda r: r["cost"])  # no effects: the kept run is the result's model
     assert best["heldout_rmse_t_celsius"] == pytest.approx(result["heldout"]["rmse_t_celsius"], abs=1e-4)
     assert "runs" not in calibrate_site(site, surrogate, max_evaluations=150, save=False)
@@ -202,15 +240,17 @@ def test_anchored_refit_stays_near_its_start_unless_the_fit_pays(tmp_path, surro
     start = problem.from_unit(np.full(int(problem.free.sum()), 0.5))[0]  # far from the truth
     stds = np.full(len(start), 0.25)
     free, _ = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds)
-    held, info = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds,
-                                     anchor=300.0)
+    held, info = cal.calibrate_cmaes(
+        problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds, anchor=300.0
+    )
     move = lambda p: float(np.abs(problem.to_unit(p) - problem.to_unit(start)).max())  # noqa: E731
     assert move(held) < 0.1 < move(free)  # a strong pull keeps every parameter near the start (CMA-ES budget)
     assert cal.evaluate(problem, surrogate, held[None])[0] == pytest.approx(info["cost"], abs=1e-6)  # plain cost
     loose = np.zeros(len(start), bool)
     loose[np.flatnonzero(problem.free)[0]] = True  # only the first free parameter pulled: the others move
-    part, _ = cal.calibrate_cmaes(problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds,
-                                  anchor=300.0, anchored=loose)
+    part, _ = cal.calibrate_cmaes(
+        problem, surrogate, seed=0, max_evaluations=300, start=start, stds=stds, anchor=300.0, anchored=loose
+    )
     assert abs(problem.to_unit(part)[0] - 0.5) < 0.05 and move(part) > 0.05
     with pytest.raises(cal.CalibrationError, match="anchor must be at least 0"):
         cal.calibrate_cmaes(problem, surrogate, start=start, anchor=-1.0)
@@ -227,16 +267,16 @@ def test_calibration_encodes_the_context_its_metamodel_was_trained_with(tmp_path
     """A metamodel that sees three days before each week (``buildenv train --context-hours 72``; here the
     default's weights, which take any length) is calibrated on inputs encoded with three days."""
     assert surrogate.context_hours != 72
-    checkpoint = dataclasses.replace(surrogate.checkpoint, metadata={**surrogate.checkpoint.metadata,
-                                                                     "context_hours": 72})
+    checkpoint = dataclasses.replace(
+        surrogate.checkpoint, metadata={**surrogate.checkpoint.metadata, "context_hours": 72}
+    )
     three_days = sg.Surrogate(checkpoint)
     site = _synthetic_site(tmp_path, three_days, _truth())
     problem = cal.build_problem(site, [0, 1], context_hours=72)
     assert problem.x_base.shape[1] == 72 + 168
     with pytest.raises(sg.CheckpointError, match="72"):
         cal.predict(cal.build_problem(site, [0, 1]), three_days, _truth())
-    result = calibrate_site(site, three_days, weeks=[0], method=method, seed=0, max_evaluations=1500,
-                                save=False)
+    result = calibrate_site(site, three_days, weeks=[0], method=method, seed=0, max_evaluations=1500, save=False)
     assert result["fit"]["r2_t"] > 0.9 and result["fit"]["r2_q"] > 0.9
 
 
@@ -251,8 +291,9 @@ def _reading_temperature_before(surrogate: sg.Surrogate) -> sg.Surrogate:
 
     ck = surrogate.checkpoint
     net = with_more_inputs(copy.deepcopy(ck.model), ck.name, ck.config, ck.inputs, ck.outputs, 2)
-    norm = Standardiser(np.r_[ck.input_norm.mean, 21.0, 0.7].astype(np.float32),
-                        np.r_[ck.input_norm.std, 2.0, 0.45].astype(np.float32))
+    norm = Standardiser(
+        np.r_[ck.input_norm.mean, 21.0, 0.7].astype(np.float32), np.r_[ck.input_norm.std, 2.0, 0.45].astype(np.float32)
+    )
     meta = {**ck.metadata, "input_channels": list(sg.ALL_CHANNELS)}
     return sg.Surrogate(Checkpoint(ck.name, ck.config, net, norm, ck.output_norm, meta))
 
@@ -274,8 +315,9 @@ def test_calibration_feeds_the_temperature_measured_before_each_week(tmp_path, s
     plain = cal.build_problem(site, [0, 2], context_hours=ctx)
     np.testing.assert_array_equal(problem.x_base[..., :value], plain.x_base)
     if not surrogate.uses_temperature_before:  # zero weights: the widened model predicts what it did
-        np.testing.assert_allclose(cal.predict(problem, reading, _truth())[0],
-                                   cal.predict(plain, surrogate, _truth())[0], rtol=0, atol=1e-3)
+        np.testing.assert_allclose(
+            cal.predict(problem, reading, _truth())[0], cal.predict(plain, surrogate, _truth())[0], rtol=0, atol=1e-3
+        )
     unbiased = em.transform_inputs(problem.x_base.copy(), {"temperature_sensor_bias": np.array([[0.5]])})
     np.testing.assert_allclose(unbiased[1, :ctx, value], problem.x_base[1, :ctx, value] - 0.5, rtol=1e-6)
     result = calibrate_site(site, reading, weeks=[0, 1], method=method, seed=0, max_evaluations=1500, save=False)
@@ -290,14 +332,19 @@ def test_masked_gaps_change_nothing_else(tmp_path, surrogate):
     gapped = _synthetic_site(tmp_path / "gapped", surrogate, truth, gaps=gaps)
     assert not gapped.temperature_mask[gaps].any() and gapped.temperature_mask[~gaps].all()
     rng = np.random.default_rng(0)
-    problem_full, problem_gap = (cal.build_problem(site, [0, 1], context_hours=surrogate.context_hours)
-                                 for site in (full, gapped))
+    problem_full, problem_gap = (
+        cal.build_problem(site, [0, 1], context_hours=surrogate.context_hours) for site in (full, gapped)
+    )
     params = problem_full.lo + rng.random((6, problem_full.dim)) * (problem_full.hi - problem_full.lo)
     out = load_metamodel().predict_encoded(cal.encode_candidates(problem_full, params)).reshape(6, 2, 168, -1)
     # the cost over the gapped site equals the cost over the full site restricted to the measured hours
-    masked = cal.Problem(**{**problem_full.__dict__,
-                            "temperature_c": np.where(gaps, np.nan, problem_full.temperature_c),
-                            "consumption_wh_m2": np.where(gaps, np.nan, problem_full.consumption_wh_m2)})
+    masked = cal.Problem(
+        **{
+            **problem_full.__dict__,
+            "temperature_c": np.where(gaps, np.nan, problem_full.temperature_c),
+            "consumption_wh_m2": np.where(gaps, np.nan, problem_full.consumption_wh_m2),
+        }
+    )
     series = cal.model_series(problem_full, out)
     np.testing.assert_allclose(cal.costs(problem_gap, *series), cal.costs(masked, *series), rtol=1e-4)
     assert np.isfinite(cal.costs(problem_gap, *series)).all()
@@ -316,8 +363,9 @@ def test_declared_effect_is_fitted_after_the_building_and_kept_in_the_site_model
     # the held-out week is scored with the effect: better than the same building without it
     problem = cal.build_problem(site, [1], effect, context_hours=surrogate.context_hours)
     params = cal.calibrated_parameters(result, effect)
-    without = cal.score_series(problem, *cal.predict(problem, surrogate, np.r_[params[:-3], 0.0, 0.0, 0.0]), params,
-                               cal._scale(problem))
+    without = cal.score_series(
+        problem, *cal.predict(problem, surrogate, np.r_[params[:-3], 0.0, 0.0, 0.0]), params, cal._scale(problem)
+    )
     assert result["heldout"]["r2_t"] > without["r2_t"]
     saved = load_site(tmp_path)
     assert saved.calibration["effects"] == result["effects"]
@@ -343,13 +391,18 @@ def test_declared_effects_stage_keeps_the_building(tmp_path, surrogate, bias_k):
     problem = cal.build_problem(site, [0], effect, context_hours=surrogate.context_hours)
     base = _truth()
     params, info = cal.fit_declared_effects(problem, surrogate, base, seed=0, max_evaluations=200)
-    np.testing.assert_array_equal(params[:problem.n_base], base)
+    np.testing.assert_array_equal(params[: problem.n_base], base)
     assert abs(params[-1] - bias_k) < 0.2 and info["evaluations"] <= 200
 
 
-@pytest.mark.parametrize("effects, message", [(("draughts",), "unknown effect 'draughts'"),
-                                              (("holidays",), "cannot be declared"),
-                                              (("heat_recovery", "heat_recovery"), "declared twice")])
+@pytest.mark.parametrize(
+    "effects, message",
+    [
+        (("draughts",), "unknown effect 'draughts'"),
+        (("holidays",), "cannot be declared"),
+        (("heat_recovery", "heat_recovery"), "declared twice"),
+    ],
+)
 def test_declaring_a_wrong_effect_is_a_clear_error(effects, message):
     with pytest.raises(cal.CalibrationError, match=message):
         cal.check_declared_effects(effects)

@@ -7,10 +7,10 @@ import datetime as dt
 import numpy as np
 import pytest
 
-from buildenv.calibration import problem as cal
 from buildenv.calibration import energyplus as ce
-from buildenv.energyplus.simulate import simulate_weeks
+from buildenv.calibration import problem as cal
 from buildenv.energyplus.reference import historical_settings
+from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.sites import load_site, write_site
 
 # 2018-01-01 is a Monday and the first row of the EPW year: 2018-01-08 is the shoebox's week of year 1
@@ -23,8 +23,17 @@ def _site(tmp_path, weeks: int, start: dt.date = START, temperature=None, consum
     shape = (weeks, 168)
     t = np.full(shape, 21.0) if temperature is None else temperature
     q = np.full(shape, 10.0) if consumption_wh_m2 is None else consumption_wh_m2
-    write_site(tmp_path, name="synthetic", weather=WEATHER, start=start, floor_area_m2=AREA, number_of_floors=3,
-               settings=historical_settings(weeks), temperature_c=t, consumption_kwh=q * AREA / 1000.0)
+    write_site(
+        tmp_path,
+        name="synthetic",
+        weather=WEATHER,
+        start=start,
+        floor_area_m2=AREA,
+        number_of_floors=3,
+        settings=historical_settings(weeks),
+        temperature_c=t,
+        consumption_kwh=q * AREA / 1000.0,
+    )
     return load_site(tmp_path)
 
 
@@ -61,8 +70,8 @@ def test_schedules_land_on_the_sites_day(tmp_path):
     rows = ce.schedule_rows(theta_dict(theta[0]), ce.plan_site_run(site, [0]), occ[0])
     occupied = rows[:, SCHEDULE_COLUMNS.index("occupancy_fraction")]
     monday = 307 * 24
-    np.testing.assert_array_equal(occupied[monday:monday + 24], (np.arange(24) >= 8) & (np.arange(24) < 18))
-    assert occupied[monday + 5 * 24:monday + 7 * 24].sum() == 0  # the weekend
+    np.testing.assert_array_equal(occupied[monday : monday + 24], (np.arange(24) >= 8) & (np.arange(24) < 18))
+    assert occupied[monday + 5 * 24 : monday + 7 * 24].sum() == 0  # the weekend
 
 
 def test_site_run_matches_the_shoebox_simulator_and_scores_its_own_output_perfectly(tmp_path):
@@ -80,8 +89,9 @@ def test_site_run_matches_the_shoebox_simulator_and_scores_its_own_output_perfec
     other = params.copy()
     other[:-10] = problem.lo[:-10]  # the lightest, leakiest, least equipped building of the box
     with ce.ShoeboxPool(1) as pool:
-        f = ce.evaluate_energyplus(cal.build_problem(measured, [1]), ce.plan_site_run(measured, [1]), pool,
-                                   np.stack([params, other]))
+        f = ce.evaluate_energyplus(
+            cal.build_problem(measured, [1]), ce.plan_site_run(measured, [1]), pool, np.stack([params, other])
+        )
     assert f[0] < 1e-4 and f[1] > 0.05
 
 
@@ -112,14 +122,24 @@ def test_warm_start_past_the_catalogue_range(tmp_path):
     start = _params(problem)
     j = problem.names.index("capacitance_kj_per_k_m3")
     start[j] = 30.0  # under the catalogue's 50: only simulated with the range widened
-    result = ce.calibrate_energyplus_cmaes(site, weeks=[0], seed=0, wall_seconds=0.01, workers=2, start=start,
-                                           sigma0=1e-6, ranges={"capacitance_kj_per_k_m3": (10.0, 300.0)})
+    result = ce.calibrate_energyplus_cmaes(
+        site,
+        weeks=[0],
+        seed=0,
+        wall_seconds=0.01,
+        workers=2,
+        start=start,
+        sigma0=1e-6,
+        ranges={"capacitance_kj_per_k_m3": (10.0, 300.0)},
+    )
     assert result["start"] == "given" and result["ranges"] == {"capacitance_kj_per_k_m3": [10.0, 300.0]}
     assert result["theta"]["capacitance_kj_per_k_m3"] == pytest.approx(30.0, abs=1e-3)
     np.testing.assert_allclose(ce.parameters_of(result), start, atol=1e-3)
     assert np.isfinite(result["heldout"]["r2_t"])
-    for kwargs, match in (({"ranges": {"floor_area_m2": (100.0, 200.0)}}, "not a free building parameter"),
-                          ({"ranges": {"roof_insulation_m": (0.2, 0.1)}}, "not below"),
-                          ({"start": start[:-1]}, "shape")):
+    for kwargs, match in (
+        ({"ranges": {"floor_area_m2": (100.0, 200.0)}}, "not a free building parameter"),
+        ({"ranges": {"roof_insulation_m": (0.2, 0.1)}}, "not below"),
+        ({"start": start[:-1]}, "shape"),
+    ):
         with pytest.raises(cal.CalibrationError, match=match):
             ce.calibrate_energyplus_cmaes(site, weeks=[0], wall_seconds=1, **kwargs)

@@ -14,8 +14,8 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.campaign.runs import CampaignConfig, plan_campaign, run_campaign
 from buildenv.campaign.dataset import ARRAYS, open_dataset
+from buildenv.campaign.runs import CampaignConfig, plan_campaign, run_campaign
 from buildenv.errors import DatasetError
 
 SMALL = dict(weeks=4, seed=3, epw=["usa_il_chicago", "usa_fl_miami"], weeks_per_run=2)
@@ -90,8 +90,21 @@ def test_unfinished_directory_is_not_a_dataset(tmp_path):
 
 def test_resume_after_kill_redoes_nothing(tmp_path):
     out = tmp_path / "killed"
-    args = ["--weeks", "6", "--seed", "5", "--epw", "usa_co_golden", "--weeks-per-run", "1", "--workers", "1",
-            "--quiet", "--out", str(out)]
+    args = [
+        "--weeks",
+        "6",
+        "--seed",
+        "5",
+        "--epw",
+        "usa_co_golden",
+        "--weeks-per-run",
+        "1",
+        "--workers",
+        "1",
+        "--quiet",
+        "--out",
+        str(out),
+    ]
     cmd = [sys.executable, "-m", "buildenv.cli.main", "simulate", *args]
     proc = subprocess.Popen(cmd, start_new_session=True)
     deadline = time.time() + 120
@@ -121,8 +134,7 @@ def test_dask_cluster_gives_the_same_dataset(small_dataset, tmp_path):
     from distributed import LocalCluster
 
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster:
-        run_campaign(CampaignConfig(**SMALL), tmp_path / "dask", scheduler=cluster.scheduler_address,
-                     progress=False)
+        run_campaign(CampaignConfig(**SMALL), tmp_path / "dask", scheduler=cluster.scheduler_address, progress=False)
     manifest = json.loads((tmp_path / "dask" / "manifest.json").read_text())
     assert manifest["scheduler"].startswith("tcp://")
     local, dask = _arrays(small_dataset), _arrays(tmp_path / "dask")
@@ -132,8 +144,12 @@ def test_dask_cluster_gives_the_same_dataset(small_dataset, tmp_path):
 
 def test_splits(small_dataset, tmp_path):
     out = tmp_path / "splits"
-    run_campaign(CampaignConfig(weeks=12, seed=1, epw=["usa_il_chicago", "usa_fl_miami", "usa_co_golden"],
-                                weeks_per_run=2), out, workers=2, progress=False)
+    run_campaign(
+        CampaignConfig(weeks=12, seed=1, epw=["usa_il_chicago", "usa_fl_miami", "usa_co_golden"], weeks_per_run=2),
+        out,
+        workers=2,
+        progress=False,
+    )
     with open_dataset(out) as ds:
         for kind in ("random", "weather_weeks", "buildings", "climate"):
             parts = ds.split(kind, fractions=(0.5, 0.17, 0.33), seed=0)
@@ -207,8 +223,29 @@ def test_simulate_command_reports_the_runs_it_left_out(tmp_path, monkeypatch, ca
     config = CampaignConfig(weeks=8, seed=3, epw=["usa_il_chicago"], weeks_per_run=2)
     refused = plan_campaign(config)[2]
     monkeypatch.setattr("buildenv.energyplus.simulate.simulate_weeks", _RefusingSimulator({refused.start_week}))
-    assert main(["simulate", "--weeks", "8", "--seed", "3", "--epw", "usa_il_chicago", "--weeks-per-run", "2",
-                 "--workers", "1", "--max-failed-share", "0.3", "--quiet", "--out", str(tmp_path / "c")]) == 0
+    assert (
+        main(
+            [
+                "simulate",
+                "--weeks",
+                "8",
+                "--seed",
+                "3",
+                "--epw",
+                "usa_il_chicago",
+                "--weeks-per-run",
+                "2",
+                "--workers",
+                "1",
+                "--max-failed-share",
+                "0.3",
+                "--quiet",
+                "--out",
+                str(tmp_path / "c"),
+            ]
+        )
+        == 0
+    )
     out, err = capsys.readouterr()
     assert json.loads(out)["failed_runs"] == 1 and json.loads(out)["weeks"] == 6
     assert f"run {refused.run_id} (2 weeks) left out" in err

@@ -13,8 +13,7 @@ from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError, CatalogueError
 
 PAPER_WEATHER = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H", "RHUM", "TAMB")
-PAPER_OUTPUTS = ("Q_AC_OFFICE", "Q_HEAT_OFFICE", "Q_PEOPLE", "Q_EQP", "Q_LIGHT", "Q_AHU_C", "Q_AHU_H",
-                 "T_INT_OFFICE")
+PAPER_OUTPUTS = ("Q_AC_OFFICE", "Q_HEAT_OFFICE", "Q_PEOPLE", "Q_EQP", "Q_LIGHT", "Q_AHU_C", "Q_AHU_H", "T_INT_OFFICE")
 STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
 
 
@@ -179,14 +178,17 @@ def test_bounds_follow_catalogue_order():
 
 
 # --------------------------------------------------------------------------- get
-@pytest.mark.parametrize("alias, canonical", [
-    ("t_heat_conf_day", "heating_comfort_c"),
-    ("airchange_infiltration_vol_per_h", "infiltration_ach"),
-    ("capacitance_kJ_perdegreK_perm3", "capacitance_kj_per_k_m3"),
-    ("nb_occupants", "occupant_density_per_m2"),
-    ("vol_ventilation_day", "ventilation_ach"),
-    ("T_HEAT_CONF_DAY", "heating_comfort_c"),  # aliases are case-insensitive
-])
+@pytest.mark.parametrize(
+    "alias, canonical",
+    [
+        ("t_heat_conf_day", "heating_comfort_c"),
+        ("airchange_infiltration_vol_per_h", "infiltration_ach"),
+        ("capacitance_kJ_perdegreK_perm3", "capacitance_kj_per_k_m3"),
+        ("nb_occupants", "occupant_density_per_m2"),
+        ("vol_ventilation_day", "ventilation_ach"),
+        ("T_HEAT_CONF_DAY", "heating_comfort_c"),  # aliases are case-insensitive
+    ],
+)
 def test_get_accepts_paper_aliases(alias, canonical):
     assert cat.get(alias).name == canonical
     assert cat.get(alias) is cat.get(canonical)
@@ -197,11 +199,14 @@ def test_get_canonical_names():
         assert cat.get(v.name) is v
 
 
-@pytest.mark.parametrize("typo, suggestion", [
-    ("heating_comfrt_c", "heating_comfort_c"),
-    ("floor_aera_m2", "floor_area_m2"),
-    ("t_heat_conf_dya", "t_heat_conf_day"),
-])
+@pytest.mark.parametrize(
+    "typo, suggestion",
+    [
+        ("heating_comfrt_c", "heating_comfort_c"),
+        ("floor_aera_m2", "floor_area_m2"),
+        ("t_heat_conf_dya", "t_heat_conf_day"),
+    ],
+)
 def test_get_suggests_close_name(typo, suggestion):
     with pytest.raises(CatalogueError) as info:
         cat.get(typo)
@@ -280,11 +285,18 @@ def test_weekly_names_sizes_and_order():
     assert settings[12] == "cooling_start_hour_tuesday"
     assert settings[0] == "cooling_start_hour_monday"
     assert settings[-1] == "ventilation_ach_sunday"
-    assert occupancy == ("occupancy_start_hour_monday", "occupancy_end_hour_monday",
-                         "occupancy_start_hour_tuesday", "occupancy_end_hour_tuesday",
-                         "occupancy_start_hour_wednesday", "occupancy_end_hour_wednesday",
-                         "occupancy_start_hour_thursday", "occupancy_end_hour_thursday",
-                         "occupancy_start_hour_friday", "occupancy_end_hour_friday")
+    assert occupancy == (
+        "occupancy_start_hour_monday",
+        "occupancy_end_hour_monday",
+        "occupancy_start_hour_tuesday",
+        "occupancy_end_hour_tuesday",
+        "occupancy_start_hour_wednesday",
+        "occupancy_end_hour_wednesday",
+        "occupancy_start_hour_thursday",
+        "occupancy_end_hour_thursday",
+        "occupancy_start_hour_friday",
+        "occupancy_end_hour_friday",
+    )
     # the flat order matches a C-order reshape of (7, 12) arrays
     idx = np.arange(84).reshape(7, 12)
     assert settings[idx[3, 7]] == f"{cat.SETTING_NAMES[7]}_{cat.DAYS[3]}"
@@ -327,8 +339,7 @@ def test_describe_is_json_serialisable():
     back = json.loads(text)
     assert back == rows
     first = back[0]
-    assert set(first) == {"name", "group", "unit", "min", "max", "step", "granularity", "description",
-                          "paper_name"}
+    assert set(first) == {"name", "group", "unit", "min", "max", "step", "granularity", "description", "paper_name"}
     assert first["name"] == "floor_area_m2" and first["granularity"] == "static"
     tamb = next(r for r in back if r["name"] == "TAMB")
     assert tamb["step"] is None and tamb["granularity"] == "per_hour"

@@ -97,10 +97,13 @@ def test_week_nan_setting(capsys, tmp_path):
     assert "occupancy_end_hour=nan" in capsys.readouterr().err
 
 
-@pytest.mark.parametrize("item, message", [
-    ("heating_comfort_c", "expected NAME=VALUE"),
-    ("heating_comfort_c=warm", "is not a number"),
-])
+@pytest.mark.parametrize(
+    "item, message",
+    [
+        ("heating_comfort_c", "expected NAME=VALUE"),
+        ("heating_comfort_c=warm", "is not a number"),
+    ],
+)
 def test_week_malformed_assignment(capsys, tmp_path, item, message):
     assert main(["week", "--set", item, "--out", str(tmp_path / "w")]) == 2
     err = capsys.readouterr().err
@@ -152,12 +155,15 @@ def test_parser_defaults_and_required():
         parser.parse_args(["simulate", "--weeks", "2", "--out", "x", "--sampling", "sobol"])
 
 
-@pytest.mark.parametrize("item, error", [
-    ("pc_night_percent", "expected NAME=VALUE"),
-    ("pc_night=40", "unknown key 'pc_night' in [known] (did you mean 'pc_night_percent'?)"),
-    ("pc_night_percent=lots", "pc_night_percent must be a number (%), got 'lots'"),
-    ("number_of_floors=3", "'number_of_floors' belongs in [geometry], not [known]"),
-])
+@pytest.mark.parametrize(
+    "item, error",
+    [
+        ("pc_night_percent", "expected NAME=VALUE"),
+        ("pc_night=40", "unknown key 'pc_night' in [known] (did you mean 'pc_night_percent'?)"),
+        ("pc_night_percent=lots", "pc_night_percent must be a number (%), got 'lots'"),
+        ("number_of_floors=3", "'number_of_floors' belongs in [geometry], not [known]"),
+    ],
+)
 def test_site_reference_rejects_a_bad_known_parameter_in_one_line(item, error, tmp_path, capsys):
     assert main(["site", "reference", "--known", item, "--out", str(tmp_path / "s")]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -169,7 +175,9 @@ def test_known_parameters_parse_from_the_command_line():
     from buildenv.cli.sites import parse_known
 
     assert parse_known(["pc_night_percent=44.4", "occupant_density_per_m2=0.0538"]) == {
-        "pc_night_percent": 44.4, "occupant_density_per_m2": 0.0538}
+        "pc_night_percent": 44.4,
+        "occupant_density_per_m2": 0.0538,
+    }
 
 
 def test_calibrate_models_the_sites_declared_effects_and_the_extra_ones_unless_told_not_to():

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.energyplus.simulate import simulate_weeks
-from buildenv.metrics import r2_score
 from buildenv.campaign.sampling import sample_group, sample_weeks
+from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.metamodel.surrogate import DEFAULT_CHECKPOINT, ground_hours, load_metamodel, weather_ground_c
+from buildenv.metrics import r2_score
 
 # Stated in README ("The default metamodel"): on fresh EnergyPlus weeks of random buildings.
 MIN_R2_T_POOLED, MIN_R2_Q_POOLED, MAX_RMSE_T_C = 0.93, 0.97, 0.6
@@ -31,11 +31,15 @@ def test_default_metamodel_predicts_fresh_energyplus_weeks(epw, start_week, seed
     surrogate = load_metamodel()
     sim = simulate_weeks(theta, settings, occupancy, epw, start_week=start_week, zoning=surrogate.zoning)
     # week 2 with week 1 as its context, as in a campaign; week 1 with its own first day
-    pred = surrogate.predict(np.repeat(theta[None], 2, 0), settings, occupancy, sim.weather,
-                             previous=(settings[[0, 0]], occupancy[[0, 0]], sim.weather[[0, 0]]),
-                             has_previous=np.array([False, True]),
-                             ground_c=ground_hours(weather_ground_c(epw), (start_week + np.arange(2)) * 168,
-                                                   surrogate.context_hours))
+    pred = surrogate.predict(
+        np.repeat(theta[None], 2, 0),
+        settings,
+        occupancy,
+        sim.weather,
+        previous=(settings[[0, 0]], occupancy[[0, 0]], sim.weather[[0, 0]]),
+        has_previous=np.array([False, True]),
+        ground_c=ground_hours(weather_ground_c(epw), (start_week + np.arange(2)) * 168, surrogate.context_hours),
+    )
     t = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
     q = [i for i in range(len(cat.OUTPUT_NAMES)) if i != t]
     std = surrogate.checkpoint.output_norm.std

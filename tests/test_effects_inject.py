@@ -15,6 +15,7 @@ import pytest
 from buildenv import catalogue as cat
 from buildenv.cli.main import main
 from buildenv.diagnosis.effects import EFFECTS, NO_EFFECT_MAGNITUDE, EffectError
+from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.energyplus.injections import (
     InjectedEffect,
     assign_holidays,
@@ -25,8 +26,6 @@ from buildenv.energyplus.injections import (
     plan_effects,
     weekday_profile,
 )
-from buildenv.energyplus.idf import of_type, read_idf
-from buildenv.errors import ReferenceBuildingError
 from buildenv.energyplus.reference import (
     REFERENCE_BUILDINGS,
     historical_settings,
@@ -34,6 +33,7 @@ from buildenv.energyplus.reference import (
     reference_idf,
     run_reference,
 )
+from buildenv.errors import ReferenceBuildingError
 from buildenv.weather.epw import epw_day_of_year, load_weather
 
 START = dt.date(2019, 11, 4)
@@ -43,8 +43,9 @@ DAY = np.arange(cat.HOURS_PER_WEEK) // 24
 
 
 def _run(effects=None, seed: int = 0):
-    return run_reference("medium_office", "usa_il_chicago", START, historical_settings(WEEKS), effects=effects,
-                         effect_seed=seed)
+    return run_reference(
+        "medium_office", "usa_il_chicago", START, historical_settings(WEEKS), effects=effects, effect_seed=seed
+    )
 
 
 @pytest.fixture(scope="module")
@@ -56,7 +57,7 @@ def base():
 def weather_week():
     w = load_weather("usa_il_chicago")
     h0 = epw_day_of_year(START) * 24
-    return {n: w.channel(n)[h0:h0 + cat.HOURS_PER_WEEK] for n in ("WIND_SPEED", "IGLOB_H", "TAMB")}
+    return {n: w.channel(n)[h0 : h0 + cat.HOURS_PER_WEEK] for n in ("WIND_SPEED", "IGLOB_H", "TAMB")}
 
 
 # --- planning and pure edits (no EnergyPlus) ------------------------------------------------------------------
@@ -89,30 +90,85 @@ def test_choose_holidays_spreads_over_both_halves():
 
 
 def test_assign_holidays_moves_the_holiday_clause():
-    infil = ["Schedule:Compact", "INFIL", "Fraction", "Through: 12/31", "For: Weekdays SummerDesignDay",
-             "Until: 06:00", "1.0", "Until: 24:00", "0.25", "For: Sunday Holidays AllOtherDays", "Until: 24:00", "1.0"]
+    infil = [
+        "Schedule:Compact",
+        "INFIL",
+        "Fraction",
+        "Through: 12/31",
+        "For: Weekdays SummerDesignDay",
+        "Until: 06:00",
+        "1.0",
+        "Until: 24:00",
+        "0.25",
+        "For: Sunday Holidays AllOtherDays",
+        "Until: 24:00",
+        "1.0",
+    ]
     out = assign_holidays(infil, "monday")
     assert out[4] == "For: Weekdays SummerDesignDay Holiday" and out[9] == "For: Sunday AllOtherDays"
-    only = ["Schedule:Compact", "S", "Fraction", "Through: 12/31", "For: Weekdays", "Until: 24:00", "1",
-            "For: Holiday", "Until: 24:00", "0", "For: AllOtherDays", "Until: 24:00", "0.5"]
-    assert assign_holidays(only, "sunday") == ["Schedule:Compact", "S", "Fraction", "Through: 12/31",
-                                               "For: Weekdays", "Until: 24:00", "1", "For: AllOtherDays Holiday",
-                                               "Until: 24:00", "0.5"]
+    only = [
+        "Schedule:Compact",
+        "S",
+        "Fraction",
+        "Through: 12/31",
+        "For: Weekdays",
+        "Until: 24:00",
+        "1",
+        "For: Holiday",
+        "Until: 24:00",
+        "0",
+        "For: AllOtherDays",
+        "Until: 24:00",
+        "0.5",
+    ]
+    assert assign_holidays(only, "sunday") == [
+        "Schedule:Compact",
+        "S",
+        "Fraction",
+        "Through: 12/31",
+        "For: Weekdays",
+        "Until: 24:00",
+        "1",
+        "For: AllOtherDays Holiday",
+        "Until: 24:00",
+        "0.5",
+    ]
     always = ["Schedule:Compact", "A", "", "Through: 12/31", "For: AllDays", "Until: 24:00", "1"]
     assert assign_holidays(always, "monday") == always
 
 
 def test_complement_schedule():
-    occ = ["Schedule:Compact", "OCC", "Fraction", "Through: 12/31", "For: AllDays", "Until: 08:00", "0.0",
-           "Until: 18:00", "0.95", "Until: 24:00", "0.05"]
+    occ = [
+        "Schedule:Compact",
+        "OCC",
+        "Fraction",
+        "Through: 12/31",
+        "For: AllDays",
+        "Until: 08:00",
+        "0.0",
+        "Until: 18:00",
+        "0.95",
+        "Until: 24:00",
+        "0.05",
+    ]
     out = complement_schedule(occ, "NIGHT")
     assert out[1] == "NIGHT" and [out[6], out[8], out[10]] == ["1", "0.05", "0.95"]
 
 
 def test_energyplus_edits_on_the_idf():
     objects = read_idf(reference_idf("medium_office"))
-    planned = plan_effects([("wind_infiltration", 20), ("solar_shading", 50), ("night_plug_loads", 2),
-                            ("heat_recovery", 60), ("holidays", 1)], START, 1, seed=1)
+    planned = plan_effects(
+        [
+            ("wind_infiltration", 20),
+            ("solar_shading", 50),
+            ("night_plug_loads", 2),
+            ("heat_recovery", 60),
+            ("holidays", 1),
+        ],
+        START,
+        1,
+        seed=1,
+    )
     out = inject_energyplus(objects, planned, "medium_office")
     assert read_idf(reference_idf("medium_office")) == objects  # input untouched
     assert {o[11] for o in of_type(out, "ZoneInfiltration:DesignFlowRate")} == {"0.2"}
@@ -125,24 +181,33 @@ def test_energyplus_edits_on_the_idf():
     mixers = {o[3] for o in of_type(out, "OutdoorAir:Mixer")}
     assert {o[9] for o in hx} == mixers  # the mixers draw the exchangers' outlets
     special = of_type(out, "RunPeriodControl:SpecialDays")
-    assert [o[2:] for o in special] == [[f"{d.month}/{d.day}", "1", "Holiday"]
-                                        for d in map(dt.date.fromisoformat, planned[-1].details["dates"])]
+    assert [o[2:] for o in special] == [
+        [f"{d.month}/{d.day}", "1", "Holiday"] for d in map(dt.date.fromisoformat, planned[-1].details["dates"])
+    ]
     night = inject_energyplus(objects, plan_effects([("night_cycle_cold_air", 20)], START, 1), "medium_office")
     boxes = of_type(night, "AirTerminal:SingleDuct:VAV:Reheat")
     assert {(o[6], o[9]) for o in boxes} == {("Scheduled", "buildenv night minimum flow 1")}
     (program,) = of_type(night, "EnergyManagementSystem:Program")
-    assert program[2:] == ["IF buildenv_hvac_on > 0.5", "SET buildenv_minimum_flow_0 = 0.3", "ELSE",
-                           "SET buildenv_minimum_flow_0 = 0.5", "ENDIF"]
+    assert program[2:] == [
+        "IF buildenv_hvac_on > 0.5",
+        "SET buildenv_minimum_flow_0 = 0.3",
+        "ELSE",
+        "SET buildenv_minimum_flow_0 = 0.5",
+        "ENDIF",
+    ]
     evening = inject_energyplus(objects, plan_effects([("evening_departure", 2)], START, 1), "medium_office")
     schedules = {o[1]: o for o in of_type(evening, "Schedule:Compact")}
     before = {o[1]: o for o in of_type(objects, "Schedule:Compact")}
     # the DOE occupancy: 0.7 to 18:00, 0.4 to 20:00, 0.1 to 22:00, 0.05 to 24:00 -> 0.4 two hours longer
-    np.testing.assert_allclose(weekday_profile(schedules["BLDG_OCC_SCH"])[2][16:],
-                               [0.95, 0.7, 0.4, 0.4, 0.4, 0.4, 0.1, 0.1])
+    np.testing.assert_allclose(
+        weekday_profile(schedules["BLDG_OCC_SCH"])[2][16:], [0.95, 0.7, 0.4, 0.4, 0.4, 0.4, 0.1, 0.1]
+    )
     np.testing.assert_allclose(weekday_profile(schedules["BLDG_LIGHT_SCH"])[2][17:], [0.7] + [0.5] * 4 + [0.3] * 2)
     for name in ("BLDG_OCC_SCH", "BLDG_LIGHT_SCH", "BLDG_EQUIP_SCH"):  # the day until 18:00 and other days kept
         np.testing.assert_array_equal(weekday_profile(schedules[name])[2][:18], weekday_profile(before[name])[2][:18])
-        assert schedules[name][weekday_profile(schedules[name])[1]:] == before[name][weekday_profile(before[name])[1]:]
+        assert (
+            schedules[name][weekday_profile(schedules[name])[1] :] == before[name][weekday_profile(before[name])[1] :]
+        )
     small = read_idf(reference_idf("small_office"))  # packaged single-zone units: no VAV boxes
     with pytest.raises(ReferenceBuildingError, match="night_cycle_cold_air"):
         inject_energyplus(small, plan_effects([("night_cycle_cold_air", 20)], START, 1), "small_office")
@@ -174,9 +239,9 @@ def test_sensor_bias_and_lag(base):
     run = _run([("temperature_sensor_bias", -1.5), ("temperature_sensor_lag", 2.0)])
     np.testing.assert_array_equal(run.consumption_kwh, base.consumption_kwh)
     full = first_order_lag(np.r_[base.warmup_temperature_c, base.temperature_c.ravel()], 2.0)
-    np.testing.assert_allclose(run.temperature_c.ravel(), full[-cat.HOURS_PER_WEEK:] - 1.5, atol=1e-12)
-    rise = np.diff(run.temperature_c[0]).reshape(-1)[:24 * 5 - 1]  # weekdays: start-ups and setbacks
-    true_rise = np.diff(base.temperature_c[0]).reshape(-1)[:24 * 5 - 1]
+    np.testing.assert_allclose(run.temperature_c.ravel(), full[-cat.HOURS_PER_WEEK :] - 1.5, atol=1e-12)
+    rise = np.diff(run.temperature_c[0]).reshape(-1)[: 24 * 5 - 1]  # weekdays: start-ups and setbacks
+    true_rise = np.diff(base.temperature_c[0]).reshape(-1)[: 24 * 5 - 1]
     assert rise.max() < 0.7 * true_rise.max() and np.abs(rise).sum() < np.abs(true_rise).sum()
 
 
@@ -187,7 +252,7 @@ def test_holidays_cut_the_absent_day(base):
     assert 0 <= day < 5
     absent, usual = run.consumption_kwh[0].reshape(7, 24)[day].sum(), base.consumption_kwh[0].reshape(7, 24)[day].sum()
     assert absent < 0.7 * usual
-    np.testing.assert_array_equal(run.consumption_kwh[0, :24 * day], base.consumption_kwh[0, :24 * day])  # before it
+    np.testing.assert_array_equal(run.consumption_kwh[0, : 24 * day], base.consumption_kwh[0, : 24 * day])  # before it
     t_run, t_base = run.temperature_c[0].reshape(7, 24), base.temperature_c[0].reshape(7, 24)
     assert t_run[day, 9:17].mean() < t_base[day, 9:17].mean()  # no people, lights or plug loads: colder
 
@@ -250,8 +315,20 @@ def test_evening_departure_edits_every_shipped_office(building):
 
 
 def test_weekday_profile_refuses_what_it_cannot_shift():
-    ok = ["Schedule:Compact", "S", "Fraction", "Through: 12/31", "For: Weekdays", "Until: 08:00", "0",
-          "Until: 24:00", "1", "For: AllOtherDays", "Until: 24:00", "0"]
+    ok = [
+        "Schedule:Compact",
+        "S",
+        "Fraction",
+        "Through: 12/31",
+        "For: Weekdays",
+        "Until: 08:00",
+        "0",
+        "Until: 24:00",
+        "1",
+        "For: AllOtherDays",
+        "Until: 24:00",
+        "0",
+    ]
     assert weekday_profile(ok)[:2] == (5, 9) and weekday_profile(ok)[2].sum() == 16
     with pytest.raises(ReferenceBuildingError, match="not on a whole hour"):
         weekday_profile(ok[:5] + ["Until: 08:30", "0", "Until: 24:00", "1"])
@@ -275,8 +352,14 @@ def test_wind_infiltration_costs_heat_in_windy_hours(base, weather_week):
 def test_site_truth_lists_the_effects(tmp_path):
     path = make_reference_site(tmp_path / "site", weeks=WEEKS, effects=[("temperature_sensor_bias", 2.0)])
     truth = json.loads((path / "truth.json").read_text())
-    assert truth["effects"] == [{"name": "temperature_sensor_bias", "magnitude": 2.0,
-                                 "unit": EFFECTS["temperature_sensor_bias"].magnitude_unit, "details": {}}]
+    assert truth["effects"] == [
+        {
+            "name": "temperature_sensor_bias",
+            "magnitude": 2.0,
+            "unit": EFFECTS["temperature_sensor_bias"].magnitude_unit,
+            "details": {},
+        }
+    ]
     assert "effect" not in (path / "site.toml").read_text()  # blind: the effects are only in truth.json
 
 
@@ -293,8 +376,9 @@ def test_cli_lists_the_catalogue(capsys):
     assert main(["effects", "--json"]) == 0
     rows = json.loads(capsys.readouterr().out)
     assert [r["name"] for r in rows] == list(EFFECTS)
-    assert all({"magnitude_unit", "magnitude_range", "default_magnitude", "series", "parameters"} <= set(r)
-               for r in rows)
+    assert all(
+        {"magnitude_unit", "magnitude_range", "default_magnitude", "series", "parameters"} <= set(r) for r in rows
+    )
     named_from = {r["name"]: r["named_from"] for r in rows}
     assert named_from["heating_capacity_limit"].startswith("heating_power_w_m2 <= 90 W/m2 (")  # a step below the top
     assert named_from["heat_recovery"].startswith("effectiveness >= 0.3 (")
@@ -306,10 +390,14 @@ def test_cli_lists_the_catalogue(capsys):
     assert beyond["night_cycle_cold_air"] is None  # a base effect of the blind checks: no ceiling measured
     # on a site declaring building parameters known: the ceiling measured on such sites
     declaring = {r["name"]: r["named_beyond_on_declaring_sites"] for r in rows}
-    assert declaring["temperature_sensor_bias"].startswith("|bias_k + 0.233| > ") and "clean sites declaring" in \
-        declaring["temperature_sensor_bias"]
+    assert (
+        declaring["temperature_sensor_bias"].startswith("|bias_k + 0.233| > ")
+        and "clean sites declaring" in declaring["temperature_sensor_bias"]
+    )
     starts = {r["name"]: r["also_recalibrated_from"] for r in rows}
-    assert starts["heating_capacity_limit"] == "heating_power_w_m2 = 25, 40 W/m2" and starts["wind_infiltration"] is None
+    assert (
+        starts["heating_capacity_limit"] == "heating_power_w_m2 = 25, 40 W/m2" and starts["wind_infiltration"] is None
+    )
     assert main(["effects"]) == 0
     out = capsys.readouterr().out
     assert "heat_recovery" in out and "named from: effectiveness >= 0.3 (" in out
@@ -317,13 +405,18 @@ def test_cli_lists_the_catalogue(capsys):
     assert "named by significance alone when: blocked_fraction > 0.574 (" in out
     assert "named first, ahead of any held-out gain, when: night_electricity_w_m2 > 4.51 W/m2 (1.25 times" in out
     assert sum(r["named_first_beyond"] is not None for r in rows) == 1
-    under = {r["name"]: r["named_by_estimate_alone_under_the_floor"] for r in rows
-             if r["named_by_estimate_alone_under_the_floor"]}
+    under = {
+        r["name"]: r["named_by_estimate_alone_under_the_floor"]
+        for r in rows
+        if r["named_by_estimate_alone_under_the_floor"]
+    }
     assert list(under) == ["night_plug_loads"] and under["night_plug_loads"].startswith(
-        "night_electricity_w_m2 > 3.61 W/m2 with light_night_percent under 10 %, the temperature sensor bias refit")
+        "night_electricity_w_m2 > 3.61 W/m2 with light_night_percent under 10 %, the temperature sensor bias refit"
+    )
     sunshine = {r["name"]: r["ceilings_in_sunshine"] for r in rows if r["ceilings_in_sunshine"]}
     assert list(sunshine) == ["solar_shading"] and sunshine["solar_shading"].startswith(
-        "blocked_fraction > 0.00616 x the fit weeks' mean global horizontal irradiance in W/m2 (taken as 66.9")
+        "blocked_fraction > 0.00616 x the fit weeks' mean global horizontal irradiance in W/m2 (taken as 66.9"
+    )
     assert "both ceilings, on a site whose fit weeks' irradiance is known: blocked_fraction > 0.00616 x" in out
 
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
+from buildenv.campaign.runs import CampaignConfig, plan_campaign
 from buildenv.defaults import DEFAULT_THETA, default_week
 from buildenv.diagnosis.effects import night_electricity_w_m2
-from buildenv.campaign.runs import CampaignConfig, plan_campaign
 from buildenv.energyplus.runner import run_energyplus, warmup_settled
 from buildenv.energyplus.shoebox import (
     DEFAULT_ZONING,
@@ -88,8 +88,9 @@ def test_internal_gains_follow_schedules_exactly(chicago_january):
     light = DEFAULT_THETA["light_night_percent"] / 100 + (1 - DEFAULT_THETA["light_night_percent"] / 100) * occ
     eqp = DEFAULT_THETA["pc_night_percent"] / 100 + (1 - DEFAULT_THETA["pc_night_percent"] / 100) * occ
     np.testing.assert_allclose(out[:, OUT["Q_LIGHT"]], LIGHTING_W_M2 * light, rtol=1e-3, atol=1e-3)
-    np.testing.assert_allclose(out[:, OUT["Q_EQP"]], DEFAULT_THETA["pc_density_per_m2"] * PC_POWER_W * eqp,
-                               rtol=1e-3, atol=1e-3)
+    np.testing.assert_allclose(
+        out[:, OUT["Q_EQP"]], DEFAULT_THETA["pc_density_per_m2"] * PC_POWER_W * eqp, rtol=1e-3, atol=1e-3
+    )
     assert np.all(out[occ == 0, OUT["Q_PEOPLE"]] == 0)
     assert np.all(out[occ > 0, OUT["Q_PEOPLE"]] > 0)
     # what the gap diagnosis judges loads left on at night by: the electricity of the unoccupied hours
@@ -149,16 +150,22 @@ def test_a_building_outside_the_catalogue_is_refused_unless_asked_for(tmp_path):
     thin = {**DEFAULT_THETA, "capacitance_kj_per_k_m3": 25.0}
     with pytest.raises(CatalogueError, match="capacitance_kj_per_k_m3=25 .* outside its range"):
         build_epjson(thin, weather, csv, 0, 1)
-    mass = {c: build_epjson({**DEFAULT_THETA, "capacitance_kj_per_k_m3": c}, weather, csv, 0, 1, check=c >= 50)[
-        "Material"]["Internal mass concrete"]["thickness"] for c in (25.0, 50.0)}
+    mass = {
+        c: build_epjson({**DEFAULT_THETA, "capacitance_kj_per_k_m3": c}, weather, csv, 0, 1, check=c >= 50)["Material"][
+            "Internal mass concrete"
+        ]["thickness"]
+        for c in (25.0, 50.0)
+    }
     assert mass[25.0] == pytest.approx(mass[50.0] / 2)
 
 
 WARMUP_SEVERE = [
     '** Severe  ** CheckWarmupConvergence: Loads Initialization, Zone="PERIMETER" did not converge after 50 warmup '
-    'days.', "**   ~~~   ** ...Environment(RunPeriod)=\"WEEKS\"",
+    "days.",
+    '**   ~~~   ** ...Environment(RunPeriod)="WEEKS"',
     "**   ~~~   ** ..Max Temp Comparison = 0.20 vs Temperature Convergence Tolerance=0.40 - Pass Convergence",
-    "**   ~~~   ** ..Max Cool Load Comparison = 0.1229 vs Loads Convergence Tolerance=0.10 - Fail Convergence"]
+    "**   ~~~   ** ..Max Cool Load Comparison = 0.1229 vs Loads Convergence Tolerance=0.10 - Fail Convergence",
+]
 
 
 def test_warmup_settled_accepts_converged_temperatures_and_nothing_else():
@@ -177,10 +184,12 @@ def test_warmup_settled_accepts_converged_temperatures_and_nothing_else():
 def test_campaign_run_whose_perimeter_loads_never_settle_in_warmup_still_simulates():
     """Run 2 of the seed-0 1,040-week Chicago/Miami campaign: a perimeter's cooling load in Miami in January
     changes 12 % a day for the 50 warm-up days (EnergyPlus: Severe) while its temperatures converged."""
-    task = plan_campaign(CampaignConfig(weeks=1040, seed=0, epw=["usa_il_chicago", "usa_fl_miami"],
-                                        zoning="core_perimeter"))[2]
-    out = simulate_weeks(task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week,
-                         zoning=task.zoning).outputs
+    task = plan_campaign(
+        CampaignConfig(weeks=1040, seed=0, epw=["usa_il_chicago", "usa_fl_miami"], zoning="core_perimeter")
+    )[2]
+    out = simulate_weeks(
+        task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week, zoning=task.zoning
+    ).outputs
     assert np.isfinite(out).all() and 15.0 < out[..., OUT["T_INT_OFFICE"]].mean() < 35.0
 
 
@@ -188,7 +197,7 @@ def test_campaign_run_whose_thermostat_alternates_in_warmup_still_simulates():
     """Run 3408 of the seed-0 80,000-week campaign (13 weeks per run): Tampa in January, heating and cooling
     setpoints 0.5 K apart; the perimeter's minimum temperature changes 0.46 K a day for the 50 warm-up days."""
     task = plan_campaign(CampaignConfig(weeks=80000, seed=0, weeks_per_run=13, zoning="core_perimeter"))[3408]
-    out = simulate_weeks(task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week,
-                         zoning=task.zoning).outputs
+    out = simulate_weeks(
+        task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week, zoning=task.zoning
+    ).outputs
     assert np.isfinite(out).all() and 18.0 < out[..., OUT["T_INT_OFFICE"]].mean() < 30.0
-

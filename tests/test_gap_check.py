@@ -12,13 +12,24 @@ import numpy as np
 import pytest
 
 from buildenv.cli.main import main
-from buildenv.env.building_week import DEFAULT_SITE
+from buildenv.diagnosis.blind_check import (
+    NONE,
+    REFERENCE_START,
+    StandIn,
+    _site,
+    diagnose_twin,
+    latest_first_monday,
+    plan_cases,
+    ranked_first,
+    reference_start,
+    run_check,
+    summarise,
+)
 from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS
-from buildenv.energyplus.injections import choose_holidays
 from buildenv.diagnosis.gap import DiagnosisSettings, split_weeks
+from buildenv.energyplus.injections import choose_holidays
+from buildenv.env.building_week import DEFAULT_SITE
 from buildenv.metamodel.surrogate import load_metamodel
-from buildenv.diagnosis.blind_check import (NONE, REFERENCE_START, StandIn, _site, diagnose_twin, latest_first_monday,
-                                plan_cases, ranked_first, reference_start, run_check, summarise)
 
 
 def test_plan_is_seeded_and_cycles_through_the_labels():
@@ -37,16 +48,24 @@ def test_plan_is_seeded_and_cycles_through_the_labels():
     for weeks in (9, 12):
         start = reference_start(weeks)
         assert start.weekday() == 0 and start + dt.timedelta(weeks=weeks) <= dt.date(2020, 1, 1) < start + dt.timedelta(
-            weeks=weeks + 1)
+            weeks=weeks + 1
+        )
 
 
 def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site(tmp_path):
     # the calibration budget of bench/gap_check.py: with 250 evaluations the two-zone metamodel's calibration is
     # not converged yet and a sensor bias absorbs the rest (the clean site was then named biased)
-    settings = DiagnosisSettings(candidates=("temperature_sensor_bias", "solar_shading"), evaluations=1500,
-                                 max_effects=1)
-    result = run_check(tmp_path, cases=2, seed=1, settings=settings, base_effects=["night_plug_loads"],
-                       effects=("temperature_sensor_bias",))
+    settings = DiagnosisSettings(
+        candidates=("temperature_sensor_bias", "solar_shading"), evaluations=1500, max_effects=1
+    )
+    result = run_check(
+        tmp_path,
+        cases=2,
+        seed=1,
+        settings=settings,
+        base_effects=["night_plug_loads"],
+        effects=("temperature_sensor_bias",),
+    )
     rows = {r["true"]: r for r in result["cases"]}
     assert rows["temperature_sensor_bias"]["named"] == "temperature_sensor_bias"
     assert rows[NONE]["named"] == NONE
@@ -70,8 +89,9 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     json.dumps(result, default=float)
     # the bias case's clean twin, diagnosed blind as one more clean site: a record judged like a clean case's
     case = {k: bias[k] for k in ("case", "true", "magnitude", "start", "noise_seed", "effect_seed")}
-    twin = diagnose_twin(tmp_path, case, load_metamodel(), dataclasses.replace(
-        settings, base_effects=("night_plug_loads",)), StandIn())
+    twin = diagnose_twin(
+        tmp_path, case, load_metamodel(), dataclasses.replace(settings, base_effects=("night_plug_loads",)), StandIn()
+    )
     assert twin["true"] == NONE and twin["twin_of"] == "temperature_sensor_bias" and twin["start"] == bias["start"]
     assert twin["named"] == NONE and twin["correct"]
     assert set(twin["scores"]) == set(twin["p_values"]) == set(twin["estimates"]) == set(settings.candidates)
@@ -81,8 +101,14 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     case_file = tmp_path / f"case_{bias['case']:03d}.json"
     older = {k: v for k, v in bias.items() if k not in ("gap_left", "heldout_base", "residual_sigma")}
     case_file.write_text(json.dumps(older, default=float))
-    again = run_check(tmp_path, cases=2, seed=1, settings=settings, base_effects=["night_plug_loads"],
-                      effects=("temperature_sensor_bias",))
+    again = run_check(
+        tmp_path,
+        cases=2,
+        seed=1,
+        settings=settings,
+        base_effects=["night_plug_loads"],
+        effects=("temperature_sensor_bias",),
+    )
     assert [r["seconds"] for r in again["cases"]] == [r["seconds"] for r in result["cases"]]
     refilled = next(r for r in again["cases"] if r["true"] != NONE)
     assert refilled["gap_left"]["share"] == pytest.approx(left["share"], abs=1e-3)
@@ -94,11 +120,13 @@ def test_ranked_first_counts_the_attribution_whether_or_not_the_effect_was_named
         ranked = sorted(scores, key=lambda n: -scores[n])
         return {"true": true, "named": named, "correct": named == true, "ranked": ranked, "scores": scores}
 
-    rows = [row("wind_infiltration", NONE, {"wind_infiltration": 0.06, "solar_shading": 0.04}),  # ranked, not named
-            row("solar_shading", NONE, {"temperature_sensor_bias": 0.10, "solar_shading": 0.01}),  # another first
-            row("wind_infiltration", NONE, {"holidays": 0.0, "wind_infiltration": -0.003}),  # nothing gained
-            row("holidays", "holidays", {"holidays": 0.18, "wind_infiltration": 0.01}),  # ranked and named
-            row(NONE, NONE, {"holidays": 0.0})]
+    rows = [
+        row("wind_infiltration", NONE, {"wind_infiltration": 0.06, "solar_shading": 0.04}),  # ranked, not named
+        row("solar_shading", NONE, {"temperature_sensor_bias": 0.10, "solar_shading": 0.01}),  # another first
+        row("wind_infiltration", NONE, {"holidays": 0.0, "wind_infiltration": -0.003}),  # nothing gained
+        row("holidays", "holidays", {"holidays": 0.18, "wind_infiltration": 0.01}),  # ranked and named
+        row(NONE, NONE, {"holidays": 0.0}),
+    ]
     assert [ranked_first(r) for r in rows[:4]] == [True, False, False, True]
     summary = summarise(rows, [NONE, "wind_infiltration", "solar_shading", "holidays"])
     assert summary["ranked_first_accuracy"] == 0.5 and summary["top1_accuracy"] == 0.25
@@ -108,8 +136,14 @@ def test_the_mean_shrinkage_is_over_found_effects_that_left_a_gap():
     # seed 11's found blinds left a held-out MSE 0.08006 against its twin's 0.07999: its shrinkage of 90 (9,000 %)
     # divides by noise, and took the check's mean to 906 %
     def row(case, shrinkage, left):
-        return {"case": case, "true": "solar_shading", "named": "solar_shading", "correct": True,
-                "shrinkage": {"of_effect_gap": shrinkage, "of_total_gap": 0.1}, "gap_left": {"left": left}}
+        return {
+            "case": case,
+            "true": "solar_shading",
+            "named": "solar_shading",
+            "correct": True,
+            "shrinkage": {"of_effect_gap": shrinkage, "of_total_gap": 0.1},
+            "gap_left": {"left": left},
+        }
 
     rows = [row(1, 0.9, True), row(2, 0.7, True), row(3, 90.6, False), row(4, float("nan"), True)]
     summary = summarise(rows, [NONE, "solar_shading"])
@@ -124,8 +158,9 @@ def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
     assert len(err) == 1 and "unknown effect 'wind'" in err[0]
 
 
-@pytest.mark.parametrize("effect, message", [("temperature_sensor_bias", "base effect of this site"),
-                                             ("holidays", "not calibrated jointly")])
+@pytest.mark.parametrize(
+    "effect, message", [("temperature_sensor_bias", "base effect of this site"), ("holidays", "not calibrated jointly")]
+)
 def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monkeypatch, capsys, effect, message):
     # the default site declares a sensor bias: it is in both models of a joint test, so there is nothing to test
     import buildenv.diagnosis.gap
@@ -139,9 +174,13 @@ def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monke
     assert len(err) == 1 and message in err[0] and effect in err[0]
 
 
-@pytest.mark.parametrize("flags, expected", [
-    ([], True), (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone", "--no-night-load-first"],
-                 False)])
+@pytest.mark.parametrize(
+    "flags, expected",
+    [
+        ([], True),
+        (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone", "--no-night-load-first"], False),
+    ],
+)
 def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
     import buildenv.diagnosis.gap
 
@@ -205,10 +244,23 @@ def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path)
     with pytest.raises(ValueError, match="made for another case"):
         _site(tmp_path, case, alternate, inject=True)
     # what the injection itself records beside the planned choices does not count
-    limit = {"case": 0, "true": "heating_capacity_limit", "magnitude": 40.0, "start": "2019-11-04",
-             "noise_seed": 0, "effect_seed": 0}
-    (tmp_path / "case_000" / "truth.json").write_text(json.dumps({"effects": [
-        {"name": "heating_capacity_limit", "magnitude": 40.0, "details": {"design_capacity_kw": 395.5}}]}))
+    limit = {
+        "case": 0,
+        "true": "heating_capacity_limit",
+        "magnitude": 40.0,
+        "start": "2019-11-04",
+        "noise_seed": 0,
+        "effect_seed": 0,
+    }
+    (tmp_path / "case_000" / "truth.json").write_text(
+        json.dumps(
+            {
+                "effects": [
+                    {"name": "heating_capacity_limit", "magnitude": 40.0, "details": {"design_capacity_kw": 395.5}}
+                ]
+            }
+        )
+    )
     assert _site(tmp_path, limit, alternate, inject=True) == tmp_path / "case_000"
 
 
@@ -231,35 +283,56 @@ def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeyp
     theirs, and a run's case is judged again with the catalogue's ceilings (a holiday found is named)."""
     headline = _bench_module("gap_headline", monkeypatch)
 
-    replay = {"sites": [
-        {"key": "seed0_case_000", "true": "holidays", "night electricity": "none"},
-        {"key": "seed0_case_001", "true": "solar_shading", "night electricity": "wind_infiltration"},
-        {"key": "seed0_case_001_twin", "true": "solar_shading", "night electricity": "none"},
-        {"key": "seed0_case_002", "true": "none", "night electricity": "none"}]}
-    found = {"case": 0, "true": "holidays", "named": "holidays", "ranked": ["holidays", "solar_shading"],
-             "scores": {"holidays": 0.4, "solar_shading": 0.01}, "p_values": {"holidays": 1e-9, "solar_shading": 0.3},
-             "estimates": {"holidays": {"absent_days": 2}, "solar_shading": {"blocked_fraction": 0.3}},
-             "gains_by_series": {"holidays": {"temperature": 0.2, "consumption": 0.5},
-                                 "solar_shading": {"temperature": 0.0, "consumption": 0.01}}}
+    replay = {
+        "sites": [
+            {"key": "seed0_case_000", "true": "holidays", "night electricity": "none"},
+            {"key": "seed0_case_001", "true": "solar_shading", "night electricity": "wind_infiltration"},
+            {"key": "seed0_case_001_twin", "true": "solar_shading", "night electricity": "none"},
+            {"key": "seed0_case_002", "true": "none", "night electricity": "none"},
+        ]
+    }
+    found = {
+        "case": 0,
+        "true": "holidays",
+        "named": "holidays",
+        "ranked": ["holidays", "solar_shading"],
+        "scores": {"holidays": 0.4, "solar_shading": 0.01},
+        "p_values": {"holidays": 1e-9, "solar_shading": 0.3},
+        "estimates": {"holidays": {"absent_days": 2}, "solar_shading": {"blocked_fraction": 0.3}},
+        "gains_by_series": {
+            "holidays": {"temperature": 0.2, "consumption": 0.5},
+            "solar_shading": {"temperature": 0.0, "consumption": 0.01},
+        },
+    }
     # a wind the base calibration absorbed: no held-out gain, an estimate beyond every clean site's (0.0175)
-    absorbed = {"case": 3, "true": "wind_infiltration", "named": "none", "ranked": ["solar_shading",
-                                                                                   "wind_infiltration"],
-                "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
-                "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
-                "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}}}
+    absorbed = {
+        "case": 3,
+        "true": "wind_infiltration",
+        "named": "none",
+        "ranked": ["solar_shading", "wind_infiltration"],
+        "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
+        "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
+        "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}},
+    }
     run = {"plan": {"seed": 0}, "cases": [found, absorbed]}
     (tmp_path / "replay.json").write_text(json.dumps(replay))
     (tmp_path / "run.json").write_text(json.dumps(run))
     sites = headline.sites_from_replay(str(tmp_path / "replay.json")) | {
-        site: headline._site(*record) for site, record in headline.diagnosed_records([], [str(tmp_path / "run.json")]
-                                                                                     ).items()}
+        site: headline._site(*record)
+        for site, record in headline.diagnosed_records([], [str(tmp_path / "run.json")]).items()
+    }
     assert sites["seed0_case_000"]["named"] == "holidays" and sites["seed0_case_000"]["ranked_first"] is True
     assert sites["seed0_case_001_twin"]["true"] == "none"
-    assert (sites["seed0_case_003"]["named"], sites["seed0_case_003"]["how"]) == ("wind_infiltration",
-                                                                                  "estimate alone")
+    assert (sites["seed0_case_003"]["named"], sites["seed0_case_003"]["how"]) == ("wind_infiltration", "estimate alone")
     [row] = headline.tally(sites)
-    assert (row["cases"], row["right"], row["alone"], row["wrong"], row["ranked"], row["ranked_known"]) == \
-        (3, 2, 1, 1, 1, 2)
+    assert (row["cases"], row["right"], row["alone"], row["wrong"], row["ranked"], row["ranked_known"]) == (
+        3,
+        2,
+        1,
+        1,
+        1,
+        2,
+    )
     assert (row["clean"], row["clean_right"], row["twins"], row["twins_right"]) == (1, 1, 1, 1)
     assert row["sources"] == ["replay", "run"]
     assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "alone": 0, "wrong": 1}
@@ -270,8 +343,14 @@ def test_a_replay_takes_the_headline_s_sources_from_its_recorded_command(tmp_pat
     its command, puts them before the pages given (each page once), and refuses a headline of replayed pages."""
     headline = _bench_module("gap_headline", monkeypatch)
     page = tmp_path / "gap_headline.json"
-    page.write_text(json.dumps({"command": "python bench/gap_headline.py --rediagnosed a.json --rediagnosed b.json "
-                                           "--run s1.json --run s2.json --name gap_headline"}))
+    page.write_text(
+        json.dumps(
+            {
+                "command": "python bench/gap_headline.py --rediagnosed a.json --rediagnosed b.json "
+                "--run s1.json --run s2.json --name gap_headline"
+            }
+        )
+    )
     assert headline.headline_sources(page) == (["a.json", "b.json"], ["s1.json", "s2.json"])
     parser = argparse.ArgumentParser()
     headline.add_sources(parser)
@@ -291,8 +370,11 @@ def test_the_size_page_bins_cases_by_equal_count_and_finds_the_size_from_which_n
     assert page.injected_size("temperature_sensor_bias", -0.7) == 0.7
     assert page.size_bins(np.array([2.0, 3.0, 2.0, 3.0, 3.0])) == [(2.0, 2.0), (3.0, 3.0)]
     sizes = [float(s) for s in range(1, 21)]
-    cases = {"night_plug_loads": [(s, "night_plug_loads" if s > 4 else "none", f"seed0_case_{i:03d}")
-                                  for i, s in enumerate(sizes)]}
+    cases = {
+        "night_plug_loads": [
+            (s, "night_plug_loads" if s > 4 else "none", f"seed0_case_{i:03d}") for i, s in enumerate(sizes)
+        ]
+    }
     cases["night_plug_loads"][-1] = (20.0, "solar_shading", "seed0_case_019")
     row = page.effect_rows(cases, least=10)["night_plug_loads"]
     assert sum(b["cases"] for b in row["bins"]) == 20 and [b["cases"] for b in row["bins"]] == [5, 5, 5, 5]
@@ -311,23 +393,35 @@ def test_the_headline_judges_blinds_at_the_fit_weeks_irradiance_of_each_recorded
     replay = _bench_module("harness", monkeypatch)
 
     def case(number, true, start, blinds):
-        return {"case": number, "true": true, "named": "none", "start": start, "ranked": ["solar_shading"],
-                "scores": {"solar_shading": 0.05, "heat_recovery": 0.0},
-                "p_values": {"solar_shading": 1e-6, "heat_recovery": 1.0},
-                "estimates": {"solar_shading": {"blocked_fraction": blinds}, "heat_recovery": {"effectiveness": 0.0}},
-                "gains_by_series": {"solar_shading": {"temperature": 0.05, "consumption": 0.05},
-                                    "heat_recovery": {"temperature": 0.0, "consumption": 0.0}}}
+        return {
+            "case": number,
+            "true": true,
+            "named": "none",
+            "start": start,
+            "ranked": ["solar_shading"],
+            "scores": {"solar_shading": 0.05, "heat_recovery": 0.0},
+            "p_values": {"solar_shading": 1e-6, "heat_recovery": 1.0},
+            "estimates": {"solar_shading": {"blocked_fraction": blinds}, "heat_recovery": {"effectiveness": 0.0}},
+            "gains_by_series": {
+                "solar_shading": {"temperature": 0.05, "consumption": 0.05},
+                "heat_recovery": {"temperature": 0.0, "consumption": 0.0},
+            },
+        }
 
     plan = {"seed": 5, "epw": "usa_il_chicago", "weeks": 8, "settings": {"split": "alternate"}}
-    page = {"plan": plan, "cases": [case(0, "solar_shading", "2019-11-04", 0.45),
-                                    case(1, "solar_shading", "2019-10-14", 0.45)]}
+    page = {
+        "plan": plan,
+        "cases": [case(0, "solar_shading", "2019-11-04", 0.45), case(1, "solar_shading", "2019-10-14", 0.45)],
+    }
     (tmp_path / "run.json").write_text(json.dumps(page))
     twin = case(0, "solar_shading", "2019-11-04", 0.30) | {"twin_of": "solar_shading"}
     twin.pop("start")
-    (tmp_path / "twins.json").write_text(json.dumps({"command": f"x --page {tmp_path / 'run.json'}",
-                                                     "records": {"seed5_case_000_twin": twin}}))
-    sources = argparse.Namespace(rediagnosed=[str(tmp_path / "twins.json")], run=[str(tmp_path / "run.json")],
-                                 sources_of="")
+    (tmp_path / "twins.json").write_text(
+        json.dumps({"command": f"x --page {tmp_path / 'run.json'}", "records": {"seed5_case_000_twin": twin}})
+    )
+    sources = argparse.Namespace(
+        rediagnosed=[str(tmp_path / "twins.json")], run=[str(tmp_path / "run.json")], sources_of=""
+    )
     records, now, right, _ = replay.judged_sources(sources)
     irradiance = {site: r["fit_irradiance_w_m2"] for site, (r, _, _) in records.items()}
     assert irradiance["seed5_case_000"] == irradiance["seed5_case_000_twin"] == pytest.approx(66.88, abs=0.01)
@@ -342,21 +436,39 @@ def test_the_merged_records_judge_as_the_run_they_came_from(tmp_path, monkeypatc
     check = _bench_module("gap_check", monkeypatch)
     harness = check.harness  # the harness the script imported
     monkeypatch.setattr(harness, "RESULTS", tmp_path)
-    record = {"case": 3, "true": "wind_infiltration", "named": "none", "magnitude": 0.03, "start": "2019-11-04",
-              "ranked": ["solar_shading", "wind_infiltration"], "seconds": 12, "fit_irradiance_w_m2": 66.9,
-              "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
-              "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
-              "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}},
-              "gains_by_series": {"wind_infiltration": {"temperature": -0.01, "consumption": -0.05},
-                                  "solar_shading": {"temperature": 0.0, "consumption": 0.02}}}
+    record = {
+        "case": 3,
+        "true": "wind_infiltration",
+        "named": "none",
+        "magnitude": 0.03,
+        "start": "2019-11-04",
+        "ranked": ["solar_shading", "wind_infiltration"],
+        "seconds": 12,
+        "fit_irradiance_w_m2": 66.9,
+        "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
+        "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
+        "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}},
+        "gains_by_series": {
+            "wind_infiltration": {"temperature": -0.01, "consumption": -0.05},
+            "solar_shading": {"temperature": 0.0, "consumption": 0.02},
+        },
+    }
     back = harness.expand_record(harness.slim_record(record))
-    assert {k: back[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")} == \
-        {k: record[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")}
-    run = {"date": "2026-12-01", "machine": "m", "command": "c", "base_effects": [], "plan": {"seed": 7},
-           "cases": [record]}
+    assert {k: back[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")} == {
+        k: record[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")
+    }
+    run = {
+        "date": "2026-12-01",
+        "machine": "m",
+        "command": "c",
+        "base_effects": [],
+        "plan": {"seed": 7},
+        "cases": [record],
+    }
     merged = check.merge_run("checks", run)
-    merged["sites"]["seed7_case_003_twin"] = harness.slim_record(record | {"true": "none", "twin_of": "x",
-                                                                          "source": "again"})
+    merged["sites"]["seed7_case_003_twin"] = harness.slim_record(
+        record | {"true": "none", "twin_of": "x", "source": "again"}
+    )
     (tmp_path / "checks.json").write_text(harness.checks_json(merged["sites"], merged["sources"], "test"))
     again = check.merge_run("checks", run | {"date": "2026-12-02", "cases": [record | {"named": "wind_infiltration"}]})
     assert sorted(again["sites"]) == ["seed7_case_003", "seed7_case_003_twin"]

@@ -43,16 +43,30 @@ def site() -> dict:
     predicted_t = 20 + 1.5 * heating + 0.002 * weather[:, col["IGLOB_H"]]
     predicted_q = 5 + 20 * heating * np.clip(15 - weather[:, col["TAMB"]], 0, None) / 10
     starts = [dt.date(2024, 1, 1) + dt.timedelta(days=7 * w) for w in range(WEEKS)]
-    return {"weather": weather.reshape(WEEKS, H, -1), "occupied": occupied.reshape(WEEKS, H),
-            "heating_on": heating.reshape(WEEKS, H), "predicted_t": predicted_t.reshape(WEEKS, H),
-            "predicted_q": predicted_q.reshape(WEEKS, H), "week_starts": starts, "rng": rng}
+    return {
+        "weather": weather.reshape(WEEKS, H, -1),
+        "occupied": occupied.reshape(WEEKS, H),
+        "heating_on": heating.reshape(WEEKS, H),
+        "predicted_t": predicted_t.reshape(WEEKS, H),
+        "predicted_q": predicted_q.reshape(WEEKS, H),
+        "week_starts": starts,
+        "rng": rng,
+    }
 
 
 def _run(site: dict, residual_t: np.ndarray, residual_q: np.ndarray | None = None) -> dict:
     if residual_q is None:
         residual_q = site["rng"].normal(0, 1.0, (WEEKS, H))
-    return localise(site["predicted_t"] + residual_t, site["predicted_q"] + residual_q, site["predicted_t"],
-                    site["predicted_q"], site["weather"], site["occupied"], site["heating_on"], site["week_starts"])
+    return localise(
+        site["predicted_t"] + residual_t,
+        site["predicted_q"] + residual_q,
+        site["predicted_t"],
+        site["predicted_q"],
+        site["weather"],
+        site["occupied"],
+        site["heating_on"],
+        site["week_starts"],
+    )
 
 
 def test_white_noise_is_white_unbiased_and_has_no_hotspot(site):
@@ -119,8 +133,16 @@ def test_nan_hours_are_skipped(site):
     measured_t[3] = np.nan
     measured_q = site["predicted_q"].copy()
     measured_q[:, :24] = np.nan
-    out = localise(measured_t, measured_q, site["predicted_t"], site["predicted_q"], site["weather"],
-                   site["occupied"], site["heating_on"], site["week_starts"])
+    out = localise(
+        measured_t,
+        measured_q,
+        site["predicted_t"],
+        site["predicted_q"],
+        site["weather"],
+        site["occupied"],
+        site["heating_on"],
+        site["week_starts"],
+    )
     t = out["temperature"]
     assert t["hours"] == WEEKS * H - 50 - H and t["missing_hours"] == 50 + H
     assert t["bias"] == pytest.approx(np.nanmean(measured_t - site["predicted_t"]))
@@ -134,8 +156,16 @@ def test_nan_hours_are_skipped(site):
 
 def test_all_missing_series(site):
     nan = np.full((WEEKS, H), np.nan)
-    out = localise(nan, site["predicted_q"], site["predicted_t"], site["predicted_q"], site["weather"],
-                   site["occupied"], site["heating_on"], site["week_starts"])
+    out = localise(
+        nan,
+        site["predicted_q"],
+        site["predicted_t"],
+        site["predicted_q"],
+        site["weather"],
+        site["occupied"],
+        site["heating_on"],
+        site["week_starts"],
+    )
     assert out["temperature"]["hours"] == 0 and out["temperature"]["hotspots"] == []
     json.dumps(out, allow_nan=False)
 
@@ -162,15 +192,30 @@ def test_gap_between_weeks_breaks_autocorrelation_pairs(site):
 
 def test_bad_shapes_raise(site):
     with pytest.raises(LocalisationError, match="weather"):
-        localise(site["predicted_t"], site["predicted_q"], site["predicted_t"], site["predicted_q"],
-                 site["weather"][..., :7], site["occupied"], site["heating_on"], site["week_starts"])
+        localise(
+            site["predicted_t"],
+            site["predicted_q"],
+            site["predicted_t"],
+            site["predicted_q"],
+            site["weather"][..., :7],
+            site["occupied"],
+            site["heating_on"],
+            site["week_starts"],
+        )
 
 
 def test_plot_writes_png(site, tmp_path):
     residual = site["rng"].normal(0, 0.3, (WEEKS, H))
     out = _run(site, residual)
-    path = plot_localisation(out, tmp_path / "gap" / "localisation.png", site["predicted_t"] + residual,
-                             site["predicted_q"], site["predicted_t"], site["predicted_q"], site["occupied"])
+    path = plot_localisation(
+        out,
+        tmp_path / "gap" / "localisation.png",
+        site["predicted_t"] + residual,
+        site["predicted_q"],
+        site["predicted_t"],
+        site["predicted_q"],
+        site["occupied"],
+    )
     assert path.is_file() and path.stat().st_size > 1000
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     only_maps = plot_localisation(out, tmp_path / "maps.png")

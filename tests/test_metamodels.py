@@ -7,17 +7,22 @@ import pytest
 import torch
 
 from buildenv import catalogue as cat
-from buildenv.metamodel import surrogate as sg
 from buildenv.campaign.runs import CampaignConfig, run_campaign
 from buildenv.errors import BuildenvError
+from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
 from metamodels.loss import paper_loss
 from metamodels.models import MODELS, band_mask, build, with_more_inputs
 from metamodels.normalisation import StandardisedModel, Standardiser
 
-SMALL_CONFIGS = {"transformer": {"layers": 1}, "bigru": {"layers": 1}, "lstm": {"layers": 1},
-                 "convgru": {"layers": 1}, "ffn": {"layers": 2}}
+SMALL_CONFIGS = {
+    "transformer": {"layers": 1},
+    "bigru": {"layers": 1},
+    "lstm": {"layers": 1},
+    "convgru": {"layers": 1},
+    "ffn": {"layers": 2},
+}
 
 
 @pytest.mark.parametrize("name", sorted(MODELS))
@@ -126,20 +131,26 @@ def test_checkpoint_round_trip_is_bit_exact(tmp_path):
 @pytest.fixture(scope="module")
 def tiny_dataset(tmp_path_factory):
     out = tmp_path_factory.mktemp("mm") / "data"
-    run_campaign(CampaignConfig(weeks=12, seed=2, epw=["usa_il_chicago", "usa_co_golden"], weeks_per_run=3),
-                 out, workers=2, progress=False)
+    run_campaign(
+        CampaignConfig(weeks=12, seed=2, epw=["usa_il_chicago", "usa_co_golden"], weeks_per_run=3),
+        out,
+        workers=2,
+        progress=False,
+    )
     return out
 
 
 def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monkeypatch):
     ckpt = tmp_path / "lstm.pt"
-    result = train_metamodel(tiny_dataset, "lstm", ckpt, split="random", model_config={"layers": 1}, epochs=2,
-                             batch_size=4, progress=False)
+    result = train_metamodel(
+        tiny_dataset, "lstm", ckpt, split="random", model_config={"layers": 1}, epochs=2, batch_size=4, progress=False
+    )
     assert result["fit"]["epochs_run"] == 2 and np.isfinite(result["test"]["loss"])
     assert (tmp_path / "lstm.pt.last").exists() and (tmp_path / "lstm.pt.csv").exists()
     # rerunning with more epochs resumes from epoch 2 instead of starting over
-    again = train_metamodel(tiny_dataset, "lstm", ckpt, split="random", model_config={"layers": 1}, epochs=3,
-                            batch_size=4, progress=False)
+    again = train_metamodel(
+        tiny_dataset, "lstm", ckpt, split="random", model_config={"layers": 1}, epochs=3, batch_size=4, progress=False
+    )
     assert again["fit"]["epochs_run"] == 3
     assert len((tmp_path / "lstm.pt.csv").read_text().strip().splitlines()) == 1 + 3
     evaluated = evaluate_metamodel(ckpt, tiny_dataset)
@@ -174,8 +185,9 @@ def test_a_longer_context_carries_the_previous_days_or_repeats_the_first_day(tin
     assert three_days.shape == (1, 72 + 168, len(sg.INPUT_CHANNELS))
     np.testing.assert_array_equal(three_days[:, 48:], one_day)  # the last day before the week, then the week
     w = [sg.INPUT_CHANNELS.index(c) for c in sg.WEATHER_INPUTS]
-    np.testing.assert_array_equal(three_days[0, :72, w], prev[2][0, -72:][:, [cat.WEATHER_NAMES.index(c)
-                                                                           for c in sg.WEATHER_INPUTS]].T)
+    np.testing.assert_array_equal(
+        three_days[0, :72, w], prev[2][0, -72:][:, [cat.WEATHER_NAMES.index(c) for c in sg.WEATHER_INPUTS]].T
+    )
     is_context = sg.INPUT_CHANNELS.index("is_context")
     assert (three_days[0, :72, is_context] == 1).all() and (three_days[0, 72:, is_context] == 0).all()
     # no preceding week: the week's first day, repeated, as EnergyPlus's warm-up
@@ -235,12 +247,22 @@ def test_a_checkpoint_without_the_ground_temperature_is_fine_tuned_with_it(tiny_
 
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
     base, tuned = tmp_path / "noground.pt", tmp_path / "ground.pt"
-    train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1,
-                    batch_size=4, progress=False, ground_temperature=False)
+    train_metamodel(
+        tiny_dataset,
+        "transformer",
+        base,
+        split="random",
+        model_config=config,
+        epochs=1,
+        batch_size=4,
+        progress=False,
+        ground_temperature=False,
+    )
     old = sg.load_metamodel(base)
     assert not old.uses_ground and old.checkpoint.inputs == len(sg.NO_GROUND_CHANNELS)
-    train_metamodel(tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False,
-                    init=base, lr=0.0)
+    train_metamodel(
+        tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False, init=base, lr=0.0
+    )
     new = sg.load_metamodel(tuned)
     assert new.uses_ground and new.checkpoint.inputs == len(sg.INPUT_CHANNELS)
     assert new.checkpoint.metadata["initialised_from"]["added_inputs"] == [sg.GROUND_CHANNEL]
@@ -255,11 +277,27 @@ def test_a_checkpoint_without_the_ground_temperature_is_fine_tuned_with_it(tiny_
     with pytest.raises(sg.CheckpointError, match="channels"):
         new.predict_encoded(x[..., :-1])
     with pytest.raises(BuildenvError, match="reads the ground temperature"):
-        train_metamodel(tiny_dataset, "transformer", tmp_path / "back.pt", split="random", epochs=1, init=tuned,
-                        progress=False, ground_temperature=False)
+        train_metamodel(
+            tiny_dataset,
+            "transformer",
+            tmp_path / "back.pt",
+            split="random",
+            epochs=1,
+            init=tuned,
+            progress=False,
+            ground_temperature=False,
+        )
     with pytest.raises(BuildenvError, match="without the ground temperature"):  # resuming it another way
-        train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=2,
-                        batch_size=4, progress=False)
+        train_metamodel(
+            tiny_dataset,
+            "transformer",
+            base,
+            split="random",
+            model_config=config,
+            epochs=2,
+            batch_size=4,
+            progress=False,
+        )
 
 
 def test_a_metamodel_reads_the_temperature_measured_before_the_week(tiny_dataset, tmp_path):
@@ -270,10 +308,30 @@ def test_a_metamodel_reads_the_temperature_measured_before_the_week(tiny_dataset
 
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
     base, tuned, scratch = tmp_path / "base.pt", tmp_path / "before.pt", tmp_path / "scratch.pt"
-    train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1,
-                    batch_size=4, progress=False, context_hours=48)
-    train_metamodel(tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False,
-                    init=base, lr=0.0, context_hours=48, temperature_before=True)
+    train_metamodel(
+        tiny_dataset,
+        "transformer",
+        base,
+        split="random",
+        model_config=config,
+        epochs=1,
+        batch_size=4,
+        progress=False,
+        context_hours=48,
+    )
+    train_metamodel(
+        tiny_dataset,
+        "transformer",
+        tuned,
+        split="random",
+        epochs=1,
+        batch_size=4,
+        progress=False,
+        init=base,
+        lr=0.0,
+        context_hours=48,
+        temperature_before=True,
+    )
     old, new = sg.load_metamodel(base), sg.load_metamodel(tuned)
     assert not old.uses_temperature_before and new.uses_temperature_before
     assert new.checkpoint.inputs == len(sg.ALL_CHANNELS)
@@ -291,29 +349,58 @@ def test_a_metamodel_reads_the_temperature_measured_before_the_week(tiny_dataset
     assert (x[later, :48, known] == 1).all() and (x[:, 48:, known] == 0).all() and (x[first, :, known] == 0).all()
     assert np.isnan(x[first, :, value]).all() and np.isnan(x[:, 48:, value]).all()
     # zero weights: the widened model predicts what it did, with the temperature or without it
-    without = x[..., :len(sg.INPUT_CHANNELS)]
+    without = x[..., : len(sg.INPUT_CHANNELS)]
     np.testing.assert_allclose(new.predict_encoded(x), old.predict_encoded(without), rtol=0, atol=1e-4)
     np.testing.assert_allclose(new.predict_encoded(without), old.predict_encoded(without), rtol=0, atol=1e-4)
     np.testing.assert_array_equal(old.predict_encoded(x), old.predict_encoded(without))  # never read by it
     ground = x[..., sg.INPUT_CHANNELS.index(sg.GROUND_CHANNEL)]
     before = x[:, :48, value]
-    np.testing.assert_array_equal(new.predict(*week, ground_c=ground, temperature_before_c=before),
-                                  new.predict_encoded(sg.encode_weeks(*week, context_hours=48, ground_c=ground,
-                                                                      temperature_before_c=before)))
+    np.testing.assert_array_equal(
+        new.predict(*week, ground_c=ground, temperature_before_c=before),
+        new.predict_encoded(sg.encode_weeks(*week, context_hours=48, ground_c=ground, temperature_before_c=before)),
+    )
     # trained from scratch with it: a quarter of the weeks hidden, every week predicted, evaluated the same way
-    result = train_metamodel(tiny_dataset, "transformer", scratch, split="random", model_config=config, epochs=1,
-                             batch_size=4, progress=False, context_hours=48, temperature_before=True)
+    result = train_metamodel(
+        tiny_dataset,
+        "transformer",
+        scratch,
+        split="random",
+        model_config=config,
+        epochs=1,
+        batch_size=4,
+        progress=False,
+        context_hours=48,
+        temperature_before=True,
+    )
     assert np.isfinite(result["test"]["loss"])
     assert evaluate_metamodel(scratch, tiny_dataset)["loss"] == pytest.approx(result["test"]["loss"], rel=1e-5)
     assert np.isfinite(sg.load_metamodel(scratch).predict(*week, ground_c=ground)).all()
     hidden = hide_temperature_before(x.copy(), 1.0, 0)
     assert np.isnan(hidden[..., value]).all() and (hidden[..., known] == 0).all()
     with pytest.raises(BuildenvError, match="pass --temperature-before"):
-        train_metamodel(tiny_dataset, "transformer", tmp_path / "back.pt", split="random", epochs=1, init=tuned,
-                        progress=False, context_hours=48)
+        train_metamodel(
+            tiny_dataset,
+            "transformer",
+            tmp_path / "back.pt",
+            split="random",
+            epochs=1,
+            init=tuned,
+            progress=False,
+            context_hours=48,
+        )
     with pytest.raises(BuildenvError, match="without the temperature before the week"):  # resumed another way
-        train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=2,
-                        batch_size=4, progress=False, context_hours=48, temperature_before=True)
+        train_metamodel(
+            tiny_dataset,
+            "transformer",
+            base,
+            split="random",
+            model_config=config,
+            epochs=2,
+            batch_size=4,
+            progress=False,
+            context_hours=48,
+            temperature_before=True,
+        )
     with pytest.raises(sg.CheckpointError, match="ground temperature"):
         sg.input_channels(ground=False, temperature_before=True)
 
@@ -328,8 +415,17 @@ def test_standardiser_statistics_leave_unknown_values_out():
 def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, tmp_path):
     ckpt = tmp_path / "ctx48.pt"
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
-    result = train_metamodel(tiny_dataset, "transformer", ckpt, split="random", model_config=config, epochs=1,
-                             batch_size=4, progress=False, context_hours=48)
+    result = train_metamodel(
+        tiny_dataset,
+        "transformer",
+        ckpt,
+        split="random",
+        model_config=config,
+        epochs=1,
+        batch_size=4,
+        progress=False,
+        context_hours=48,
+    )
     assert np.isfinite(result["test"]["loss"])
     surrogate = sg.load_metamodel(ckpt)
     assert surrogate.context_hours == 48 and surrogate.checkpoint.metadata["context_hours"] == 48
@@ -340,30 +436,55 @@ def test_a_checkpoint_trained_with_two_days_of_context_keeps_them(tiny_dataset, 
         ground = sg.encode_dataset(ds, np.arange(3), context_hours=48)[0][..., -1]
         evaluated = evaluate_metamodel(ckpt, tiny_dataset)
     pred = surrogate.predict(*week, ground_c=ground)
-    np.testing.assert_array_equal(pred, surrogate.predict_encoded(sg.encode_weeks(*week, context_hours=48,
-                                                                                  ground_c=ground)))
+    np.testing.assert_array_equal(
+        pred, surrogate.predict_encoded(sg.encode_weeks(*week, context_hours=48, ground_c=ground))
+    )
     assert evaluated["loss"] == pytest.approx(result["test"]["loss"], rel=1e-5)
     with pytest.raises(sg.CheckpointError, match="48"):  # inputs encoded for the default one-day context
         surrogate.predict_encoded(sg.encode_weeks(*week, ground_c=ground[:, 24:]))
     with pytest.raises(BuildenvError, match="--context-hours 48"):  # resuming it with another context
-        train_metamodel(tiny_dataset, "transformer", ckpt, split="random", model_config=config, epochs=2,
-                        batch_size=4, progress=False, context_hours=72)
+        train_metamodel(
+            tiny_dataset,
+            "transformer",
+            ckpt,
+            split="random",
+            model_config=config,
+            epochs=2,
+            batch_size=4,
+            progress=False,
+            context_hours=72,
+        )
 
 
 def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny_dataset, tmp_path):
     config = {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 2}
     base = tmp_path / "base.pt"
-    train_metamodel(tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1,
-                    batch_size=4, progress=False)
+    train_metamodel(
+        tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1, batch_size=4, progress=False
+    )
     start = sg.load_metamodel(base).checkpoint
     tuned = tmp_path / "tuned72.pt"
     # lr 0: the run starts from the base's weights and its normalisation, so nothing moves but the context
-    train_metamodel(tiny_dataset, "transformer", tuned, split="random", epochs=1, batch_size=4, progress=False,
-                    context_hours=72, init=base, lr=0.0)
+    train_metamodel(
+        tiny_dataset,
+        "transformer",
+        tuned,
+        split="random",
+        epochs=1,
+        batch_size=4,
+        progress=False,
+        context_hours=72,
+        init=base,
+        lr=0.0,
+    )
     ck = sg.load_metamodel(tuned).checkpoint
     assert ck.config == config and ck.metadata["context_hours"] == 72
-    assert ck.metadata["initialised_from"] == {"checkpoint": str(base), "dataset": start.metadata["dataset"],
-                                               "train_weeks": start.metadata["train_weeks"], "context_hours": 24}
+    assert ck.metadata["initialised_from"] == {
+        "checkpoint": str(base),
+        "dataset": start.metadata["dataset"],
+        "train_weeks": start.metadata["train_weeks"],
+        "context_hours": 24,
+    }
     np.testing.assert_array_equal(ck.input_norm.mean, start.input_norm.mean)
     np.testing.assert_array_equal(ck.output_norm.std, start.output_norm.std)
     for name, value in start.model.state_dict().items():
@@ -371,28 +492,48 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
     with pytest.raises(BuildenvError, match="is a transformer, not a lstm"):
         train_metamodel(tiny_dataset, "lstm", tmp_path / "x.pt", split="random", init=base, progress=False)
     with pytest.raises(BuildenvError, match="--split random --seed 0"):  # its test weeks could be trained on
-        train_metamodel(tiny_dataset, "transformer", tmp_path / "y.pt", split="random", seed=1, init=base,
-                        progress=False)
+        train_metamodel(
+            tiny_dataset, "transformer", tmp_path / "y.pt", split="random", seed=1, init=base, progress=False
+        )
     with pytest.raises(BuildenvError, match="leave --model-config out"):
-        train_metamodel(tiny_dataset, "transformer", tmp_path / "z.pt", split="random", init=base,
-                        model_config={**config, "layers": 2}, progress=False)
+        train_metamodel(
+            tiny_dataset,
+            "transformer",
+            tmp_path / "z.pt",
+            split="random",
+            init=base,
+            model_config={**config, "layers": 2},
+            progress=False,
+        )
 
 
-@pytest.mark.parametrize("name,config", [("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
-                                         ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
-                                                          "hourly_gru": 8}),
-                                         ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
-                                                          "hourly_state": 4}),
-                                         ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16,
-                                                          "hourly_state": 4, "hourly_state_layers": 2}),
-                                         ("lstm", {"layers": 1}), ("ffn", {"layers": 1})])
+@pytest.mark.parametrize(
+    "name,config",
+    [
+        ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16}),
+        ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16, "hourly_gru": 8}),
+        ("transformer", {"patch_hours": 8, "layers": 1, "hourly_head": 16, "hourly_state": 4}),
+        (
+            "transformer",
+            {"patch_hours": 8, "layers": 1, "hourly_head": 16, "hourly_state": 4, "hourly_state_layers": 2},
+        ),
+        ("lstm", {"layers": 1}),
+        ("ffn", {"layers": 1}),
+    ],
+)
 def test_traced_inference_matches_eager(name, config):
     torch.manual_seed(0)
     channels = len(sg.INPUT_CHANNELS)
     rng = np.random.default_rng(0)
     x = rng.normal(size=(300, sg.CONTEXT_HOURS + 168, channels)).astype(np.float32)
-    ck = Checkpoint(name, config, build(name, channels, 8, **config), Standardiser.fit(x.reshape(-1, channels)),
-                    Standardiser.fit(rng.normal(size=(50, 8))), sg.metadata())
+    ck = Checkpoint(
+        name,
+        config,
+        build(name, channels, 8, **config),
+        Standardiser.fit(x.reshape(-1, channels)),
+        Standardiser.fit(rng.normal(size=(50, 8))),
+        sg.metadata(),
+    )
     eager = sg.Surrogate(ck, jit=False).predict_encoded(x, batch_size=128)
     fast = sg.Surrogate(ck)
     traced = fast.predict_encoded(x, batch_size=128)  # batches of 128, 128 and 44 weeks
@@ -414,11 +555,15 @@ def test_standardised_model_is_the_numpy_chain_in_one_module():
     np.testing.assert_allclose(wrapped, chain, rtol=1e-6, atol=1e-5)
 
 
-@pytest.mark.parametrize("config", [{"patch_hours": 8, "layers": 1},
-                                    {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_gru": 4},
-                                    {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 3},
-                                    {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 3,
-                                     "hourly_state_layers": 2}])
+@pytest.mark.parametrize(
+    "config",
+    [
+        {"patch_hours": 8, "layers": 1},
+        {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_gru": 4},
+        {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 3},
+        {"patch_hours": 8, "layers": 1, "hourly_head": 8, "hourly_state": 3, "hourly_state_layers": 2},
+    ],
+)
 def test_a_transformer_skipping_the_context_outputs_gives_the_week_of_the_full_pass(config):
     # inference leaves out the context hours' read-out (and the last stage's backward states there): the week's
     # outputs must be those of the full pass, which training computes
@@ -470,7 +615,7 @@ def test_thermal_states_are_the_normalised_exponential_recurrence():
             got = states(drive)
         decay = torch.exp(-1.0 / states.log_tau.exp()).detach()
         num, den, expected = torch.zeros(2, 3), torch.zeros(3), {}
-        for hour in (reversed(range(30)) if backward else range(30)):
+        for hour in reversed(range(30)) if backward else range(30):
             num, den = decay * num + drive[:, hour], decay * den + 1.0
             expected[hour] = num / den
         torch.testing.assert_close(got, torch.stack([expected[h] for h in range(30)], 1), rtol=1e-5, atol=1e-5)
@@ -519,4 +664,3 @@ def test_attention_paths_agree():
         finally:
             mm.DENSE_MATMUL_MAX_TOKENS = old
     torch.testing.assert_close(fused, explicit, rtol=1e-4, atol=1e-5)
-

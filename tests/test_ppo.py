@@ -27,8 +27,16 @@ def env():
 @pytest.fixture(scope="module")
 def tiny_model(tmp_path_factory):
     path = tmp_path_factory.mktemp("ppo") / "tiny.zip"
-    model = train_ppo({"weeks": [0, 1, 2, 3]}, timesteps=2 * N_ENVS * 16, num_envs=N_ENVS, seed=0, save=path,
-                      n_steps=16, batch_size=64, n_epochs=2)
+    model = train_ppo(
+        {"weeks": [0, 1, 2, 3]},
+        timesteps=2 * N_ENVS * 16,
+        num_envs=N_ENVS,
+        seed=0,
+        save=path,
+        n_steps=16,
+        batch_size=64,
+        n_epochs=2,
+    )
     return model, path
 
 

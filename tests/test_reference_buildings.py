@@ -36,8 +36,9 @@ def _check_run(run) -> None:
 def test_run_period_rows_drop_design_days_by_stamp():
     first = dt.date(2019, 1, 14)
     stamps = [f" 01/{d:02d}  {h:02d}:00:00" for d in (14, 15) for h in range(1, 25)]
-    frame = pd.DataFrame({"Date/Time": [" 01/01  01:00:00", *stamps[:30], " 07/21  01:00:00", *stamps[30:]],
-                          "x": np.arange(50)})
+    frame = pd.DataFrame(
+        {"Date/Time": [" 01/01  01:00:00", *stamps[:30], " 07/21  01:00:00", *stamps[30:]], "x": np.arange(50)}
+    )
     rows = _run_period_rows(frame, first, 48, "eplusout.csv")
     assert list(rows["Date/Time"]) == stamps
     with pytest.raises(Exception, match="expected 24 consecutive hours"):

@@ -12,9 +12,18 @@ from buildenv.schedules import DEADBAND_K, HOURLY_CHANNELS, hourly_encoding, hou
 S = {name: i for i, name in enumerate(cat.SETTING_NAMES)}
 
 BASE_DAY = {
-    "cooling_start_hour": 8, "cooling_end_hour": 19, "cooling_setback_c": 28, "cooling_comfort_c": 24,
-    "heating_start_hour": 7, "heating_end_hour": 18, "heating_setback_c": 18, "heating_comfort_c": 22,
-    "ventilation_start_hour": 7, "ventilation_end_hour": 19, "supply_air_c": 19, "ventilation_ach": 1.0,
+    "cooling_start_hour": 8,
+    "cooling_end_hour": 19,
+    "cooling_setback_c": 28,
+    "cooling_comfort_c": 24,
+    "heating_start_hour": 7,
+    "heating_end_hour": 18,
+    "heating_setback_c": 18,
+    "heating_comfort_c": 22,
+    "ventilation_start_hour": 7,
+    "ventilation_end_hour": 19,
+    "supply_air_c": 19,
+    "ventilation_ach": 1.0,
 }
 
 
@@ -31,15 +40,14 @@ def _week(day_overrides: dict[int, dict[str, float]] | None = None, occ=((8, 18)
 
 
 def _day(series: np.ndarray, day: int) -> np.ndarray:
-    return series[0, day * 24:(day + 1) * 24]
+    return series[0, day * 24 : (day + 1) * 24]
 
 
 # --------------------------------------------------------------------------- hand-made week
 def test_comfort_periods_follow_start_and_end_of_each_day():
     overrides = {
         0: {"heating_start_hour": 6, "heating_end_hour": 17},
-        2: {"heating_start_hour": 8, "heating_end_hour": 19, "heating_comfort_c": 23.5,
-            "heating_setback_c": 17},
+        2: {"heating_start_hour": 8, "heating_end_hour": 19, "heating_comfort_c": 23.5, "heating_setback_c": 17},
         6: {"cooling_start_hour": 9, "cooling_end_hour": 20, "cooling_setback_c": 30},
     }
     settings, occupancy = _week(overrides)
@@ -53,10 +61,12 @@ def test_comfort_periods_follow_start_and_end_of_each_day():
         np.testing.assert_array_equal(_day(sched["cooling_comfort_on"], day), cool_on.astype(float))
         np.testing.assert_array_equal(
             _day(sched["heating_setpoint_c"], day),
-            np.where(heat_on, s[S["heating_comfort_c"]], s[S["heating_setback_c"]]))
+            np.where(heat_on, s[S["heating_comfort_c"]], s[S["heating_setback_c"]]),
+        )
         np.testing.assert_array_equal(
             _day(sched["cooling_setpoint_c"], day),
-            np.where(cool_on, s[S["cooling_comfort_c"]], s[S["cooling_setback_c"]]))
+            np.where(cool_on, s[S["cooling_comfort_c"]], s[S["cooling_setback_c"]]),
+        )
     # spot checks with literal numbers (Monday heating 06-17, Wednesday 08-19 at 23.5/17)
     mon_heat = _day(sched["heating_setpoint_c"], 0)
     assert mon_heat[5] == 18 and mon_heat[6] == 22 and mon_heat[16] == 22 and mon_heat[17] == 18
@@ -76,7 +86,7 @@ def test_occupancy_weekdays_only_and_within_hours():
     hours = np.arange(24)
     for day, (start, end) in enumerate(occ):
         np.testing.assert_array_equal(_day(frac, day), ((hours >= start) & (hours < end)).astype(float))
-    assert frac[0, 5 * 24:].sum() == 0  # Saturday and Sunday empty
+    assert frac[0, 5 * 24 :].sum() == 0  # Saturday and Sunday empty
     assert frac.sum() == 10 + 10 + 10 + 13 + 8
 
 
@@ -111,8 +121,9 @@ def test_deadband_interlock_inactive_when_setpoints_are_apart():
 
 
 def test_ventilation_ach_zero_when_off_and_supply_all_day():
-    overrides = {4: {"ventilation_start_hour": 9, "ventilation_end_hour": 18, "ventilation_ach": 1.6,
-                     "supply_air_c": 24.5}}
+    overrides = {
+        4: {"ventilation_start_hour": 9, "ventilation_end_hour": 18, "ventilation_ach": 1.6, "supply_air_c": 24.5}
+    }
     settings, occupancy = _week(overrides)
     sched = hourly_schedules(settings, occupancy)
     on = sched["ventilation_on"].astype(bool)
@@ -145,9 +156,16 @@ def test_hourly_encoding_shape_and_channel_order():
     enc = hourly_encoding(settings, occupancy)
     assert enc.shape == (4, 168, 8)
     assert len(HOURLY_CHANNELS) == 8
-    assert HOURLY_CHANNELS == ("heating_setpoint_c", "cooling_setpoint_c", "heating_comfort_on",
-                               "cooling_comfort_on", "ventilation_on", "ventilation_ach", "supply_air_c",
-                               "occupancy_fraction")
+    assert HOURLY_CHANNELS == (
+        "heating_setpoint_c",
+        "cooling_setpoint_c",
+        "heating_comfort_on",
+        "cooling_comfort_on",
+        "ventilation_on",
+        "ventilation_ach",
+        "supply_air_c",
+        "occupancy_fraction",
+    )
     sched = hourly_schedules(settings, occupancy)
     for i, name in enumerate(HOURLY_CHANNELS):
         np.testing.assert_array_equal(enc[..., i], sched[name])

@@ -30,8 +30,15 @@ def _arrays(weeks: int = WEEKS, seed: int = 0) -> dict[str, np.ndarray]:
 
 
 def _write(path: Path, **overrides) -> Path:
-    kwargs = {"name": "Chicago medium office", "weather": "usa_il_chicago", "start": START,
-              "floor_area_m2": AREA, "number_of_floors": 3, **_arrays(), "source": {"seed": 7}}
+    kwargs = {
+        "name": "Chicago medium office",
+        "weather": "usa_il_chicago",
+        "start": START,
+        "floor_area_m2": AREA,
+        "number_of_floors": 3,
+        **_arrays(),
+        "source": {"seed": 7},
+    }
     kwargs.update(overrides)
     return write_site(path, **kwargs)
 
@@ -52,9 +59,11 @@ def _edit(path: Path, edit) -> None:
 
 def _set_line(path: Path, line: int, text: str) -> None:
     """Replace 1-based ``line``."""
+
     def edit(lines):
         lines[line - 1] = text
         return lines
+
     _edit(path, edit)
 
 
@@ -73,8 +82,17 @@ def test_round_trip(tmp_path: Path):
     arrays["consumption_kwh"][1, 100] = np.nan
     source = {"reference": "MediumOffice", "noise_c": 0.2, "seed": 3, "flags": [1, 2], "nested": {"a b": True}}
     truth = {"infiltration_ach": 0.3, "theta": np.array([1.0, 2.0])}
-    path = write_site(tmp_path / "s", name='Office "A"', weather="usa_il_chicago", start=START,
-                      floor_area_m2=AREA, number_of_floors=3, source=source, truth=truth, **arrays)
+    path = write_site(
+        tmp_path / "s",
+        name='Office "A"',
+        weather="usa_il_chicago",
+        start=START,
+        floor_area_m2=AREA,
+        number_of_floors=3,
+        source=source,
+        truth=truth,
+        **arrays,
+    )
     site = load_site(path)
     assert isinstance(site, Site)
     assert site.path == path.resolve()
@@ -86,8 +104,13 @@ def test_round_trip(tmp_path: Path):
     np.testing.assert_array_equal(site.settings, arrays["settings"])
     np.testing.assert_array_equal(site.temperature_c, arrays["temperature_c"])  # on the written 3-decimal grid
     np.testing.assert_array_equal(site.consumption_kwh, arrays["consumption_kwh"])
-    assert site.source == {"reference": "MediumOffice", "noise_c": 0.2, "seed": 3, "flags": [1, 2],
-                           "nested": {"a b": True}}
+    assert site.source == {
+        "reference": "MediumOffice",
+        "noise_c": 0.2,
+        "seed": 3,
+        "flags": [1, 2],
+        "nested": {"a b": True},
+    }
     assert site.truth == {"infiltration_ach": 0.3, "theta": [1.0, 2.0]}
     assert site.calibration is None
     assert not site.temperature_mask[0, 3] and site.temperature_mask.sum() == WEEKS * 168 - 1
@@ -167,23 +190,33 @@ number_of_floors = 3
 
 def test_unknown_top_level_key(site_dir: Path):
     _toml(site_dir, GOOD_TOML.replace('weather = "usa_il_chicago"', 'weather = "usa_il_chicago"\nwether = 1'))
-    with pytest.raises(SiteError, match=r"site\.toml:3: unknown key 'wether'.*allowed: name, weather, "
-                                        r"measurements, settings, effects, geometry, known, source"):
+    with pytest.raises(
+        SiteError,
+        match=r"site\.toml:3: unknown key 'wether'.*allowed: name, weather, "
+        r"measurements, settings, effects, geometry, known, source",
+    ):
         load_site(site_dir)
 
 
 def test_unknown_geometry_key(site_dir: Path):
     _toml(site_dir, GOOD_TOML + "height_m = 10\n")
-    with pytest.raises(SiteError, match=r"site\.toml:7: unknown key 'height_m' in \[geometry\].*"
-                                        r"allowed: floor_area_m2, number_of_floors"):
+    with pytest.raises(
+        SiteError,
+        match=r"site\.toml:7: unknown key 'height_m' in \[geometry\].*"
+        r"allowed: floor_area_m2, number_of_floors",
+    ):
         load_site(site_dir)
 
 
 def test_known_parameters_round_trip_and_join_the_fixed_theta(tmp_path: Path):
     site = load_site(_write(tmp_path / "s", known={"pc_night_percent": 44.4, "window_to_wall_south_percent": 33}))
     assert site.known == {"pc_night_percent": 44.4, "window_to_wall_south_percent": 33.0}
-    assert site.theta_known() == {"floor_area_m2": AREA, "number_of_floors": 3.0, "pc_night_percent": 44.4,
-                                  "window_to_wall_south_percent": 33.0}
+    assert site.theta_known() == {
+        "floor_area_m2": AREA,
+        "number_of_floors": 3.0,
+        "pc_night_percent": 44.4,
+        "window_to_wall_south_percent": 33.0,
+    }
     assert load_site(_write(tmp_path / "plain")).known == {}
 
 
@@ -193,25 +226,34 @@ def test_declared_effects_round_trip(tmp_path: Path):
     assert load_site(_write(tmp_path / "plain")).effects == ()
 
 
-@pytest.mark.parametrize("line, error", [
-    ('effects = ["draughts"]', r"site\.toml:3: unknown effect 'draughts'"),
-    ('effects = "heat_recovery"', r"site\.toml:3: 'effects' must be a list of effect names"),
-    ('effects = ["heat_recovery", "heat_recovery"]', r"site\.toml:3: effect heat_recovery declared twice"),
-    ('effects = ["holidays"]', r"site\.toml:3: effect 'holidays' cannot be declared"),
-])
+@pytest.mark.parametrize(
+    "line, error",
+    [
+        ('effects = ["draughts"]', r"site\.toml:3: unknown effect 'draughts'"),
+        ('effects = "heat_recovery"', r"site\.toml:3: 'effects' must be a list of effect names"),
+        ('effects = ["heat_recovery", "heat_recovery"]', r"site\.toml:3: effect heat_recovery declared twice"),
+        ('effects = ["holidays"]', r"site\.toml:3: effect 'holidays' cannot be declared"),
+    ],
+)
 def test_declared_effect_errors_name_the_line(site_dir: Path, line: str, error: str):
     _toml(site_dir, GOOD_TOML.replace('weather = "usa_il_chicago"\n', 'weather = "usa_il_chicago"\n' + line + "\n"))
     with pytest.raises(SiteError, match=error):
         load_site(site_dir)
 
 
-@pytest.mark.parametrize("line, error", [
-    ("floor_area_m2 = 5000", r"site\.toml:9: 'floor_area_m2' belongs in \[geometry\], not \[known\]"),
-    ("pc_nite_percent = 40", r"site\.toml:9: unknown key 'pc_nite_percent' in \[known\] \(did you mean "
-                             r"'pc_night_percent'\?\)"),
-    ('pc_night_percent = "40 %"', r"site\.toml:9: pc_night_percent must be a number \(%\), got '40 %'"),
-    ("heating_power_w_m2 = 400", r"site\.toml:9: heating_power_w_m2=400 is outside its range \[10, 100\] W/m2"),
-])
+@pytest.mark.parametrize(
+    "line, error",
+    [
+        ("floor_area_m2 = 5000", r"site\.toml:9: 'floor_area_m2' belongs in \[geometry\], not \[known\]"),
+        (
+            "pc_nite_percent = 40",
+            r"site\.toml:9: unknown key 'pc_nite_percent' in \[known\] \(did you mean "
+            r"'pc_night_percent'\?\)",
+        ),
+        ('pc_night_percent = "40 %"', r"site\.toml:9: pc_night_percent must be a number \(%\), got '40 %'"),
+        ("heating_power_w_m2 = 400", r"site\.toml:9: heating_power_w_m2=400 is outside its range \[10, 100\] W/m2"),
+    ],
+)
 def test_known_parameter_errors_name_the_line(site_dir: Path, line: str, error: str):
     _toml(site_dir, GOOD_TOML + "\n[known]\n" + line + "\n")
     with pytest.raises(SiteError, match=error):
@@ -281,15 +323,21 @@ def _meas(site_dir: Path) -> Path:
 
 def test_wrong_header(site_dir: Path):
     _set_line(_meas(site_dir), 1, "time,temperature,energy")
-    with pytest.raises(SiteError, match=r"measurements\.csv:1: header is 'time,temperature,energy', expected "
-                                        r"the columns 'timestamp,indoor_temperature_c,heat_consumption_kwh'"):
+    with pytest.raises(
+        SiteError,
+        match=r"measurements\.csv:1: header is 'time,temperature,energy', expected "
+        r"the columns 'timestamp,indoor_temperature_c,heat_consumption_kwh'",
+    ):
         load_site(site_dir)
 
 
 def test_missing_header(site_dir: Path):
     _edit(_meas(site_dir), lambda lines: lines[1:])
-    with pytest.raises(SiteError, match=r"measurements\.csv:1: missing header: the first line must be "
-                                        r"timestamp,indoor_temperature_c,heat_consumption_kwh"):
+    with pytest.raises(
+        SiteError,
+        match=r"measurements\.csv:1: missing header: the first line must be "
+        r"timestamp,indoor_temperature_c,heat_consumption_kwh",
+    ):
         load_site(site_dir)
 
 
@@ -299,16 +347,24 @@ def test_semicolon_separator_is_named(site_dir: Path):
         load_site(site_dir)
 
 
-@pytest.mark.parametrize(("column", "unit"), [
-    ("indoor_temperature_f", "degF"), ("indoor_temperature_k", "K"),
-    ("heat_consumption_wh", "Wh"), ("heat_consumption_mj", "MJ"),
-])
+@pytest.mark.parametrize(
+    ("column", "unit"),
+    [
+        ("indoor_temperature_f", "degF"),
+        ("indoor_temperature_k", "K"),
+        ("heat_consumption_wh", "Wh"),
+        ("heat_consumption_mj", "MJ"),
+    ],
+)
 def test_header_in_wrong_unit(site_dir: Path, column: str, unit: str):
     header = ["timestamp", "indoor_temperature_c", "heat_consumption_kwh"]
     header[1 if column.startswith("indoor") else 2] = column
     _set_line(_meas(site_dir), 1, ",".join(header))
-    with pytest.raises(SiteError, match=rf"measurements\.csv:1: wrong unit: column '{column}' is in {unit}; "
-                                        r"expected (indoor_temperature_c \(degC\)|heat_consumption_kwh \(kWh\))"):
+    with pytest.raises(
+        SiteError,
+        match=rf"measurements\.csv:1: wrong unit: column '{column}' is in {unit}; "
+        r"expected (indoor_temperature_c \(degC\)|heat_consumption_kwh \(kWh\))",
+    ):
         load_site(site_dir)
 
 
@@ -321,8 +377,9 @@ def test_empty_file_and_header_only(site_dir: Path):
         load_site(site_dir)
 
 
-@pytest.mark.parametrize("text", ["2024/01/01 04:00", "01.01.2024 04:00", "2024-01-01", "yesterday",
-                                  "2024-13-01 04:00"])
+@pytest.mark.parametrize(
+    "text", ["2024/01/01 04:00", "01.01.2024 04:00", "2024-01-01", "yesterday", "2024-13-01 04:00"]
+)
 def test_unparsable_timestamp(site_dir: Path, text: str):
     _set_line(_meas(site_dir), 6, f"{text},21,50")
     with pytest.raises(SiteError, match=r"measurements\.csv:6: cannot read timestamp"):
@@ -348,8 +405,11 @@ def test_timestamp_not_on_the_hour(site_dir: Path):
 
 def test_duplicate_timestamp(site_dir: Path):
     _set_line(_meas(site_dir), 7, f"{_stamp(4)},21,50")  # line 7 would be hour 5; line 6 is hour 4
-    with pytest.raises(SiteError, match=r"measurements\.csv:7: duplicate timestamp 2024-01-01 04:00 "
-                                        r"\(also on line 6\)"):
+    with pytest.raises(
+        SiteError,
+        match=r"measurements\.csv:7: duplicate timestamp 2024-01-01 04:00 "
+        r"\(also on line 6\)",
+    ):
         load_site(site_dir)
 
 
@@ -357,38 +417,55 @@ def test_non_monotonic_timestamp(site_dir: Path):
     def swap(lines):
         lines[5], lines[6] = lines[6], lines[5]  # lines 6 and 7
         return lines
+
     _edit(_meas(site_dir), swap)
-    with pytest.raises(SiteError, match=r"measurements\.csv:7: timestamp 2024-01-01 04:00 is earlier than the "
-                                        r"previous row's 2024-01-01 05:00 \(line 6\)"):
+    with pytest.raises(
+        SiteError,
+        match=r"measurements\.csv:7: timestamp 2024-01-01 04:00 is earlier than the "
+        r"previous row's 2024-01-01 05:00 \(line 6\)",
+    ):
         load_site(site_dir)
 
 
-@pytest.mark.parametrize(("cells", "column"), [("abc,50", "indoor_temperature_c"),
-                                               ("21,12;5", "heat_consumption_kwh"),
-                                               ("21,inf", "heat_consumption_kwh")])
+@pytest.mark.parametrize(
+    ("cells", "column"),
+    [("abc,50", "indoor_temperature_c"), ("21,12;5", "heat_consumption_kwh"), ("21,inf", "heat_consumption_kwh")],
+)
 def test_non_numeric_value(site_dir: Path, cells: str, column: str):
     _set_line(_meas(site_dir), 10, f"{_stamp(8)},{cells}")
     with pytest.raises(SiteError, match=rf"measurements\.csv:10: {column}: .* not a (finite )?number"):
         load_site(site_dir)
 
 
-@pytest.mark.parametrize(("row", "message"), [
-    ("21,50,7", "too many columns: 4 instead of 3"),
-    ("21", "too few columns: 2 instead of 3"),
-])
+@pytest.mark.parametrize(
+    ("row", "message"),
+    [
+        ("21,50,7", "too many columns: 4 instead of 3"),
+        ("21", "too few columns: 2 instead of 3"),
+    ],
+)
 def test_wrong_number_of_columns(site_dir: Path, row: str, message: str):
     _set_line(_meas(site_dir), 10, f"{_stamp(8)},{row}")
     with pytest.raises(SiteError, match=rf"measurements\.csv:10: {message}"):
         load_site(site_dir)
 
 
-@pytest.mark.parametrize(("value", "hint"), [
-    ("72.5", "looks like degF"), ("294.1", "looks like K"), ("-35", "fix the unit"), ("55", "looks like degF"),
-])
+@pytest.mark.parametrize(
+    ("value", "hint"),
+    [
+        ("72.5", "looks like degF"),
+        ("294.1", "looks like K"),
+        ("-35", "fix the unit"),
+        ("55", "looks like degF"),
+    ],
+)
 def test_impossible_temperature(site_dir: Path, value: str, hint: str):
     _set_line(_meas(site_dir), 10, f"{_stamp(8)},{value},50")
-    with pytest.raises(SiteError, match=rf"measurements\.csv:10: indoor_temperature_c={value} is outside "
-                                        rf"\[-20, 50\] degC.*{hint}"):
+    with pytest.raises(
+        SiteError,
+        match=rf"measurements\.csv:10: indoor_temperature_c={value} is outside "
+        rf"\[-20, 50\] degC.*{hint}",
+    ):
         load_site(site_dir)
 
 
@@ -406,8 +483,11 @@ def test_negative_consumption(site_dir: Path):
 
 def test_consumption_above_one_kwh_per_m2(site_dir: Path):
     _set_line(_meas(site_dir), 10, f"{_stamp(8)},21,60000")  # 60 kWh written in Wh
-    with pytest.raises(SiteError, match=r"measurements\.csv:10: heat_consumption_kwh=60000 is above 1 kWh/m2 in "
-                                        r"one hour \(4982 kWh for 4982 m2\); looks like Wh"):
+    with pytest.raises(
+        SiteError,
+        match=r"measurements\.csv:10: heat_consumption_kwh=60000 is above 1 kWh/m2 in "
+        r"one hour \(4982 kWh for 4982 m2\); looks like Wh",
+    ):
         load_site(site_dir)
     _set_line(_meas(site_dir), 10, f"{_stamp(8)},21,9e9")
     with pytest.raises(SiteError, match=r"measurements\.csv:10: .*is above 1 kWh/m2") as info:
@@ -417,8 +497,11 @@ def test_consumption_above_one_kwh_per_m2(site_dir: Path):
 
 def test_first_timestamp_must_be_monday_midnight(site_dir: Path):
     _edit(_meas(site_dir), lambda lines: [lines[0]] + lines[2:])  # starts Monday 01:00
-    with pytest.raises(SiteError, match=r"measurements\.csv:2: the first timestamp 2024-01-01 01:00 is a "
-                                        r"Monday at 01:00: data must start on a Monday at 00:00"):
+    with pytest.raises(
+        SiteError,
+        match=r"measurements\.csv:2: the first timestamp 2024-01-01 01:00 is a "
+        r"Monday at 01:00: data must start on a Monday at 00:00",
+    ):
         load_site(site_dir)
     _edit(_meas(site_dir), lambda lines: [lines[0]] + lines[24:])  # starts Tuesday 00:00
     with pytest.raises(SiteError, match=r"measurements\.csv:2: the first timestamp 2024-01-02 00:00 is a Tuesday"):
@@ -428,17 +511,20 @@ def test_first_timestamp_must_be_monday_midnight(site_dir: Path):
 def test_data_must_cover_whole_weeks(site_dir: Path):
     _edit(_meas(site_dir), lambda lines: lines[:-1])  # stops Sunday 22:00
     n = len(_lines(_meas(site_dir)))
-    with pytest.raises(SiteError, match=rf"measurements\.csv:{n}: the data end at Sunday 2024-01-14 22:00: they "
-                                        r"must cover whole weeks.*add rows up to 2024-01-14 23:00"):
+    with pytest.raises(
+        SiteError,
+        match=rf"measurements\.csv:{n}: the data end at Sunday 2024-01-14 22:00: they "
+        r"must cover whole weeks.*add rows up to 2024-01-14 23:00",
+    ):
         load_site(site_dir)
-    _edit(_meas(site_dir), lambda lines: lines[:1 + 168 + 30])  # stops in week 2
+    _edit(_meas(site_dir), lambda lines: lines[: 1 + 168 + 30])  # stops in week 2
     with pytest.raises(SiteError, match=r"measurements\.csv:199: the data end at Tuesday 2024-01-09 05:00"):
         load_site(site_dir)
 
 
 def test_first_week_only_is_one_week_and_needs_fewer_settings(site_dir: Path):
-    _edit(_meas(site_dir), lambda lines: lines[:1 + 168])
-    _edit(site_dir / "settings.csv", lambda lines: lines[:1 + 7])
+    _edit(_meas(site_dir), lambda lines: lines[: 1 + 168])
+    _edit(site_dir / "settings.csv", lambda lines: lines[: 1 + 7])
     assert load_site(site_dir).weeks == 1
 
 
@@ -468,6 +554,7 @@ def test_gaps_become_nan_and_masked_and_nothing_else_changes(tmp_path: Path):
                 q = "NaN" if hour != 300 else "nan"
             out.append(",".join([stamp, t, q]))
         return out
+
     _edit(gappy_dir / "measurements.csv", edit)
     gappy = load_site(gappy_dir)
 
@@ -487,7 +574,7 @@ def test_gaps_become_nan_and_masked_and_nothing_else_changes(tmp_path: Path):
 
 
 def test_last_week_may_have_gaps_up_to_sunday_2300(site_dir: Path):
-    _edit(_meas(site_dir), lambda lines: lines[:1 + 170] + lines[-1:])  # week 2: Mon 00-01 then Sun 23:00 only
+    _edit(_meas(site_dir), lambda lines: lines[: 1 + 170] + lines[-1:])  # week 2: Mon 00-01 then Sun 23:00 only
     site = load_site(site_dir)
     assert site.weeks == 2
     assert site.temperature_mask[1].sum() == 3 and site.temperature_mask[1, [0, 1, 167]].all()
@@ -495,7 +582,7 @@ def test_last_week_may_have_gaps_up_to_sunday_2300(site_dir: Path):
 
 def test_gap_of_a_whole_week_is_allowed(tmp_path: Path):
     site_dir = _write(tmp_path / "s", **_arrays(weeks=3))
-    _edit(_meas(site_dir), lambda lines: lines[:1 + 168] + lines[1 + 336:])
+    _edit(_meas(site_dir), lambda lines: lines[: 1 + 168] + lines[1 + 336 :])
     site = load_site(site_dir)
     assert site.weeks == 3 and not site.temperature_mask[1].any() and site.temperature_mask[[0, 2]].all()
 
@@ -515,9 +602,12 @@ def test_settings_header(site_dir: Path):
     header = _cells(_settings(site_dir), 1)
     header[8] = "heating_comfrt_c"
     _set_line(_settings(site_dir), 1, ",".join(header))
-    with pytest.raises(SiteError, match=r"settings\.csv:1: wrong header \(missing heating_comfort_c; unknown "
-                                        r"'heating_comfrt_c' \(did you mean 'heating_comfort_c'\?\)\); expected "
-                                        r"date,cooling_start_hour,"):
+    with pytest.raises(
+        SiteError,
+        match=r"settings\.csv:1: wrong header \(missing heating_comfort_c; unknown "
+        r"'heating_comfrt_c' \(did you mean 'heating_comfort_c'\?\)\); expected "
+        r"date,cooling_start_hour,",
+    ):
         load_site(site_dir)
     header[8], header[9] = "ventilation_start_hour", "heating_comfort_c"
     _set_line(_settings(site_dir), 1, ",".join(header))
@@ -527,8 +617,11 @@ def test_settings_header(site_dir: Path):
 
 def test_settings_value_out_of_range_names_the_variable(site_dir: Path):
     _set_cell(_settings(site_dir), 4, "heating_comfort_c", "30")
-    with pytest.raises(SiteError, match=r"settings\.csv:4: heating_comfort_c=30 is outside its range "
-                                        r"\[22, 24\] degC"):
+    with pytest.raises(
+        SiteError,
+        match=r"settings\.csv:4: heating_comfort_c=30 is outside its range "
+        r"\[22, 24\] degC",
+    ):
         load_site(site_dir)
 
 
@@ -537,9 +630,14 @@ def test_settings_off_grid_value_is_kept(site_dir: Path):
     assert load_site(site_dir).settings[0, 2, cat.SETTING_NAMES.index("heating_comfort_c")] == 22.37
 
 
-@pytest.mark.parametrize(("value", "message"), [("", "heating_setback_c is missing"),
-                                                ("NaN", "heating_setback_c is missing"),
-                                                ("warm", "heating_setback_c: 'warm' is not a number")])
+@pytest.mark.parametrize(
+    ("value", "message"),
+    [
+        ("", "heating_setback_c is missing"),
+        ("NaN", "heating_setback_c is missing"),
+        ("warm", "heating_setback_c: 'warm' is not a number"),
+    ],
+)
 def test_settings_missing_or_non_numeric(site_dir: Path, value: str, message: str):
     _set_cell(_settings(site_dir), 3, "heating_setback_c", value)
     with pytest.raises(SiteError, match=rf"settings\.csv:3: {message}"):
@@ -548,8 +646,11 @@ def test_settings_missing_or_non_numeric(site_dir: Path, value: str, message: st
 
 def test_settings_must_start_on_the_first_monday(site_dir: Path):
     _set_cell(_settings(site_dir), 2, "date", "2023-12-31")
-    with pytest.raises(SiteError, match=r"settings\.csv:2: date 2023-12-31 should be 2024-01-01 \(the first "
-                                        r"measured Monday\)"):
+    with pytest.raises(
+        SiteError,
+        match=r"settings\.csv:2: date 2023-12-31 should be 2024-01-01 \(the first "
+        r"measured Monday\)",
+    ):
         load_site(site_dir)
 
 
@@ -567,8 +668,11 @@ def test_settings_dates_must_be_consecutive(site_dir: Path):
 def test_settings_must_cover_exactly_the_measured_days(site_dir: Path):
     lines = _lines(_settings(site_dir))
     _settings(site_dir).write_text("\n".join(lines[:-2]) + "\n")
-    with pytest.raises(SiteError, match=r"settings\.csv:13: the settings end on 2024-01-12, but the measurements "
-                                        r"run to Sunday 2024-01-14: expected 14 rows"):
+    with pytest.raises(
+        SiteError,
+        match=r"settings\.csv:13: the settings end on 2024-01-12, but the measurements "
+        r"run to Sunday 2024-01-14: expected 14 rows",
+    ):
         load_site(site_dir)
     extra = lines[-1].replace("2024-01-14", "2024-01-15")
     _settings(site_dir).write_text("\n".join([*lines, extra]) + "\n")
@@ -595,8 +699,17 @@ def test_invalid_truth_json(site_dir: Path):
 # --------------------------------------------------------------------------- EPW hours
 def _bare_site(start: dt.date, weeks: int = 1, weather: str = "usa_il_chicago") -> Site:
     nan = np.full((weeks, 168), np.nan)
-    return Site(path=Path("."), name="x", weather=weather, start=start, floor_area_m2=AREA, number_of_floors=3,
-                settings=np.zeros((weeks, 7, 12)), temperature_c=nan, consumption_kwh=nan.copy())
+    return Site(
+        path=Path("."),
+        name="x",
+        weather=weather,
+        start=start,
+        floor_area_m2=AREA,
+        number_of_floors=3,
+        settings=np.zeros((weeks, 7, 12)),
+        temperature_c=nan,
+        consumption_kwh=nan.copy(),
+    )
 
 
 def test_start_hour_of_year():
@@ -629,6 +742,6 @@ def test_weather_hours_shape_and_values():
     weather = site.weather_hours()
     assert weather.shape == (2, 168, len(cat.WEATHER_NAMES))
     start = site.start_hour_of_year(0)
-    np.testing.assert_array_equal(weather[0], hourly[start:start + 168])
-    np.testing.assert_array_equal(weather[1, :48], hourly[8760 - 48:])
+    np.testing.assert_array_equal(weather[0], hourly[start : start + 168])
+    np.testing.assert_array_equal(weather[1, :48], hourly[8760 - 48 :])
     np.testing.assert_array_equal(weather[1, 48:], hourly[:120])

@@ -13,8 +13,8 @@ from threadpoolctl import threadpool_info
 
 from buildenv import catalogue as cat
 from buildenv.calibration.calibrate import calibrate_site
-from buildenv.diagnosis.gap import diagnose
 from buildenv.campaign.sampling import sample_group, sample_weeks
+from buildenv.diagnosis.gap import diagnose
 from buildenv.metamodel.surrogate import CheckpointError, encode_weeks, ground_hours, load_metamodel, weather_ground_c
 from buildenv.metamodel.threads import MIN_WEEKS_PER_CALL, MetamodelWorkers, one_blas_thread, split_calls
 from buildenv.weather.epw import load_weather
@@ -56,13 +56,29 @@ def _weeks(n: int, surrogate, seed: int = 0) -> dict:
     settings, occupancy = sample_weeks(n, rng)
     year = load_weather("usa_il_chicago").weeks(0, cat.WEEKS_PER_YEAR)
     first = np.arange(n) % cat.WEEKS_PER_YEAR
-    return {"theta": sample_group("theta_build", n, rng), "settings": settings, "occupancy": occupancy,
-            "weather": year[first], "ground_c": ground_hours(weather_ground_c("usa_il_chicago"), first * 168,
-                                                             surrogate.context_hours)}
+    return {
+        "theta": sample_group("theta_build", n, rng),
+        "settings": settings,
+        "occupancy": occupancy,
+        "weather": year[first],
+        "ground_c": ground_hours(weather_ground_c("usa_il_chicago"), first * 168, surrogate.context_hours),
+    }
 
 
-@pytest.mark.parametrize("n,batch,workers", [(0, 64, 2), (5, 64, 2), (15, 64, 2), (16, 64, 2), (130, 128, 2),
-                                             (4096, 64, 2), (100, 64, 8), (100, 3, 2), (9, 64, 1)])
+@pytest.mark.parametrize(
+    "n,batch,workers",
+    [
+        (0, 64, 2),
+        (5, 64, 2),
+        (15, 64, 2),
+        (16, 64, 2),
+        (130, 128, 2),
+        (4096, 64, 2),
+        (100, 64, 8),
+        (100, 3, 2),
+        (9, 64, 1),
+    ],
+)
 def test_split_calls_covers_the_weeks_in_even_calls_of_at_least_the_minimum(n, batch, workers):
     calls = split_calls(n, batch, workers)
     assert [w for c in calls for w in range(n)[c]] == list(range(n))
@@ -83,8 +99,14 @@ def test_predict_spread_over_workers_gives_the_outputs_of_torch_alone():
         surrogate.workers = workers
         outputs[workers] = surrogate.predict(**weeks, batch_size=16)
         assert torch.get_num_threads() == threads  # the process keeps its thread count
-    encoded = encode_weeks(weeks["theta"], weeks["settings"], weeks["occupancy"], weeks["weather"],
-                           context_hours=surrogate.context_hours, ground_c=weeks["ground_c"])
+    encoded = encode_weeks(
+        weeks["theta"],
+        weeks["settings"],
+        weeks["occupancy"],
+        weeks["weather"],
+        context_hours=surrogate.context_hours,
+        ground_c=weeks["ground_c"],
+    )
     outputs["encoded"] = surrogate.predict_encoded(encoded)  # two calls of 35 weeks
     assert np.array_equal(outputs[2], outputs[3])  # the same calls, each on one thread
     # torch's own threads, or calls of other sizes, may change float32 rounding on some CPUs (on ours, nothing)

@@ -22,7 +22,7 @@ def chicago() -> Weather:
 
 def _month(series: np.ndarray, month: int) -> np.ndarray:
     """``month`` 1-12."""
-    return series[MONTH_START_H[month - 1]:MONTH_START_H[month]]
+    return series[MONTH_START_H[month - 1] : MONTH_START_H[month]]
 
 
 # --------------------------------------------------------------------------- resolve_epw
@@ -128,7 +128,7 @@ def test_north_facade_beam(chicago):
     beam_n, dni = chicago.channel("IBEAM_N"), chicago.channel("DNI")
     assert np.all(beam_n >= 0) and np.all(beam_n <= dni + 1e-9)
     # midwinter at 42 N: the sun always stays south of east-west, no beam on a north facade
-    winter = np.r_[0:MONTH_START_H[1], MONTH_START_H[11]:8760]
+    winter = np.r_[0 : MONTH_START_H[1], MONTH_START_H[11] : 8760]
     assert beam_n[winter].max() == 0
     assert dni[winter].max() > 500  # ... although the sun does shine
     # June: the sun rises and sets north of east/west -> north facade lit early and late, never at noon
@@ -146,7 +146,7 @@ def test_weeks(chicago):
     np.testing.assert_array_equal(two[1], chicago.hourly[168:336])
     last = chicago.weeks(51, 1)
     assert last.shape == (1, 168, 9)
-    np.testing.assert_array_equal(last[0], chicago.hourly[51 * 168:52 * 168])
+    np.testing.assert_array_equal(last[0], chicago.hourly[51 * 168 : 52 * 168])
 
 
 @pytest.mark.parametrize("start, n", [(52, 1), (51, 2), (-1, 1), (0, 53)])
@@ -167,7 +167,7 @@ def test_garbage_epw_raises(tmp_path):
 def test_truncated_epw_raises(tmp_path):
     lines = resolve_epw("usa_il_chicago").read_text(errors="replace").splitlines(keepends=True)
     short = tmp_path / "short.epw"
-    short.write_text("".join(lines[:8 + 100]))  # header + 100 hours
+    short.write_text("".join(lines[: 8 + 100]))  # header + 100 hours
     with pytest.raises(WeatherError, match="8760.*found 100"):
         load_weather(short)
 

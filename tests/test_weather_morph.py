@@ -70,8 +70,9 @@ def test_values_marked_missing_stay_missing():
 def test_random_morphs_are_seeded_and_listed(tmp_path):
     a = morph_many(["usa_il_chicago", "usa_fl_miami"], tmp_path / "a", seed=4, stretch=1.0)
     b = morph_many(["usa_il_chicago", "usa_fl_miami"], tmp_path / "b", seed=4, stretch=1.0)
-    assert [{k: v for k, v in r.items() if k != "file"} for r in a] == \
-        [{k: v for k, v in r.items() if k != "file"} for r in b]
+    assert [{k: v for k, v in r.items() if k != "file"} for r in a] == [
+        {k: v for k, v in r.items() if k != "file"} for r in b
+    ]
     assert a[0]["shift_k"] != a[1]["shift_k"] and all(r["stretch"] == 1.0 for r in a)
     for r in a:
         for name, (low, high) in MORPH_RANGES.items():
@@ -103,9 +104,23 @@ def test_the_command_writes_one_morph_or_a_seeded_set(tmp_path, capsys):
     assert main(["morph-weather", "--epw", "usa_il_chicago", "--out", str(out), "--shift-k", "2"]) == 0
     assert json.loads(capsys.readouterr().out)[0]["file"] == str(out)
     assert _channel(load_weather(out), "TAMB").mean() == pytest.approx(
-        _channel(load_weather("usa_il_chicago"), "TAMB").mean() + 2.0, abs=0.01)
-    assert main(["morph-weather", "--epw", "usa_il_chicago", "usa_fl_miami", "--out-dir", str(tmp_path / "set"),
-                 "--seed", "3"]) == 0
+        _channel(load_weather("usa_il_chicago"), "TAMB").mean() + 2.0, abs=0.01
+    )
+    assert (
+        main(
+            [
+                "morph-weather",
+                "--epw",
+                "usa_il_chicago",
+                "usa_fl_miami",
+                "--out-dir",
+                str(tmp_path / "set"),
+                "--seed",
+                "3",
+            ]
+        )
+        == 0
+    )
     assert len(json.loads(capsys.readouterr().out)) == 2
     assert main(["morph-weather", "--epw", "usa_il_chicago", "usa_fl_miami", "--out", str(out)]) == 2
     assert "give one --epw" in capsys.readouterr().err
@@ -120,8 +135,11 @@ def test_energyplus_runs_a_morphed_file_and_a_warmer_january_needs_less_heat(tmp
     heat = {}
     for label, epw in (("as is", "usa_il_chicago"), ("+6 K", warm)):
         result = simulate_weeks(DEFAULT_THETA, settings, occupancy, epw, 2)
-        np.testing.assert_allclose(result.weather[0][:, cat.WEATHER_NAMES.index("TAMB")],
-                                   load_weather(epw).weeks(2, 1)[0][:, cat.WEATHER_NAMES.index("TAMB")])
-        heat[label] = float(result.outputs[0][:, [i for i, n in enumerate(cat.OUTPUT_NAMES)
-                                                  if n != "T_INT_OFFICE"]].sum())
+        np.testing.assert_allclose(
+            result.weather[0][:, cat.WEATHER_NAMES.index("TAMB")],
+            load_weather(epw).weeks(2, 1)[0][:, cat.WEATHER_NAMES.index("TAMB")],
+        )
+        heat[label] = float(
+            result.outputs[0][:, [i for i, n in enumerate(cat.OUTPUT_NAMES) if n != "T_INT_OFFICE"]].sum()
+        )
     assert heat["+6 K"] < 0.9 * heat["as is"]

@@ -11,6 +11,13 @@ import pytest
 from buildenv import catalogue as cat
 from buildenv.campaign.runs import CampaignConfig, run_campaign
 from buildenv.defaults import DEFAULT_THETA, default_week
+from buildenv.energyplus.reference import (
+    _schedule_columns,
+    design_outdoor_air_ach,
+    historical_settings,
+    historical_ventilation_ach,
+    reference_idf,
+)
 from buildenv.energyplus.shoebox import (
     CORE,
     PERIMETER,
@@ -21,13 +28,6 @@ from buildenv.energyplus.shoebox import (
 )
 from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.errors import BuildenvError
-from buildenv.energyplus.reference import (
-    _schedule_columns,
-    design_outdoor_air_ach,
-    historical_settings,
-    historical_ventilation_ach,
-    reference_idf,
-)
 from buildenv.weather.epw import load_weather, resolve_epw
 
 OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
@@ -39,7 +39,7 @@ def test_zone_shares_follow_the_footprint():
     shares = zone_shares(office, "core_perimeter")
     assert sum(shares.values()) == pytest.approx(1.0)
     core_side = office.side_m - 2 * PERIMETER_DEPTH_M
-    assert shares[CORE] == pytest.approx(core_side ** 2 / office.side_m ** 2)
+    assert shares[CORE] == pytest.approx(core_side**2 / office.side_m**2)
     tower = Geometry.from_theta({"floor_area_m2": 1000.0, "number_of_floors": 15})  # 8.2 m side
     assert tower.perimeter_depth_m == pytest.approx(tower.side_m / 4)
     assert zone_shares(tower, "core_perimeter")[CORE] == pytest.approx(0.25)
@@ -60,8 +60,9 @@ def test_core_perimeter_model_is_closed_and_paired(tmp_path):
             twin = surfaces[s["outside_boundary_condition_object"]]
             assert twin["outside_boundary_condition_object"] == name and twin["zone_name"] != s["zone_name"]
             assert twin["vertices"] == s["vertices"][::-1]
-    walls = [s for s in surfaces.values()
-             if s["outside_boundary_condition"] == "Outdoors" and s["surface_type"] == "Wall"]
+    walls = [
+        s for s in surfaces.values() if s["outside_boundary_condition"] == "Outdoors" and s["surface_type"] == "Wall"
+    ]
     assert {s["zone_name"] for s in walls} == {PERIMETER}  # the core has no facade
     for kind in ("Roof", "Floor"):  # roof and ground cover the footprint once
         pieces = [s for s in surfaces.values() if s["surface_type"] == kind]
@@ -70,7 +71,7 @@ def test_core_perimeter_model_is_closed_and_paired(tmp_path):
             xy = np.array([[v["vertex_x_coordinate"], v["vertex_y_coordinate"]] for v in s["vertices"]])
             total += 0.5 * abs(np.dot(xy[:, 0], np.roll(xy[:, 1], 1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], 1)))
         side = Geometry.from_theta(DEFAULT_THETA).side_m
-        assert total == pytest.approx(side ** 2, rel=1e-3)
+        assert total == pytest.approx(side**2, rel=1e-3)
     assert len(build_epjson(DEFAULT_THETA, weather, tmp_path / "s.csv", 0, 1, zoning="single")["Zone"]) == 1
 
 
@@ -78,8 +79,12 @@ def test_core_perimeter_model_is_closed_and_paired(tmp_path):
 def january(tmp_path_factory):
     settings, occupancy = default_week()
     work = tmp_path_factory.mktemp("zoning")
-    runs = {z: simulate_weeks(DEFAULT_THETA, settings, occupancy, "usa_il_chicago", JANUARY, workdir=work / z,
-                              keep_files=True, zoning=z).outputs[0] for z in ("single", "core_perimeter")}
+    runs = {
+        z: simulate_weeks(
+            DEFAULT_THETA, settings, occupancy, "usa_il_chicago", JANUARY, workdir=work / z, keep_files=True, zoning=z
+        ).outputs[0]
+        for z in ("single", "core_perimeter")
+    }
     return runs, work
 
 
@@ -90,10 +95,13 @@ def test_outputs_are_the_zones_mean_temperature_and_summed_energy(january):
     shares = zone_shares(Geometry.from_theta(DEFAULT_THETA), "core_perimeter")
     t = sum(shares[z] * frame[column[f"{z.upper()}:ZONE MEAN AIR TEMPERATURE"]] for z in (PERIMETER, CORE))
     np.testing.assert_allclose(runs["core_perimeter"][:, OUT["T_INT_OFFICE"]], t, atol=1e-6)
-    heat = sum(frame[column[f"{z.upper()} FAN COILS:ZONE IDEAL LOADS SUPPLY AIR TOTAL HEATING ENERGY"]]
-               for z in (PERIMETER, CORE))
-    np.testing.assert_allclose(runs["core_perimeter"][:, OUT["Q_HEAT_OFFICE"]],
-                               heat / 3600.0 / DEFAULT_THETA["floor_area_m2"], rtol=1e-6)
+    heat = sum(
+        frame[column[f"{z.upper()} FAN COILS:ZONE IDEAL LOADS SUPPLY AIR TOTAL HEATING ENERGY"]]
+        for z in (PERIMETER, CORE)
+    )
+    np.testing.assert_allclose(
+        runs["core_perimeter"][:, OUT["Q_HEAT_OFFICE"]], heat / 3600.0 / DEFAULT_THETA["floor_area_m2"], rtol=1e-6
+    )
 
 
 def test_perimeter_heats_at_night_while_the_mean_stays_above_setback(january):
@@ -129,8 +137,10 @@ def test_campaign_zoning_is_validated_and_old_campaigns_resume_as_single(tmp_pat
     config = CampaignConfig(weeks=1, seed=1, epw=["usa_co_golden"], weeks_per_run=1, zoning="single")
     out = tmp_path / "old"
     out.mkdir()
-    record = {"config": {k: v for k, v in config.__dict__.items() if k != "zoning"},
-              "catalogue_hash": cat.catalogue_hash()}
+    record = {
+        "config": {k: v for k, v in config.__dict__.items() if k != "zoning"},
+        "catalogue_hash": cat.catalogue_hash(),
+    }
     (out / "campaign.json").write_text(json.dumps(record))  # written before zoning existed
     run_campaign(config, out, workers=1, progress=False)
     manifest = json.loads((out / "manifest.json").read_text())

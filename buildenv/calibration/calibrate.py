@@ -35,9 +35,18 @@ from buildenv.metrics import GUIDELINE14_P
 
 
 @one_blas_thread()  # buildenv.metamodel.threads: numpy's BLAS threads would fight the metamodel's
-def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None, method: str = "cmaes",
-                   seed: int = 0, max_evaluations: int = 6000, progress: bool = False, save: bool = True,
-                   restarts: int = 1, effects: tuple[str, ...] | None = None) -> dict:
+def calibrate_site(
+    site,
+    surrogate: sg.Surrogate,
+    weeks: list[int] | None = None,
+    method: str = "cmaes",
+    seed: int = 0,
+    max_evaluations: int = 6000,
+    progress: bool = False,
+    save: bool = True,
+    restarts: int = 1,
+    effects: tuple[str, ...] | None = None,
+) -> dict:
     """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
 
     Args:
@@ -71,10 +80,14 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     """
     effects = check_declared_effects(site.effects if effects is None else effects)
     started = time.perf_counter()
-    fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
-        sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
-    problem = build_problem(site, fit_weeks, context_hours=surrogate.context_hours,
-                            temperature_before=surrogate.uses_temperature_before)
+    fit_weeks, heldout = (
+        default_weeks(site.weeks)
+        if weeks is None
+        else (sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
+    )
+    problem = build_problem(
+        site, fit_weeks, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
+    )
     if method == "cmaes":
         best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
         run_parameters = info.pop("run_parameters")
@@ -85,25 +98,39 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     declared: dict = {}
     if effects:
         declared["cost_without_effects"] = info["cost"]
-        problem = build_problem(site, fit_weeks, effects, context_hours=surrogate.context_hours,
-                                temperature_before=surrogate.uses_temperature_before)
+        problem = build_problem(
+            site,
+            fit_weeks,
+            effects,
+            context_hours=surrogate.context_hours,
+            temperature_before=surrogate.uses_temperature_before,
+        )
         best, stage = fit_declared_effects(problem, surrogate, best, seed)
         info = {**info, "evaluations": info["evaluations"] + stage["evaluations"], "cost": stage["cost"]}
-        values = em.split_parameters(effects, best[None, problem.n_base:])
-        declared.update(declared_effects=list(effects),
-                        effects={e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters,
-                                                                                  values[e][0])}
-                                 for e in effects})
+        values = em.split_parameters(effects, best[None, problem.n_base :])
+        declared.update(
+            declared_effects=list(effects),
+            effects={
+                e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])} for e in effects
+            },
+        )
     seconds = time.perf_counter() - started
     theta, occ = _split(problem, best[None])
-    result = {"method": method, "seconds": round(seconds, 2), **info, "fit_weeks": fit_weeks,
-              "heldout_weeks": heldout, "guideline14_p": GUIDELINE14_P,
-              "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
-              "known": sorted(site.known),
-              "occupancy": np.round(occ[0], 3).tolist(),
-              "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known),
-              "metamodel": _metamodel_name(surrogate),
-              "catalogue_hash": cat.catalogue_hash(), **declared}
+    result = {
+        "method": method,
+        "seconds": round(seconds, 2),
+        **info,
+        "fit_weeks": fit_weeks,
+        "heldout_weeks": heldout,
+        "guideline14_p": GUIDELINE14_P,
+        "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
+        "known": sorted(site.known),
+        "occupancy": np.round(occ[0], 3).tolist(),
+        "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known),
+        "metamodel": _metamodel_name(surrogate),
+        "catalogue_hash": cat.catalogue_hash(),
+        **declared,
+    }
     scale = _scale(problem)
     for key, ws in (("fit", fit_weeks), ("heldout", heldout)):
         if ws:
@@ -118,15 +145,28 @@ def calibrate_site(site, surrogate: sg.Surrogate, weeks: list[int] | None = None
     return result
 
 
-def _score_runs(site, surrogate: sg.Surrogate, heldout: list[int], run_costs: list[float],
-                run_parameters: np.ndarray, scale: dict[str, tuple[float, float]], seed: int) -> list[dict]:
+def _score_runs(
+    site,
+    surrogate: sg.Surrogate,
+    heldout: list[int],
+    run_costs: list[float],
+    run_parameters: np.ndarray,
+    scale: dict[str, tuple[float, float]],
+    seed: int,
+) -> list[dict]:
     """``calibrate_site``'s ``runs``: each CMA-ES run's seed, cost and held-out RMSE_T (degC) and R2_T of its
     parameters without the declared effects, the held-out weeks encoded once."""
-    problem = build_problem(site, heldout, context_hours=surrogate.context_hours,
-                            temperature_before=surrogate.uses_temperature_before)
+    problem = build_problem(
+        site, heldout, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
+    )
     runs = []
     for k, (cost, params) in enumerate(zip(run_costs, run_parameters)):
         metrics = score_series(problem, *predict(problem, surrogate, params), params, scale)
-        runs.append({"seed": seed + k, "cost": round(cost, 5),
-                     **{f"heldout_{m}": round(metrics[m], 4) for m in ("rmse_t_celsius", "r2_t")}})
+        runs.append(
+            {
+                "seed": seed + k,
+                "cost": round(cost, 5),
+                **{f"heldout_{m}": round(metrics[m], 4) for m in ("rmse_t_celsius", "r2_t")},
+            }
+        )
     return runs

@@ -51,8 +51,8 @@ from buildenv.calibration.problem import (
     score_outputs,
 )
 from buildenv.campaign.runs import TASKS_PER_WORKER
-from buildenv.metrics import GUIDELINE14_P
 from buildenv.energyplus.shoebox import DEFAULT_ZONING
+from buildenv.metrics import GUIDELINE14_P
 
 METHOD = "cmaes-energyplus"
 HOURS_PER_YEAR = 8760
@@ -97,13 +97,20 @@ def plan_site_run(site, weeks: list[int], zoning: str = DEFAULT_ZONING) -> SiteR
         raise CalibrationError(f"week(s) {bad} not in {site.path} (it has weeks 0..{site.weeks - 1})")
     first = max(min(weeks) - 1, 0)
     last = max(weeks)
-    hours = site.epw_hours()[first:last + 1].reshape(-1)
+    hours = site.epw_hours()[first : last + 1].reshape(-1)
     expected = hours[0] + np.arange(len(hours))
     if not np.array_equal(hours, expected) or hours[-1] >= HOURS_PER_YEAR:
-        raise CalibrationError(f"site weeks {first}..{last} of {site.path} cross Dec 31 or Feb 29; the EnergyPlus "
-                               "calibration runs inside one 365-day year: choose other --weeks")
-    return SiteRun(str(site.weather), int(hours[0]) // cat.HOURS_PER_DAY, np.asarray(site.settings[first:last + 1]),
-                   tuple(w - first for w in weeks), zoning)
+        raise CalibrationError(
+            f"site weeks {first}..{last} of {site.path} cross Dec 31 or Feb 29; the EnergyPlus "
+            "calibration runs inside one 365-day year: choose other --weeks"
+        )
+    return SiteRun(
+        str(site.weather),
+        int(hours[0]) // cat.HOURS_PER_DAY,
+        np.asarray(site.settings[first : last + 1]),
+        tuple(w - first for w in weeks),
+        zoning,
+    )
 
 
 def schedule_rows(theta: dict[str, float], run: SiteRun, occupancy: np.ndarray) -> np.ndarray:
@@ -119,8 +126,9 @@ def schedule_rows(theta: dict[str, float], run: SiteRun, occupancy: np.ndarray) 
     return np.roll(table, run.first_day * cat.HOURS_PER_DAY, axis=0)
 
 
-def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
-                      workdir: Path | None = None, within_catalogue: bool = True) -> np.ndarray:
+def simulate_site_run(
+    run: SiteRun, theta: np.ndarray, occupancy: np.ndarray, workdir: Path | None = None, within_catalogue: bool = True
+) -> np.ndarray:
     """Simulate one candidate with EnergyPlus over a site run.
 
     Args:
@@ -152,13 +160,20 @@ def simulate_site_run(run: SiteRun, theta: np.ndarray, occupancy: np.ndarray,
         work = Path(workdir) if workdir is not None else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         csv = work / "schedules.csv"
-        np.savetxt(csv, schedule_rows(t, run, occupancy), delimiter=",", fmt="%.4f",
-                   header=",".join(SCHEDULE_COLUMNS), comments="")
+        np.savetxt(
+            csv,
+            schedule_rows(t, run, occupancy),
+            delimiter=",",
+            fmt="%.4f",
+            header=",".join(SCHEDULE_COLUMNS),
+            comments="",
+        )
         model = build_epjson(t, weather, csv, 0, run.weeks, run.zoning, check=within_catalogue)
         first = dt.date(_EPW_YEAR, 1, 1) + dt.timedelta(days=run.first_day)
         last = first + dt.timedelta(days=7 * run.weeks - 1)
-        model["RunPeriod"]["weeks"].update(begin_month=first.month, begin_day_of_month=first.day,
-                                           end_month=last.month, end_day_of_month=last.day)
+        model["RunPeriod"]["weeks"].update(
+            begin_month=first.month, begin_day_of_month=first.day, end_month=last.month, end_day_of_month=last.day
+        )
         run_energyplus(model, weather.path, work, label="shoebox")
         outputs = read_outputs(work / "eplusout.csv", t, run.weeks, run.zoning)
     return outputs[list(run.keep)]
@@ -192,8 +207,9 @@ class ShoeboxPool:
         within_catalogue: refuse candidates outside the catalogue's ranges (:func:`simulate_site_run`).
     """
 
-    def __init__(self, workers: int | None = None, tasks_per_worker: int = TASKS_PER_WORKER,
-                 within_catalogue: bool = True):
+    def __init__(
+        self, workers: int | None = None, tasks_per_worker: int = TASKS_PER_WORKER, within_catalogue: bool = True
+    ):
         self.workers = max(1, workers or os.cpu_count() or 1)
         self.tasks_per_worker = tasks_per_worker
         self.within_catalogue = within_catalogue
@@ -201,8 +217,9 @@ class ShoeboxPool:
 
     def __enter__(self) -> ShoeboxPool:
         if self.workers > 1:
-            self._pool = get_context("spawn").Pool(self.workers, initializer=_warm,
-                                                   maxtasksperchild=self.tasks_per_worker)
+            self._pool = get_context("spawn").Pool(
+                self.workers, initializer=_warm, maxtasksperchild=self.tasks_per_worker
+            )
             self._pool.map(_warm, range(self.workers), chunksize=1)  # spawned and imported before any clock starts
         else:
             _warm()
@@ -229,11 +246,18 @@ def evaluate_energyplus(problem, run: SiteRun, pool: ShoeboxPool, params: np.nda
     return costs(problem, *model_series(problem, pool.simulate(run, theta, occ)))
 
 
-def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int = 0, wall_seconds: float = 60.0,
-                               workers: int | None = None, progress: bool = False,
-                               zoning: str = DEFAULT_ZONING, start: np.ndarray | None = None,
-                               sigma0: float = SIGMA0,
-                               ranges: Mapping[str, tuple[float, float]] | None = None) -> dict:
+def calibrate_energyplus_cmaes(
+    site,
+    weeks: list[int] | None = None,
+    seed: int = 0,
+    wall_seconds: float = 60.0,
+    workers: int | None = None,
+    progress: bool = False,
+    zoning: str = DEFAULT_ZONING,
+    start: np.ndarray | None = None,
+    sigma0: float = SIGMA0,
+    ranges: Mapping[str, tuple[float, float]] | None = None,
+) -> dict:
     """Calibrate the EnergyPlus shoebox to a site with CMA-ES under a wall-clock budget, and score it.
 
     By default the same free parameters, bounds, start point, step size and cost as
@@ -269,8 +293,11 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
 
     if not wall_seconds > 0:
         raise CalibrationError(f"wall_seconds must be positive (got {wall_seconds})")
-    fit_weeks, heldout = default_weeks(site.weeks) if weeks is None else (
-        sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
+    fit_weeks, heldout = (
+        default_weeks(site.weeks)
+        if weeks is None
+        else (sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
+    )
     problem = with_ranges(build_problem(site, fit_weeks), ranges or {})
     if start is not None and np.shape(start) != (problem.dim,):
         raise CalibrationError(f"start has shape {np.shape(start)}; the problem has {problem.dim} parameters")
@@ -292,8 +319,9 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
             f = evaluate_energyplus(problem, run, pool, problem.from_unit(z))
             es.tell(list(z), f.tolist())
             last = time.perf_counter() - started - elapsed
-            history.append([round(time.perf_counter() - started, 2), int(es.result.evaluations),
-                            float(es.result.fbest)])
+            history.append(
+                [round(time.perf_counter() - started, 2), int(es.result.evaluations), float(es.result.fbest)]
+            )
             bar.update(1)
             bar.set_postfix(cost=f"{es.result.fbest:.4f}")
         seconds = time.perf_counter() - started
@@ -303,16 +331,28 @@ def calibrate_energyplus_cmaes(site, weeks: list[int] | None = None, seed: int =
         scores = score_energyplus(site, best, fit_weeks, heldout, pool, zoning)
         scoring_seconds = time.perf_counter() - scoring
     theta, occ = _split(problem, best[None])
-    result = {"method": METHOD, "seconds": round(seconds, 2), "wall_seconds": wall_seconds,
-              "evaluations": int(es.result.evaluations), "generations": len(history),
-              "cost": float(es.result.fbest), "history": history, "scoring_seconds": round(scoring_seconds, 2),
-              "workers": pool.workers, "zoning": zoning, "fit_weeks": fit_weeks, "heldout_weeks": heldout,
-              "start": "centre" if start is None else "given", "sigma0": sigma0,
-              "ranges": {name: list(map(float, r)) for name, r in (ranges or {}).items()},
-              "guideline14_p": GUIDELINE14_P,
-              "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
-              "known": sorted(site.known), "occupancy": np.round(occ[0], 3).tolist(),
-              "catalogue_hash": cat.catalogue_hash()}
+    result = {
+        "method": METHOD,
+        "seconds": round(seconds, 2),
+        "wall_seconds": wall_seconds,
+        "evaluations": int(es.result.evaluations),
+        "generations": len(history),
+        "cost": float(es.result.fbest),
+        "history": history,
+        "scoring_seconds": round(scoring_seconds, 2),
+        "workers": pool.workers,
+        "zoning": zoning,
+        "fit_weeks": fit_weeks,
+        "heldout_weeks": heldout,
+        "start": "centre" if start is None else "given",
+        "sigma0": sigma0,
+        "ranges": {name: list(map(float, r)) for name, r in (ranges or {}).items()},
+        "guideline14_p": GUIDELINE14_P,
+        "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
+        "known": sorted(site.known),
+        "occupancy": np.round(occ[0], 3).tolist(),
+        "catalogue_hash": cat.catalogue_hash(),
+    }
     for key, metrics in scores.items():
         result[key] = {**metrics, "seconds": result["seconds"], "evaluations": result["evaluations"]}
     return result
@@ -333,8 +373,14 @@ def with_ranges(problem, ranges: Mapping[str, tuple[float, float]]):
     return dataclasses.replace(problem, lo=lo, hi=hi)
 
 
-def score_energyplus(site, params: np.ndarray, fit_weeks: list[int], heldout: list[int],
-                     pool: ShoeboxPool | None = None, zoning: str = DEFAULT_ZONING) -> dict[str, dict[str, float]]:
+def score_energyplus(
+    site,
+    params: np.ndarray,
+    fit_weeks: list[int],
+    heldout: list[int],
+    pool: ShoeboxPool | None = None,
+    zoning: str = DEFAULT_ZONING,
+) -> dict[str, dict[str, float]]:
     """Metrics of physical parameters ``params (dim,)`` simulated by EnergyPlus on fit and held-out weeks.
 
     Standardised MSEs use the fit weeks' measured mean and standard deviation, as

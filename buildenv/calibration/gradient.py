@@ -12,16 +12,16 @@ from __future__ import annotations
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.metamodel import surrogate as sg
 from buildenv.calibration.problem import (
     KNOWN_GEOMETRY,
     RAMP_HOURS,
     SITE_CONSUMPTION_OUTPUTS,
     WEIGHTS,
     Problem,
-    free_theta,
     evaluate,
+    free_theta,
 )
+from buildenv.metamodel import surrogate as sg
 
 
 def _r2_torch(y, p, mask):
@@ -31,8 +31,15 @@ def _r2_torch(y, p, mask):
     return 1.0 - ((p[:, mask] - yv) ** 2).sum(-1) / ss_tot
 
 
-def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, starts: int = 8, steps: int = 150,
-                   lr: float = 0.08, progress: bool = False) -> tuple[np.ndarray, dict]:
+def calibrate_adam(
+    problem: Problem,
+    surrogate: sg.Surrogate,
+    seed: int = 0,
+    starts: int = 8,
+    steps: int = 150,
+    lr: float = 0.08,
+    progress: bool = False,
+) -> tuple[np.ndarray, dict]:
     """Adam from ``starts`` random points in the box; returns the best physical parameters and
     ``{"evaluations": starts * steps, "cost": exact cost of the best}``."""
     import torch
@@ -67,18 +74,19 @@ def calibrate_adam(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, sta
 
     def forward(params: torch.Tensor) -> torch.Tensor:
         theta = theta_const.repeat(len(params), 1)
-        theta[:, theta_cols] = params[:, :len(free)]
-        occ = params[:, len(free):].reshape(len(params), len(cat.WEEKDAYS), 2)
+        theta[:, theta_cols] = params[:, : len(free)]
+        occ = params[:, len(free) :].reshape(len(params), len(cat.WEEKDAYS), 2)
         on = torch.sigmoid((hour - occ[..., :1]) / RAMP_HOURS) * torch.sigmoid((occ[..., 1:] - hour) / RAMP_HOURS)
         week = torch.cat([on.reshape(len(params), -1), torch.zeros(len(params), 2 * cat.HOURS_PER_DAY)], 1)
         x = x_base.expand(len(params), *x_base.shape).clone()
-        x[..., t0:t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
+        x[..., t0 : t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
         x[:, :, ctx:, c_occ] = week[:, None, :]
         x[:, :, :ctx, c_occ] = week[:, None, -ctx:]  # context: the last days of the week before (build_problem)
         y = model(((x - in_mean) / in_std).reshape(-1, *x.shape[2:]))[:, ctx:] * out_std + out_mean
         y = y.reshape(len(params), weeks, cat.HOURS_PER_WEEK, -1)
-        return (WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t))
-                + WEIGHTS["consumption"] * (1 - _r2_torch(y_q, y[..., q_idx].sum(-1), m_q)))
+        return WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t)) + WEIGHTS["consumption"] * (
+            1 - _r2_torch(y_q, y[..., q_idx].sum(-1), m_q)
+        )
 
     from tqdm import tqdm
 

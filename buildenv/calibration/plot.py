@@ -6,8 +6,8 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.metamodel import surrogate as sg
 from buildenv.calibration.problem import build_problem, calibrated_parameters, predict, problem_occupancy
+from buildenv.metamodel import surrogate as sg
 from buildenv.plotting import save_figure, shade_occupancy
 
 
@@ -22,15 +22,22 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
     import matplotlib.pyplot as plt
 
     weeks = list(range(site.weeks))
-    problem = build_problem(site, weeks, tuple(result.get("declared_effects", ())),
-                            context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before)
+    problem = build_problem(
+        site,
+        weeks,
+        tuple(result.get("declared_effects", ())),
+        context_hours=surrogate.context_hours,
+        temperature_before=surrogate.uses_temperature_before,
+    )
     params = calibrated_parameters(result, problem.effects)
     t, q = predict(problem, surrogate, params)
     occupied = problem_occupancy(problem, params).reshape(-1).astype(float)
     hours = np.arange(len(weeks) * 168)
     fig, (ax_t, ax_q) = plt.subplots(2, 1, figsize=(min(4 + 3 * len(weeks), 24), 6), sharex=True)
-    for ax, measured, model, label in ((ax_t, problem.temperature_c, t, "indoor temperature (degC)"),
-                                       (ax_q, problem.consumption_wh_m2, q, "heat consumption (Wh/m2)")):
+    for ax, measured, model, label in (
+        (ax_t, problem.temperature_c, t, "indoor temperature (degC)"),
+        (ax_q, problem.consumption_wh_m2, q, "heat consumption (Wh/m2)"),
+    ):
         shade_occupancy(ax, occupied)
         ax.plot(hours, measured.reshape(-1), color="black", lw=1.0, label="measured")
         ax.plot(hours, model.reshape(-1), color="tab:red", lw=1.0, label="calibrated metamodel")
@@ -42,11 +49,14 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
         ax.grid(alpha=0.3)
     fit, held = result.get("fit", {}), result.get("heldout", {})
     declared = f" with {', '.join(problem.effects)}" if problem.effects else ""
-    title = (f"{site.name}{declared}: fit R2_T {fit.get('r2_t', float('nan')):.3f} "
-             f"R2_Q {fit.get('r2_q', float('nan')):.3f}")
+    title = (
+        f"{site.name}{declared}: fit R2_T {fit.get('r2_t', float('nan')):.3f} R2_Q {fit.get('r2_q', float('nan')):.3f}"
+    )
     if held:
-        title += (f"; held-out (blue) R2_T {held['r2_t']:.3f} R2_Q {held['r2_q']:.3f}, "
-                  f"CV(RMSE) {held['cv_rmse_q_percent']:.1f} %, NMBE {held['nmbe_q_percent']:.1f} %")
+        title += (
+            f"; held-out (blue) R2_T {held['r2_t']:.3f} R2_Q {held['r2_q']:.3f}, "
+            f"CV(RMSE) {held['cv_rmse_q_percent']:.1f} %, NMBE {held['nmbe_q_percent']:.1f} %"
+        )
     ax_t.set_title(title, fontsize=9)
     ax_t.legend(loc="upper right", fontsize=8)
     ax_q.set_xlabel("hour (weeks start Monday 00:00; occupied hours shaded green)")

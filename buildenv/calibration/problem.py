@@ -32,9 +32,9 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.diagnosis import model_effects as em
-from buildenv.metamodel import surrogate as sg
 from buildenv.diagnosis.effects import EffectError, check_declarable, get_effect
 from buildenv.errors import BuildenvError
+from buildenv.metamodel import surrogate as sg
 from buildenv.metrics import r2_masked, site_metrics
 from buildenv.schedules import hourly_schedules
 
@@ -109,8 +109,14 @@ def parameter_names() -> list[str]:
     return free_theta() + occ
 
 
-def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent: np.ndarray | None = None,
-                  context_hours: int = sg.CONTEXT_HOURS, temperature_before: bool = False) -> Problem:
+def build_problem(
+    site,
+    weeks: list[int],
+    effects: tuple[str, ...] = (),
+    absent: np.ndarray | None = None,
+    context_hours: int = sg.CONTEXT_HOURS,
+    temperature_before: bool = False,
+) -> Problem:
     """Encode a site's weeks, each with the days before it as context.
 
     The context of a week is the last days of the week before: its settings, the calibrated occupancy and the
@@ -149,18 +155,35 @@ def build_problem(site, weeks: list[int], effects: tuple[str, ...] = (), absent:
         before = np.full((n, context_hours), np.nan, dtype=np.float32)
         after_first = idx >= 1
         before[after_first] = np.asarray(site.temperature_c)[idx[after_first] - 1, -context_hours:]
-    x = sg.encode_weeks(np.broadcast_to(theta, (n, len(theta))), site.settings[idx], occ, weather,
-                        (site.settings[prev], occ, weather_before), context_hours=context_hours, ground_c=ground,
-                        temperature_before_c=before)
+    x = sg.encode_weeks(
+        np.broadcast_to(theta, (n, len(theta))),
+        site.settings[idx],
+        occ,
+        weather,
+        (site.settings[prev], occ, weather_before),
+        context_hours=context_hours,
+        ground_c=ground,
+        temperature_before_c=before,
+    )
     free = free_theta()
-    lo = np.array([known.get(v, cat.get(v).min) for v in free]
-                  + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
-    hi = np.array([known.get(v, cat.get(v).max) for v in free]
-                  + [v.max for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]])
+    lo = np.array(
+        [known.get(v, cat.get(v).min) for v in free] + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]]
+    )
+    hi = np.array(
+        [known.get(v, cat.get(v).max) for v in free] + [v.max for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]]
+    )
     e_lo, e_hi = em.bounds(effects)
-    return Problem(x, site.temperature_c[idx], site.consumption_wh_m2()[idx], known,
-                   parameter_names() + em.parameter_names(effects), np.concatenate([lo, e_lo]),
-                   np.concatenate([hi, e_hi]), tuple(effects), None if absent is None else np.asarray(absent)[idx])
+    return Problem(
+        x,
+        site.temperature_c[idx],
+        site.consumption_wh_m2()[idx],
+        known,
+        parameter_names() + em.parameter_names(effects),
+        np.concatenate([lo, e_lo]),
+        np.concatenate([hi, e_hi]),
+        tuple(effects),
+        None if absent is None else np.asarray(absent)[idx],
+    )
 
 
 def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -169,7 +192,7 @@ def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray
     theta = np.empty((len(params), len(cat.THETA_NAMES)))
     for j, name in enumerate(cat.THETA_NAMES):
         theta[:, j] = problem.theta_known[name] if name in KNOWN_GEOMETRY else params[:, free.index(name)]
-    occ = params[:, len(free):problem.n_base].reshape(len(params), len(cat.WEEKDAYS), 2)
+    occ = params[:, len(free) : problem.n_base].reshape(len(params), len(cat.WEEKDAYS), 2)
     return theta, occ
 
 
@@ -179,7 +202,7 @@ def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
     pop, weeks = len(params), len(problem.x_base)
     x = np.repeat(problem.x_base[None], pop, axis=0)  # (pop, weeks, context + 168, C)
     t0 = sg.INPUT_CHANNELS.index(cat.THETA_NAMES[0])
-    x[..., t0:t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
+    x[..., t0 : t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
     occ_fraction = hourly_schedules(np.zeros((pop, 7, len(cat.GROUPS["settings"]))), occ)["occupancy_fraction"]
     c = sg.INPUT_CHANNELS.index("occupancy_fraction")
     ctx = sg.context_of(problem.x_base)
@@ -195,11 +218,12 @@ def encode_candidates(problem: Problem, params: np.ndarray) -> np.ndarray:
 
 def _effect_values(problem: Problem, params: np.ndarray, repeat: int = 1) -> dict[str, np.ndarray]:
     """``{effect: (pop * repeat, k)}`` of physical parameter vectors ``(pop, dim)``."""
-    return em.split_parameters(problem.effects, np.repeat(params[:, problem.n_base:], repeat, axis=0))
+    return em.split_parameters(problem.effects, np.repeat(params[:, problem.n_base :], repeat, axis=0))
 
 
-def simulate(problem: Problem, surrogate: sg.Surrogate,
-             params: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def simulate(
+    problem: Problem, surrogate: sg.Surrogate, params: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate candidates on every problem week in one batched metamodel call, effects included.
 
     Args:
@@ -228,8 +252,9 @@ def model_series(problem: Problem, outputs: np.ndarray) -> tuple[np.ndarray, np.
 def costs(problem: Problem, t: np.ndarray, q: np.ndarray) -> np.ndarray:
     """The paper's cost of each candidate from its temperature and consumption ``(pop, weeks, 168)``."""
     mt, mq = np.isfinite(problem.temperature_c), np.isfinite(problem.consumption_wh_m2)
-    return (WEIGHTS["temperature"] * (1 - r2_masked(problem.temperature_c, t, mt))
-            + WEIGHTS["consumption"] * (1 - r2_masked(problem.consumption_wh_m2, q, mq)))
+    return WEIGHTS["temperature"] * (1 - r2_masked(problem.temperature_c, t, mt)) + WEIGHTS["consumption"] * (
+        1 - r2_masked(problem.consumption_wh_m2, q, mq)
+    )
 
 
 def evaluate(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:
@@ -244,8 +269,14 @@ def predict(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> tu
     return t[0], q[0]
 
 
-def cmaes_strategy(dim: int, seed: int = 0, max_evaluations: float = np.inf, sigma0: float = SIGMA0,
-                   x0: np.ndarray | None = None, stds: np.ndarray | None = None):
+def cmaes_strategy(
+    dim: int,
+    seed: int = 0,
+    max_evaluations: float = np.inf,
+    sigma0: float = SIGMA0,
+    x0: np.ndarray | None = None,
+    stds: np.ndarray | None = None,
+):
     """The CMA-ES (pycma) of every calibration: ``dim`` parameters in the unit box, started at its centre.
 
     Args:
@@ -258,18 +289,32 @@ def cmaes_strategy(dim: int, seed: int = 0, max_evaluations: float = np.inf, sig
     """
     import cma
 
-    options = {"bounds": [0.0, 1.0], "seed": seed + 1, "verbose": -9, "maxfevals": max_evaluations,
-               "tolfun": CMAES_TOLFUN}
+    options = {
+        "bounds": [0.0, 1.0],
+        "seed": seed + 1,
+        "verbose": -9,
+        "maxfevals": max_evaluations,
+        "tolfun": CMAES_TOLFUN,
+    }
     if stds is not None:
         options["CMA_stds"] = list(np.asarray(stds, float))
     start = np.full(dim, 0.5) if x0 is None else np.clip(np.asarray(x0, float), 0.0, 1.0)
     return cma.CMAEvolutionStrategy(start, sigma0, options)
 
 
-def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, max_evaluations: int = 6000,
-                    sigma0: float = SIGMA0, progress: bool = False, start: np.ndarray | None = None,
-                    stds: np.ndarray | None = None, restarts: int = 1, anchor: float = 0.0,
-                    anchored: np.ndarray | None = None) -> tuple[np.ndarray, dict]:
+def calibrate_cmaes(
+    problem: Problem,
+    surrogate: sg.Surrogate,
+    seed: int = 0,
+    max_evaluations: int = 6000,
+    sigma0: float = SIGMA0,
+    progress: bool = False,
+    start: np.ndarray | None = None,
+    stds: np.ndarray | None = None,
+    restarts: int = 1,
+    anchor: float = 0.0,
+    anchored: np.ndarray | None = None,
+) -> tuple[np.ndarray, dict]:
     """CMA-ES on the unit box of the free parameters (:attr:`Problem.free`). Returns the best physical
     parameters ``(dim,)`` and ``{"evaluations", "cost", "run_costs", "run_parameters"}`` (each run's best
     physical parameters, ``(restarts, dim)``).
@@ -299,8 +344,14 @@ def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, ma
     bar = _bar(progress, max_evaluations * restarts, "CMA-ES")
     best, best_cost, evaluations, run_costs, run_parameters = None, np.inf, 0, [], []
     for run in range(restarts):
-        es = cmaes_strategy(int(problem.free.sum()), seed + run, max_evaluations, sigma0, x0,
-                            None if stds is None else np.asarray(stds, float)[problem.free])
+        es = cmaes_strategy(
+            int(problem.free.sum()),
+            seed + run,
+            max_evaluations,
+            sigma0,
+            x0,
+            None if stds is None else np.asarray(stds, float)[problem.free],
+        )
         while not es.stop():
             z = np.asarray(es.ask())
             f = evaluate(problem, surrogate, problem.from_unit(z))
@@ -317,8 +368,12 @@ def calibrate_cmaes(problem: Problem, surrogate: sg.Surrogate, seed: int = 0, ma
     bar.close()
     if weights is not None:  # the plain cost of the point the anchored search chose
         best_cost = float(evaluate(problem, surrogate, best[None])[0])
-    return best, {"evaluations": evaluations, "cost": best_cost, "run_costs": run_costs,
-                  "run_parameters": np.array(run_parameters)}
+    return best, {
+        "evaluations": evaluations,
+        "cost": best_cost,
+        "run_costs": run_costs,
+        "run_parameters": np.array(run_parameters),
+    }
 
 
 def _minimise_one(problem: Problem, surrogate: sg.Surrogate, max_evaluations: int) -> tuple[np.ndarray, dict]:
@@ -334,12 +389,20 @@ def _minimise_one(problem: Problem, surrogate: sg.Surrogate, max_evaluations: in
         x[j] = problem.lo[j] + u * (problem.hi[j] - problem.lo[j])
         return float(evaluate(problem, surrogate, x[None])[0])
 
-    res = minimize_scalar(cost, bounds=(0.0, 1.0), method="bounded",
-                          options={"maxiter": max(int(min(max_evaluations, 10_000)), 1), "xatol": 1e-4})
+    res = minimize_scalar(
+        cost,
+        bounds=(0.0, 1.0),
+        method="bounded",
+        options={"maxiter": max(int(min(max_evaluations, 10_000)), 1), "xatol": 1e-4},
+    )
     best = base.copy()
     best[j] = problem.lo[j] + float(res.x) * (problem.hi[j] - problem.lo[j])
-    return best, {"evaluations": int(res.nfev), "cost": float(res.fun), "run_costs": [float(res.fun)],
-                  "run_parameters": best[None]}
+    return best, {
+        "evaluations": int(res.nfev),
+        "cost": float(res.fun),
+        "run_costs": [float(res.fun)],
+        "run_parameters": best[None],
+    }
 
 
 def _bar(enabled: bool, total: int, desc: str):
@@ -383,9 +446,11 @@ def at_bounds_note(result: dict) -> str | None:
         return None
     estimated = len([n for n in free_theta() if n not in result.get("known", [])])
     listed = ", ".join(f"{e['name']} at its {e['bound']} {e['limit']:g}" for e in found)
-    return (f"note: {len(found)} of {estimated} estimated building parameters calibrated at a bound of the "
-            f"catalogue's range ({listed}); the metamodel cannot go past them, so each is a value the fit wanted "
-            "further, one standing in for something the model lacks, or one the fit does not depend on")
+    return (
+        f"note: {len(found)} of {estimated} estimated building parameters calibrated at a bound of the "
+        f"catalogue's range ({listed}); the metamodel cannot go past them, so each is a value the fit wanted "
+        "further, one standing in for something the model lacks, or one the fit does not depend on"
+    )
 
 
 def runs_note(result: dict) -> str | None:
@@ -401,11 +466,13 @@ def runs_note(result: dict) -> str | None:
     rmse = [r["heldout_rmse_t_celsius"] for r in close]
     if len(close) < 2 or max(rmse) < RUNS_DISAGREEMENT * min(rmse):
         return None
-    return (f"note: {len(close)} of {len(runs)} CMA-ES runs fit the calibration weeks as well as the best (cost "
-            f"within {RUNS_COST_TOLERANCE:.0%}) but predict the held-out weeks' temperature differently (RMSE_T "
-            f"{min(rmse):.2f} to {max(rmse):.2f} K): the calibration weeks do not determine the model; fit weeks "
-            "that span the held-out weeks' weather (--weeks, e.g. every other week) or declare what is known "
-            "([known] in site.toml)")
+    return (
+        f"note: {len(close)} of {len(runs)} CMA-ES runs fit the calibration weeks as well as the best (cost "
+        f"within {RUNS_COST_TOLERANCE:.0%}) but predict the held-out weeks' temperature differently (RMSE_T "
+        f"{min(rmse):.2f} to {max(rmse):.2f} K): the calibration weeks do not determine the model; fit weeks "
+        "that span the held-out weeks' weather (--weeks, e.g. every other week) or declare what is known "
+        "([known] in site.toml)"
+    )
 
 
 def check_declared_effects(effects) -> tuple[str, ...]:
@@ -422,8 +489,13 @@ def check_declared_effects(effects) -> tuple[str, ...]:
 DECLARED_EFFECTS_EVALUATIONS = 1500
 
 
-def fit_declared_effects(problem: Problem, surrogate: sg.Surrogate, base: np.ndarray, seed: int = 0,
-                         max_evaluations: int = DECLARED_EFFECTS_EVALUATIONS) -> tuple[np.ndarray, dict]:
+def fit_declared_effects(
+    problem: Problem,
+    surrogate: sg.Surrogate,
+    base: np.ndarray,
+    seed: int = 0,
+    max_evaluations: int = DECLARED_EFFECTS_EVALUATIONS,
+) -> tuple[np.ndarray, dict]:
     """Second calibration stage: the parameters of ``problem.effects`` with theta_build and occupancy kept at
     ``base`` (their calibrated values, ``(problem.n_base,)``), by CMA-ES started at the effects' "no effect"
     values. Returns the full parameter vector ``(problem.dim,)`` and ``{"evaluations", "cost"}``."""
@@ -432,44 +504,63 @@ def fit_declared_effects(problem: Problem, surrogate: sg.Surrogate, base: np.nda
     return fit_last_parameters(problem, surrogate, start, n, seed, max_evaluations)
 
 
-def fit_last_parameters(problem: Problem, surrogate: sg.Surrogate, start: np.ndarray, fixed: int, seed: int = 0,
-                        max_evaluations: int = DECLARED_EFFECTS_EVALUATIONS) -> tuple[np.ndarray, dict]:
+def fit_last_parameters(
+    problem: Problem,
+    surrogate: sg.Surrogate,
+    start: np.ndarray,
+    fixed: int,
+    seed: int = 0,
+    max_evaluations: int = DECLARED_EFFECTS_EVALUATIONS,
+) -> tuple[np.ndarray, dict]:
     """Calibrate the parameters after the first ``fixed`` ones, those kept at ``start`` (physical, ``(dim,)``,
     also the search's start). Returns the full parameter vector and ``{"evaluations", "cost"}``."""
     lo, hi = problem.lo.copy(), problem.hi.copy()
     lo[:fixed] = hi[:fixed] = np.asarray(start, float)[:fixed]
-    best, info = calibrate_cmaes(dataclasses.replace(problem, lo=lo, hi=hi), surrogate, seed, max_evaluations,
-                                 start=start)
+    best, info = calibrate_cmaes(
+        dataclasses.replace(problem, lo=lo, hi=hi), surrogate, seed, max_evaluations, start=start
+    )
     return best, {"evaluations": info["evaluations"], "cost": info["cost"]}
 
 
 def _scale(problem: Problem) -> dict[str, tuple[float, float]]:
     t, q = problem.temperature_c, problem.consumption_wh_m2
-    return {"t": (float(np.nanmean(t)), float(np.nanstd(t)) or 1.0),
-            "q": (float(np.nanmean(q)), float(np.nanstd(q)) or 1.0)}
+    return {
+        "t": (float(np.nanmean(t)), float(np.nanstd(t)) or 1.0),
+        "q": (float(np.nanmean(q)), float(np.nanstd(q)) or 1.0),
+    }
 
 
-def score_weeks(site, surrogate: sg.Surrogate, weeks: list[int], params: np.ndarray,
-                scale: dict[str, tuple[float, float]], effects: tuple[str, ...] = (),
-                absent: np.ndarray | None = None) -> dict[str, float]:
+def score_weeks(
+    site,
+    surrogate: sg.Surrogate,
+    weeks: list[int],
+    params: np.ndarray,
+    scale: dict[str, tuple[float, float]],
+    effects: tuple[str, ...] = (),
+    absent: np.ndarray | None = None,
+) -> dict[str, float]:
     """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks (with the
     model-side ``effects`` whose parameters follow in ``params``, and the ``absent`` days of the site)."""
     problem = build_problem(site, weeks, effects, absent, surrogate.context_hours, surrogate.uses_temperature_before)
     return score_series(problem, *predict(problem, surrogate, params), params, scale)
 
 
-def score_outputs(problem: Problem, outputs: np.ndarray, params: np.ndarray,
-                  scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+def score_outputs(
+    problem: Problem, outputs: np.ndarray, params: np.ndarray, scale: dict[str, tuple[float, float]]
+) -> dict[str, float]:
     """Metrics (:func:`site_metrics`) of simulated outputs ``(weeks, 168, 8)`` of ``params`` on the problem's weeks."""
     return score_series(problem, *model_series(problem, outputs), params, scale)
 
 
-def score_series(problem: Problem, t: np.ndarray, q: np.ndarray, params: np.ndarray,
-                 scale: dict[str, tuple[float, float]]) -> dict[str, float]:
+def score_series(
+    problem: Problem, t: np.ndarray, q: np.ndarray, params: np.ndarray, scale: dict[str, tuple[float, float]]
+) -> dict[str, float]:
     """Metrics (:func:`site_metrics`) of a predicted temperature (degC) and consumption (Wh/m2) ``(weeks, 168)``."""
     occupied = problem_occupancy(problem, params)
-    return {**site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale),
-            "weeks": len(problem.x_base)}
+    return {
+        **site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale),
+        "weeks": len(problem.x_base),
+    }
 
 
 def problem_occupancy(problem: Problem, params: np.ndarray) -> np.ndarray:
@@ -484,10 +575,11 @@ def calibrated_parameters(calibration: dict, effects: tuple[str, ...] = ()) -> n
     ``effects``) of a saved calibration (``calibration.json``'s ``theta`` in catalogue units, ``occupancy`` in h
     and ``effects`` in the effects' units). A parameter an effect gained after the calibration was saved takes
     its "no effect" value."""
-    return np.array([calibration["theta"][n] for n in free_theta()]
-                    + list(np.asarray(calibration["occupancy"], float).ravel())
-                    + [calibration["effects"][e].get(p.name, p.none) for e in effects
-                       for p in get_effect(e).parameters])
+    return np.array(
+        [calibration["theta"][n] for n in free_theta()]
+        + list(np.asarray(calibration["occupancy"], float).ravel())
+        + [calibration["effects"][e].get(p.name, p.none) for e in effects for p in get_effect(e).parameters]
+    )
 
 
 def load_calibration(site_path: str | Path) -> dict:

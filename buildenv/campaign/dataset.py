@@ -30,8 +30,17 @@ from buildenv import catalogue as cat
 from buildenv.errors import DatasetError
 
 SPLITS = ("random", "weather_weeks", "buildings", "climate")
-ARRAYS = ("theta", "settings", "occupancy", "weather", "outputs", "run_id", "week_in_run", "week_of_year",
-          "weather_index")
+ARRAYS = (
+    "theta",
+    "settings",
+    "occupancy",
+    "weather",
+    "outputs",
+    "run_id",
+    "week_in_run",
+    "week_of_year",
+    "weather_index",
+)
 
 
 @dataclass
@@ -83,9 +92,14 @@ class Dataset:
             raise DatasetError(f"climate(s) {unknown} not in {self.path} ({', '.join(self.weather_names)})")
         return [self.weather_names.index(c) for c in names]
 
-    def split(self, kind: str = "random", fractions: tuple[float, float, float] = (0.8, 0.1, 0.1),
-              seed: int = 0, test_climates: list[str] | None = None,
-              holdout_climates: list[str] | None = None) -> dict[str, np.ndarray]:
+    def split(
+        self,
+        kind: str = "random",
+        fractions: tuple[float, float, float] = (0.8, 0.1, 0.1),
+        seed: int = 0,
+        test_climates: list[str] | None = None,
+        holdout_climates: list[str] | None = None,
+    ) -> dict[str, np.ndarray]:
         """Indices of train / validation / test weeks.
 
         Args:
@@ -132,8 +146,11 @@ class Dataset:
                 n_val = max(1, int(round(fractions[1] / max(fractions[0] + fractions[1], 1e-9) * len(rest))))
                 val_ids = set(rest[:n_val].tolist()) if len(rest) > 1 else set()
                 is_val = np.isin(climate, list(val_ids))
-                return {"train": np.flatnonzero(~is_test & ~is_val), "val": np.flatnonzero(is_val),
-                        "test": np.flatnonzero(is_test)}
+                return {
+                    "train": np.flatnonzero(~is_test & ~is_val),
+                    "val": np.flatnonzero(is_val),
+                    "test": np.flatnonzero(is_test),
+                }
         unique = np.unique(groups)
         unique = unique[rng.permutation(len(unique))]
         cuts = np.round(np.cumsum(fractions)[:2] * len(unique)).astype(int)
@@ -155,11 +172,15 @@ def open_dataset(directory: str | Path) -> Dataset:
     if not directory.is_dir():
         raise DatasetError(f"dataset directory not found: {directory}")
     if not manifest_path.is_file():
-        raise DatasetError(f"{directory} is not a finished dataset (no manifest.json); rerun the same "
-                           "`buildenv simulate` command to resume it")
+        raise DatasetError(
+            f"{directory} is not a finished dataset (no manifest.json); rerun the same "
+            "`buildenv simulate` command to resume it"
+        )
     manifest = json.loads(manifest_path.read_text())
     if manifest.get("catalogue_hash") != cat.catalogue_hash():
-        raise DatasetError(f"{directory} was made with catalogue {manifest.get('catalogue_hash')}, this buildenv "
-                           f"has {cat.catalogue_hash()}: re-simulate it")
+        raise DatasetError(
+            f"{directory} was made with catalogue {manifest.get('catalogue_hash')}, this buildenv "
+            f"has {cat.catalogue_hash()}: re-simulate it"
+        )
     h5 = h5py.File(directory / "dataset.h5", "r")
     return Dataset(directory, manifest, json.loads(h5.attrs["weather_names"]), h5)

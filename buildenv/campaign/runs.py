@@ -34,9 +34,9 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError, DatasetError, SimulationError
-from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
 from buildenv.weather.epw import resolve_epw, shipped_weather
 
 log = logging.getLogger(__name__)
@@ -116,8 +116,18 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     starts = [int(rng.integers(0, cat.WEEKS_PER_YEAR - n + 1)) for n in lengths]
     tasks, offset = [], 0
     for r, n in enumerate(lengths):
-        tasks.append(RunTask(r, thetas[r], settings[offset:offset + n], occupancy[offset:offset + n],
-                             config.epw[climates[r]], int(climates[r]), starts[r], config.zoning))
+        tasks.append(
+            RunTask(
+                r,
+                thetas[r],
+                settings[offset : offset + n],
+                occupancy[offset : offset + n],
+                config.epw[climates[r]],
+                int(climates[r]),
+                starts[r],
+                config.zoning,
+            )
+        )
         offset += n
     return tasks
 
@@ -129,8 +139,15 @@ def run_task(task: RunTask) -> tuple[int, np.ndarray | None, str]:
 
     try:
         with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-") as tmp:
-            result = simulate_weeks(task.theta, task.settings, task.occupancy, task.epw, task.start_week,
-                                    workdir=Path(tmp), zoning=task.zoning)
+            result = simulate_weeks(
+                task.theta,
+                task.settings,
+                task.occupancy,
+                task.epw,
+                task.start_week,
+                workdir=Path(tmp),
+                zoning=task.zoning,
+            )
     except SimulationError as exc:
         return task.run_id, None, str(exc)
     return task.run_id, result.outputs.astype(np.float32), ""
@@ -142,8 +159,13 @@ def _shard_path(out: Path, run_id: int) -> Path:
 
 def _record_failure(out: Path, task: RunTask, message: str) -> dict:
     """Write what EnergyPlus said about a failed run beside the shards (a rerun tries the run again)."""
-    record = {"run_id": task.run_id, "epw": str(task.epw), "start_week": task.start_week, "weeks": task.n_weeks,
-              "error": message}
+    record = {
+        "run_id": task.run_id,
+        "epw": str(task.epw),
+        "start_week": task.start_week,
+        "weeks": task.n_weeks,
+        "error": message,
+    }
     (out / "shards" / f"run_{task.run_id:06d}.failed.json").write_text(json.dumps(record, indent=2))
     return record
 
@@ -180,8 +202,9 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
         previous = json.loads(campaign_file.read_text())
         previous["config"].setdefault("zoning", "single")  # campaigns made before zoning was a choice
         if previous != record:
-            raise DatasetError(f"{out} holds another campaign ({campaign_file}: {previous['config']}); "
-                               "use another --out or delete it")
+            raise DatasetError(
+                f"{out} holds another campaign ({campaign_file}: {previous['config']}); use another --out or delete it"
+            )
     else:
         out.mkdir(parents=True, exist_ok=True)
         tmp = campaign_file.with_suffix(".tmp")
@@ -198,7 +221,7 @@ def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np
     ctx = get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, max_tasks_per_child=TASKS_PER_WORKER) as pool:
         pending = {pool.submit(run_task, t) for t in tasks[: 2 * workers]}
-        queue = iter(tasks[2 * workers:])
+        queue = iter(tasks[2 * workers :])
         try:
             while pending:
                 done, pending = wait(pending, return_when=FIRST_COMPLETED)
@@ -224,8 +247,14 @@ def _execute_dask(tasks: list[RunTask], scheduler: str) -> Iterator[tuple[int, n
             client.cancel(futures)
 
 
-def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, scheduler: str | None = None,
-                 progress: bool = True, max_failed_share: float = MAX_FAILED_SHARE) -> Path:
+def run_campaign(
+    config: CampaignConfig,
+    out: Path,
+    workers: int | None = None,
+    scheduler: str | None = None,
+    progress: bool = True,
+    max_failed_share: float = MAX_FAILED_SHARE,
+) -> Path:
     """Run (or resume) a campaign into ``out`` and return the path of the finished ``dataset.h5``.
 
     Args:
@@ -262,21 +291,32 @@ def run_campaign(config: CampaignConfig, out: Path, workers: int | None = None, 
                 failed[run_id] = _record_failure(out, by_id[run_id], error)
                 log.warning("run %d left out of the campaign: %s", run_id, error)
                 if len(failed) > max_failed_share * len(tasks):
-                    raise SimulationError(f"{out}: {len(failed)} of {len(tasks)} EnergyPlus runs failed (more than "
-                                          f"{max_failed_share:.0%}); first: {next(iter(failed.values()))['error']}")
+                    raise SimulationError(
+                        f"{out}: {len(failed)} of {len(tasks)} EnergyPlus runs failed (more than "
+                        f"{max_failed_share:.0%}); first: {next(iter(failed.values()))['error']}"
+                    )
             else:
                 _write_shard(out, by_id[run_id], outputs)
             bar.update(by_id[run_id].n_weeks)
     elapsed = time.perf_counter() - started
     kept = [t for t in tasks if t.run_id not in failed]
     path = _consolidate(out, config, kept)
-    manifest = {**_config_record(config), "complete": True, "weeks": sum(t.n_weeks for t in kept),
-                "weeks_planned": config.weeks, "runs": len(kept),
-                "failed_runs": [failed[r] for r in sorted(failed)],
-                "weather": [str(resolve_epw(e)) for e in config.epw], "versions": _versions(),
-                "seconds_last_session": round(elapsed, 1), "runs_simulated_last_session": len(todo),
-                "weeks_simulated_last_session": config.weeks - done_weeks, "workers": None if scheduler else workers,
-                "scheduler": scheduler, "created": time.strftime("%Y-%m-%dT%H:%M:%S")}
+    manifest = {
+        **_config_record(config),
+        "complete": True,
+        "weeks": sum(t.n_weeks for t in kept),
+        "weeks_planned": config.weeks,
+        "runs": len(kept),
+        "failed_runs": [failed[r] for r in sorted(failed)],
+        "weather": [str(resolve_epw(e)) for e in config.epw],
+        "versions": _versions(),
+        "seconds_last_session": round(elapsed, 1),
+        "runs_simulated_last_session": len(todo),
+        "weeks_simulated_last_session": config.weeks - done_weeks,
+        "workers": None if scheduler else workers,
+        "scheduler": scheduler,
+        "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+    }
     tmp = out / "manifest.json.tmp"
     tmp.write_text(json.dumps(manifest, indent=2))
     os.replace(tmp, out / "manifest.json")
@@ -294,9 +334,12 @@ def _consolidate(out: Path, config: CampaignConfig, tasks: list[RunTask]) -> Pat
     tmp, final = out / "dataset.h5.tmp", out / "dataset.h5"
     chunk = min(64, n)
     with h5py.File(tmp, "w") as h5:
+
         def make(name, shape, dtype=np.float32):
-            return h5.create_dataset(name, shape=shape, dtype=dtype,
-                                     chunks=(chunk,) + tuple(shape[1:]) if len(shape) > 1 else (chunk,))
+            return h5.create_dataset(
+                name, shape=shape, dtype=dtype, chunks=(chunk,) + tuple(shape[1:]) if len(shape) > 1 else (chunk,)
+            )
+
         d = {
             "theta": make("theta", (n, len(cat.THETA_NAMES))),
             "settings": make("settings", (n, 7, len(cat.SETTING_NAMES))),
@@ -325,9 +368,13 @@ def _consolidate(out: Path, config: CampaignConfig, tasks: list[RunTask]) -> Pat
             offset += k
         h5.attrs["catalogue_hash"] = cat.catalogue_hash()
         h5.attrs["weather_names"] = json.dumps(list(config.epw))
-        for group, names in (("theta", cat.THETA_NAMES), ("settings", cat.SETTING_NAMES),
-                             ("occupancy", cat.OCCUPANCY_NAMES), ("weather", cat.WEATHER_NAMES),
-                             ("outputs", cat.OUTPUT_NAMES)):
+        for group, names in (
+            ("theta", cat.THETA_NAMES),
+            ("settings", cat.SETTING_NAMES),
+            ("occupancy", cat.OCCUPANCY_NAMES),
+            ("weather", cat.WEATHER_NAMES),
+            ("outputs", cat.OUTPUT_NAMES),
+        ):
             h5[group].attrs["names"] = json.dumps(list(names))
         units = {v.name: v.unit for v in cat.ALL_VARIABLES}
         h5.attrs["units"] = json.dumps(units)

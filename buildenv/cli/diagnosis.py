@@ -13,8 +13,9 @@ def _settings(args: argparse.Namespace):
     from buildenv.diagnosis.effects import EFFECTS, get_effect
     from buildenv.diagnosis.gap import DiagnosisSettings
 
-    candidates = tuple(get_effect(e.strip()).name for e in args.candidates.split(",")) if args.candidates \
-        else tuple(EFFECTS)
+    candidates = (
+        tuple(get_effect(e.strip()).name for e in args.candidates.split(",")) if args.candidates else tuple(EFFECTS)
+    )
     step = {} if args.refit_step is None else {"refit_step": args.refit_step}
     if args.effect_first is not None:
         step["effect_first_evaluations"] = args.effect_first
@@ -22,19 +23,34 @@ def _settings(args: argparse.Namespace):
         step["refit_restarts"] = args.refit_restarts
     if args.refit_anchor is not None:
         step["refit_anchor"] = args.refit_anchor
-    return DiagnosisSettings(candidates=candidates, evaluations=args.evaluations, min_gain=args.min_gain, **step,
-                             clean_ceilings=args.clean_ceilings, joint_fallback=args.joint_fallback,
-                             estimate_alone=args.estimate_alone, night_load_first=args.night_load_first,
-                             max_effects=args.max_effects, seed=args.seed, judge=args.judge.replace("-", "_"),
-                             base_restarts=args.base_restarts, split=args.split,
-                             base_effects=tuple(getattr(args, "base_effect", None) or ()))
+    return DiagnosisSettings(
+        candidates=candidates,
+        evaluations=args.evaluations,
+        min_gain=args.min_gain,
+        **step,
+        clean_ceilings=args.clean_ceilings,
+        joint_fallback=args.joint_fallback,
+        estimate_alone=args.estimate_alone,
+        night_load_first=args.night_load_first,
+        max_effects=args.max_effects,
+        seed=args.seed,
+        judge=args.judge.replace("-", "_"),
+        base_restarts=args.base_restarts,
+        split=args.split,
+        base_effects=tuple(getattr(args, "base_effect", None) or ()),
+    )
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from buildenv.diagnosis.gap import (check_joint_candidates, diagnose, joint_calibration_tests, save_extended_model,
-                              with_declared_effects)
-    from buildenv.sites import load_site
+    from buildenv.diagnosis.gap import (
+        check_joint_candidates,
+        diagnose,
+        joint_calibration_tests,
+        save_extended_model,
+        with_declared_effects,
+    )
     from buildenv.metamodel.surrogate import load_metamodel
+    from buildenv.sites import load_site
 
     site = load_site(args.site)
     plot = Path(args.plot) if args.plot else Path(args.site) / "diagnosis.png"
@@ -61,10 +77,19 @@ def _cmd_diagnose_check(args: argparse.Namespace) -> int:
     from buildenv.metamodel.surrogate import load_metamodel
 
     base = "auto" if args.base_effects == "auto" else [e for e in args.base_effects.split(",") if e]
-    result = run_check(args.out, args.cases, args.seed, load_metamodel(args.checkpoint), _settings(args),
-                       args.building, args.epw, base, progress=not args.quiet,
-                       known_parameters=parse_known(args.known),
-                       weeks=WEEKS if args.weeks is None else args.weeks)
+    result = run_check(
+        args.out,
+        args.cases,
+        args.seed,
+        load_metamodel(args.checkpoint),
+        _settings(args),
+        args.building,
+        args.epw,
+        base,
+        progress=not args.quiet,
+        known_parameters=parse_known(args.known),
+        weeks=WEEKS if args.weeks is None else args.weeks,
+    )
     (Path(args.out) / "check.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
     print(json.dumps(result if args.json else result["summary"], indent=None if args.json else 2, default=float))
     return 0
@@ -77,43 +102,94 @@ def _common(p: argparse.ArgumentParser) -> None:
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
-    p.add_argument("--refit-step", type=float, default=None,
-                   help="CMA-ES initial step of the building parameters in a refit (share of their ranges; "
-                        "default 0.25)")
-    p.add_argument("--effect-first", type=int, default=None, metavar="EVALUATIONS",
-                   help="evaluations of a refit's first stage, the new effect alone (default 0: joint refit only)")
-    p.add_argument("--refit-restarts", type=int, default=None,
-                   help="CMA-ES runs of every refit (control and candidates), lowest fit cost kept (default 1)")
-    p.add_argument("--refit-anchor", type=float, default=None,
-                   help="pull of every refit towards the model it starts from: weight of the squared move of "
-                        "its parameters, in units of their ranges, added to the fit cost (default 0: none)")
-    p.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=CHECKED_DIAGNOSIS["split"],
-                   help="fit weeks: the first half (held out: the rest; reuses the site's calibration) or every "
-                        "other week from the first (held out: the others), so both see the whole season's weather "
-                        "(default %(default)s)")
-    p.add_argument("--base-restarts", type=int, default=CHECKED_DIAGNOSIS["base_restarts"],
-                   help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
-                        "lowest fit cost kept (default %(default)s)")
-    p.add_argument("--min-gain", type=float, default=MIN_GAIN,
-                   help="smallest held-out gain (share of standardised squared error removed) to select an effect "
-                        "without a clean-site ceiling (`buildenv effects`), or any with --no-clean-ceilings "
-                        "(default %(default)s)")
-    p.add_argument("--no-clean-ceilings", dest="clean_ceilings", action="store_false",
-                   help="judge every effect by --min-gain, not by its estimate against the largest one calibrated "
-                        "on clean sites")
-    p.add_argument("--no-joint-fallback", dest="joint_fallback", action="store_false",
-                   help="when no candidate qualifies, do not test those with an estimate beyond every clean site's "
-                        "again by calibrating the site from scratch without and with them")
-    p.add_argument("--no-estimate-alone", dest="estimate_alone", action="store_false",
-                   help="when the first step selects nothing, do not name a candidate whose estimate is beyond every "
-                        "clean site's by that estimate alone (`buildenv effects`: named by its estimate alone)")
-    p.add_argument("--no-night-load-first", dest="night_load_first", action="store_false",
-                   help="do not name night plug loads first when the night electricity the model carries is far "
-                        "beyond every clean site's and the sensor bias refits cold")
-    p.add_argument("--max-effects", type=int, default=CHECKED_DIAGNOSIS["max_effects"],
-                   help="most effects selected (default %(default)s)")
-    p.add_argument("--judge", choices=[j.replace("_", "-") for j in JUDGES], default="pooled",
-                   help="score each candidate on both series (default) or on the series it shows in")
+    p.add_argument(
+        "--refit-step",
+        type=float,
+        default=None,
+        help="CMA-ES initial step of the building parameters in a refit (share of their ranges; default 0.25)",
+    )
+    p.add_argument(
+        "--effect-first",
+        type=int,
+        default=None,
+        metavar="EVALUATIONS",
+        help="evaluations of a refit's first stage, the new effect alone (default 0: joint refit only)",
+    )
+    p.add_argument(
+        "--refit-restarts",
+        type=int,
+        default=None,
+        help="CMA-ES runs of every refit (control and candidates), lowest fit cost kept (default 1)",
+    )
+    p.add_argument(
+        "--refit-anchor",
+        type=float,
+        default=None,
+        help="pull of every refit towards the model it starts from: weight of the squared move of "
+        "its parameters, in units of their ranges, added to the fit cost (default 0: none)",
+    )
+    p.add_argument(
+        "--split",
+        choices=DIAGNOSIS_SPLITS,
+        default=CHECKED_DIAGNOSIS["split"],
+        help="fit weeks: the first half (held out: the rest; reuses the site's calibration) or every "
+        "other week from the first (held out: the others), so both see the whole season's weather "
+        "(default %(default)s)",
+    )
+    p.add_argument(
+        "--base-restarts",
+        type=int,
+        default=CHECKED_DIAGNOSIS["base_restarts"],
+        help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
+        "lowest fit cost kept (default %(default)s)",
+    )
+    p.add_argument(
+        "--min-gain",
+        type=float,
+        default=MIN_GAIN,
+        help="smallest held-out gain (share of standardised squared error removed) to select an effect "
+        "without a clean-site ceiling (`buildenv effects`), or any with --no-clean-ceilings "
+        "(default %(default)s)",
+    )
+    p.add_argument(
+        "--no-clean-ceilings",
+        dest="clean_ceilings",
+        action="store_false",
+        help="judge every effect by --min-gain, not by its estimate against the largest one calibrated on clean sites",
+    )
+    p.add_argument(
+        "--no-joint-fallback",
+        dest="joint_fallback",
+        action="store_false",
+        help="when no candidate qualifies, do not test those with an estimate beyond every clean site's "
+        "again by calibrating the site from scratch without and with them",
+    )
+    p.add_argument(
+        "--no-estimate-alone",
+        dest="estimate_alone",
+        action="store_false",
+        help="when the first step selects nothing, do not name a candidate whose estimate is beyond every "
+        "clean site's by that estimate alone (`buildenv effects`: named by its estimate alone)",
+    )
+    p.add_argument(
+        "--no-night-load-first",
+        dest="night_load_first",
+        action="store_false",
+        help="do not name night plug loads first when the night electricity the model carries is far "
+        "beyond every clean site's and the sensor bias refits cold",
+    )
+    p.add_argument(
+        "--max-effects",
+        type=int,
+        default=CHECKED_DIAGNOSIS["max_effects"],
+        help="most effects selected (default %(default)s)",
+    )
+    p.add_argument(
+        "--judge",
+        choices=[j.replace("_", "-") for j in JUDGES],
+        default="pooled",
+        help="score each candidate on both series (default) or on the series it shows in",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
@@ -123,34 +199,58 @@ def register(sub) -> None:
     """Add ``diagnose`` and ``diagnose-check`` to the main parser's subparsers."""
     from buildenv.cli.sites import add_known_argument
 
-    p = sub.add_parser("diagnose", help="where the calibrated model misses a site, which unmodelled effect "
-                                        "causes it, and how far the gap shrinks once it is added")
+    p = sub.add_parser(
+        "diagnose",
+        help="where the calibrated model misses a site, which unmodelled effect "
+        "causes it, and how far the gap shrinks once it is added",
+    )
     p.add_argument("--site", required=True, help="site folder")
-    p.add_argument("--base-effect", action="append", default=[], metavar="NAME",
-                   help="an effect the building is known to have (modelled from the start); repeatable")
+    p.add_argument(
+        "--base-effect",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="an effect the building is known to have (modelled from the start); repeatable",
+    )
     p.add_argument("--plot", default=None, help="localisation PNG (default: SITE/diagnosis.png)")
     p.add_argument("--out", default=None, help="also write the JSON here")
-    p.add_argument("--no-save", action="store_true",
-                   help="do not make the extended model the site's model (calibration.json)")
-    p.add_argument("--joint-test", action="append", default=[], metavar="NAME",
-                   help="also test an effect the base calibration may have absorbed into the building parameters "
-                        "(wind-driven infiltration into the air change rate) by two calibrations from scratch, "
-                        "without and with it, judged on the held-out weeks (JSON 'joint_tests'; not a diagnosis "
-                        "step, nothing selected from it); repeatable")
+    p.add_argument(
+        "--no-save", action="store_true", help="do not make the extended model the site's model (calibration.json)"
+    )
+    p.add_argument(
+        "--joint-test",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="also test an effect the base calibration may have absorbed into the building parameters "
+        "(wind-driven infiltration into the air change rate) by two calibrations from scratch, "
+        "without and with it, judged on the held-out weeks (JSON 'joint_tests'; not a diagnosis "
+        "step, nothing selected from it); repeatable",
+    )
     _common(p)
     p.set_defaults(func=_cmd_diagnose)
 
-    p = sub.add_parser("diagnose-check", help="blind check: sites with a withheld effect (or none) injected, "
-                                              "diagnosed, scored (confusion matrix, accuracy, shrinkage)")
+    p = sub.add_parser(
+        "diagnose-check",
+        help="blind check: sites with a withheld effect (or none) injected, "
+        "diagnosed, scored (confusion matrix, accuracy, shrinkage)",
+    )
     p.add_argument("--cases", type=int, default=16)
     p.add_argument("--out", default="out/diagnose-check", help="folder of the cases (a rerun resumes)")
     p.add_argument("--building", default="medium_office")
     p.add_argument("--epw", default="usa_il_chicago")
-    p.add_argument("--weeks", type=int, default=None,
-                   help="weeks each site measures (default: buildenv.diagnosis.blind_check.WEEKS; fit and held-out weeks: "
-                        "--split)")
-    p.add_argument("--base-effects", default="auto",
-                   help="'auto' (diagnose a clean site of the building first), or comma-separated known effects")
+    p.add_argument(
+        "--weeks",
+        type=int,
+        default=None,
+        help="weeks each site measures (default: buildenv.diagnosis.blind_check.WEEKS; fit and held-out weeks: "
+        "--split)",
+    )
+    p.add_argument(
+        "--base-effects",
+        default="auto",
+        help="'auto' (diagnose a clean site of the building first), or comma-separated known effects",
+    )
     add_known_argument(p)
     _common(p)
     p.set_defaults(func=_cmd_diagnose_check)

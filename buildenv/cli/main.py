@@ -30,8 +30,8 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.campaign.runs import MAX_FAILED_SHARE
 from buildenv.campaign.dataset import SPLITS
+from buildenv.campaign.runs import MAX_FAILED_SHARE
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 from buildenv.metamodel.surrogate import CONTEXT_HOURS
@@ -61,8 +61,18 @@ def _cmd_catalogue(args: argparse.Namespace) -> int:
     print(fmt.format("group", "name", "unit", "min", "max", "step", "granularity", "paper name"))
     for r in rows:
         step = "" if r["step"] is None else f"{r['step']:g}"
-        print(fmt.format(r["group"], r["name"], r["unit"], f"{r['min']:g}", f"{r['max']:g}", step,
-                         r["granularity"], r["paper_name"]))
+        print(
+            fmt.format(
+                r["group"],
+                r["name"],
+                r["unit"],
+                f"{r['min']:g}",
+                f"{r['max']:g}",
+                step,
+                r["granularity"],
+                r["paper_name"],
+            )
+        )
     return 0
 
 
@@ -75,9 +85,16 @@ def _cmd_weather(args: argparse.Namespace) -> int:
         return 0
     w = load_weather(args.name)
     tamb = w.channel("TAMB")
-    info = {"name": w.name, "path": str(w.path), "latitude_deg": w.latitude_deg, "longitude_deg": w.longitude_deg,
-            "tamb_mean_c": round(float(tamb.mean()), 2), "tamb_min_c": float(tamb.min()),
-            "tamb_max_c": float(tamb.max()), "ghi_annual_kwh_m2": round(float(w.channel("IGLOB_H").sum()) / 1000, 1)}
+    info = {
+        "name": w.name,
+        "path": str(w.path),
+        "latitude_deg": w.latitude_deg,
+        "longitude_deg": w.longitude_deg,
+        "tamb_mean_c": round(float(tamb.mean()), 2),
+        "tamb_min_c": float(tamb.min()),
+        "tamb_max_c": float(tamb.max()),
+        "ghi_annual_kwh_m2": round(float(w.channel("IGLOB_H").sum()) / 1000, 1),
+    }
     print(json.dumps(info, indent=2))
     return 0
 
@@ -95,8 +112,10 @@ def _cmd_morph_weather(args: argparse.Namespace) -> int:
     elif args.out_dir:
         records = morph_many(args.epw, args.out_dir, 0 if args.seed is None else args.seed, **fixed)
     else:
-        raise BuildenvError("give --out FILE (one morph, the values given) or --out-dir DIR (a random morph per "
-                            "--epw, values not given drawn with --seed)")
+        raise BuildenvError(
+            "give --out FILE (one morph, the values given) or --out-dir DIR (a random morph per "
+            "--epw, values not given drawn with --seed)"
+        )
     print(json.dumps(records, indent=2))
     return 0
 
@@ -104,9 +123,9 @@ def _cmd_morph_weather(args: argparse.Namespace) -> int:
 def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Path, as_json: bool) -> int:
     from buildenv.defaults import DEFAULT_THETA, default_week
     from buildenv.energyplus.simulate import simulate_weeks
+    from buildenv.metrics import week_summary
     from buildenv.plotting import plot_week
     from buildenv.schedules import hourly_schedules
-    from buildenv.metrics import week_summary
 
     theta_values = dict(DEFAULT_THETA)
     settings, occupancy = default_week()
@@ -130,14 +149,31 @@ def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Pa
     area = float(theta[cat.THETA_NAMES.index("floor_area_m2")])
     summary = week_summary(result.outputs[0], sched["occupancy_fraction"], area)
     out.mkdir(parents=True, exist_ok=True)
-    png = plot_week(result.outputs[0], result.weather[0], sched, out / "week.png",
-                    title=f"default building, {epw}, week {week} of the year ({area:.0f} m2)")
-    np.savez(out / "week.npz", outputs=result.outputs[0], weather=result.weather[0], theta=theta,
-             settings=settings[0], occupancy=occupancy[0])
-    record = {"epw": epw, "week_of_year": week, "floor_area_m2": area, "summary": summary, "plot": str(png),
-              "settings_every_day": dict(zip(cat.SETTING_NAMES, settings[0, 0].tolist())),
-              "occupancy_every_weekday": dict(zip(cat.OCCUPANCY_NAMES, occupancy[0, 0].tolist())),
-              "theta_build": dict(zip(cat.THETA_NAMES, theta.tolist()))}
+    png = plot_week(
+        result.outputs[0],
+        result.weather[0],
+        sched,
+        out / "week.png",
+        title=f"default building, {epw}, week {week} of the year ({area:.0f} m2)",
+    )
+    np.savez(
+        out / "week.npz",
+        outputs=result.outputs[0],
+        weather=result.weather[0],
+        theta=theta,
+        settings=settings[0],
+        occupancy=occupancy[0],
+    )
+    record = {
+        "epw": epw,
+        "week_of_year": week,
+        "floor_area_m2": area,
+        "summary": summary,
+        "plot": str(png),
+        "settings_every_day": dict(zip(cat.SETTING_NAMES, settings[0, 0].tolist())),
+        "occupancy_every_weekday": dict(zip(cat.OCCUPANCY_NAMES, occupancy[0, 0].tolist())),
+        "theta_build": dict(zip(cat.THETA_NAMES, theta.tolist())),
+    }
     (out / "week.json").write_text(json.dumps(record, indent=2))
     if as_json:
         print(json.dumps(record, indent=2))
@@ -157,17 +193,39 @@ def _cmd_week(args: argparse.Namespace) -> int:
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from buildenv.campaign.runs import DEFAULT_CLIMATES, CampaignConfig, run_campaign
 
-    config = CampaignConfig(weeks=args.weeks, seed=args.seed, epw=args.epw or list(DEFAULT_CLIMATES),
-                            weeks_per_run=args.weeks_per_run, sampling=args.sampling, zoning=args.zoning)
-    path = run_campaign(config, Path(args.out), workers=args.workers, scheduler=args.scheduler,
-                        progress=not args.quiet, max_failed_share=args.max_failed_share)
+    config = CampaignConfig(
+        weeks=args.weeks,
+        seed=args.seed,
+        epw=args.epw or list(DEFAULT_CLIMATES),
+        weeks_per_run=args.weeks_per_run,
+        sampling=args.sampling,
+        zoning=args.zoning,
+    )
+    path = run_campaign(
+        config,
+        Path(args.out),
+        workers=args.workers,
+        scheduler=args.scheduler,
+        progress=not args.quiet,
+        max_failed_share=args.max_failed_share,
+    )
     manifest = json.loads((Path(args.out) / "manifest.json").read_text())
     failed = manifest.get("failed_runs", [])
     for run in failed:
-        print(f"buildenv simulate: run {run['run_id']} ({run['weeks']} weeks) left out: {run['error']}",
-              file=sys.stderr)
-    print(json.dumps({"dataset": str(path), "weeks": manifest["weeks"], "runs": manifest["runs"],
-                      "failed_runs": len(failed), "seconds_last_session": manifest["seconds_last_session"]}))
+        print(
+            f"buildenv simulate: run {run['run_id']} ({run['weeks']} weeks) left out: {run['error']}", file=sys.stderr
+        )
+    print(
+        json.dumps(
+            {
+                "dataset": str(path),
+                "weeks": manifest["weeks"],
+                "runs": manifest["runs"],
+                "failed_runs": len(failed),
+                "seconds_last_session": manifest["seconds_last_session"],
+            }
+        )
+    )
     return 0
 
 
@@ -186,13 +244,28 @@ def _cmd_train(args: argparse.Namespace) -> int:
     from buildenv.metamodel.training import train_metamodel
 
     config = json.loads(args.model_config) if args.model_config else None
-    result = train_metamodel(args.data, args.model, Path(args.out), split=args.split, max_weeks=args.max_weeks,
-                             model_config=config, seed=args.seed, holdout_climates=args.holdout_climate,
-                             progress=not args.quiet, context_hours=args.context_hours, init=args.init,
-                             ground_temperature=not args.no_ground_temperature,
-                             temperature_before=args.temperature_before, epochs=args.epochs,
-                             batch_size=args.batch_size, lr=args.lr, schedule=args.schedule,
-                             patience=args.patience, device=args.device, minutes=args.minutes)
+    result = train_metamodel(
+        args.data,
+        args.model,
+        Path(args.out),
+        split=args.split,
+        max_weeks=args.max_weeks,
+        model_config=config,
+        seed=args.seed,
+        holdout_climates=args.holdout_climate,
+        progress=not args.quiet,
+        context_hours=args.context_hours,
+        init=args.init,
+        ground_temperature=not args.no_ground_temperature,
+        temperature_before=args.temperature_before,
+        epochs=args.epochs,
+        batch_size=args.batch_size,
+        lr=args.lr,
+        schedule=args.schedule,
+        patience=args.patience,
+        device=args.device,
+        minutes=args.minutes,
+    )
     print(json.dumps(result, indent=None if args.json else 2))
     return 0
 
@@ -220,12 +293,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("name", nargs="?", help="short name (usa_il_chicago) or EPW path")
     p.set_defaults(func=_cmd_weather)
 
-    p = sub.add_parser("morph-weather", help="write EPW files with shifted / stretched temperature, scaled solar "
-                                             "and wind")
+    p = sub.add_parser(
+        "morph-weather", help="write EPW files with shifted / stretched temperature, scaled solar and wind"
+    )
     p.add_argument("--epw", nargs="+", required=True, help="weather short names or EPW paths to morph")
     p.add_argument("--out", default=None, help="the morphed EPW (one --epw; values not given are left unchanged)")
-    p.add_argument("--out-dir", default=None,
-                   help="one random morph per --epw into this directory, with morphs.json; values given are fixed")
+    p.add_argument(
+        "--out-dir",
+        default=None,
+        help="one random morph per --epw into this directory, with morphs.json; values given are fixed",
+    )
     p.add_argument("--seed", type=int, default=None, help="seed of the random morphs (--out-dir; default 0)")
     p.add_argument("--shift-k", dest="shift_k", type=float, default=None, help="K added to the dry bulb")
     p.add_argument("--stretch", type=float, default=None, help="factor on departures from the monthly mean")
@@ -236,8 +313,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("week", help="simulate one week of the default building (values overridable)")
     p.add_argument("--epw", default="usa_il_chicago", help="weather short name or EPW path")
     p.add_argument("--week", type=int, default=2, help="week of the year, 0-51 (weeks start Mondays)")
-    p.add_argument("--set", action="append", default=[], metavar="NAME=VALUE",
-                   help="override a theta_build variable, or a setting/occupancy variable on every day")
+    p.add_argument(
+        "--set",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="override a theta_build variable, or a setting/occupancy variable on every day",
+    )
     p.add_argument("--out", default="out/week", help="directory for week.png, week.json, week.npz")
     p.add_argument("--json", action="store_true", help="print the summary as JSON")
     p.set_defaults(func=_cmd_week)
@@ -249,14 +331,25 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--epw", nargs="+", help="weather short names or EPW paths (default: all 16 shipped TMY3)")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: all cores)")
     p.add_argument("--scheduler", default=None, help="Dask scheduler address, e.g. tcp://host:8786")
-    p.add_argument("--weeks-per-run", type=int, default=cat.WEEKS_PER_YEAR,
-                   help=f"consecutive weeks per EnergyPlus run (1-{cat.WEEKS_PER_YEAR})")
+    p.add_argument(
+        "--weeks-per-run",
+        type=int,
+        default=cat.WEEKS_PER_YEAR,
+        help=f"consecutive weeks per EnergyPlus run (1-{cat.WEEKS_PER_YEAR})",
+    )
     p.add_argument("--sampling", choices=["uniform", "lhs"], default="uniform")
-    p.add_argument("--zoning", choices=list(ZONINGS), default=DEFAULT_ZONING,
-                   help="the simulated building: a core and a perimeter zone, or the paper's single zone")
-    p.add_argument("--max-failed-share", type=float, default=MAX_FAILED_SHARE,
-                   help="share of runs EnergyPlus may refuse; they are left out and listed "
-                        f"(default {MAX_FAILED_SHARE})")
+    p.add_argument(
+        "--zoning",
+        choices=list(ZONINGS),
+        default=DEFAULT_ZONING,
+        help="the simulated building: a core and a perimeter zone, or the paper's single zone",
+    )
+    p.add_argument(
+        "--max-failed-share",
+        type=float,
+        default=MAX_FAILED_SHARE,
+        help=f"share of runs EnergyPlus may refuse; they are left out and listed (default {MAX_FAILED_SHARE})",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)
 
@@ -264,33 +357,64 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--model", required=True, choices=["transformer", "bigru", "lstm", "convgru", "ffn"])
     p.add_argument("--data", required=True, help="dataset directory")
     p.add_argument("--out", required=True, help="checkpoint path (rerun to resume from CKPT.last)")
-    p.add_argument("--split", default="weather_weeks", choices=list(SPLITS),
-                   help="weather_weeks: test weeks' weather never seen in training; buildings: test weeks' "
-                        "buildings never seen in training")
+    p.add_argument(
+        "--split",
+        default="weather_weeks",
+        choices=list(SPLITS),
+        help="weather_weeks: test weeks' weather never seen in training; buildings: test weeks' "
+        "buildings never seen in training",
+    )
     p.add_argument("--max-weeks", type=int, default=None, help="at most this many training weeks")
-    p.add_argument("--holdout-climate", action="append", default=None, metavar="WEATHER",
-                   help="keep this climate's weeks out of training and score them apart (repeatable)")
-    p.add_argument("--model-config", default=None, help='JSON keyword arguments of the model, e.g. \'{"layers": 2}\'')
-    p.add_argument("--context-hours", type=int, default=CONTEXT_HOURS,
-                   help=f"hours before each week the model sees, whole days (default {CONTEXT_HOURS}: the day before)")
-    p.add_argument("--init", default=None, metavar="CKPT",
-                   help="fine-tune this checkpoint ('default': the shipped one), e.g. with a longer "
-                        "--context-hours; inputs it lacks are added")
-    p.add_argument("--no-ground-temperature", action="store_true",
-                   help="leave the ground temperature under the slab out of the inputs")
-    p.add_argument("--temperature-before", action="store_true",
-                   help="give the model the indoor temperature measured over the context hours (in training the "
-                        "previous week's simulated one, hidden on a quarter of the weeks); calibration feeds it "
-                        "the site's measured previous week (with --init, added to the checkpoint's inputs)")
+    p.add_argument(
+        "--holdout-climate",
+        action="append",
+        default=None,
+        metavar="WEATHER",
+        help="keep this climate's weeks out of training and score them apart (repeatable)",
+    )
+    p.add_argument("--model-config", default=None, help="JSON keyword arguments of the model, e.g. '{\"layers\": 2}'")
+    p.add_argument(
+        "--context-hours",
+        type=int,
+        default=CONTEXT_HOURS,
+        help=f"hours before each week the model sees, whole days (default {CONTEXT_HOURS}: the day before)",
+    )
+    p.add_argument(
+        "--init",
+        default=None,
+        metavar="CKPT",
+        help="fine-tune this checkpoint ('default': the shipped one), e.g. with a longer "
+        "--context-hours; inputs it lacks are added",
+    )
+    p.add_argument(
+        "--no-ground-temperature",
+        action="store_true",
+        help="leave the ground temperature under the slab out of the inputs",
+    )
+    p.add_argument(
+        "--temperature-before",
+        action="store_true",
+        help="give the model the indoor temperature measured over the context hours (in training the "
+        "previous week's simulated one, hidden on a quarter of the weeks); calibration feeds it "
+        "the site's measured previous week (with --init, added to the checkpoint's inputs)",
+    )
     p.add_argument("--epochs", type=int, default=100)
     p.add_argument("--batch-size", type=int, default=64)
     p.add_argument("--lr", type=float, default=1e-3, help="initial learning rate of Adam")
-    p.add_argument("--schedule", default="cosine", choices=["cosine", "constant"],
-                   help="learning rate: cosine decay to 0 over --epochs, or constant")
+    p.add_argument(
+        "--schedule",
+        default="cosine",
+        choices=["cosine", "constant"],
+        help="learning rate: cosine decay to 0 over --epochs, or constant",
+    )
     p.add_argument("--patience", type=int, default=10, help="early stopping: epochs without improvement")
-    p.add_argument("--minutes", type=_positive_minutes, default=None,
-                   help="a training-time budget (validation included): stop when it is spent, mid-epoch if need "
-                        "be, with the cosine decay spread over it instead of over --epochs")
+    p.add_argument(
+        "--minutes",
+        type=_positive_minutes,
+        default=None,
+        help="a training-time budget (validation included): stop when it is spent, mid-epoch if need "
+        "be, with the cosine decay spread over it instead of over --epochs",
+    )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--device", default="auto", help="auto (CUDA when present), cpu, cuda")
     p.add_argument("--json", action="store_true", help="one-line JSON")
@@ -300,9 +424,13 @@ def build_parser() -> argparse.ArgumentParser:
     p = sub.add_parser("evaluate", help="score a metamodel checkpoint on a dataset")
     p.add_argument("--checkpoint", default="default", help="checkpoint path or 'default'")
     p.add_argument("--data", required=True, help="dataset directory")
-    p.add_argument("--subset", default="test", choices=["test", "holdout_climate", "all"],
-                   help="test: the checkpoint's held-out weeks when DATA is its training dataset; "
-                        "holdout_climate: the climates kept out of its training")
+    p.add_argument(
+        "--subset",
+        default="test",
+        choices=["test", "holdout_climate", "all"],
+        help="test: the checkpoint's held-out weeks when DATA is its training dataset; "
+        "holdout_climate: the climates kept out of its training",
+    )
     p.add_argument("--json", action="store_true", help="one-line JSON")
     p.set_defaults(func=_cmd_evaluate)
 

@@ -32,8 +32,9 @@ def _parse_map(items: list[str]):
     for item in items:
         role, sep, names = item.partition("=")
         if not sep or role not in SCHEDULE_ROLES:
-            raise BuildenvError(f"--map {item!r}: expected ROLE=SCHEDULE[,SCHEDULE...] with ROLE one of "
-                                f"{', '.join(SCHEDULE_ROLES)}")
+            raise BuildenvError(
+                f"--map {item!r}: expected ROLE=SCHEDULE[,SCHEDULE...] with ROLE one of {', '.join(SCHEDULE_ROLES)}"
+            )
         mapping[role] = [n.strip() for n in names.split(",") if n.strip()]
     missing = [r for r in SCHEDULE_ROLES if r not in mapping]
     if missing:
@@ -85,11 +86,20 @@ def _cmd_site_reference(args: argparse.Namespace) -> int:
 
     start = parse_start(args.start, args.year)
     effects = parse_effects(args.effect)
-    path = make_reference_site(args.out, args.building, args.epw, start, args.weeks, seed=args.seed,
-                               floors=args.floors, schedule_map=_parse_map(args.map), effects=effects,
-                               effect_seed=args.effect_seed, known=parse_known(args.known))
-    info = {"site": str(path), "building": args.building, "weather": args.epw, "start": str(start),
-            "weeks": args.weeks}
+    path = make_reference_site(
+        args.out,
+        args.building,
+        args.epw,
+        start,
+        args.weeks,
+        seed=args.seed,
+        floors=args.floors,
+        schedule_map=_parse_map(args.map),
+        effects=effects,
+        effect_seed=args.effect_seed,
+        known=parse_known(args.known),
+    )
+    info = {"site": str(path), "building": args.building, "weather": args.epw, "start": str(start), "weeks": args.weeks}
     if effects:
         info["effects"] = [{"name": n, "magnitude": m} for n, m in effects]
     print(json.dumps(info))
@@ -102,32 +112,51 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
     from buildenv.sites import load_site
 
     site = load_site(args.site)
-    info = {"site": str(site.path), "name": site.name, "weather": site.weather, "start": str(site.start),
-            "weeks": site.weeks, "floor_area_m2": site.floor_area_m2, "number_of_floors": site.number_of_floors,
-            "known": site.known, "effects": list(site.effects),
-            "temperature_hours": int(site.temperature_mask.sum()),
-            "consumption_hours": int(site.consumption_mask.sum()),
-            "mean_temperature_c": round(float(np.nanmean(site.temperature_c)), 2),
-            "consumption_kwh_per_week": np.round(np.nansum(site.consumption_kwh, axis=1), 1).tolist(),
-            "calibrated": site.calibration is not None}
+    info = {
+        "site": str(site.path),
+        "name": site.name,
+        "weather": site.weather,
+        "start": str(site.start),
+        "weeks": site.weeks,
+        "floor_area_m2": site.floor_area_m2,
+        "number_of_floors": site.number_of_floors,
+        "known": site.known,
+        "effects": list(site.effects),
+        "temperature_hours": int(site.temperature_mask.sum()),
+        "consumption_hours": int(site.consumption_mask.sum()),
+        "mean_temperature_c": round(float(np.nanmean(site.temperature_c)), 2),
+        "consumption_kwh_per_week": np.round(np.nansum(site.consumption_kwh, axis=1), 1).tolist(),
+        "calibrated": site.calibration is not None,
+    }
     print(json.dumps(info, indent=2))
     return 0
 
 
 def _cmd_calibrate(args: argparse.Namespace) -> int:
     from buildenv.calibration.calibrate import calibrate_site
-    from buildenv.calibration.problem import at_bounds_note, runs_note
     from buildenv.calibration.plot import plot_calibration
-    from buildenv.sites import load_site
+    from buildenv.calibration.problem import at_bounds_note, runs_note
     from buildenv.metamodel.surrogate import load_metamodel
+    from buildenv.sites import load_site
 
     site = load_site(args.site)
     weeks = [int(w) for w in args.weeks.split(",")] if args.weeks else None
-    result = calibrate_site(site, load_metamodel(args.checkpoint), weeks, method=args.method, seed=args.seed,
-                            max_evaluations=args.evaluations, progress=not args.quiet, restarts=args.restarts,
-                            effects=declared_for_calibration(site, args.effect, args.no_site_effects))
-    result["plot"] = str(plot_calibration(load_site(args.site), load_metamodel(args.checkpoint), result,
-                                          Path(args.site) / "calibration.png"))
+    result = calibrate_site(
+        site,
+        load_metamodel(args.checkpoint),
+        weeks,
+        method=args.method,
+        seed=args.seed,
+        max_evaluations=args.evaluations,
+        progress=not args.quiet,
+        restarts=args.restarts,
+        effects=declared_for_calibration(site, args.effect, args.no_site_effects),
+    )
+    result["plot"] = str(
+        plot_calibration(
+            load_site(args.site), load_metamodel(args.checkpoint), result, Path(args.site) / "calibration.png"
+        )
+    )
     print(json.dumps(result, indent=None if args.json else 2))
     for note in (at_bounds_note(result), runs_note(result)):
         if note:
@@ -144,9 +173,14 @@ def declared_for_calibration(site, extra: list[str], no_site_effects: bool = Fal
 
 def add_known_argument(p: argparse.ArgumentParser) -> None:
     """``--known NAME=VALUE`` (repeatable): building parameters written to the site's ``[known]`` table."""
-    p.add_argument("--known", action="append", default=[], metavar="NAME=VALUE",
-                   help="a building parameter the owner knows, catalogue units (repeatable), e.g. "
-                        "occupant_density_per_m2=0.0538; written to site.toml's [known], fixed in calibration")
+    p.add_argument(
+        "--known",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="a building parameter the owner knows, catalogue units (repeatable), e.g. "
+        "occupant_density_per_m2=0.0538; written to site.toml's [known], fixed in calibration",
+    )
 
 
 def register(sub) -> None:
@@ -156,20 +190,32 @@ def register(sub) -> None:
     site = sub.add_parser("site", help="make or inspect a site (a measured building)")
     site_sub = site.add_subparsers(dest="site_command", required=True)
     p = site_sub.add_parser("reference", help="a reference building run under historical settings, read as sensors")
-    p.add_argument("--building", default="medium_office",
-                   help=f"one of {', '.join(REFERENCE_BUILDINGS)}, or an IDF path (then --floors)")
+    p.add_argument(
+        "--building",
+        default="medium_office",
+        help=f"one of {', '.join(REFERENCE_BUILDINGS)}, or an IDF path (then --floors)",
+    )
     p.add_argument("--epw", default="usa_il_chicago", help="weather short name or EPW path")
     p.add_argument("--start", default="11-04", help="first Monday, MM-DD (in --year) or YYYY-MM-DD")
     p.add_argument("--year", type=int, default=2019, help="calendar year of --start MM-DD (weekdays)")
     p.add_argument("--weeks", type=int, default=4, help="measured weeks")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
     p.add_argument("--floors", type=int, default=None, help="storeys (for a user IDF)")
-    p.add_argument("--map", action="append", default=[], metavar="ROLE=SCHEDULE",
-                   help="schedules of a user IDF to replace: heating_setpoint, cooling_setpoint, "
-                        "hvac_availability, outdoor_air (all four)")
-    p.add_argument("--effect", action="append", default=[], metavar="NAME[=MAGNITUDE]",
-                   help="inject an unmodelled effect (repeatable; `buildenv effects` lists them; the truth goes "
-                        "to truth.json)")
+    p.add_argument(
+        "--map",
+        action="append",
+        default=[],
+        metavar="ROLE=SCHEDULE",
+        help="schedules of a user IDF to replace: heating_setpoint, cooling_setpoint, "
+        "hvac_availability, outdoor_air (all four)",
+    )
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME[=MAGNITUDE]",
+        help="inject an unmodelled effect (repeatable; `buildenv effects` lists them; the truth goes to truth.json)",
+    )
     p.add_argument("--effect-seed", type=int, default=0, help="seed of the effects' random choices (holiday dates)")
     add_known_argument(p)
     p.add_argument("--out", required=True, help="site folder to write")
@@ -183,16 +229,28 @@ def register(sub) -> None:
     p.add_argument("--weeks", default=None, help="calibration weeks, e.g. 0,1 (default: the first half)")
     p.add_argument("--method", default="cmaes", choices=["cmaes", "adam"])
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations (per run)")
-    p.add_argument("--restarts", type=int, default=1,
-                   help="independent CMA-ES runs (seeds SEED, SEED+1, ...), the lowest cost kept; a note says "
-                        "when runs that fit alike predict the held-out weeks apart")
-    p.add_argument("--effect", action="append", default=[], metavar="NAME",
-                   help="an effect the building is known to have (repeatable; `buildenv effects` lists them), "
-                        "e.g. night_cycle_cold_air for a VAV system with terminal reheat: its parameters are "
-                        "fitted after the building's, and the site's model keeps it; added to the effects site.toml "
-                        "declares")
-    p.add_argument("--no-site-effects", action="store_true",
-                   help="leave out the effects site.toml declares (calibrate the plain model, for comparison)")
+    p.add_argument(
+        "--restarts",
+        type=int,
+        default=1,
+        help="independent CMA-ES runs (seeds SEED, SEED+1, ...), the lowest cost kept; a note says "
+        "when runs that fit alike predict the held-out weeks apart",
+    )
+    p.add_argument(
+        "--effect",
+        action="append",
+        default=[],
+        metavar="NAME",
+        help="an effect the building is known to have (repeatable; `buildenv effects` lists them), "
+        "e.g. night_cycle_cold_air for a VAV system with terminal reheat: its parameters are "
+        "fitted after the building's, and the site's model keeps it; added to the effects site.toml "
+        "declares",
+    )
+    p.add_argument(
+        "--no-site-effects",
+        action="store_true",
+        help="leave out the effects site.toml declares (calibrate the plain model, for comparison)",
+    )
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")

@@ -59,8 +59,8 @@ class StandIn:
     def plan(self, start: dt.date, effects: list | None, effect_seed: int) -> list:
         """The effects' random choices fixed (:func:`buildenv.energyplus.injections.plan_effects`): holidays with one
         absent day in the weeks the diagnosis fits (:attr:`split`) and one in those it holds out."""
-        from buildenv.energyplus.injections import plan_effects
         from buildenv.diagnosis.gap import split_weeks
+        from buildenv.energyplus.injections import plan_effects
 
         return plan_effects(effects, start, self.weeks, effect_seed, split_weeks(self.weeks, self.split)[0])
 
@@ -68,9 +68,17 @@ class StandIn:
         """Run the stand-in over :attr:`weeks` weeks from ``start`` and write the site folder ``path``."""
         from buildenv.energyplus.reference import make_reference_site
 
-        return make_reference_site(path, self.building, self.epw, start, self.weeks, seed=seed,
-                                   effects=self.plan(start, effects, effect_seed), effect_seed=effect_seed,
-                                   known=self.known)
+        return make_reference_site(
+            path,
+            self.building,
+            self.epw,
+            start,
+            self.weeks,
+            seed=seed,
+            effects=self.plan(start, effects, effect_seed),
+            effect_seed=effect_seed,
+            known=self.known,
+        )
 
 
 def draw_magnitude(name: str, rng: np.random.Generator) -> float:
@@ -101,8 +109,9 @@ def reference_start(weeks: int) -> dt.date:
     return min(REFERENCE_START, latest_first_monday(weeks))
 
 
-def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tuple[str, ...] | None = None,
-               weeks: int = WEEKS) -> list[dict]:
+def plan_cases(
+    cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tuple[str, ...] | None = None, weeks: int = WEEKS
+) -> list[dict]:
     """The cases of a check: label, magnitude, first Monday and seeds, all from ``seed``; labels cycle through
     "none" and ``effects`` (default: the whole catalogue) less ``exclude``. A first Monday from which ``weeks``
     weeks would run into the next year is moved back to :func:`latest_first_monday` (never for 4 weeks), and
@@ -118,9 +127,16 @@ def plan_cases(cases: int, seed: int, exclude: tuple[str, ...] = (), effects: tu
             order = list(rng.permutation(labels))
             label = str(order[0])
         start = min(FIRST_MONDAYS[0] + dt.timedelta(weeks=int(rng.integers(mondays))), latest_first_monday(weeks))
-        plan.append({"case": i, "true": label, "magnitude": None if label == NONE else draw_magnitude(label, rng),
-                     "start": start.isoformat(), "noise_seed": int(rng.integers(1_000_000)),
-                     "effect_seed": int(rng.integers(1_000_000))})
+        plan.append(
+            {
+                "case": i,
+                "true": label,
+                "magnitude": None if label == NONE else draw_magnitude(label, rng),
+                "start": start.isoformat(),
+                "noise_seed": int(rng.integers(1_000_000)),
+                "effect_seed": int(rng.integers(1_000_000)),
+            }
+        )
     return plan
 
 
@@ -144,22 +160,32 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
     truth_path = path / "truth.json"
     truth = json.loads(truth_path.read_text()) if truth_path.is_file() else {"effects": []}
     made = [(e["name"], float(e["magnitude"])) for e in truth["effects"]]
-    same = (site.start.isoformat() == case["start"] and len(made) == len(effects)
-            and all(a == b and abs(m - n) < 1e-9 for (a, m), (b, n) in zip(made, effects)))
+    same = (
+        site.start.isoformat() == case["start"]
+        and len(made) == len(effects)
+        and all(a == b and abs(m - n) < 1e-9 for (a, m), (b, n) in zip(made, effects))
+    )
     if same and effects:  # the same planned choices too (holiday dates depend on the split)
         planned = stand_in.plan(site.start, effects, case["effect_seed"])
-        same = all({k: e.get("details", {}).get(k) for k in p.details} == p.details
-                   for e, p in zip(truth["effects"], planned))
+        same = all(
+            {k: e.get("details", {}).get(k) for k in p.details} == p.details for e, p in zip(truth["effects"], planned)
+        )
     if not same:
-        raise ValueError(f"{path}: this site was made for another case ({made or 'no effect'}, from "
-                         f"{site.start}), not case {case['case']} ({effects or 'no effect'}, from {case['start']}); "
-                         "give the check a fresh --out folder")
+        raise ValueError(
+            f"{path}: this site was made for another case ({made or 'no effect'}, from "
+            f"{site.start}), not case {case['case']} ({effects or 'no effect'}, from {case['start']}); "
+            "give the check a fresh --out folder"
+        )
     if site.known != dict(stand_in.known):
-        raise ValueError(f"{path}: this site declares known parameters {site.known or 'none'}, the check "
-                         f"{dict(stand_in.known) or 'none'}; give the check a fresh --out folder")
+        raise ValueError(
+            f"{path}: this site declares known parameters {site.known or 'none'}, the check "
+            f"{dict(stand_in.known) or 'none'}; give the check a fresh --out folder"
+        )
     if site.weeks != stand_in.weeks:
-        raise ValueError(f"{path}: this site measures {site.weeks} weeks, the check {stand_in.weeks}; give the "
-                         "check a fresh --out folder")
+        raise ValueError(
+            f"{path}: this site measures {site.weeks} weeks, the check {stand_in.weeks}; give the "
+            "check a fresh --out folder"
+        )
 
 
 def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
@@ -176,10 +202,12 @@ def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
     dt_k = site.temperature_c[weeks] - twin.temperature_c[weeks]
     twin_q = twin.consumption_wh_m2()[weeks]
     dq = site.consumption_wh_m2()[weeks] - twin_q
-    t_rms = float(np.sqrt(np.nanmean(dt_k ** 2)))
-    q_percent = float(100.0 * np.sqrt(np.nanmean(dq ** 2)) / np.nanmean(twin_q))
-    visible = (t_rms >= VISIBLE_NOISE_MULTIPLE * TEMPERATURE_NOISE_K
-               or q_percent >= VISIBLE_NOISE_MULTIPLE * 100.0 * CONSUMPTION_NOISE_FRACTION)
+    t_rms = float(np.sqrt(np.nanmean(dt_k**2)))
+    q_percent = float(100.0 * np.sqrt(np.nanmean(dq**2)) / np.nanmean(twin_q))
+    visible = (
+        t_rms >= VISIBLE_NOISE_MULTIPLE * TEMPERATURE_NOISE_K
+        or q_percent >= VISIBLE_NOISE_MULTIPLE * 100.0 * CONSUMPTION_NOISE_FRACTION
+    )
     return {"temperature_k": round(t_rms, 4), "consumption_percent": round(q_percent, 3), "visible": bool(visible)}
 
 
@@ -194,6 +222,7 @@ def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], min_gai
         sigma: the case's fit-week residual standard deviations [K, Wh/m2].
         min_gain: the diagnosis' smallest held-out gain to name an effect.
     """
+
     def standardised(m: dict) -> list[float]:
         return [m["rmse_t_celsius"] ** 2 / sigma[0] ** 2, m["rmse_q_wh_m2"] ** 2 / sigma[1] ** 2]
 
@@ -203,8 +232,7 @@ def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], min_gai
     return {"share": round(share, 4), "by_series": by_series, "left": bool(share >= min_gain)}
 
 
-def _gap_left_row(out: Path, case: dict, row: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn
-                  ) -> dict:
+def _gap_left_row(out: Path, case: dict, row: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
     """``row`` with ``gap_left`` and the base models' held-out metrics: the case's from its diagnosis (calibrated
     again for a case finished before they were recorded), its clean twin's calibrated here."""
     from buildenv.sites import load_site
@@ -213,8 +241,11 @@ def _gap_left_row(out: Path, case: dict, row: dict, surrogate, settings: Diagnos
         base = base_model_gap(load_site(_site(out, case, stand_in, inject=True)), surrogate, settings)
         row = {**row, "heldout_base": base["heldout"], "residual_sigma": base["residual_sigma"]}
     twin = base_model_gap(load_site(_site(out, case, stand_in, inject=False)), surrogate, settings)["heldout"]
-    return {**row, "twin_heldout_base": twin,
-            "gap_left": gap_left(row["heldout_base"], twin, row["residual_sigma"], settings.min_gain)}
+    return {
+        **row,
+        "twin_heldout_base": twin,
+        "gap_left": gap_left(row["heldout_base"], twin, row["residual_sigma"], settings.min_gain),
+    }
 
 
 def _mse(metrics: dict, series: str) -> float:
@@ -229,22 +260,29 @@ def _diagnosis_record(result: dict) -> dict:
     the ceilings were judged at (W/m2)."""
     by_estimate = result.get("named_by_estimate", [])
     named = result["selected"][0] if result["selected"] else by_estimate[0] if by_estimate else NONE
-    return {"named": named, "selected": result["selected"], "named_by_estimate": by_estimate,
-            "ranked": [e["name"] for e in result["effects"]],
-            "scores": {e["name"]: e["score"] for e in result["effects"]},
-            "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
-            "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"]
-                                 if "gain_vs_control" in e},
-            "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
-            "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
-            "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
-            "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
-            "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
-            "joint_tests": {e["name"]: {k: e["joint_test"][k] for k in ("gain", "gain_by_series", "p_value",
-                                                                           "estimate", "qualifies")}
-                            for e in result["effects"] if "joint_test" in e},
-            "verdict": result["verdict"], "heldout_base": result["heldout_base"],
-            "residual_sigma": result["residual_sigma"], "fit_irradiance_w_m2": result.get("fit_irradiance_w_m2")}
+    return {
+        "named": named,
+        "selected": result["selected"],
+        "named_by_estimate": by_estimate,
+        "ranked": [e["name"] for e in result["effects"]],
+        "scores": {e["name"]: e["score"] for e in result["effects"]},
+        "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
+        "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"] if "gain_vs_control" in e},
+        "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
+        "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
+        "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
+        "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
+        "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
+        "joint_tests": {
+            e["name"]: {k: e["joint_test"][k] for k in ("gain", "gain_by_series", "p_value", "estimate", "qualifies")}
+            for e in result["effects"]
+            if "joint_test" in e
+        },
+        "verdict": result["verdict"],
+        "heldout_base": result["heldout_base"],
+        "residual_sigma": result["residual_sigma"],
+        "fit_irradiance_w_m2": result.get("fit_irradiance_w_m2"),
+    }
 
 
 def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
@@ -264,10 +302,15 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
         twin_mse = _mse(row["twin_heldout_base"], series)
         entry = next(e for e in result["effects"] if e["name"] == case["true"])
         b, a = _mse(result["heldout_before"], series), _mse(result["heldout_after"], series)
-        row["shrinkage"] = {"series": series, "mse_before": b, "mse_after": a, "mse_twin": twin_mse,
-                            "of_total_gap": 1.0 - a / b if b > 0 else float("nan"),
-                            "of_effect_gap": (b - a) / (b - twin_mse) if b - twin_mse > 1e-12 else float("nan"),
-                            "parameters": entry["parameters"]}
+        row["shrinkage"] = {
+            "series": series,
+            "mse_before": b,
+            "mse_after": a,
+            "mse_twin": twin_mse,
+            "of_total_gap": 1.0 - a / b if b > 0 else float("nan"),
+            "of_effect_gap": (b - a) / (b - twin_mse) if b - twin_mse > 1e-12 else float("nan"),
+            "parameters": entry["parameters"],
+        }
     if case["true"] != NONE:
         row["footprint"] = footprint(out, case, stand_in)
     row["seconds"] = round(time.perf_counter() - started, 1)
@@ -284,8 +327,14 @@ def diagnose_twin(out: Path, case: dict, surrogate, settings: DiagnosisSettings,
     result = diagnose(load_site(_site(out, case, stand_in, inject=False)), surrogate, settings, localisation=False)
     result.pop("_fit", None)
     record = _diagnosis_record(result)
-    return {**case, "true": NONE, "twin_of": case["true"], **record, "correct": record["named"] == NONE,
-            "seconds": round(time.perf_counter() - started, 1)}
+    return {
+        **case,
+        "true": NONE,
+        "twin_of": case["true"],
+        **record,
+        "correct": record["named"] == NONE,
+        "seconds": round(time.perf_counter() - started, 1),
+    }
 
 
 def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> list[str]:
@@ -325,39 +374,61 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
     confusion = {t: {n: sum(1 for r in rows if r["true"] == t and r["named"] == n) for n in names} for t in labels}
     effect_rows = [r for r in rows if r["true"] != NONE]
     none_rows = [r for r in rows if r["true"] == NONE]
-    shrink = [r["shrinkage"]["of_effect_gap"] for r in effect_rows
-              if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])]
+    shrink = [
+        r["shrinkage"]["of_effect_gap"]
+        for r in effect_rows
+        if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])
+    ]
     total = [r["shrinkage"]["of_total_gap"] for r in effect_rows if r.get("shrinkage")]
     visible = [r for r in effect_rows if r.get("footprint", {}).get("visible")]
     left = [r for r in effect_rows if r.get("gap_left", {}).get("left")]
     # an effect that left next to no gap divides by next to nothing: the mean is taken where it left a gap
-    shrink_left = [r["shrinkage"]["of_effect_gap"] for r in left
-                   if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])]
-    return {"cases": len(rows), "effect_cases": len(effect_rows), "none_cases": len(none_rows),
-            "top1_accuracy": float(np.mean([r["correct"] for r in effect_rows])) if effect_rows else None,
-            "ranked_first_accuracy": float(np.mean([ranked_first(r) for r in effect_rows])) if effect_rows else None,
-            "none_recognised": float(np.mean([r["named"] == NONE for r in none_rows])) if none_rows else None,
-            "false_alarm_rate": float(np.mean([r["named"] != NONE for r in none_rows])) if none_rows else None,
-            "mean_shrinkage_of_effect_gap": float(np.mean(shrink_left)) if shrink_left else None,
-            "shrinkage_cases_gap_left": len(shrink_left),
-            "median_shrinkage_of_effect_gap": float(np.median(shrink)) if shrink else None,
-            "mean_shrinkage_of_total_gap": float(np.mean(total)) if total else None,
-            "visible_effect_cases": len(visible),
-            "top1_accuracy_visible": float(np.mean([r["correct"] for r in visible])) if visible else None,
-            "gap_left_cases": len(left) if any("gap_left" in r for r in effect_rows) else None,
-            "top1_accuracy_gap_left": float(np.mean([r["correct"] for r in left])) if left else None,
-            # named by the estimate alone (buildenv.diagnosis.gap.named_by_estimate): right, and on clean sites
-            "named_by_estimate_right": sum(1 for r in effect_rows if r["correct"] and r.get("named_by_estimate")),
-            "named_by_estimate_on_none": sum(1 for r in none_rows if r.get("named_by_estimate")),
-            "named_where_no_gap_left": {r["case"]: r["named"] for r in effect_rows
-                                        if "gap_left" in r and not r["gap_left"]["left"]},
-            "labels": labels, "confusion": confusion}
+    shrink_left = [
+        r["shrinkage"]["of_effect_gap"]
+        for r in left
+        if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])
+    ]
+    return {
+        "cases": len(rows),
+        "effect_cases": len(effect_rows),
+        "none_cases": len(none_rows),
+        "top1_accuracy": float(np.mean([r["correct"] for r in effect_rows])) if effect_rows else None,
+        "ranked_first_accuracy": float(np.mean([ranked_first(r) for r in effect_rows])) if effect_rows else None,
+        "none_recognised": float(np.mean([r["named"] == NONE for r in none_rows])) if none_rows else None,
+        "false_alarm_rate": float(np.mean([r["named"] != NONE for r in none_rows])) if none_rows else None,
+        "mean_shrinkage_of_effect_gap": float(np.mean(shrink_left)) if shrink_left else None,
+        "shrinkage_cases_gap_left": len(shrink_left),
+        "median_shrinkage_of_effect_gap": float(np.median(shrink)) if shrink else None,
+        "mean_shrinkage_of_total_gap": float(np.mean(total)) if total else None,
+        "visible_effect_cases": len(visible),
+        "top1_accuracy_visible": float(np.mean([r["correct"] for r in visible])) if visible else None,
+        "gap_left_cases": len(left) if any("gap_left" in r for r in effect_rows) else None,
+        "top1_accuracy_gap_left": float(np.mean([r["correct"] for r in left])) if left else None,
+        # named by the estimate alone (buildenv.diagnosis.gap.named_by_estimate): right, and on clean sites
+        "named_by_estimate_right": sum(1 for r in effect_rows if r["correct"] and r.get("named_by_estimate")),
+        "named_by_estimate_on_none": sum(1 for r in none_rows if r.get("named_by_estimate")),
+        "named_where_no_gap_left": {
+            r["case"]: r["named"] for r in effect_rows if "gap_left" in r and not r["gap_left"]["left"]
+        },
+        "labels": labels,
+        "confusion": confusion,
+    }
 
 
-def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: DiagnosisSettings | None = None,
-              building: str = "medium_office", epw: str = "usa_il_chicago", base_effects: str | list[str] = "auto",
-              effects: tuple[str, ...] | None = None, progress: bool = False,
-              known_parameters: dict[str, float] | None = None, weeks: int = WEEKS) -> dict:
+def run_check(
+    out: str | Path,
+    cases: int,
+    seed: int,
+    surrogate=None,
+    settings: DiagnosisSettings | None = None,
+    building: str = "medium_office",
+    epw: str = "usa_il_chicago",
+    base_effects: str | list[str] = "auto",
+    effects: tuple[str, ...] | None = None,
+    progress: bool = False,
+    known_parameters: dict[str, float] | None = None,
+    weeks: int = WEEKS,
+) -> dict:
     """Run (or resume) a blind check and summarise it.
 
     Args:
@@ -384,8 +455,11 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
     surrogate = surrogate or load_metamodel()
     settings = settings or DiagnosisSettings()
     stand_in = StandIn(building, epw, dict(known_parameters or {}), weeks, settings.split)
-    known = (known_effects(out, surrogate, settings, stand_in) if base_effects == "auto"
-             else [get_effect(e).name for e in base_effects])
+    known = (
+        known_effects(out, surrogate, settings, stand_in)
+        if base_effects == "auto"
+        else [get_effect(e).name for e in base_effects]
+    )
     settings = DiagnosisSettings(**{**settings.__dict__, "base_effects": tuple(known)})
     plan = plan_cases(cases, seed, tuple(known), effects, weeks)
     rows = []
@@ -406,7 +480,17 @@ def run_check(out: str | Path, cases: int, seed: int, surrogate=None, settings: 
         path.write_text(json.dumps(row, indent=1, default=float) + "\n")
         rows.append(row)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]
-    return {"summary": summarise(rows, labels), "cases": rows, "base_effects": known,
-            "plan": {"cases": cases, "seed": seed, "building": building, "epw": epw, "weeks": weeks,
-                     "known_parameters": stand_in.known,
-                     "settings": {k: v for k, v in settings.__dict__.items() if k != "candidates"}}}
+    return {
+        "summary": summarise(rows, labels),
+        "cases": rows,
+        "base_effects": known,
+        "plan": {
+            "cases": cases,
+            "seed": seed,
+            "building": building,
+            "epw": epw,
+            "weeks": weeks,
+            "known_parameters": stand_in.known,
+            "settings": {k: v for k, v in settings.__dict__.items() if k != "candidates"},
+        },
+    }

@@ -34,7 +34,6 @@ from buildenv import catalogue as cat
 from buildenv.energyplus.shoebox import LIGHTING_W_M2, PC_POWER_W
 from buildenv.errors import BuildenvError
 
-
 # How a gap diagnosis scores a candidate effect (buildenv.diagnosis.gap.DiagnosisSettings.judge): on both measured
 # series pooled, or on the series the effect shows in (Effect.series).
 JUDGES = ("pooled", "effect_series")
@@ -58,17 +57,22 @@ NIGHT_LOAD_FIRST_BEYOND: float | None = 1.25
 CLEAN_CEILING_SOURCE = "estimate calibrated on 216 clean sites of the blind checks"
 
 # Where Effect.declared_ceiling comes from.
-DECLARED_CEILING_SOURCE = ("estimate calibrated on 44 clean sites declaring the medium office's internal loads known "
-                           "(occupants, workstations and both night shares)")
+DECLARED_CEILING_SOURCE = (
+    "estimate calibrated on 44 clean sites declaring the medium office's internal loads known "
+    "(occupants, workstations and both night shares)"
+)
 
 # Where the ceiling of night_plug_loads, judged on the night electricity, comes from.
-NIGHT_CEILING_SOURCE = ("night electricity of the first step's recalibrated base model on 129 clean sites of the "
-                        "blind checks")
+NIGHT_CEILING_SOURCE = (
+    "night electricity of the first step's recalibrated base model on 129 clean sites of the blind checks"
+)
 
 # Where the heating power's ceiling comes from: the clean sites above and those diagnosed again with
 # Effect.carried_starts.
-CAPACITY_CEILING_SOURCE = ("estimate calibrated on 216 clean sites of the blind checks and on 50 more diagnosed "
-                           "with the heating power's extra starts")
+CAPACITY_CEILING_SOURCE = (
+    "estimate calibrated on 216 clean sites of the blind checks and on 50 more diagnosed "
+    "with the heating power's extra starts"
+)
 
 #: ``share x wind speed`` (m/s) at which the wind term of ``wind_infiltration`` adds nothing: about its mean over
 #: the blind checks' Chicago weeks. Centred there, the calibrated air changes stay those of a typical hour.
@@ -81,8 +85,10 @@ WIND_CEILING_SOURCE = "estimate calibrated with the centred wind term on 147 cle
 ESTIMATE_CEILING_SOURCE = "estimate calibrated on 464 clean sites of the blind checks"
 
 # Where Effect.sunshine_ceiling comes from.
-SUNSHINE_CEILING_SOURCE = ("ratio of the estimate to the fit weeks' mean global horizontal irradiance over 1552 clean "
-                           "sites of the blind checks (fit-week irradiance 66.9-95.6 W/m2)")
+SUNSHINE_CEILING_SOURCE = (
+    "ratio of the estimate to the fit weeks' mean global horizontal irradiance over 1552 clean "
+    "sites of the blind checks (fit-week irradiance 66.9-95.6 W/m2)"
+)
 
 # Where the sensor bias's clean reading (Effect.clean_reading) and ceilings, measured from that reading, come from.
 BIAS_READING_SOURCE = "estimate calibrated on 464 clean sites of the blind checks"
@@ -93,8 +99,10 @@ def night_electricity_w_m2(theta: dict[str, float]) -> float:
     (``LIGHTING_W_M2``) times the lights' night share, plus its workstations' power (``PC_POWER_W`` x
     ``pc_density_per_m2``) times their night share. Both night shares heat the zones and load the meter alike, so
     a calibration can move a night load from one to the other; their sum is what the data fix."""
-    return (LIGHTING_W_M2 * theta["light_night_percent"]
-            + PC_POWER_W * theta["pc_density_per_m2"] * theta["pc_night_percent"]) / 100.0
+    return (
+        LIGHTING_W_M2 * theta["light_night_percent"]
+        + PC_POWER_W * theta["pc_density_per_m2"] * theta["pc_night_percent"]
+    ) / 100.0
 
 
 #: Quantities derived from the calibrated building parameters that an effect carried by them can be judged on
@@ -245,8 +253,10 @@ class Effect:
         limit = self.carried_limit()
         if limit is not None:
             side, end = ("<=", "below the top") if self.vanishes_at == "max" else (">=", "above the bottom")
-            return (f"{self.building_parameter} {side} {limit:g} {self._building_unit()} (one "
-                    f"catalogue step {end} of its range, where the effect vanishes)")
+            return (
+                f"{self.building_parameter} {side} {limit:g} {self._building_unit()} (one "
+                f"catalogue step {end} of its range, where the effect vanishes)"
+            )
         if self.smallest is None:
             return ""
         size, unit = self._size_label()
@@ -306,8 +316,9 @@ class Effect:
             units[self.building_parameter] = self._building_unit()
         if self.judged_on is not None:
             units[self.judged_on] = DERIVED_SIZES[self.judged_on][1]
-        return ", ".join(f"{k} {v:.3g}" + ("" if units.get(k, "-") == "-" else f" {units[k]}")
-                         for k, v in values.items())
+        return ", ".join(
+            f"{k} {v:.3g}" + ("" if units.get(k, "-") == "-" else f" {units[k]}") for k, v in values.items()
+        )
 
     def beyond_estimate_ceiling(self, values: dict[str, float]) -> bool | None:
         """:meth:`beyond_clean_sites` judged against :attr:`estimate_ceiling` instead (None where the effect has
@@ -323,10 +334,17 @@ class Effect:
             return self
         per, lowest = self.sunshine_ceiling
         ceiling = round(per * max(float(irradiance_w_m2), lowest), 4)
-        source = (f"{SUNSHINE_CEILING_SOURCE}: at most {per:g} per W/m2, times this site's "
-                  f"{float(irradiance_w_m2):.1f} W/m2" + (f" (taken as {lowest:g})" if irradiance_w_m2 < lowest else ""))
-        return dataclasses.replace(self, clean_ceiling=ceiling, estimate_ceiling=ceiling, ceiling_source=source,
-                                   irradiance_w_m2=float(irradiance_w_m2))
+        source = (
+            f"{SUNSHINE_CEILING_SOURCE}: at most {per:g} per W/m2, times this site's "
+            f"{float(irradiance_w_m2):.1f} W/m2" + (f" (taken as {lowest:g})" if irradiance_w_m2 < lowest else "")
+        )
+        return dataclasses.replace(
+            self,
+            clean_ceiling=ceiling,
+            estimate_ceiling=ceiling,
+            ceiling_source=source,
+            irradiance_w_m2=float(irradiance_w_m2),
+        )
 
     def sunshine_ceiling_text(self) -> str:
         """:attr:`sunshine_ceiling` as a person reads it ("" when the effect has none)."""
@@ -334,22 +352,30 @@ class Effect:
             return ""
         per, lowest = self.sunshine_ceiling
         size, unit = self._size_label()
-        return (f"{size} > {per:g}{unit} x the fit weeks' mean global horizontal irradiance in W/m2 (taken as "
-                f"{lowest:g} where lower; {per:g} is the largest {SUNSHINE_CEILING_SOURCE})")
+        return (
+            f"{size} > {per:g}{unit} x the fit weeks' mean global horizontal irradiance in W/m2 (taken as "
+            f"{lowest:g} where lower; {per:g} is the largest {SUNSHINE_CEILING_SOURCE})"
+        )
 
     def estimate_ceiling_text(self) -> str:
         """:attr:`estimate_ceiling` with its unit and source, as :meth:`clean_ceiling_text` writes a ceiling ("" when
         the effect has none)."""
-        source = self.reading_source if self.clean_reading else (
-            self.ceiling_source if self.irradiance_w_m2 is not None else ESTIMATE_CEILING_SOURCE)
-        return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling, ceiling_source=source).clean_ceiling_text()
+        source = (
+            self.reading_source
+            if self.clean_reading
+            else (self.ceiling_source if self.irradiance_w_m2 is not None else ESTIMATE_CEILING_SOURCE)
+        )
+        return dataclasses.replace(
+            self, clean_ceiling=self.estimate_ceiling, ceiling_source=source
+        ).clean_ceiling_text()
 
     def on_declared_site(self) -> Effect:
         """This effect as a diagnosis judges it on a site declaring building parameters known: its clean-site
         ceiling is :attr:`declared_ceiling`, from :data:`DECLARED_CEILING_SOURCE` (and, for an effect sized from
         a :attr:`clean_reading`, from :attr:`reading_source`'s median)."""
-        source = DECLARED_CEILING_SOURCE + (f"; {self.size_name} from the median {self.reading_source}"
-                                            if self.clean_reading else "")
+        source = DECLARED_CEILING_SOURCE + (
+            f"; {self.size_name} from the median {self.reading_source}" if self.clean_reading else ""
+        )
         return dataclasses.replace(self, clean_ceiling=self.declared_ceiling, ceiling_source=source)
 
     def carried_starts_text(self) -> str:
@@ -364,13 +390,17 @@ class Effect:
         if self.clean_ceiling is None:
             return ""
         if self.judged_on is not None:
-            return (f"{self.judged_on} > {self.clean_ceiling:g} {DERIVED_SIZES[self.judged_on][1]} (the largest "
-                    f"{self.ceiling_source})")
+            return (
+                f"{self.judged_on} > {self.clean_ceiling:g} {DERIVED_SIZES[self.judged_on][1]} (the largest "
+                f"{self.ceiling_source})"
+            )
         if self.building_parameter is not None:
             below = self.vanishes_at == "max"
-            return (f"{self.building_parameter} {'<' if below else '>'} {self.clean_ceiling:g} "
-                    f"{self._building_unit()} (the {'lowest' if below else 'largest'} "
-                    f"{self.ceiling_source})")
+            return (
+                f"{self.building_parameter} {'<' if below else '>'} {self.clean_ceiling:g} "
+                f"{self._building_unit()} (the {'lowest' if below else 'largest'} "
+                f"{self.ceiling_source})"
+            )
         size, unit = self._size_label()
         return f"{size} > {self.clean_ceiling:g}{unit} (the largest {self.ceiling_source})"
 
@@ -378,132 +408,280 @@ class Effect:
         """The magnitude as a float; raises :class:`EffectError` if it lies outside what the injection can do."""
         lo, hi = INJECTION_LIMITS[self.name]
         if not lo <= magnitude <= hi:
-            raise EffectError(f"effect {self.name}: magnitude {magnitude:g} {self.magnitude_unit} is outside "
-                              f"[{lo:g}, {hi:g}] (practice: {self.magnitude_range[0]:g}-{self.magnitude_range[1]:g})")
+            raise EffectError(
+                f"effect {self.name}: magnitude {magnitude:g} {self.magnitude_unit} is outside "
+                f"[{lo:g}, {hi:g}] (practice: {self.magnitude_range[0]:g}-{self.magnitude_range[1]:g})"
+            )
         return float(magnitude)
 
 
-EFFECTS: dict[str, Effect] = {e.name: e for e in (
-    Effect("wind_infiltration", "wind-driven infiltration",
-           "Leaky envelope: air infiltration grows with wind speed (cracks, open doors, badly sealed windows). "
-           "Windy hours need more heat and cool the zones faster when the heating is off.",
-           "energyplus", "% of the design infiltration added per m/s of wind", (10.0, 40.0), 25.0,
-           ("consumption", "temperature"),
-           (ModelParameter("ach_per_m_s", "1/h per m/s", 0.0, 0.15, 0.0,
-                           "infiltration air changes added per m/s of wind speed (out of hours)"),),
-           "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x (wind speed - "
-           f"{WIND_REFERENCE_M_S:g} m/s), the wind speed at a quarter while the air handling unit runs (at least 0 "
-           "air changes)", 0.01,
-           smallest_reason="10 % of a tight office's 0.1 air changes per hour", clean_ceiling=0.0144,
-           declared_ceiling=0.0427, ceiling_source=WIND_CEILING_SOURCE, estimate_ceiling=0.0175),
-    Effect("temperature_sensor_bias", "temperature sensor bias",
-           "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "
-           "near a radiator or in the sun). The consumption is unaffected.",
-           "sensor", "K (reading - truth)", (-3.0, 3.0), 1.0, ("temperature",),
-           (ModelParameter("bias_k", "K", -3.0, 3.0, 0.0, "offset added to the predicted temperature"),),
-           "the predicted temperature reads bias_k higher", 0.4,
-           smallest_reason="a class-B Pt1000's tolerance near 20 degC", clean_ceiling=0.281,
-           ceiling_source=BIAS_READING_SOURCE, declared_ceiling=0.431, estimate_ceiling=0.281,
-           clean_reading=-0.233, reading_source=BIAS_READING_SOURCE),
-    Effect("temperature_sensor_lag", "temperature sensor lag",
-           "The sensor responds slowly (a heavy housing, a sensor in a wall pocket): it reads a first-order "
-           "lagged air temperature, so morning start-ups and evening setbacks look slower than they are.",
-           "sensor", "h (time constant)", (0.5, 3.0), 1.5, ("temperature",),
-           (ModelParameter("tau_h", "h", 0.0, 4.0, 0.0, "first-order time constant of the sensor"),),
-           "the predicted temperature is passed through a first-order lag of time constant tau_h", 0.25,
-           smallest_reason="below a quarter of the hourly sampling a lag cannot be told from noise",
-           clean_ceiling=0.668, declared_ceiling=0.5, estimate_ceiling=0.713),
-    Effect("holidays", "holidays and absent-occupancy days",
-           "Weekdays nobody comes in (public holidays, bridge days, closures) while the BMS keeps its weekday "
-           "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
-           "energyplus", "absent weekdays in the measured period", (1.0, 3.0), 2.0, ("consumption", "temperature"),
-           (),
-           "absent days: for each weekday the share of its occupants who did not come is fitted to its measured "
-           "temperature and consumption; days where it is at least half and the day's standardised squared "
-           "error falls by more than 15 % are simulated with that much less occupancy; they are estimated from "
-           "the data like the occupancy hours", 1.0,
-           smallest_reason="a candidate that flags no fit-week day has estimated nothing from the fit weeks",
-           clean_ceiling=0.0, declared_ceiling=1.0),
-
-    Effect("night_plug_loads", "plug loads left on at night",
-           "Equipment left on outside occupied hours beyond what the model's night share allows (servers, "
-           "printers, screens on standby): a higher night and weekend base load.",
-           "energyplus", "W/m2 added outside occupied hours", (1.0, 5.0), 3.0, ("consumption",),
-           (ModelParameter("night_w_m2", "W/m2", 0.0, 8.0, 0.0,
-                           "electric load added in every unoccupied hour"),),
-           "the metamodel's night share of the lighting (building parameter light_night_percent) is calibrated, "
-           "and the diagnosis tests it against no lighting at night and sizes it by the night electricity both "
-           "night shares add up to (night_electricity_w_m2); with light_night_percent declared known, "
-           "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied",
-           0.5, smallest_reason="one standby monitor per 10 m2",
-           building_parameter="light_night_percent", vanishes_at="min", clean_ceiling=3.61,
-           judged_on="night_electricity_w_m2", ceiling_source=NIGHT_CEILING_SOURCE,
-           estimate_ceiling=3.61),
-    Effect("solar_shading", "solar shading / blinds",
-           "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
-           "hours are colder and need more heat than the model says.",
-           "energyplus", "% of the solar gains blocked", (30.0, 70.0), 50.0, ("temperature", "consumption"),
-           (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
-           "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)", 0.15,
-           smallest_reason="half the lightest blinds' 30 %", clean_ceiling=0.574,
-           declared_ceiling=0.795, estimate_ceiling=0.581, sunshine_ceiling=(0.00616, 66.9)),
-    Effect("heating_capacity_limit", "heating capacity limit",
-           "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
-           "the setpoint, so consumption plateaus and the temperature sags.",
-           "energyplus", "% of the design heating capacity available", (25.0, 50.0), 40.0,
-           ("consumption", "temperature"),
-           (ModelParameter("capacity_w_m2", "W/m2", 5.0, 150.0, 150.0,
-                           "largest heating power (zone + air handling unit) the plant delivers"),
-            ModelParameter("sag_k_per_wh_m2", "K per Wh/m2", 0.0, 0.2, 0.0,
-                           "temperature lost per Wh/m2 of heat not delivered (decaying over ~3 h)")),
-           "the metamodel's heating power (building parameter heating_power_w_m2) is calibrated, and the "
-           "diagnosis tests it against an unlimited heating power; with the heating power declared known, the "
-           "predicted heating is capped at capacity_w_m2 and the heat not delivered lowers the temperature",
-           building_parameter="heating_power_w_m2", clean_ceiling=42.5, declared_ceiling=40.1,
-           carried_starts=(25.0, 40.0), ceiling_source=CAPACITY_CEILING_SOURCE,
-           estimate_ceiling=38.1),
-    Effect("heat_recovery", "heat recovery on the air handling unit",
-           "An air-to-air heat exchanger preheats the outdoor air with the exhaust air: the air handling unit's "
-           "heating falls, most in cold weather.",
-           "energyplus", "% sensible effectiveness", (50.0, 80.0), 70.0, ("consumption",),
-           (ModelParameter("effectiveness", "-", 0.0, 0.9, 0.0,
-                           "sensible effectiveness of the heat exchanger"),),
-           "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
-           0.3, smallest_reason="the poorest exchangers sold reach about 0.5", clean_ceiling=0.129,
-           declared_ceiling=0.322, estimate_ceiling=0.148),
-    Effect("night_cycle_cold_air", "cold supply air while the fans cycle at night",
-           "A VAV system with terminal reheat supplies air at its cooling temperature (about 13 degC) whenever "
-           "its fans run, so its night cycle cools the zones that need no heat and makes the others reheat: cold "
-           "nights are colder and cost more heat, and ventilation after the heating period brings in cold air.",
-           "energyplus", "points of maximum air flow added to the VAV boxes' minimum out of hours", (10.0, 30.0),
-           20.0, ("temperature", "consumption"),
-           (ModelParameter("cooling_k_per_wh_m2", "K per Wh/m2", 0.0, 0.5, 0.0,
-                           "temperature lost per Wh/m2 of the model's heating in hours its ventilation is off, "
-                           "and per Wh/m2 the supply air brings less after the heating period"),
-            ModelParameter("reheat_share", "-", 0.0, 1.0, 0.0,
-                           "heat consumption added, as a share of the model's heating in those hours"),
-            ModelParameter("supply_shortfall_k", "K", 0.0, 20.0, 0.0,
-                           "how much colder than supply_air_c the air comes in when the ventilation runs outside "
-                           "the heating period, times the supply flow over the model's fresh-air flow")),
-           "in the hours the ventilation is off, the predicted temperature falls by cooling_k_per_wh_m2 x the "
-           "predicted heating and the consumption rises by reheat_share x the same heating; in the hours it runs "
-           "outside the heating period, the supply air brings D = supply_shortfall_k x the air handling unit's "
-           "heating per K of lift less heat: the temperature falls by the same coefficient x D and the air "
-           "handling unit's heating by D (at most all of it)", 0.02,
-           smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)"),
-    Effect("evening_departure", "occupants leaving gradually in the evening",
-           "Offices do not empty at one hour: part of the occupants stay on after the main working day, with "
-           "their lights and computers, so evenings are warmer and use more electricity than a model whose "
-           "occupancy ends at one hour.",
-           "energyplus", "hours the evening tail of the occupants' schedules is lengthened", (1.0, 3.0), 2.0,
-           ("temperature", "consumption"),
-           (ModelParameter("share", "-", 0.0, 1.0, 0.0,
-                           "occupancy kept after the calibrated occupancy ends (share of the occupied level)"),
-            ModelParameter("hours", "h", 0.0, 6.0, 0.0, "how long it is kept")),
-           "the metamodel's hourly occupancy input is raised to share for the hours after each day's occupancy "
-           "ends (the last one pro rata)", 0.1,
-           smallest_reason="a tenth of the occupancy (the DOE offices keep 10-40 % for four hours)"),
-)}
+EFFECTS: dict[str, Effect] = {
+    e.name: e
+    for e in (
+        Effect(
+            "wind_infiltration",
+            "wind-driven infiltration",
+            "Leaky envelope: air infiltration grows with wind speed (cracks, open doors, badly sealed windows). "
+            "Windy hours need more heat and cool the zones faster when the heating is off.",
+            "energyplus",
+            "% of the design infiltration added per m/s of wind",
+            (10.0, 40.0),
+            25.0,
+            ("consumption", "temperature"),
+            (
+                ModelParameter(
+                    "ach_per_m_s",
+                    "1/h per m/s",
+                    0.0,
+                    0.15,
+                    0.0,
+                    "infiltration air changes added per m/s of wind speed (out of hours)",
+                ),
+            ),
+            "the infiltration input becomes hourly: calibrated air changes + ach_per_m_s x (wind speed - "
+            f"{WIND_REFERENCE_M_S:g} m/s), the wind speed at a quarter while the air handling unit runs (at least 0 "
+            "air changes)",
+            0.01,
+            smallest_reason="10 % of a tight office's 0.1 air changes per hour",
+            clean_ceiling=0.0144,
+            declared_ceiling=0.0427,
+            ceiling_source=WIND_CEILING_SOURCE,
+            estimate_ceiling=0.0175,
+        ),
+        Effect(
+            "temperature_sensor_bias",
+            "temperature sensor bias",
+            "The indoor temperature sensor reads high or low by a constant offset (calibration drift, a sensor "
+            "near a radiator or in the sun). The consumption is unaffected.",
+            "sensor",
+            "K (reading - truth)",
+            (-3.0, 3.0),
+            1.0,
+            ("temperature",),
+            (ModelParameter("bias_k", "K", -3.0, 3.0, 0.0, "offset added to the predicted temperature"),),
+            "the predicted temperature reads bias_k higher",
+            0.4,
+            smallest_reason="a class-B Pt1000's tolerance near 20 degC",
+            clean_ceiling=0.281,
+            ceiling_source=BIAS_READING_SOURCE,
+            declared_ceiling=0.431,
+            estimate_ceiling=0.281,
+            clean_reading=-0.233,
+            reading_source=BIAS_READING_SOURCE,
+        ),
+        Effect(
+            "temperature_sensor_lag",
+            "temperature sensor lag",
+            "The sensor responds slowly (a heavy housing, a sensor in a wall pocket): it reads a first-order "
+            "lagged air temperature, so morning start-ups and evening setbacks look slower than they are.",
+            "sensor",
+            "h (time constant)",
+            (0.5, 3.0),
+            1.5,
+            ("temperature",),
+            (ModelParameter("tau_h", "h", 0.0, 4.0, 0.0, "first-order time constant of the sensor"),),
+            "the predicted temperature is passed through a first-order lag of time constant tau_h",
+            0.25,
+            smallest_reason="below a quarter of the hourly sampling a lag cannot be told from noise",
+            clean_ceiling=0.668,
+            declared_ceiling=0.5,
+            estimate_ceiling=0.713,
+        ),
+        Effect(
+            "holidays",
+            "holidays and absent-occupancy days",
+            "Weekdays nobody comes in (public holidays, bridge days, closures) while the BMS keeps its weekday "
+            "schedule: no lights, plug loads or people, so less consumption and a colder building that day.",
+            "energyplus",
+            "absent weekdays in the measured period",
+            (1.0, 3.0),
+            2.0,
+            ("consumption", "temperature"),
+            (),
+            "absent days: for each weekday the share of its occupants who did not come is fitted to its measured "
+            "temperature and consumption; days where it is at least half and the day's standardised squared "
+            "error falls by more than 15 % are simulated with that much less occupancy; they are estimated from "
+            "the data like the occupancy hours",
+            1.0,
+            smallest_reason="a candidate that flags no fit-week day has estimated nothing from the fit weeks",
+            clean_ceiling=0.0,
+            declared_ceiling=1.0,
+        ),
+        Effect(
+            "night_plug_loads",
+            "plug loads left on at night",
+            "Equipment left on outside occupied hours beyond what the model's night share allows (servers, "
+            "printers, screens on standby): a higher night and weekend base load.",
+            "energyplus",
+            "W/m2 added outside occupied hours",
+            (1.0, 5.0),
+            3.0,
+            ("consumption",),
+            (ModelParameter("night_w_m2", "W/m2", 0.0, 8.0, 0.0, "electric load added in every unoccupied hour"),),
+            "the metamodel's night share of the lighting (building parameter light_night_percent) is calibrated, "
+            "and the diagnosis tests it against no lighting at night and sizes it by the night electricity both "
+            "night shares add up to (night_electricity_w_m2); with light_night_percent declared known, "
+            "the predicted consumption gains night_w_m2 in every hour the calibrated occupancy marks unoccupied",
+            0.5,
+            smallest_reason="one standby monitor per 10 m2",
+            building_parameter="light_night_percent",
+            vanishes_at="min",
+            clean_ceiling=3.61,
+            judged_on="night_electricity_w_m2",
+            ceiling_source=NIGHT_CEILING_SOURCE,
+            estimate_ceiling=3.61,
+        ),
+        Effect(
+            "solar_shading",
+            "solar shading / blinds",
+            "Blinds drawn or outside obstructions: a share of the solar gains never reaches the zones, so sunny "
+            "hours are colder and need more heat than the model says.",
+            "energyplus",
+            "% of the solar gains blocked",
+            (30.0, 70.0),
+            50.0,
+            ("temperature", "consumption"),
+            (ModelParameter("blocked_fraction", "-", 0.0, 0.9, 0.0, "share of the irradiance inputs removed"),),
+            "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)",
+            0.15,
+            smallest_reason="half the lightest blinds' 30 %",
+            clean_ceiling=0.574,
+            declared_ceiling=0.795,
+            estimate_ceiling=0.581,
+            sunshine_ceiling=(0.00616, 66.9),
+        ),
+        Effect(
+            "heating_capacity_limit",
+            "heating capacity limit",
+            "Undersized or degraded heating plant: on cold mornings the heating runs flat out and cannot hold "
+            "the setpoint, so consumption plateaus and the temperature sags.",
+            "energyplus",
+            "% of the design heating capacity available",
+            (25.0, 50.0),
+            40.0,
+            ("consumption", "temperature"),
+            (
+                ModelParameter(
+                    "capacity_w_m2",
+                    "W/m2",
+                    5.0,
+                    150.0,
+                    150.0,
+                    "largest heating power (zone + air handling unit) the plant delivers",
+                ),
+                ModelParameter(
+                    "sag_k_per_wh_m2",
+                    "K per Wh/m2",
+                    0.0,
+                    0.2,
+                    0.0,
+                    "temperature lost per Wh/m2 of heat not delivered (decaying over ~3 h)",
+                ),
+            ),
+            "the metamodel's heating power (building parameter heating_power_w_m2) is calibrated, and the "
+            "diagnosis tests it against an unlimited heating power; with the heating power declared known, the "
+            "predicted heating is capped at capacity_w_m2 and the heat not delivered lowers the temperature",
+            building_parameter="heating_power_w_m2",
+            clean_ceiling=42.5,
+            declared_ceiling=40.1,
+            carried_starts=(25.0, 40.0),
+            ceiling_source=CAPACITY_CEILING_SOURCE,
+            estimate_ceiling=38.1,
+        ),
+        Effect(
+            "heat_recovery",
+            "heat recovery on the air handling unit",
+            "An air-to-air heat exchanger preheats the outdoor air with the exhaust air: the air handling unit's "
+            "heating falls, most in cold weather.",
+            "energyplus",
+            "% sensible effectiveness",
+            (50.0, 80.0),
+            70.0,
+            ("consumption",),
+            (ModelParameter("effectiveness", "-", 0.0, 0.9, 0.0, "sensible effectiveness of the heat exchanger"),),
+            "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
+            0.3,
+            smallest_reason="the poorest exchangers sold reach about 0.5",
+            clean_ceiling=0.129,
+            declared_ceiling=0.322,
+            estimate_ceiling=0.148,
+        ),
+        Effect(
+            "night_cycle_cold_air",
+            "cold supply air while the fans cycle at night",
+            "A VAV system with terminal reheat supplies air at its cooling temperature (about 13 degC) whenever "
+            "its fans run, so its night cycle cools the zones that need no heat and makes the others reheat: cold "
+            "nights are colder and cost more heat, and ventilation after the heating period brings in cold air.",
+            "energyplus",
+            "points of maximum air flow added to the VAV boxes' minimum out of hours",
+            (10.0, 30.0),
+            20.0,
+            ("temperature", "consumption"),
+            (
+                ModelParameter(
+                    "cooling_k_per_wh_m2",
+                    "K per Wh/m2",
+                    0.0,
+                    0.5,
+                    0.0,
+                    "temperature lost per Wh/m2 of the model's heating in hours its ventilation is off, "
+                    "and per Wh/m2 the supply air brings less after the heating period",
+                ),
+                ModelParameter(
+                    "reheat_share",
+                    "-",
+                    0.0,
+                    1.0,
+                    0.0,
+                    "heat consumption added, as a share of the model's heating in those hours",
+                ),
+                ModelParameter(
+                    "supply_shortfall_k",
+                    "K",
+                    0.0,
+                    20.0,
+                    0.0,
+                    "how much colder than supply_air_c the air comes in when the ventilation runs outside "
+                    "the heating period, times the supply flow over the model's fresh-air flow",
+                ),
+            ),
+            "in the hours the ventilation is off, the predicted temperature falls by cooling_k_per_wh_m2 x the "
+            "predicted heating and the consumption rises by reheat_share x the same heating; in the hours it runs "
+            "outside the heating period, the supply air brings D = supply_shortfall_k x the air handling unit's "
+            "heating per K of lift less heat: the temperature falls by the same coefficient x D and the air "
+            "handling unit's heating by D (at most all of it)",
+            0.02,
+            smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)",
+        ),
+        Effect(
+            "evening_departure",
+            "occupants leaving gradually in the evening",
+            "Offices do not empty at one hour: part of the occupants stay on after the main working day, with "
+            "their lights and computers, so evenings are warmer and use more electricity than a model whose "
+            "occupancy ends at one hour.",
+            "energyplus",
+            "hours the evening tail of the occupants' schedules is lengthened",
+            (1.0, 3.0),
+            2.0,
+            ("temperature", "consumption"),
+            (
+                ModelParameter(
+                    "share",
+                    "-",
+                    0.0,
+                    1.0,
+                    0.0,
+                    "occupancy kept after the calibrated occupancy ends (share of the occupied level)",
+                ),
+                ModelParameter("hours", "h", 0.0, 6.0, 0.0, "how long it is kept"),
+            ),
+            "the metamodel's hourly occupancy input is raised to share for the hours after each day's occupancy "
+            "ends (the last one pro rata)",
+            0.1,
+            smallest_reason="a tenth of the occupancy (the DOE offices keep 10-40 % for four hours)",
+        ),
+    )
+}
 
 #: Magnitudes the injections accept (wider than practice, for stress tests).
 INJECTION_LIMITS: dict[str, tuple[float, float]] = {
@@ -520,8 +698,7 @@ INJECTION_LIMITS: dict[str, tuple[float, float]] = {
 }
 
 #: The magnitude at which each injection changes nothing.
-NO_EFFECT_MAGNITUDE: dict[str, float] = {name: (100.0 if name == "heating_capacity_limit" else 0.0)
-                                         for name in EFFECTS}
+NO_EFFECT_MAGNITUDE: dict[str, float] = {name: (100.0 if name == "heating_capacity_limit" else 0.0) for name in EFFECTS}
 
 
 def get_effect(name: str) -> Effect:
@@ -560,8 +737,9 @@ def check_declarable(names) -> tuple[str, ...]:
     for name in out:
         get_effect(name)
         if name == "holidays":
-            raise EffectError(f"effect {name!r} cannot be declared (its days are found from the data: run "
-                              "`buildenv diagnose`)")
+            raise EffectError(
+                f"effect {name!r} cannot be declared (its days are found from the data: run `buildenv diagnose`)"
+            )
     twice = sorted({name for name in out if out.count(name) > 1})
     if twice:
         raise EffectError(f"effect {', '.join(twice)} declared twice")
@@ -577,6 +755,5 @@ def parse_effect(text: str) -> tuple[Effect, float]:
     try:
         magnitude = float(value)
     except ValueError:
-        raise EffectError(f"--effect {text}: magnitude {value!r} is not a number "
-                          f"({effect.magnitude_unit})") from None
+        raise EffectError(f"--effect {text}: magnitude {value!r} is not a number ({effect.magnitude_unit})") from None
     return effect, effect.check_magnitude(magnitude)

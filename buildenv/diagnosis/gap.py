@@ -36,13 +36,24 @@ from pathlib import Path
 import numpy as np
 from scipy import stats
 
-from buildenv.calibration import problem as cal
 from buildenv import catalogue as cat
+from buildenv.calibration import problem as cal
 from buildenv.diagnosis import model_effects as em
+from buildenv.diagnosis.effects import (
+    CHECKED_DIAGNOSIS,
+    DERIVED_SIZES,
+    DIAGNOSIS_SPLITS,
+    EFFECTS,
+    ESTIMATE_ALONE_LOWEST_GAIN,
+    JUDGES,
+    MIN_GAIN,
+    NIGHT_LOAD_FIRST_BEYOND,
+    EffectError,
+    ceilings_in_sunshine,
+    declared_ceilings,
+    get_effect,
+)
 from buildenv.metamodel import surrogate as sg
-from buildenv.diagnosis.effects import (CHECKED_DIAGNOSIS, DERIVED_SIZES, DIAGNOSIS_SPLITS, EFFECTS,
-                              ESTIMATE_ALONE_LOWEST_GAIN, JUDGES, MIN_GAIN, NIGHT_LOAD_FIRST_BEYOND, EffectError,
-                              ceilings_in_sunshine, declared_ceilings, get_effect)
 from buildenv.metamodel.threads import one_blas_thread
 
 # Share of a day's standardised squared error that modelling it absent must remove (:func:`detect_absent_days`).
@@ -82,13 +93,17 @@ def split_weather(site, split: str = DIAGNOSIS_SPLITS[0]) -> dict:
         return round(100.0 * float((tamb[heldout] < tamb[fit].min()).mean()), 1)
 
     fit_weeks, heldout_weeks = split_weeks(site.weeks, split)
-    sides = {name: {"mean_c": round(float(tamb[weeks].mean()), 2), "min_c": round(float(tamb[weeks].min()), 2)}
-             for name, weeks in (("fit", fit_weeks), ("heldout", heldout_weeks))}
+    sides = {
+        name: {"mean_c": round(float(tamb[weeks].mean()), 2), "min_c": round(float(tamb[weeks].min()), 2)}
+        for name, weeks in (("fit", fit_weeks), ("heldout", heldout_weeks))
+    }
     colder = colder_percent(fit_weeks, heldout_weeks)
     note = None
     if colder > COLDER_HELDOUT_NOTE_PERCENT:
-        note = (f"{colder:.0f} % of the held-out hours are colder than every fit hour: an effect that only shows "
-                "in the cold cannot be estimated from the fit weeks")
+        note = (
+            f"{colder:.0f} % of the held-out hours are colder than every fit hour: an effect that only shows "
+            "in the cold cannot be estimated from the fit weeks"
+        )
         if split != "alternate" and colder_percent(*split_weeks(site.weeks, "alternate")) < colder:
             note += " (--split alternate fits every other week)"
     return {**sides, "heldout_colder_than_fit_percent": colder, "note": note}
@@ -97,7 +112,7 @@ def split_weather(site, split: str = DIAGNOSIS_SPLITS[0]) -> dict:
 @dataclass
 class DiagnosisSettings:
     """Knobs of :func:`diagnose`. The blind checks and ``buildenv diagnose`` set ``split``, ``base_restarts`` and
-    ``max_effects`` to :data:`buildenv.diagnosis.effects.CHECKED_DIAGNOSIS`; the other defaults are theirs too.
+    ``max_effects`` to :data:`.effects.CHECKED_DIAGNOSIS`; the other defaults are theirs too.
 
     Attributes:
         candidates: effects tried (default: the whole catalogue).
@@ -196,8 +211,10 @@ class ModelFit:
         """``{effect: {parameter: value}}`` in physical units (holidays: the number of absent days)."""
         n_base = len(cal.parameter_names())
         values = em.split_parameters(self.model_effects, self.params[None, n_base:])
-        out = {e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])}
-               for e in self.model_effects}
+        out = {
+            e: {p.name: round(float(v), 5) for p, v in zip(get_effect(e).parameters, values[e][0])}
+            for e in self.model_effects
+        }
         theta = dict(zip(cal.parameter_names(), self.params[:n_base].tolist()))
         for e in self.carried:
             effect = get_effect(e)
@@ -211,13 +228,16 @@ class ModelFit:
 
 def settings_note(settings: DiagnosisSettings) -> str:
     """One line saying which of the settings that change what a diagnosis names differ from the blind checks'
-    (:data:`buildenv.diagnosis.effects.CHECKED_DIAGNOSIS`), for which the clean-site ceilings were measured; empty if none."""
-    differ = [f"{k} {getattr(settings, k)} (checks: {v})" for k, v in CHECKED_DIAGNOSIS.items()
-              if getattr(settings, k) != v]
+    (:data:`.effects.CHECKED_DIAGNOSIS`), for which the clean-site ceilings were measured; empty if none."""
+    differ = [
+        f"{k} {getattr(settings, k)} (checks: {v})" for k, v in CHECKED_DIAGNOSIS.items() if getattr(settings, k) != v
+    ]
     if not differ:
         return ""
-    return ("settings other than the blind checks', for which the clean-site ceilings and the checks' figures were "
-            "measured: " + ", ".join(differ))
+    return (
+        "settings other than the blind checks', for which the clean-site ceilings and the checks' figures were "
+        "measured: " + ", ".join(differ)
+    )
 
 
 @dataclass
@@ -262,8 +282,14 @@ class _Context:
 
 def _problem(ctx: _Context, fit: ModelFit, weeks: list[int], absent: np.ndarray | None = None) -> cal.Problem:
     mask = fit.absent if absent is None else absent
-    problem = cal.build_problem(ctx.site, weeks, fit.model_effects, mask if mask.any() else None,
-                                ctx.surrogate.context_hours, ctx.surrogate.uses_temperature_before)
+    problem = cal.build_problem(
+        ctx.site,
+        weeks,
+        fit.model_effects,
+        mask if mask.any() else None,
+        ctx.surrogate.context_hours,
+        ctx.surrogate.uses_temperature_before,
+    )
     for name, value in fit.pinned.items():
         j = problem.names.index(name)
         problem.lo[j] = problem.hi[j] = value
@@ -314,8 +340,10 @@ def predict(ctx: _Context, fit: ModelFit, weeks: list[int]) -> tuple[np.ndarray,
 def _standardised_residuals(ctx: _Context, weeks: list[int], t: np.ndarray, q: np.ndarray) -> dict[str, np.ndarray]:
     """``{series: (weeks, 168)}`` residuals (measured - model) divided by the base model's residual standard
     deviation on the fit weeks; NaN where nothing was measured."""
-    return {"temperature": (ctx.site.temperature_c[weeks] - t) / ctx.sigma[0],
-            "consumption": (ctx.site.consumption_wh_m2()[weeks] - q) / ctx.sigma[1]}
+    return {
+        "temperature": (ctx.site.temperature_c[weeks] - t) / ctx.sigma[0],
+        "consumption": (ctx.site.consumption_wh_m2()[weeks] - q) / ctx.sigma[1],
+    }
 
 
 def detect_absent_days(ctx: _Context, fit: ModelFit, weeks: list[int]) -> np.ndarray:
@@ -341,9 +369,10 @@ def detect_absent_days(ctx: _Context, fit: ModelFit, weeks: list[int]) -> np.nda
         base = runs[0][j][:, :n_days]
         change = np.stack([runs[1 + d][j][:, d] - base[:, d] for d in range(n_days)], axis=1)
         terms.append((np.nan_to_num((y - base) / sigma), np.where(np.isfinite(y), change / sigma, 0.0)))
-    f = np.clip(sum((r * c).sum(-1) for r, c in terms) / np.maximum(sum((c ** 2).sum(-1) for _, c in terms), 1e-9),
-                0.0, 1.0)
-    before = sum((r ** 2).sum(-1) for r, _ in terms)
+    f = np.clip(
+        sum((r * c).sum(-1) for r, c in terms) / np.maximum(sum((c**2).sum(-1) for _, c in terms), 1e-9), 0.0, 1.0
+    )
+    before = sum((r**2).sum(-1) for r, _ in terms)
     after = sum(((r - f[..., None] * c) ** 2).sum(-1) for r, c in terms)
     keep = (f >= 0.5) & (after < (1.0 - ABSENCE_THRESHOLD) * before)
     found = np.zeros((len(weeks), 7))
@@ -373,29 +402,41 @@ def refit(ctx: _Context, current: ModelFit, effect: str | None) -> ModelFit:
     if first and len(new):
         start, info = cal.fit_last_parameters(problem, ctx.surrogate, fit.params, n_old, ctx.settings.seed, first)
         spent, new_step = info["evaluations"], 0.5
-    stds = np.concatenate([np.full(n_base, ctx.settings.refit_step), np.full(n_old - n_base, 0.5),
-                           np.full(len(new), new_step)])
+    stds = np.concatenate(
+        [np.full(n_base, ctx.settings.refit_step), np.full(n_old - n_base, 0.5), np.full(len(new), new_step)]
+    )
     anchored = np.arange(len(fit.params)) < n_old  # the new effect's parameters move freely
-    params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, budget - spent,
-                                       start=start, stds=stds, restarts=ctx.settings.refit_restarts,
-                                       anchor=ctx.settings.refit_anchor, anchored=anchored)
+    params, info = cal.calibrate_cmaes(
+        problem,
+        ctx.surrogate,
+        ctx.settings.seed,
+        budget - spent,
+        start=start,
+        stds=stds,
+        restarts=ctx.settings.refit_restarts,
+        anchor=ctx.settings.refit_anchor,
+        anchored=anchored,
+    )
     return dataclasses.replace(fit, params=params, cost=info["cost"], evaluations=info["evaluations"] + spent)
 
 
 def without_new_effect(current: ModelFit, trial: ModelFit) -> ModelFit:
     """``trial`` (``current`` extended with one effect and refitted) with that effect taken out again: the
     refitted building parameters and occupancy, the effects ``current`` had, and no newly flagged absent day."""
-    return dataclasses.replace(trial, effects=current.effects, params=trial.params[:len(current.params)],
-                               absent=current.absent.copy())
+    return dataclasses.replace(
+        trial, effects=current.effects, params=trial.params[: len(current.params)], absent=current.absent.copy()
+    )
 
 
 def stricter_score(against_control: dict, against_own_refit: dict) -> dict:
     """Of a candidate's two held-out tests, the one it gains least in (module docstring, step 3: the control
     and the candidate's own refit without its effect, :func:`without_new_effect`); both gains are recorded."""
     worse = against_own_refit if against_own_refit["gain"] < against_control["gain"] else against_control
-    return worse | {"baseline": "own refit without the effect" if worse is against_own_refit else "control",
-                    "gain_vs_control": round(against_control["gain"], 4),
-                    "gain_vs_own_refit": round(against_own_refit["gain"], 4)}
+    return worse | {
+        "baseline": "own refit without the effect" if worse is against_own_refit else "control",
+        "gain_vs_control": round(against_control["gain"], 4),
+        "gain_vs_own_refit": round(against_own_refit["gain"], 4),
+    }
 
 
 def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
@@ -404,8 +445,12 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
     calib = ctx.site.calibration or {}
     none = np.zeros((ctx.site.weeks, 7))
     declared = declared_effects(ctx.site)
-    if calib and calib.get("fit_weeks") == ctx.fit_weeks and set(calib.get("effects") or ()) == set(declared) \
-            and calib.get("catalogue_hash") == cat.catalogue_hash():
+    if (
+        calib
+        and calib.get("fit_weeks") == ctx.fit_weeks
+        and set(calib.get("effects") or ()) == set(declared)
+        and calib.get("catalogue_hash") == cat.catalogue_hash()
+    ):
         fit = ModelFit(declared, cal.calibrated_parameters(calib, declared), none, float(calib.get("cost", np.nan)), 0)
     else:
         fit = joint_fit(ctx, (), progress)
@@ -431,13 +476,20 @@ def from_scratch(ctx: _Context, model: ModelFit, progress: bool = False) -> Mode
     """``model``'s structure (its effects, the effects it carries and its absent days) calibrated from scratch on
     the fit weeks, as :func:`joint_fit` calibrates: its parameters are not used as a start."""
     problem = _problem(ctx, dataclasses.replace(model, pinned={}), ctx.fit_weeks)
-    params, info = cal.calibrate_cmaes(problem, ctx.surrogate, ctx.settings.seed, ctx.settings.base_evaluations,
-                                       progress=progress, restarts=ctx.settings.base_restarts)
+    params, info = cal.calibrate_cmaes(
+        problem,
+        ctx.surrogate,
+        ctx.settings.seed,
+        ctx.settings.base_evaluations,
+        progress=progress,
+        restarts=ctx.settings.base_restarts,
+    )
     return dataclasses.replace(model, params=params, pinned={}, cost=info["cost"], evaluations=info["evaluations"])
 
 
-def joint_calibration_tests(site, surrogate: sg.Surrogate, candidates: tuple[str, ...],
-                            settings: DiagnosisSettings | None = None) -> list[dict]:
+def joint_calibration_tests(
+    site, surrogate: sg.Surrogate, candidates: tuple[str, ...], settings: DiagnosisSettings | None = None
+) -> list[dict]:
     """Held-out tests of ``candidates`` by joint calibration (:func:`joint_fit`): the site calibrated from
     scratch with the settings' base effects (and its declared ones), then once more for each candidate with it
     added; each judged against the first like a diagnosis candidate (:func:`heldout_score`, residuals
@@ -470,14 +522,21 @@ def joint_test(ctx: _Context, without: ModelFit, name: str) -> tuple[ModelFit, d
     with_candidate = from_scratch(own, dataclasses.replace(without, effects=(*without.effects, name)))
     score = heldout_score(own, without, with_candidate, len(em.none_parameters(name)))
     return with_candidate, {
-        "candidate": name, "gain": round(score["gain"], 4), "gain_by_series": score["gain_by_series"],
-        "p_value": score["p_value"], "estimate": with_candidate.effect_parameters()[name],
-        "cost_without": without.cost, "cost_with": with_candidate.cost,
-        "heldout_without": score["metrics_before"], "heldout_with": score["metrics_after"]}
+        "candidate": name,
+        "gain": round(score["gain"], 4),
+        "gain_by_series": score["gain_by_series"],
+        "p_value": score["p_value"],
+        "estimate": with_candidate.effect_parameters()[name],
+        "cost_without": without.cost,
+        "cost_with": with_candidate.cost,
+        "heldout_without": score["metrics_before"],
+        "heldout_with": score["metrics_after"],
+    }
 
 
-def joint_fallback(ctx: _Context, current: ModelFit, entries: list[dict], threshold: float
-                   ) -> tuple[str, ModelFit] | None:
+def joint_fallback(
+    ctx: _Context, current: ModelFit, entries: list[dict], threshold: float
+) -> tuple[str, ModelFit] | None:
     """A step's candidates that the base calibration may have absorbed (:func:`absorbed_candidate`, best refit
     gain first; ``entries`` are the step's, none qualified) tested by joint calibration (:func:`joint_test`)
     against ``current`` calibrated from scratch; the first whose test qualifies (:func:`joint_test_qualifies`)
@@ -496,37 +555,50 @@ def joint_fallback(ctx: _Context, current: ModelFit, entries: list[dict], thresh
     return None
 
 
-def absorbed_candidate(name: str, parameters: dict[str, float],
-                       clean_ceilings: bool | Mapping[str, float] = True) -> bool:
+def absorbed_candidate(
+    name: str, parameters: dict[str, float], clean_ceilings: bool | Mapping[str, float] = True
+) -> bool:
     """Whether a candidate that did not qualify is tested again by joint calibration (:func:`joint_test`): its
     refit estimate ``parameters`` is plausible and beyond every clean site's (:func:`beyond_clean_sites`), so the
     base calibration may have absorbed the effect into the building parameters (a wind infiltration into a higher
     air change rate). Not holidays (detected, not calibrated) nor an effect carried by a building parameter."""
     effect = get_effect(name)
-    return name != HOLIDAYS and effect.building_parameter not in parameters and effect.plausible(parameters) \
+    return (
+        name != HOLIDAYS
+        and effect.building_parameter not in parameters
+        and effect.plausible(parameters)
         and beyond_clean_sites(name, parameters, clean_ceilings) is True
+    )
 
 
-def joint_test_qualifies(name: str, test: dict, threshold: float,
-                         clean_ceilings: bool | Mapping[str, float] = True) -> bool:
+def joint_test_qualifies(
+    name: str, test: dict, threshold: float, clean_ceilings: bool | Mapping[str, float] = True
+) -> bool:
     """Whether a joint test (:func:`joint_test`'s dict) names its candidate: a positive held-out gain,
     significant at the step's ``threshold``, with a plausible estimate that stays beyond its clean-site ceiling
     (``clean_ceilings`` as :func:`beyond_clean_sites`; an effect with no ceiling is judged by the gain alone).
     An estimate that falls back among the clean sites' has lost the evidence of size the test was run for
     (:func:`absorbed_candidate`), and its gain is then what one more free parameter buys."""
-    return test["gain"] > 0.0 and test["p_value"] < threshold and get_effect(name).plausible(test["estimate"]) \
+    return (
+        test["gain"] > 0.0
+        and test["p_value"] < threshold
+        and get_effect(name).plausible(test["estimate"])
         and beyond_clean_sites(name, test["estimate"], clean_ceilings) is not False
+    )
 
 
-def named_by_estimate(estimates: Mapping[str, dict[str, float]], gains: Mapping[str, float],
-                      estimate_ceilings: bool | Mapping[str, float] = True,
-                      gains_by_series: Mapping[str, Mapping[str, float]] | None = None) -> list[str]:
+def named_by_estimate(
+    estimates: Mapping[str, dict[str, float]],
+    gains: Mapping[str, float],
+    estimate_ceilings: bool | Mapping[str, float] = True,
+    gains_by_series: Mapping[str, Mapping[str, float]] | None = None,
+) -> list[str]:
     """The candidate a first step that selected nothing names by its estimate alone
     (``DiagnosisSettings.estimate_alone``), as a list of at most one name: of the candidates whose estimate
     (``{name: parameters}``, the first step's refits) is plausible and beyond every clean site's
-    (:meth:`buildenv.diagnosis.effects.Effect.beyond_estimate_ceiling`), the one furthest beyond, relative to that ceiling.
+    (:meth:`.effects.Effect.beyond_estimate_ceiling`), the one furthest beyond, relative to that ceiling.
     Not holidays (detected, not calibrated), nor one whose held-out gain (``{name: gain}``, the step's scores) is
-    below :data:`buildenv.diagnosis.effects.ESTIMATE_ALONE_LOWEST_GAIN` where that guard is set (None: none), nor a sensor
+    below :data:`.effects.ESTIMATE_ALONE_LOWEST_GAIN` where that guard is set (None: none), nor a sensor
     effect that makes its reading worse held out (:func:`sensor_reading_made_worse`, given ``gains_by_series``,
     ``{name: {series: gain}}``). ``estimate_ceilings``: the catalogue's (True), a mapping used instead (an effect
     missing from it has none), or none (False). Empty when no candidate is beyond."""
@@ -537,9 +609,12 @@ def named_by_estimate(estimates: Mapping[str, dict[str, float]], gains: Mapping[
         effect = get_effect(name)
         if isinstance(estimate_ceilings, Mapping):
             effect = dataclasses.replace(effect, estimate_ceiling=estimate_ceilings.get(name))
-        if name == HOLIDAYS or not effect.beyond_estimate_ceiling(parameters) \
-                or not plausible_alone(name, parameters, estimates) \
-                or held_back_from_estimate(name, gains[name], (gains_by_series or {}).get(name, {})):
+        if (
+            name == HOLIDAYS
+            or not effect.beyond_estimate_ceiling(parameters)
+            or not plausible_alone(name, parameters, estimates)
+            or held_back_from_estimate(name, gains[name], (gains_by_series or {}).get(name, {}))
+        ):
             continue
         ceiling = effect.estimate_ceiling
         size = parameters.get(effect.ceiling_on, 0.0)
@@ -550,7 +625,7 @@ def named_by_estimate(estimates: Mapping[str, dict[str, float]], gains: Mapping[
 def plausible_alone(name: str, parameters: Mapping[str, float], estimates: Mapping[str, dict[str, float]]) -> bool:
     """Whether a first-step candidate's refit ``parameters`` describe an effect :func:`named_by_estimate` may name
     by its estimate alone (``estimates``: every candidate's refit, ``{name: parameters}``): plausible
-    (:meth:`buildenv.diagnosis.effects.Effect.plausible`), or night plug loads whose night electricity the estimate ceiling
+    (:meth:`.effects.Effect.plausible`), or night plug loads whose night electricity the estimate ceiling
     judges (``night_electricity_w_m2``, both night shares) while the lights' night share stays under its floor, with
     the temperature sensor bias candidate refit at 0 K or colder. The lights' share floor serves the held-out
     test, which pins that share; the estimate alone judges the night electricity both shares add up to."""
@@ -561,33 +636,41 @@ def plausible_alone(name: str, parameters: Mapping[str, float], estimates: Mappi
     return name == NIGHT_LOADS and effect.judged_on in parameters and bias is not None and bias <= 0.0
 
 
-def night_load_named_first(estimates: Mapping[str, dict[str, float]],
-                           estimate_ceilings: bool | Mapping[str, float] = True) -> bool:
+def night_load_named_first(
+    estimates: Mapping[str, dict[str, float]], estimate_ceilings: bool | Mapping[str, float] = True
+) -> bool:
     """Whether a first step names loads left on at night ahead of every held-out gain
     (``DiagnosisSettings.night_load_first``): the night electricity its model carries (the night_plug_loads
-    candidate's estimate ``night_electricity_w_m2``, W/m2) is beyond :data:`buildenv.diagnosis.effects.NIGHT_LOAD_FIRST_BEYOND`
+    candidate's estimate ``night_electricity_w_m2``, W/m2) is beyond :data:`.effects.NIGHT_LOAD_FIRST_BEYOND`
     times that effect's estimate ceiling, and the temperature sensor bias candidate refits cold or at zero
     (``bias_k`` <= 0 K), since a calibration also adds electricity at night for a sensor reading warm; False
     without the bias candidate's estimate. ``estimate_ceilings``: as :func:`named_by_estimate`."""
     beyond = NIGHT_LOAD_FIRST_BEYOND
-    if beyond is None or estimate_ceilings is False or NIGHT_LOADS not in estimates \
-            or "bias_k" not in estimates.get(SENSOR_BIAS, {}):
+    if (
+        beyond is None
+        or estimate_ceilings is False
+        or NIGHT_LOADS not in estimates
+        or "bias_k" not in estimates.get(SENSOR_BIAS, {})
+    ):
         return False
     effect = get_effect(NIGHT_LOADS)
-    ceiling = estimate_ceilings.get(NIGHT_LOADS) if isinstance(estimate_ceilings, Mapping) \
-        else effect.estimate_ceiling
+    ceiling = estimate_ceilings.get(NIGHT_LOADS) if isinstance(estimate_ceilings, Mapping) else effect.estimate_ceiling
     size = estimates[NIGHT_LOADS].get(effect.ceiling_on)
-    return ceiling is not None and size is not None and size > beyond * ceiling \
-        and estimates[SENSOR_BIAS]["bias_k"] <= 0.0
+    return (
+        ceiling is not None and size is not None and size > beyond * ceiling and estimates[SENSOR_BIAS]["bias_k"] <= 0.0
+    )
 
 
-def _night_load_first(trials: list[tuple[str, ModelFit, dict]], entries: list[dict],
-                      estimate_ceilings: bool | Mapping[str, float] = True) -> tuple[str, ModelFit] | None:
+def _night_load_first(
+    trials: list[tuple[str, ModelFit, dict]], entries: list[dict], estimate_ceilings: bool | Mapping[str, float] = True
+) -> tuple[str, ModelFit] | None:
     """The night_plug_loads candidate of a first step (``(name, its trial)``) when :func:`night_load_named_first`
     (judged against ``estimate_ceilings``) names it ahead of the held-out gains and they did not already, its entry
     marked ``named_by_night_electricity``; else None."""
-    if not night_load_named_first({e["name"]: e["parameters"] for e in entries}, estimate_ceilings) \
-            or next((e["name"] for e in entries if e["qualifies"]), None) == NIGHT_LOADS:
+    if (
+        not night_load_named_first({e["name"]: e["parameters"] for e in entries}, estimate_ceilings)
+        or next((e["name"] for e in entries if e["qualifies"]), None) == NIGHT_LOADS
+    ):
         return None
     next(e for e in entries if e["name"] == NIGHT_LOADS)["named_by_night_electricity"] = True
     return next((name, trial) for name, trial, _ in trials if name == NIGHT_LOADS)
@@ -628,8 +711,7 @@ def _heldout_fit(ctx: _Context, fit: ModelFit) -> ModelFit:
     return dataclasses.replace(fit, absent=absent)
 
 
-def heldout_score(ctx: _Context, before: ModelFit, after: ModelFit, k: int,
-                  series: tuple[str, ...] = SERIES) -> dict:
+def heldout_score(ctx: _Context, before: ModelFit, after: ModelFit, k: int, series: tuple[str, ...] = SERIES) -> dict:
     """Held-out gain and F-test of ``after`` against ``before`` on the standardised residuals of ``series``
     (see the module docstring); ``gain_by_series`` gives each series' own gain, ``sse_by_series`` its
     standardised sums of squares ``[before, after]``."""
@@ -649,14 +731,22 @@ def heldout_score(ctx: _Context, before: ModelFit, after: ModelFit, k: int,
     gain = 1.0 - sse_a / sse_b if sse_b > 0 else 0.0
     f = (sse_b - sse_a) / k / max(sse_a / (n_eff - k), 1e-12)
     p = float(stats.f.sf(f, k, n_eff - k)) if f > 0 else 1.0
-    return {"gain": gain, "f": float(f), "p_value": p, "k": k, "n": n, "n_eff": round(float(n_eff), 1),
-            "lag1_autocorrelation": round(float(r1), 3), "sse_before": sse_b, "sse_after": sse_a,
-            "series": list(series),
-            "sse_by_series": {name: [round(sb, 3), round(sa, 3)] for name, (sb, sa) in by_series.items()},
-            "gain_by_series": {name: round(1.0 - sa / sb, 4) if sb > 0 else 0.0
-                               for name, (sb, sa) in by_series.items()},
-            "metrics_before": _metrics(ctx, b, ctx.heldout, tb, qb),
-            "metrics_after": _metrics(ctx, a, ctx.heldout, ta, qa)}
+    return {
+        "gain": gain,
+        "f": float(f),
+        "p_value": p,
+        "k": k,
+        "n": n,
+        "n_eff": round(float(n_eff), 1),
+        "lag1_autocorrelation": round(float(r1), 3),
+        "sse_before": sse_b,
+        "sse_after": sse_a,
+        "series": list(series),
+        "sse_by_series": {name: [round(sb, 3), round(sa, 3)] for name, (sb, sa) in by_series.items()},
+        "gain_by_series": {name: round(1.0 - sa / sb, 4) if sb > 0 else 0.0 for name, (sb, sa) in by_series.items()},
+        "metrics_before": _metrics(ctx, b, ctx.heldout, tb, qb),
+        "metrics_after": _metrics(ctx, a, ctx.heldout, ta, qa),
+    }
 
 
 def _lag1(residuals: np.ndarray) -> float | None:
@@ -696,8 +786,9 @@ def judged_as_declared(site, clean_ceilings: bool | Mapping[str, float]) -> bool
     return clean_ceilings is True and bool(site.known)
 
 
-def site_ceilings(site, clean_ceilings: bool | Mapping[str, float] = True,
-                  irradiance_w_m2: float | None = None) -> bool | Mapping[str, float]:
+def site_ceilings(
+    site, clean_ceilings: bool | Mapping[str, float] = True, irradiance_w_m2: float | None = None
+) -> bool | Mapping[str, float]:
     """The clean-site ceilings a diagnosis of ``site`` judges its candidates by (:func:`candidate_qualifies`'s
     ``clean_ceilings``): those of sites declaring building parameters known when it declares some
     (:func:`judged_as_declared`), else the catalogue's at the fit weeks' irradiance ``irradiance_w_m2`` (W/m2,
@@ -714,8 +805,10 @@ def residual_sigma(ctx: _Context, fit: ModelFit) -> tuple[float, float]:
     """Standard deviations of a model's residuals on the fit weeks: temperature (K), consumption (Wh/m2); the
     units the diagnosis standardises every residual in (1 where a series has no spread)."""
     t, q = predict(ctx, fit, ctx.fit_weeks)
-    return (float(np.nanstd(ctx.site.temperature_c[ctx.fit_weeks] - t)) or 1.0,
-            float(np.nanstd(ctx.site.consumption_wh_m2()[ctx.fit_weeks] - q)) or 1.0)
+    return (
+        float(np.nanstd(ctx.site.temperature_c[ctx.fit_weeks] - t)) or 1.0,
+        float(np.nanstd(ctx.site.consumption_wh_m2()[ctx.fit_weeks] - q)) or 1.0,
+    )
 
 
 def base_model_gap(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
@@ -735,8 +828,14 @@ def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSetti
 
 
 @one_blas_thread()  # buildenv.metamodel.threads: numpy's BLAS threads would fight the metamodel's
-def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None,
-             localisation: bool = True, progress: bool = False, plot: str | Path | None = None) -> dict:
+def diagnose(
+    site,
+    surrogate: sg.Surrogate,
+    settings: DiagnosisSettings | None = None,
+    localisation: bool = True,
+    progress: bool = False,
+    plot: str | Path | None = None,
+) -> dict:
     """Diagnose the gap between a site's measurements and its calibrated metamodel.
 
     Args:
@@ -792,21 +891,25 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
                     without_base[name] = without
                 score = heldout_score(ctx, without, trial, 1, series) | {
                     "baseline": "model without the carried effect",
-                    "fit_cost": {"candidate": trial.cost, "model_without_it": without.cost}}
+                    "fit_cost": {"candidate": trial.cost, "model_without_it": without.cost},
+                }
             else:
                 trial = refit(ctx, current, name)
                 k = len(em.none_parameters(name))
                 score = heldout_score(ctx, control, trial, k, series)
                 if settings.own_refit_baseline:
-                    score = stricter_score(score, heldout_score(ctx, without_new_effect(current, trial), trial, k,
-                                                                series))
+                    score = stricter_score(
+                        score, heldout_score(ctx, without_new_effect(current, trial), trial, k, series)
+                    )
                 score["fit_cost"] = {"candidate": trial.cost, "control": control.cost}
             trials.append((name, trial, score))
             bar.update(1)
         threshold = settings.alpha / len(trials)
         trials.sort(key=lambda r: -r[2]["gain"])
-        entries = [_entry(name, trial, score, threshold, settings.min_gain, ctx.ceilings, ctx.declared)
-                   for name, trial, score in trials]
+        entries = [
+            _entry(name, trial, score, threshold, settings.min_gain, ctx.ceilings, ctx.declared)
+            for name, trial, score in trials
+        ]
         steps.append({"model": list(current.effects), "candidates": entries})
         if not first_step:
             first_step = entries
@@ -828,28 +931,46 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     if not selected and settings.estimate_alone and ctx.catalogue:
         for e in first_step:
             e["beyond_estimate_ceiling"] = ctx.effect(e["name"]).beyond_estimate_ceiling(e["parameters"])
-        by_estimate = named_by_estimate({e["name"]: e["parameters"] for e in first_step},
-                                        {e["name"]: e["score"] for e in first_step}, ctx.estimate_ceilings,
-                                        {e["name"]: e["gain_by_series"] for e in first_step})
-    result = {"site": str(site.path), "fit_weeks": fit_weeks, "heldout_weeks": heldout,
-              "fit_irradiance_w_m2": ctx.irradiance,
-              "base_effects": list(settings.base_effects),
-              "effects": first_step, "selected": selected, "named_by_estimate": by_estimate, "steps": steps,
-              "heldout_base": _metrics(ctx, base, heldout, *predict(ctx, base, heldout)),
-              "residual_sigma": list(ctx.sigma),
-              "base_at_bounds": cal.parameters_at_bounds(
-                  dict(zip(cal.free_theta(), base.params[:len(cal.free_theta())].tolist())), site.known),
-              "split_weather": split_weather(site, settings.split),
-              "verdict": _verdict(selected, first_step, settings.min_gain, steps, by_estimate, ctx.irradiance),
-              "model": {"effects": current.effect_parameters(), "absent_days": _absent_dates(site, current),
-                        "parameters": current.params.tolist()},
-              "settings": dataclasses.asdict(settings), "settings_note": settings_note(settings)}
+        by_estimate = named_by_estimate(
+            {e["name"]: e["parameters"] for e in first_step},
+            {e["name"]: e["score"] for e in first_step},
+            ctx.estimate_ceilings,
+            {e["name"]: e["gain_by_series"] for e in first_step},
+        )
+    result = {
+        "site": str(site.path),
+        "fit_weeks": fit_weeks,
+        "heldout_weeks": heldout,
+        "fit_irradiance_w_m2": ctx.irradiance,
+        "base_effects": list(settings.base_effects),
+        "effects": first_step,
+        "selected": selected,
+        "named_by_estimate": by_estimate,
+        "steps": steps,
+        "heldout_base": _metrics(ctx, base, heldout, *predict(ctx, base, heldout)),
+        "residual_sigma": list(ctx.sigma),
+        "base_at_bounds": cal.parameters_at_bounds(
+            dict(zip(cal.free_theta(), base.params[: len(cal.free_theta())].tolist())), site.known
+        ),
+        "split_weather": split_weather(site, settings.split),
+        "verdict": _verdict(selected, first_step, settings.min_gain, steps, by_estimate, ctx.irradiance),
+        "model": {
+            "effects": current.effect_parameters(),
+            "absent_days": _absent_dates(site, current),
+            "parameters": current.params.tolist(),
+        },
+        "settings": dataclasses.asdict(settings),
+        "settings_note": settings_note(settings),
+    }
     if selected:
         before = base  # the whole gain of the diagnosis, against the base model without any selected effect
         for name in selected:
             if name in current.carried:
-                before = without_base[name] if before is base and name in without_base \
+                before = (
+                    without_base[name]
+                    if before is base and name in without_base
                     else without_carried_effect(ctx, before, name)
+                )
         final = heldout_score(ctx, before, current, 1)
         result["heldout_before"], result["heldout_after"] = final["metrics_before"], final["metrics_after"]
     if localisation:
@@ -859,9 +980,16 @@ def diagnose(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None =
     return result
 
 
-def candidate_qualifies(name: str, gain: float, p_value: float, threshold: float, min_gain: float,
-                        parameters: dict[str, float], gain_by_series: dict[str, float] | None = None,
-                        clean_ceilings: bool | Mapping[str, float] = True) -> bool:
+def candidate_qualifies(
+    name: str,
+    gain: float,
+    p_value: float,
+    threshold: float,
+    min_gain: float,
+    parameters: dict[str, float],
+    gain_by_series: dict[str, float] | None = None,
+    clean_ceilings: bool | Mapping[str, float] = True,
+) -> bool:
     """Whether a candidate may join the model (module docstring, step 3): significant (``p_value <
     threshold``) with a positive held-out gain, a plausible estimate ``parameters`` and enough evidence: an
     estimate beyond the effect's clean-site ceiling where it has one and ``clean_ceilings`` is on
@@ -870,13 +998,18 @@ def candidate_qualifies(name: str, gain: float, p_value: float, threshold: float
     ``clean_ceilings`` may also map effects to ceilings used instead of the catalogue's (an effect missing from
     it has none)."""
     beyond = beyond_clean_sites(name, parameters, clean_ceilings)
-    return p_value < threshold and gain > 0.0 and (gain >= min_gain if beyond is None else beyond) \
-        and get_effect(name).plausible(parameters) \
+    return (
+        p_value < threshold
+        and gain > 0.0
+        and (gain >= min_gain if beyond is None else beyond)
+        and get_effect(name).plausible(parameters)
         and not carried_series_made_worse(name, parameters, gain_by_series or {})
+    )
 
 
-def beyond_clean_sites(name: str, parameters: dict[str, float],
-                       clean_ceilings: bool | Mapping[str, float] = True) -> bool | None:
+def beyond_clean_sites(
+    name: str, parameters: dict[str, float], clean_ceilings: bool | Mapping[str, float] = True
+) -> bool | None:
     """Whether a candidate's estimate lies beyond its clean-site ceiling (:func:`candidate_qualifies`'s
     ``clean_ceilings``: the catalogue's, a mapping used instead, or none when False); None where no ceiling
     applies, and the ``min_gain`` bar judges the candidate."""
@@ -897,7 +1030,7 @@ def series_made_worse(name: str, gain_by_series: dict[str, float]) -> list[str]:
 
 
 def sensor_reading_made_worse(name: str, gain_by_series: Mapping[str, float]) -> list[str]:
-    """The series a sensor effect (:attr:`buildenv.diagnosis.effects.Effect.kind` ``sensor``: its model changes only what a
+    """The series a sensor effect (:attr:`.effects.Effect.kind` ``sensor``: its model changes only what a
     sensor reads) made worse on the held-out weeks (``gain_by_series``, ``{series: gain}``; empty for other effects
     or where no series gain is given): an estimate beyond every clean site's that reads its own series worse held
     out is no evidence the estimate alone names by."""
@@ -911,54 +1044,86 @@ def carried_series_made_worse(name: str, parameters: dict[str, float], gain_by_s
     return series_made_worse(name, gain_by_series) if carried else []
 
 
-def _entry(name: str, trial: ModelFit, score: dict, threshold: float, min_gain: float,
-           clean_ceilings: bool | Mapping[str, float] = True, declared: bool = False) -> dict:
+def _entry(
+    name: str,
+    trial: ModelFit,
+    score: dict,
+    threshold: float,
+    min_gain: float,
+    clean_ceilings: bool | Mapping[str, float] = True,
+    declared: bool = False,
+) -> dict:
     significant = score["p_value"] < threshold
     parameters = trial.effect_parameters().get(name, {})
     plausible = get_effect(name).plausible(parameters)
     beyond = beyond_clean_sites(name, parameters, clean_ceilings)
     worse = carried_series_made_worse(name, parameters, score["gain_by_series"])
-    qualifies = candidate_qualifies(name, score["gain"], score["p_value"], threshold, min_gain, parameters,
-                                    score["gain_by_series"], clean_ceilings)
-    return {"name": name, "title": get_effect(name).title, "score": round(score["gain"], 4),
-            "significance": {"p_value": score["p_value"], "threshold": threshold, "f": round(score["f"], 3),
-                             "k": score["k"], "n_eff": score["n_eff"], "significant": significant,
-                             "test": "F-test on held-out standardised SSE, n corrected for lag-1 autocorrelation, "
-                                     "Bonferroni over the step's candidates"},
-            "judged_on": score["series"], "gain_by_series": score["gain_by_series"],
-            "sse_by_series": score["sse_by_series"],
-            "plausible": bool(plausible),
-            # beyond every clean site's estimate (None: judged by the min_gain bar instead); the clean sites
-            # declared building parameters known where the site does (judged_as_declared)
-            "beyond_clean_sites": beyond, "ceilings_of_declaring_sites": declared,
-            "series_made_worse": worse,
-            "qualifies": bool(qualifies),
-            "parameters": parameters,
-            "baseline": score.get("baseline", "control"),  # what the gain is measured against
-            **{key: score[key] for key in ("gain_vs_control", "gain_vs_own_refit") if key in score},
-            "heldout_before": score["metrics_before"], "heldout_after": score["metrics_after"],
-            # the calibration cost on the fit weeks, (1 - R2_T) + (1 - R2_Q), of the candidate's refit and of the
-            # control (for a carried effect: of the model without it), what the searches themselves minimised
-            "fit_cost": {key: round(float(value), 6) for key, value in score["fit_cost"].items()}}
+    qualifies = candidate_qualifies(
+        name, score["gain"], score["p_value"], threshold, min_gain, parameters, score["gain_by_series"], clean_ceilings
+    )
+    return {
+        "name": name,
+        "title": get_effect(name).title,
+        "score": round(score["gain"], 4),
+        "significance": {
+            "p_value": score["p_value"],
+            "threshold": threshold,
+            "f": round(score["f"], 3),
+            "k": score["k"],
+            "n_eff": score["n_eff"],
+            "significant": significant,
+            "test": "F-test on held-out standardised SSE, n corrected for lag-1 autocorrelation, "
+            "Bonferroni over the step's candidates",
+        },
+        "judged_on": score["series"],
+        "gain_by_series": score["gain_by_series"],
+        "sse_by_series": score["sse_by_series"],
+        "plausible": bool(plausible),
+        # beyond every clean site's estimate (None: judged by the min_gain bar instead); the clean sites
+        # declared building parameters known where the site does (judged_as_declared)
+        "beyond_clean_sites": beyond,
+        "ceilings_of_declaring_sites": declared,
+        "series_made_worse": worse,
+        "qualifies": bool(qualifies),
+        "parameters": parameters,
+        "baseline": score.get("baseline", "control"),  # what the gain is measured against
+        **{key: score[key] for key in ("gain_vs_control", "gain_vs_own_refit") if key in score},
+        "heldout_before": score["metrics_before"],
+        "heldout_after": score["metrics_after"],
+        # the calibration cost on the fit weeks, (1 - R2_T) + (1 - R2_Q), of the candidate's refit and of the
+        # control (for a carried effect: of the model without it), what the searches themselves minimised
+        "fit_cost": {key: round(float(value), 6) for key, value in score["fit_cost"].items()},
+    }
 
 
-def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: list[dict] = (),
-             by_estimate: list[str] = (), irradiance_w_m2: float | None = None) -> str:
+def _verdict(
+    selected: list[str],
+    entries: list[dict],
+    min_gain: float,
+    steps: list[dict] = (),
+    by_estimate: list[str] = (),
+    irradiance_w_m2: float | None = None,
+) -> str:
     """The diagnosis in one sentence: the selected effects (marked where a joint test named one), else the effect
     named by its estimate alone (:func:`named_by_estimate`), else why the best candidate of the first step
     ``entries`` was not named (the ceilings as judged at the fit weeks' irradiance ``irradiance_w_m2``, W/m2)."""
     if not selected and by_estimate:
         entry = next(e for e in entries if e["name"] == by_estimate[0])
         effect = get_effect(entry["name"]).in_sunshine(irradiance_w_m2)
-        return (f"unmodelled effect named by its estimate alone: {entry['name']} ({effect.title}; "
-                f"{effect.estimate_text(entry['parameters'])}, beyond {effect.estimate_ceiling_text()}). Its "
-                f"held-out gain ({100 * entry['score']:.1f} %) does not qualify it, so the site's model stays without "
-                "it: the base calibration's building parameters stand in for it")
+        return (
+            f"unmodelled effect named by its estimate alone: {entry['name']} ({effect.title}; "
+            f"{effect.estimate_text(entry['parameters'])}, beyond {effect.estimate_ceiling_text()}). Its "
+            f"held-out gain ({100 * entry['score']:.1f} %) does not qualify it, so the site's model stays without "
+            "it: the base calibration's building parameters stand in for it"
+        )
     if not selected:
         best = entries[0] if entries else None
         tested = "".join(f"; {e['name']} {_joint_text(e['joint_test'])}" for e in entries[1:] if "joint_test" in e)
-        held = "".join(f"; {text}" for e in entries
-                       if e.get("beyond_estimate_ceiling") and e["plausible"] and (text := _held_back_text(e)))
+        held = "".join(
+            f"; {text}"
+            for e in entries
+            if e.get("beyond_estimate_ceiling") and e["plausible"] and (text := _held_back_text(e))
+        )
         why = _why_not_named(best, min_gain, irradiance_w_m2) if best else ""
         return "no significant unmodelled effect" + (f" (best candidate: {why}{tested}{held})" if best else "")
     by_joint = {e["name"] for step in steps for e in step["candidates"] if e.get("joint_test", {}).get("qualifies")}
@@ -968,9 +1133,11 @@ def _verdict(selected: list[str], entries: list[dict], min_gain: float, steps: l
         if name in by_night:
             effect = get_effect(name)
             size = by_night[name]["parameters"][effect.ceiling_on]
-            return (f"; named first by the night electricity the model carries, {size:.3g} W/m2, beyond "
-                    f"{NIGHT_LOAD_FIRST_BEYOND:g} times every clean site's {effect.estimate_ceiling:g} W/m2, "
-                    "with the sensor bias refit cold")
+            return (
+                f"; named first by the night electricity the model carries, {size:.3g} W/m2, beyond "
+                f"{NIGHT_LOAD_FIRST_BEYOND:g} times every clean site's {effect.estimate_ceiling:g} W/m2, "
+                "with the sensor bias refit cold"
+            )
         return "; named by joint calibration" if name in by_joint else ""
 
     return "unmodelled effect(s) found: " + ", ".join(f"{n} ({get_effect(n).title}{how(n)})" for n in selected)
@@ -982,10 +1149,16 @@ def held_back_from_estimate(name: str, gain: float, gain_by_series: Mapping[str,
     worse (:func:`sensor_reading_made_worse`, from ``gain_by_series``), or its held-out ``gain`` below
     :data:`buildenv.diagnosis.effects.ESTIMATE_ALONE_LOWEST_GAIN` where that guard is set (None: no guard)."""
     lowest = ESTIMATE_ALONE_LOWEST_GAIN
-    why = [f"its held-out gain ({100 * gain:.1f} %) is below the {100 * lowest:.0f} % the estimate alone allows"] \
-        if lowest is not None and gain < lowest else []
-    return why + [f"with it the {s} reads {-100 * gain_by_series[s]:.0f} % worse held out (a sensor effect that is "
-                  "there reads its series better)" for s in sensor_reading_made_worse(name, gain_by_series)]
+    why = (
+        [f"its held-out gain ({100 * gain:.1f} %) is below the {100 * lowest:.0f} % the estimate alone allows"]
+        if lowest is not None and gain < lowest
+        else []
+    )
+    return why + [
+        f"with it the {s} reads {-100 * gain_by_series[s]:.0f} % worse held out (a sensor effect that is "
+        "there reads its series better)"
+        for s in sensor_reading_made_worse(name, gain_by_series)
+    ]
 
 
 def _held_back_text(entry: dict) -> str:
@@ -993,8 +1166,14 @@ def _held_back_text(entry: dict) -> str:
     (:func:`held_back_from_estimate`); "" where nothing holds it back."""
     why = held_back_from_estimate(entry["name"], entry["score"], entry.get("gain_by_series", {}))
     estimate = get_effect(entry["name"]).estimate_text(entry["parameters"])
-    return (f"{entry['name']}'s estimate ({estimate}) is beyond every clean site's, but not named by it: "
-            f"{' and '.join(why)}") if why else ""
+    return (
+        (
+            f"{entry['name']}'s estimate ({estimate}) is beyond every clean site's, but not named by it: "
+            f"{' and '.join(why)}"
+        )
+        if why
+        else ""
+    )
 
 
 def _why_not_named(entry: dict, min_gain: float, irradiance_w_m2: float | None = None) -> str:
@@ -1008,29 +1187,37 @@ def _why_not_named(entry: dict, min_gain: float, irradiance_w_m2: float | None =
     estimate = effect.estimate_text(entry["parameters"])
     beyond = entry.get("beyond_clean_sites")
     if beyond is False:
-        judged = effect.on_declared_site() if entry.get("ceilings_of_declaring_sites") \
+        judged = (
+            effect.on_declared_site()
+            if entry.get("ceilings_of_declaring_sites")
             else effect.in_sunshine(irradiance_w_m2)
+        )
         reasons.append(f"its estimate ({estimate}) is not beyond every clean site's: {judged.clean_ceiling_text()}")
     elif beyond is None and entry["score"] < min_gain:
         reasons.append(f"under the {100 * min_gain:.0f} % held-out gain an effect must bring to be named")
     if entry.get("series_made_worse"):
-        reasons.append(f"it makes the {' and '.join(entry['series_made_worse'])} worse: a building parameter "
-                       "trading one series against the other absorbs another miss")
+        reasons.append(
+            f"it makes the {' and '.join(entry['series_made_worse'])} worse: a building parameter "
+            "trading one series against the other absorbs another miss"
+        )
     if not entry["plausible"]:
         stated = "that estimate" if beyond is False else f"its estimate ({estimate})"
         reasons.append(f"{stated} is outside what the diagnosis names: {effect.named_from()}")
     if "joint_test" in entry:
         reasons.append(f"it {_joint_text(entry['joint_test'])}")
-    return f"{entry['name']}, held-out gain {100 * entry['score']:.1f} %, p = {sig['p_value']:.2g}" + \
-        "".join(f"; {r}" for r in reasons)
+    return f"{entry['name']}, held-out gain {100 * entry['score']:.1f} %, p = {sig['p_value']:.2g}" + "".join(
+        f"; {r}" for r in reasons
+    )
 
 
 def _joint_text(test: dict) -> str:
     """A joint test that did not name its candidate (:func:`joint_fallback`), as the verdict says it."""
     estimate = get_effect(test["candidate"]).estimate_text(test["estimate"])
-    return (f"calibrated from scratch with and without it gains {100 * test['gain']:.1f} %, p = {test['p_value']:.2g}, "
-            f"{estimate} (not named: a joint test must gain significantly with a plausible estimate beyond every "
-            "clean site's)")
+    return (
+        f"calibrated from scratch with and without it gains {100 * test['gain']:.1f} %, p = {test['p_value']:.2g}, "
+        f"{estimate} (not named: a joint test must gain significantly with a plausible estimate beyond every "
+        "clean site's)"
+    )
 
 
 def _absent_dates(site, fit: ModelFit) -> list[str]:
@@ -1050,11 +1237,20 @@ def localise_site(ctx: _Context, fit: ModelFit, plot: str | Path | None = None) 
     _, occ = cal._split(problem, fit.params[None])
     heating = hourly_schedules(ctx.site.settings, np.broadcast_to(occ[0], (ctx.site.weeks, *occ.shape[1:])))
     occupied = np.asarray(occupied)
-    result = localise(ctx.site.temperature_c, ctx.site.consumption_wh_m2(), t, q, ctx.site.weather_hours(),
-                      occupied, heating["heating_comfort_on"] > 0, ctx.site.week_starts())
+    result = localise(
+        ctx.site.temperature_c,
+        ctx.site.consumption_wh_m2(),
+        t,
+        q,
+        ctx.site.weather_hours(),
+        occupied,
+        heating["heating_comfort_on"] > 0,
+        ctx.site.week_starts(),
+    )
     if plot is not None:
-        result["plot"] = str(plot_localisation(result, plot, ctx.site.temperature_c, ctx.site.consumption_wh_m2(),
-                                               t, q, occupied))
+        result["plot"] = str(
+            plot_localisation(result, plot, ctx.site.temperature_c, ctx.site.consumption_wh_m2(), t, q, occupied)
+        )
     return result
 
 
@@ -1073,15 +1269,20 @@ def save_extended_model(site, result: dict) -> Path | None:
     previous = dict(site.calibration or {})
     previous.pop("without_effects", None)
     theta, occ = cal._split(cal.build_problem(site, result["fit_weeks"][:1], fit.model_effects), fit.params[None])
-    extended = {**previous, "method": "cmaes+effects",
-                "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
-                "occupancy": np.round(occ[0], 3).tolist(),
-                # an effect carried by a building parameter is in "theta" (and named in "diagnosis")
-                "effects": {e: v for e, v in fit.effect_parameters().items() if e not in fit.carried},
-                "absent_days": result["model"]["absent_days"], "fit_weeks": result["fit_weeks"],
-                "heldout_weeks": result["heldout_weeks"],
-                "diagnosis": {"selected": result["selected"], "verdict": result["verdict"]},
-                "catalogue_hash": cat.catalogue_hash(), "without_effects": previous}
+    extended = {
+        **previous,
+        "method": "cmaes+effects",
+        "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
+        "occupancy": np.round(occ[0], 3).tolist(),
+        # an effect carried by a building parameter is in "theta" (and named in "diagnosis")
+        "effects": {e: v for e, v in fit.effect_parameters().items() if e not in fit.carried},
+        "absent_days": result["model"]["absent_days"],
+        "fit_weeks": result["fit_weeks"],
+        "heldout_weeks": result["heldout_weeks"],
+        "diagnosis": {"selected": result["selected"], "verdict": result["verdict"]},
+        "catalogue_hash": cat.catalogue_hash(),
+        "without_effects": previous,
+    }
     if "heldout_after" in result:
         extended["heldout"] = result["heldout_after"]
     return save_calibration(site.path, extended)

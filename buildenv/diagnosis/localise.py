@@ -65,10 +65,22 @@ class LocalisationError(BuildenvError, ValueError):
 # Public API
 
 
-def localise(measured_t: np.ndarray, measured_q: np.ndarray, predicted_t: np.ndarray, predicted_q: np.ndarray,
-             weather: np.ndarray, occupied: np.ndarray, heating_on: np.ndarray,
-             week_starts: Sequence[dt.date | str], *, sunny_w_m2: float = 200.0, daylight_w_m2: float = 10.0,
-             alpha: float = 0.01, min_concentration: float = 1.25, max_hotspots: int = 5) -> dict:
+def localise(
+    measured_t: np.ndarray,
+    measured_q: np.ndarray,
+    predicted_t: np.ndarray,
+    predicted_q: np.ndarray,
+    weather: np.ndarray,
+    occupied: np.ndarray,
+    heating_on: np.ndarray,
+    week_starts: Sequence[dt.date | str],
+    *,
+    sunny_w_m2: float = 200.0,
+    daylight_w_m2: float = 10.0,
+    alpha: float = 0.01,
+    min_concentration: float = 1.25,
+    max_hotspots: int = 5,
+) -> dict:
     """Localise the residuals of a calibrated model in time, schedule and weather (see the module docstring).
 
     Args:
@@ -133,18 +145,24 @@ def localise(measured_t: np.ndarray, measured_q: np.ndarray, predicted_t: np.nda
     out = {
         "weeks": mondays,
         "hours": n_weeks * cat.HOURS_PER_WEEK,
-        "thresholds": {"outdoor_temperature_median_celsius": ctx["tamb_median"],
-                       "wind_speed_median_m_s": ctx["wind_median"], "sunny_w_m2": float(sunny_w_m2),
-                       "daylight_w_m2": float(daylight_w_m2), "startup_hours": STARTUP_HOURS,
-                       "alpha": float(alpha), "min_concentration": float(min_concentration)},
+        "thresholds": {
+            "outdoor_temperature_median_celsius": ctx["tamb_median"],
+            "wind_speed_median_m_s": ctx["wind_median"],
+            "sunny_w_m2": float(sunny_w_m2),
+            "daylight_w_m2": float(daylight_w_m2),
+            "startup_hours": STARTUP_HOURS,
+            "alpha": float(alpha),
+            "min_concentration": float(min_concentration),
+        },
     }
     for name, y, p in (("temperature", measured_t, predicted_t), ("consumption", measured_q, predicted_q)):
         out[name] = _series(name, y - p, ctx, segments, alpha, min_concentration, max_hotspots)
     return _jsonable(out)
 
 
-def residual_tests(residual: np.ndarray, drivers: dict[str, np.ndarray], week_starts: Sequence[dt.date | str],
-                   alpha: float = 0.05) -> dict:
+def residual_tests(
+    residual: np.ndarray, drivers: dict[str, np.ndarray], week_starts: Sequence[dt.date | str], alpha: float = 0.05
+) -> dict:
     """Bias, whiteness and driver cross-correlation tests of one residual series (module docstring).
 
     Args:
@@ -161,9 +179,15 @@ def residual_tests(residual: np.ndarray, drivers: dict[str, np.ndarray], week_st
     return _jsonable(_tests(residual, {k: np.asarray(v, float) for k, v in drivers.items()}, segments, alpha))
 
 
-def plot_localisation(result: dict, path: str | Path, measured_t: np.ndarray | None = None,
-                      measured_q: np.ndarray | None = None, predicted_t: np.ndarray | None = None,
-                      predicted_q: np.ndarray | None = None, occupied: np.ndarray | None = None) -> Path:
+def plot_localisation(
+    result: dict,
+    path: str | Path,
+    measured_t: np.ndarray | None = None,
+    measured_q: np.ndarray | None = None,
+    predicted_t: np.ndarray | None = None,
+    predicted_q: np.ndarray | None = None,
+    occupied: np.ndarray | None = None,
+) -> Path:
     """Plot a localisation result to one PNG.
 
     Top row: the mean residual (measured - predicted) by hour of day x weekday of each series, diverging
@@ -199,16 +223,20 @@ def plot_localisation(result: dict, path: str | Path, measured_t: np.ndarray | N
         mean = np.array([[np.nan if v is None else v for v in row] for row in res["by_hour_weekday"]["mean_residual"]])
         span = float(np.nanmax(np.abs(mean))) if np.isfinite(mean).any() else 0.0
         span = span if span > 0 else 1.0
-        image = ax.imshow(np.ma.masked_invalid(mean), aspect="auto", cmap="RdBu_r",
-                          norm=TwoSlopeNorm(vcenter=0.0, vmin=-span, vmax=span), interpolation="nearest")
+        image = ax.imshow(
+            np.ma.masked_invalid(mean),
+            aspect="auto",
+            cmap="RdBu_r",
+            norm=TwoSlopeNorm(vcenter=0.0, vmin=-span, vmax=span),
+            interpolation="nearest",
+        )
         ax.set_yticks(range(7), [d[:3].capitalize() for d in cat.DAYS])
         ax.set_xticks(range(0, 24, 3), [f"{h:02d}" for h in range(0, 24, 3)])
         ax.set_xlabel("hour of day")
         bar = fig.colorbar(image, ax=ax)
         bar.set_label(f"mean residual ({res['unit']})")
         rmse = res.get("rmse")
-        ax.set_title(f"{name}: measured - predicted" + (f", RMSE {rmse:.3g} {res['unit']}" if rmse else ""),
-                     fontsize=9)
+        ax.set_title(f"{name}: measured - predicted" + (f", RMSE {rmse:.3g} {res['unit']}" if rmse else ""), fontsize=9)
     if with_series:
         for row, (name, (y, p)) in enumerate(series.items(), start=1):
             ax = fig.add_subplot(grid[row, :])
@@ -242,8 +270,10 @@ def _check(measured_t, measured_q, predicted_t, predicted_q, weather, occupied, 
             raise LocalisationError(f"{name} has shape {a.shape}; expected {shape} like measured_t")
     weather = np.asarray(weather, float)
     if weather.shape != (*shape, len(cat.WEATHER_NAMES)):
-        raise LocalisationError(f"weather has shape {weather.shape}; expected {(*shape, len(cat.WEATHER_NAMES))} "
-                                f"in catalogue order {cat.WEATHER_NAMES}")
+        raise LocalisationError(
+            f"weather has shape {weather.shape}; expected {(*shape, len(cat.WEATHER_NAMES))} "
+            f"in catalogue order {cat.WEATHER_NAMES}"
+        )
     flags = []
     for name, a in (("occupied", occupied), ("heating_on", heating_on)):
         a = np.asarray(a)
@@ -298,8 +328,14 @@ def heating_startup(heating_on: np.ndarray, hours: int = STARTUP_HOURS) -> np.nd
     return heating_on & (run >= 1) & (run <= hours)
 
 
-def _context(weather: np.ndarray, occupied: np.ndarray, heating_on: np.ndarray, mondays: list[str],
-             sunny_w_m2: float, daylight_w_m2: float) -> dict:
+def _context(
+    weather: np.ndarray,
+    occupied: np.ndarray,
+    heating_on: np.ndarray,
+    mondays: list[str],
+    sunny_w_m2: float,
+    daylight_w_m2: float,
+) -> dict:
     """Group masks ``(weeks, 168)``, their labels, thresholds and drivers shared by both series."""
     w = {name: weather[..., i] for i, name in enumerate(cat.WEATHER_NAMES)}
     tamb, wind, glob = w["TAMB"], w["WIND_SPEED"], w["IGLOB_H"]
@@ -315,26 +351,45 @@ def _context(weather: np.ndarray, occupied: np.ndarray, heating_on: np.ndarray, 
         "heating": {
             "startup": (f"heating start-up (first {STARTUP_HOURS} h of each heating period)", startup),
             "heating_on": ("heating on after start-up", heating_on & ~startup),
-            "heating_off": ("heating off", ~heating_on)},
+            "heating_off": ("heating off", ~heating_on),
+        },
         "outdoor_temperature": {
             "cold": (f"cold hours (outdoor <= {tamb_median:.1f} degC, the median)", tamb <= tamb_median),
-            "mild": (f"mild hours (outdoor > {tamb_median:.1f} degC, the median)", tamb > tamb_median)},
+            "mild": (f"mild hours (outdoor > {tamb_median:.1f} degC, the median)", tamb > tamb_median),
+        },
         "solar": {
             "sunny": (f"sunny daytime (global horizontal >= {sunny_w_m2:g} W/m2)", glob >= sunny_w_m2),
-            "overcast": (f"overcast daytime ({daylight_w_m2:g}-{sunny_w_m2:g} W/m2 global horizontal)",
-                         (glob >= daylight_w_m2) & (glob < sunny_w_m2)),
-            "night": (f"night (global horizontal < {daylight_w_m2:g} W/m2)", glob < daylight_w_m2)},
-        "wind": {"windy": (f"windy hours (wind > {wind_median:.1f} m/s, the median)", wind > wind_median),
-                 "calm": (f"calm hours (wind <= {wind_median:.1f} m/s, the median)", wind <= wind_median)},
+            "overcast": (
+                f"overcast daytime ({daylight_w_m2:g}-{sunny_w_m2:g} W/m2 global horizontal)",
+                (glob >= daylight_w_m2) & (glob < sunny_w_m2),
+            ),
+            "night": (f"night (global horizontal < {daylight_w_m2:g} W/m2)", glob < daylight_w_m2),
+        },
+        "wind": {
+            "windy": (f"windy hours (wind > {wind_median:.1f} m/s, the median)", wind > wind_median),
+            "calm": (f"calm hours (wind <= {wind_median:.1f} m/s, the median)", wind <= wind_median),
+        },
         "day": {d: (f"{d.capitalize()}s", day == i) for i, d in enumerate(cat.DAYS)},
         "week": {m: (f"week of {m}", week == i) for i, m in enumerate(mondays)},
     }
     arrivals, departures = _starts(occupied), _starts(~occupied)
-    drivers = {"wind_speed": wind, "global_solar": glob, "outdoor_temperature": tamb,
-               "occupancy_transition": (arrivals | departures).astype(float),
-               "heating_start": _starts(heating_on).astype(float)}
-    return {"groups": groups, "drivers": drivers, "day": day, "hour": hour_of_week % cat.HOURS_PER_DAY,
-            "startup": startup, "occupied": occupied, "tamb_median": tamb_median, "wind_median": wind_median}
+    drivers = {
+        "wind_speed": wind,
+        "global_solar": glob,
+        "outdoor_temperature": tamb,
+        "occupancy_transition": (arrivals | departures).astype(float),
+        "heating_start": _starts(heating_on).astype(float),
+    }
+    return {
+        "groups": groups,
+        "drivers": drivers,
+        "day": day,
+        "hour": hour_of_week % cat.HOURS_PER_DAY,
+        "startup": startup,
+        "occupied": occupied,
+        "tamb_median": tamb_median,
+        "wind_median": wind_median,
+    }
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -345,14 +400,26 @@ def _group_stats(r: np.ndarray, ok: np.ndarray, mask: np.ndarray, n_total: int, 
     m = mask & ok
     n = int(m.sum())
     if n == 0:
-        return {"hours": 0, "share_hours": 0.0, "share_sse": 0.0, "mean_residual": None, "rmse": None,
-                "concentration": None}
+        return {
+            "hours": 0,
+            "share_hours": 0.0,
+            "share_sse": 0.0,
+            "mean_residual": None,
+            "rmse": None,
+            "concentration": None,
+        }
     rg = r[m]
     sse = float((rg**2).sum())
     share_h = n / n_total
     share_e = sse / sse_total if sse_total > 0 else float("nan")
-    return {"hours": n, "share_hours": share_h, "share_sse": share_e, "mean_residual": float(rg.mean()),
-            "rmse": float(np.sqrt(sse / n)), "concentration": share_e / share_h}
+    return {
+        "hours": n,
+        "share_hours": share_h,
+        "share_sse": share_e,
+        "mean_residual": float(rg.mean()),
+        "rmse": float(np.sqrt(sse / n)),
+        "concentration": share_e / share_h,
+    }
 
 
 def _grid(r: np.ndarray, ok: np.ndarray, ctx: dict, n_total: int, sse_total: float) -> dict:
@@ -367,8 +434,13 @@ def _grid(r: np.ndarray, ok: np.ndarray, ctx: dict, n_total: int, sse_total: flo
         mean = np.where(hours > 0, sums / hours, np.nan)
         share = sq / sse_total if sse_total > 0 else np.full((7, 24), np.nan)
         conc = np.where(hours > 0, share / (hours / max(n_total, 1)), np.nan)
-    return {"days": list(cat.DAYS), "hours": hours.tolist(), "mean_residual": mean.tolist(),
-            "share_sse": share.tolist(), "concentration": conc.tolist()}
+    return {
+        "days": list(cat.DAYS),
+        "hours": hours.tolist(),
+        "mean_residual": mean.tolist(),
+        "share_sse": share.tolist(),
+        "concentration": conc.tolist(),
+    }
 
 
 def _windows(ctx: dict) -> list[tuple[str, str, np.ndarray]]:
@@ -383,8 +455,16 @@ def _windows(ctx: dict) -> list[tuple[str, str, np.ndarray]]:
     return out
 
 
-def _hotspots(name: str, r: np.ndarray, ok: np.ndarray, ctx: dict, segments: np.ndarray, alpha: float,
-              min_concentration: float, max_hotspots: int) -> list[dict]:
+def _hotspots(
+    name: str,
+    r: np.ndarray,
+    ok: np.ndarray,
+    ctx: dict,
+    segments: np.ndarray,
+    alpha: float,
+    min_concentration: float,
+    max_hotspots: int,
+) -> list[dict]:
     n_total = int(ok.sum())
     r2 = np.where(ok, r, 0.0) ** 2
     sse_total = float(r2.sum())
@@ -393,8 +473,11 @@ def _hotspots(name: str, r: np.ndarray, ok: np.ndarray, ctx: dict, segments: np.
     a = max(_acf(np.where(ok, r**2, np.nan).reshape(-1), segments, 1)[0], 0.0)
     a = min(a, 0.99)
     c = (1.0 - a) / (1.0 + a)
-    candidates = [("group", f"{g}/{k}", label, mask) for g, members in ctx["groups"].items()
-                  for k, (label, mask) in members.items()]
+    candidates = [
+        ("group", f"{g}/{k}", label, mask)
+        for g, members in ctx["groups"].items()
+        for k, (label, mask) in members.items()
+    ]
     candidates += [("window", key, label, mask) for key, label, mask in _windows(ctx)]
     threshold = alpha / len(candidates)
     scored = []
@@ -429,12 +512,27 @@ def _hotspots(name: str, r: np.ndarray, ok: np.ndarray, ctx: dict, segments: np.
         mean = float(r[m].mean())
         context = _context_note(r2, m, ctx, key)
         direction = "higher" if mean > 0 else "lower"
-        description = (f"{label}{context}: {100 * share_e:.0f} % of the squared error in {100 * share_h:.0f} % of "
-                       f"the hours, measured {direction} than predicted by {abs(mean):.2g} {unit} on average")
-        chosen.append({"rank": len(chosen) + 1, "kind": kind, "name": key, "label": label,
-                       "description": description, "hours": n_g, "share_hours": share_h, "share_sse": share_e,
-                       "excess_share": excess, "mean_residual": mean, "rmse": float(np.sqrt(r2[m].mean())),
-                       "concentration": share_e / share_h, "p_value": p})
+        description = (
+            f"{label}{context}: {100 * share_e:.0f} % of the squared error in {100 * share_h:.0f} % of "
+            f"the hours, measured {direction} than predicted by {abs(mean):.2g} {unit} on average"
+        )
+        chosen.append(
+            {
+                "rank": len(chosen) + 1,
+                "kind": kind,
+                "name": key,
+                "label": label,
+                "description": description,
+                "hours": n_g,
+                "share_hours": share_h,
+                "share_sse": share_e,
+                "excess_share": excess,
+                "mean_residual": mean,
+                "rmse": float(np.sqrt(r2[m].mean())),
+                "concentration": share_e / share_h,
+                "p_value": p,
+            }
+        )
     return chosen
 
 
@@ -503,15 +601,28 @@ def _tests(residual: np.ndarray, drivers: dict[str, np.ndarray], segments: np.nd
         n_eff = max(n * (1.0 - r1) / (1.0 + r1), 2.0)
         t = mean / (std / np.sqrt(n_eff)) if std > 0 else (np.inf if mean else 0.0)
         p = float(2.0 * stats.t.sf(abs(t), n_eff - 1.0)) if np.isfinite(t) else 0.0
-        out["bias"] = {"mean": mean, "std": std, "n": n, "lag1_autocorrelation": float(acf[0]), "n_eff": n_eff,
-                       "t": float(t), "p_value": p, "significant": bool(p < alpha)}
+        out["bias"] = {
+            "mean": mean,
+            "std": std,
+            "n": n,
+            "lag1_autocorrelation": float(acf[0]),
+            "n_eff": n_eff,
+            "t": float(t),
+            "p_value": p,
+            "significant": bool(p < alpha),
+        }
         lags = np.arange(1, LJUNG_BOX_LAGS + 1)
         good = np.isfinite(acf) & (n - lags > 0)
         q = float(n * (n + 2) * np.sum(acf[good] ** 2 / (n - lags[good])))
         p_lb = float(stats.chi2.sf(q, int(good.sum()))) if good.any() else float("nan")
-        out["whiteness"] = {"lag1_autocorrelation": float(acf[0]), "lag24_autocorrelation": float(acf[23]),
-                            "ljung_box_q": q, "ljung_box_lags": int(good.sum()), "p_value": p_lb,
-                            "white": bool(p_lb >= alpha)}
+        out["whiteness"] = {
+            "lag1_autocorrelation": float(acf[0]),
+            "lag24_autocorrelation": float(acf[23]),
+            "ljung_box_q": q,
+            "ljung_box_lags": int(good.sum()),
+            "p_value": p_lb,
+            "white": bool(p_lb >= alpha),
+        }
     else:
         out["bias"] = {"mean": None, "n": n, "significant": False}
         out["whiteness"] = {"white": None, "p_value": None}
@@ -532,9 +643,17 @@ def _tests(residual: np.ndarray, drivers: dict[str, np.ndarray], segments: np.nd
         sig = [bool(np.isfinite(c) and abs(c) > threshold) for c in corr]
         finite = [abs(c) if np.isfinite(c) else -1.0 for c in corr]
         i = int(np.argmax(finite))
-        entry = {"label": DRIVER_LABELS.get(name, name), "lags": list(DRIVER_LAGS), "correlation": corr,
-                 "n_eff": n_eff, "threshold": threshold, "significant": sig, "best_lag": DRIVER_LAGS[i],
-                 "best_correlation": corr[i], "best_significant": sig[i]}
+        entry = {
+            "label": DRIVER_LABELS.get(name, name),
+            "lags": list(DRIVER_LAGS),
+            "correlation": corr,
+            "n_eff": n_eff,
+            "threshold": threshold,
+            "significant": sig,
+            "best_lag": DRIVER_LAGS[i],
+            "best_correlation": corr[i],
+            "best_significant": sig[i],
+        }
         out["drivers"][name] = entry
         if sig[i] and abs(corr[i]) > best_value:
             best_name, best_value = name, abs(corr[i])
@@ -546,22 +665,41 @@ def _tests(residual: np.ndarray, drivers: dict[str, np.ndarray], segments: np.nd
 # One series and its summary
 
 
-def _series(name: str, residual: np.ndarray, ctx: dict, segments: np.ndarray, alpha: float,
-            min_concentration: float, max_hotspots: int) -> dict:
+def _series(
+    name: str,
+    residual: np.ndarray,
+    ctx: dict,
+    segments: np.ndarray,
+    alpha: float,
+    min_concentration: float,
+    max_hotspots: int,
+) -> dict:
     ok = np.isfinite(residual)
     r = np.where(ok, residual, np.nan)
     n = int(ok.sum())
     unit = SERIES_UNITS[name]
     base = {"unit": unit, "hours": n, "missing_hours": int(residual.size - n)}
     if n == 0:
-        return {**base, "bias": None, "rmse": None, "std": None, "sse": 0.0, "by_hour_weekday": None,
-                "groups": {}, "hotspots": [], "tests": {}, "summary": f"{name}: no measured hour."}
+        return {
+            **base,
+            "bias": None,
+            "rmse": None,
+            "std": None,
+            "sse": 0.0,
+            "by_hour_weekday": None,
+            "groups": {},
+            "hotspots": [],
+            "tests": {},
+            "summary": f"{name}: no measured hour.",
+        }
     rv = r[ok]
     sse = float((rv**2).sum())
     base.update({"bias": float(rv.mean()), "rmse": float(np.sqrt(sse / n)), "std": float(rv.std()), "sse": sse})
     base["by_hour_weekday"] = _grid(r, ok, ctx, n, sse)
-    base["groups"] = {g: {k: {"label": label, **_group_stats(r, ok, mask, n, sse)}
-                          for k, (label, mask) in members.items()} for g, members in ctx["groups"].items()}
+    base["groups"] = {
+        g: {k: {"label": label, **_group_stats(r, ok, mask, n, sse)} for k, (label, mask) in members.items()}
+        for g, members in ctx["groups"].items()
+    }
     base["hotspots"] = _hotspots(name, r, ok, ctx, segments, alpha, min_concentration, max_hotspots)
     base["tests"] = _tests(r, ctx["drivers"], segments, alpha=0.05)
     base["summary"] = _summary(name, base)
@@ -574,16 +712,20 @@ def _summary(name: str, s: dict) -> str:
     parts = [f"{name}: RMSE {s['rmse']:.3g} {unit} over {s['hours']} measured hours"]
     if bias.get("significant"):
         sign = "higher" if bias["mean"] > 0 else "lower"
-        parts.append(f"measured {sign} than predicted by {abs(bias['mean']):.2g} {unit} on average "
-                     f"(significant, p = {bias['p_value']:.2g})")
+        parts.append(
+            f"measured {sign} than predicted by {abs(bias['mean']):.2g} {unit} on average "
+            f"(significant, p = {bias['p_value']:.2g})"
+        )
     else:
         parts.append(f"no significant bias ({bias['mean']:+.2g} {unit})")
     white = tests["whiteness"]
     if white.get("white"):
         parts.append("residual white (Ljung-Box)")
     else:
-        parts.append(f"residual not white (lag-1 autocorrelation {white['lag1_autocorrelation']:.2f}, "
-                     f"Ljung-Box p = {white['p_value']:.2g})")
+        parts.append(
+            f"residual not white (lag-1 autocorrelation {white['lag1_autocorrelation']:.2f}, "
+            f"Ljung-Box p = {white['p_value']:.2g})"
+        )
     top = tests["strongest_driver"]
     if top:
         d = tests["drivers"][top]
@@ -592,8 +734,10 @@ def _summary(name: str, s: dict) -> str:
         parts.append("no significant driver")
     if s["hotspots"]:
         h = s["hotspots"][0]
-        parts.append(f"error concentrates in {h['label']} ({100 * h['share_sse']:.0f} % of the squared error in "
-                     f"{100 * h['share_hours']:.0f} % of the hours)")
+        parts.append(
+            f"error concentrates in {h['label']} ({100 * h['share_sse']:.0f} % of the squared error in "
+            f"{100 * h['share_hours']:.0f} % of the hours)"
+        )
     else:
         parts.append("no hour group concentrates the error")
     return "; ".join(parts) + "."

@@ -31,8 +31,8 @@ from collections.abc import Mapping
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.metamodel import surrogate as sg
 from buildenv.diagnosis.effects import EFFECTS, WIND_REFERENCE_M_S, get_effect
+from buildenv.metamodel import surrogate as sg
 
 INPUT_EFFECTS = ("wind_infiltration", "solar_shading", "evening_departure")
 OUTPUT_EFFECTS = ("night_plug_loads", "heating_capacity_limit", "heat_recovery", "night_cycle_cold_air")
@@ -71,7 +71,7 @@ def split_parameters(effects: tuple[str, ...] | list[str], values: np.ndarray) -
     out, j = {}, 0
     for e in effects:
         k = len(get_effect(e).parameters)
-        out[e] = values[:, j:j + k]
+        out[e] = values[:, j : j + k]
         j += k
     return out
 
@@ -104,7 +104,7 @@ def transform_inputs(x: np.ndarray, params: Mapping[str, np.ndarray]) -> np.ndar
     s = _column(params, "solar_shading", 0, n)
     if s is not None:
         for name in IRRADIANCE_INPUTS:
-            x[..., _CH[name]] *= (1.0 - s)
+            x[..., _CH[name]] *= 1.0 - s
     share, hours = (_column(params, "evening_departure", j, n) for j in (0, 1))
     if share is not None and hours is not None:  # either at its none value: no tail
         occ = x[..., _CH["occupancy_fraction"]]
@@ -132,7 +132,7 @@ def hours_since_occupied(occupied: np.ndarray) -> np.ndarray:
 
 def occupied_hours(x: np.ndarray) -> np.ndarray:
     """``(N, 168)`` booleans: hours of the week the encoded inputs mark occupied (above :data:`OCCUPIED_LEVEL`)."""
-    return x[:, sg.context_of(x):, _CH["occupancy_fraction"]] > OCCUPIED_LEVEL
+    return x[:, sg.context_of(x) :, _CH["occupancy_fraction"]] > OCCUPIED_LEVEL
 
 
 def absent_days_inputs(x: np.ndarray, absent: np.ndarray) -> np.ndarray:
@@ -161,12 +161,15 @@ def transform_outputs(outputs: np.ndarray, x: np.ndarray, params: Mapping[str, n
         params: ``{effect: (N, k)}``.
     """
     n = len(outputs)
-    active = [e for e in OUTPUT_EFFECTS
-              if any(_column(params, e, j, n) is not None for j in range(len(EFFECTS[e].parameters)))]
+    active = [
+        e
+        for e in OUTPUT_EFFECTS
+        if any(_column(params, e, j, n) is not None for j in range(len(EFFECTS[e].parameters)))
+    ]
     if not active:
         return outputs
     out = np.array(outputs, dtype=np.float32, copy=True)
-    week = x[:, sg.context_of(x):]
+    week = x[:, sg.context_of(x) :]
     p = _column(params, "night_plug_loads", 0, n)
     if p is not None:
         out[..., _OUT["Q_EQP"]] += (p * ~occupied_hours(x)).astype(np.float32)

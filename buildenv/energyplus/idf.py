@@ -34,8 +34,12 @@ def of_type(objects: list[IdfObject], kind: str) -> list[IdfObject]:
     return [o for o in objects if o[0].lower() == kind]
 
 
-def without(objects: list[IdfObject], kinds: set[str] | None = None, names: set[str] | None = None,
-            name_kinds: set[str] | None = None) -> list[IdfObject]:
+def without(
+    objects: list[IdfObject],
+    kinds: set[str] | None = None,
+    names: set[str] | None = None,
+    name_kinds: set[str] | None = None,
+) -> list[IdfObject]:
     """Objects minus those of ``kinds`` and those whose name (field 1) is in ``names`` (case-insensitive),
     the latter restricted to types in ``name_kinds`` when given."""
     kinds = {k.lower() for k in kinds or ()}

@@ -72,12 +72,21 @@ class InjectedEffect:
 
     def truth(self) -> dict[str, Any]:
         """The ``truth.json`` entry: ``{"name", "magnitude", "unit", "details"}``."""
-        return {"name": self.name, "magnitude": self.magnitude, "unit": self.effect.magnitude_unit,
-                "details": dict(self.details)}
+        return {
+            "name": self.name,
+            "magnitude": self.magnitude,
+            "unit": self.effect.magnitude_unit,
+            "details": dict(self.details),
+        }
 
 
-def plan_effects(effects: Sequence[tuple[str | Effect, float | None] | InjectedEffect] | None, start: dt.date,
-                 weeks: int, seed: int = 0, fit_weeks: Sequence[int] | None = None) -> list[InjectedEffect]:
+def plan_effects(
+    effects: Sequence[tuple[str | Effect, float | None] | InjectedEffect] | None,
+    start: dt.date,
+    weeks: int,
+    seed: int = 0,
+    fit_weeks: Sequence[int] | None = None,
+) -> list[InjectedEffect]:
     """Check the requested effects and fix their random choices.
 
     Args:
@@ -104,8 +113,9 @@ def plan_effects(effects: Sequence[tuple[str | Effect, float | None] | InjectedE
         value = effect.default_magnitude if magnitude is None else effect.check_magnitude(float(magnitude))
         details: dict[str, Any] = {}
         if effect.name == "holidays":
-            details["dates"] = [d.isoformat() for d in choose_holidays(int(_whole(value, effect)), start, weeks,
-                                                                        seed, fit_weeks)]
+            details["dates"] = [
+                d.isoformat() for d in choose_holidays(int(_whole(value, effect)), start, weeks, seed, fit_weeks)
+            ]
         planned.append(InjectedEffect(effect.name, float(value), details))
     names = [p.name for p in planned]
     repeated = sorted({n for n in names if names.count(n) > 1})
@@ -120,8 +130,9 @@ def _whole(value: float, effect: Effect) -> float:
     return value
 
 
-def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0,
-                    fit_weeks: Sequence[int] | None = None) -> list[dt.date]:
+def choose_holidays(
+    count: int, start: dt.date, weeks: int, seed: int = 0, fit_weeks: Sequence[int] | None = None
+) -> list[dt.date]:
     """``count`` distinct measured weekdays drawn with ``seed`` (sorted).
 
     With ``count >= 2`` and ``weeks >= 2`` one lies in the ``fit_weeks`` (default: the first ``ceil(weeks / 2)``
@@ -130,8 +141,10 @@ def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0,
     """
     days = [start + dt.timedelta(days=7 * w + d) for w in range(weeks) for d in range(WEEKDAYS_PER_WEEK)]
     if count > len(days):
-        raise EffectError(f"effect holidays: {count} absent weekdays but only {len(days)} measured weekdays "
-                          f"in {weeks} week(s); give at most {len(days)}")
+        raise EffectError(
+            f"effect holidays: {count} absent weekdays but only {len(days)} measured weekdays "
+            f"in {weeks} week(s); give at most {len(days)}"
+        )
     if count <= 0:
         return []
     rng = np.random.default_rng(seed)
@@ -149,8 +162,12 @@ def choose_holidays(count: int, start: dt.date, weeks: int, seed: int = 0,
 # --- EnergyPlus edits ------------------------------------------------------------------------------------------
 
 
-def inject_energyplus(objects: list[IdfObject], effects: Sequence[InjectedEffect], building: str = "model",
-                      sizing: Callable[[list[IdfObject]], Path] | None = None) -> list[IdfObject]:
+def inject_energyplus(
+    objects: list[IdfObject],
+    effects: Sequence[InjectedEffect],
+    building: str = "model",
+    sizing: Callable[[list[IdfObject]], Path] | None = None,
+) -> list[IdfObject]:
     """The IDF objects with every active ``kind="energyplus"`` effect injected (see the module docstring).
 
     Args:
@@ -162,9 +179,15 @@ def inject_energyplus(objects: list[IdfObject], effects: Sequence[InjectedEffect
 
     Raises :class:`~buildenv.errors.ReferenceBuildingError` when the model lacks what an effect needs.
     """
-    edits = {"wind_infiltration": _wind_infiltration, "holidays": _holidays, "night_plug_loads": _night_plug_loads,
-             "solar_shading": _solar_shading, "heat_recovery": _heat_recovery,
-             "night_cycle_cold_air": _night_cycle_cold_air, "evening_departure": _evening_departure}
+    edits = {
+        "wind_infiltration": _wind_infiltration,
+        "holidays": _holidays,
+        "night_plug_loads": _night_plug_loads,
+        "solar_shading": _solar_shading,
+        "heat_recovery": _heat_recovery,
+        "night_cycle_cold_air": _night_cycle_cold_air,
+        "evening_departure": _evening_departure,
+    }
     out = [list(o) for o in objects]
     active = [e for e in effects if e.active and e.effect.kind == "energyplus"]
     for item in active:
@@ -173,8 +196,9 @@ def inject_energyplus(objects: list[IdfObject], effects: Sequence[InjectedEffect
     for item in active:  # last: the design capacities are those of the model with the other effects
         if item.name == "heating_capacity_limit":
             if sizing is None:
-                raise ReferenceBuildingError(f"{building}: effect heating_capacity_limit needs a sizing run "
-                                             "(pass sizing= to inject_energyplus)")
+                raise ReferenceBuildingError(
+                    f"{building}: effect heating_capacity_limit needs a sizing run (pass sizing= to inject_energyplus)"
+                )
             out = _heating_capacity_limit(out, item, building, sizing(sizing_objects(out)))
     return out
 
@@ -216,8 +240,9 @@ def _wind_infiltration(objects: list[IdfObject], item: InjectedEffect, building:
             objects[k] = o
             found += 1
     if not found:
-        raise ReferenceBuildingError(f"{building}: effect wind_infiltration needs ZoneInfiltration:DesignFlowRate "
-                                     "objects and the model has none")
+        raise ReferenceBuildingError(
+            f"{building}: effect wind_infiltration needs ZoneInfiltration:DesignFlowRate objects and the model has none"
+        )
     return objects
 
 
@@ -235,16 +260,16 @@ def assign_holidays(schedule: IdfObject, like: str) -> IdfObject:
     """
     fields = list(schedule)
     bounds = [i for i, f in enumerate(fields) if f.lower().startswith("through:")] + [len(fields)]
-    out = fields[:bounds[0]]
+    out = fields[: bounds[0]]
     for a, b in zip(bounds[:-1], bounds[1:]):
         starts = [i for i in range(a, b) if fields[i].lower().startswith("for:")]
-        clauses = [(fields[i], fields[i + 1:j]) for i, j in zip(starts, starts[1:] + [b])]
+        clauses = [(fields[i], fields[i + 1 : j]) for i, j in zip(starts, starts[1:] + [b])]
         tokens = [_for_tokens(head) for head, _ in clauses]
         lower = [[t.lower() for t in ts] for ts in tokens]
         target = next((k for k, ts in enumerate(lower) if any(t in _DAY_TOKENS[like] for t in ts)), None)
         if target is None:
             target = next((k for k, ts in enumerate(lower) if "allotherdays" in ts), None)
-        out += fields[a:(starts[0] if starts else b)]
+        out += fields[a : (starts[0] if starts else b)]
         for k, (_, body) in enumerate(clauses):
             kept = [t for t in tokens[k] if t.lower() not in _HOLIDAY_TOKENS]
             if k == target and "alldays" not in lower[k]:
@@ -270,16 +295,24 @@ def _holidays(objects: list[IdfObject], item: InjectedEffect, building: str) -> 
         out.append(o)
     for text in item.details.get("dates", []):
         day = dt.date.fromisoformat(text)
-        out.append(["RunPeriodControl:SpecialDays", f"buildenv absent {day.isoformat()}", f"{day.month}/{day.day}",
-                    "1", "Holiday"])
+        out.append(
+            [
+                "RunPeriodControl:SpecialDays",
+                f"buildenv absent {day.isoformat()}",
+                f"{day.month}/{day.day}",
+                "1",
+                "Holiday",
+            ]
+        )
     return out
 
 
 def complement_schedule(schedule: IdfObject, name: str) -> IdfObject:
     """A ``Schedule:Compact`` copy named ``name`` with every value ``v`` replaced by ``1 - v`` (clipped to 0..1)."""
     if schedule[0].lower() != "schedule:compact":
-        raise ReferenceBuildingError(f"schedule {schedule[1]} is a {schedule[0]}; only Schedule:Compact can be "
-                                     "complemented")
+        raise ReferenceBuildingError(
+            f"schedule {schedule[1]} is a {schedule[0]}; only Schedule:Compact can be complemented"
+        )
     out = ["Schedule:Compact", name, schedule[2]]
     for prev, f in zip(schedule[2:], schedule[3:]):
         if prev.lower().startswith("until:"):
@@ -308,8 +341,22 @@ def _night_plug_loads(objects: list[IdfObject], item: InjectedEffect, building: 
                 new.append(complement_schedule(schedules[occupancy.lower()], added[occupancy.lower()]))
             except ReferenceBuildingError as exc:
                 raise ReferenceBuildingError(f"{building}: effect night_plug_loads: {exc}") from None
-        new.append(["ElectricEquipment", f"{p[1]} buildenv night plug loads", p[2], added[occupancy.lower()],
-                    "Watts/Area", "", f"{item.magnitude:.6g}", "", "0", "0.5", "0", NIGHT_PLUG_SUBCATEGORY])
+        new.append(
+            [
+                "ElectricEquipment",
+                f"{p[1]} buildenv night plug loads",
+                p[2],
+                added[occupancy.lower()],
+                "Watts/Area",
+                "",
+                f"{item.magnitude:.6g}",
+                "",
+                "0",
+                "0.5",
+                "0",
+                NIGHT_PLUG_SUBCATEGORY,
+            ]
+        )
     return objects + new
 
 
@@ -324,8 +371,11 @@ def _hours_of(text: str) -> int:
 
 def _weekday_clauses(schedule: IdfObject) -> list[int]:
     """Indices of the ``For:`` fields naming ``Weekdays`` or ``AllDays``."""
-    return [i for i, f in enumerate(schedule) if f.lower().startswith("for:")
-            and {t.lower() for t in _for_tokens(f)} & {"weekdays", "alldays"}]
+    return [
+        i
+        for i, f in enumerate(schedule)
+        if f.lower().startswith("for:") and {t.lower() for t in _for_tokens(f)} & {"weekdays", "alldays"}
+    ]
 
 
 def weekday_profile(schedule: IdfObject) -> tuple[int, int, np.ndarray]:
@@ -362,8 +412,9 @@ def _evening_departure(objects: list[IdfObject], item: InjectedEffect, building:
     occupancy = _field(people[0], 3).lower()
     try:
         if occupancy not in schedules:
-            raise ReferenceBuildingError(f"People {people[0][1]} uses schedule {people[0][3]}, not a "
-                                         "Schedule:Compact of the model")
+            raise ReferenceBuildingError(
+                f"People {people[0][1]} uses schedule {people[0][3]}, not a Schedule:Compact of the model"
+            )
         occupied = np.nonzero(weekday_profile(schedules[occupancy])[2] >= 0.5)[0]
         if not len(occupied):
             raise ReferenceBuildingError(f"schedule {people[0][3]} is never half occupied on weekdays")
@@ -376,8 +427,12 @@ def _evening_departure(objects: list[IdfObject], item: InjectedEffect, building:
             later = values.copy()
             hours = np.arange(end, 24)
             later[end:] = values[np.maximum(end, hours - k)]
-            pairs = [f for h in range(24) if h == 23 or later[h + 1] != later[h]
-                     for f in (f"Until: {h + 1:02d}:00", f"{later[h]:.6g}")]
+            pairs = [
+                f
+                for h in range(24)
+                if h == 23 or later[h + 1] != later[h]
+                for f in (f"Until: {h + 1:02d}:00", f"{later[h]:.6g}")
+            ]
             o[first:stop] = pairs  # edited in place: the objects are copies
     except ReferenceBuildingError as exc:
         raise ReferenceBuildingError(f"{building}: effect evening_departure: {exc}") from None
@@ -390,8 +445,10 @@ def _solar_shading(objects: list[IdfObject], item: InjectedEffect, building: str
     keep = 1.0 - item.magnitude / 100.0
     glazings = of_type(objects, "WindowMaterial:SimpleGlazingSystem")
     if not glazings or of_type(objects, "WindowMaterial:Glazing"):
-        raise ReferenceBuildingError(f"{building}: effect solar_shading scales the SHGC of "
-                                     "WindowMaterial:SimpleGlazingSystem windows; this model has layered glazing")
+        raise ReferenceBuildingError(
+            f"{building}: effect solar_shading scales the SHGC of "
+            "WindowMaterial:SimpleGlazingSystem windows; this model has layered glazing"
+        )
     for o in glazings:
         o[3] = f"{float(o[3]) * keep:.6g}"  # Solar Heat Gain Coefficient (edited in place: copies made above)
     return objects
@@ -408,9 +465,11 @@ def _night_cycle_cold_air(objects: list[IdfObject], item: InjectedEffect, buildi
     ``magnitude / 100`` (at most 1) outside it, so the night cycle sends more cold supply air to every zone."""
     terminals = [o for o in of_type(objects, "AirTerminal:SingleDuct:VAV:Reheat") if _field(o, 6).lower() == "constant"]
     if not terminals:
-        raise ReferenceBuildingError(f"{building}: effect night_cycle_cold_air raises the night minimum air flow of "
-                                     "AirTerminal:SingleDuct:VAV:Reheat boxes with a constant minimum; this model "
-                                     "has none")
+        raise ReferenceBuildingError(
+            f"{building}: effect night_cycle_cold_air raises the night minimum air flow of "
+            "AirTerminal:SingleDuct:VAV:Reheat boxes with a constant minimum; this model "
+            "has none"
+        )
     added = item.magnitude / 100.0
     schedules: dict[str, str] = {}  # design fraction -> its schedule
     for o in terminals:
@@ -418,25 +477,43 @@ def _night_cycle_cold_air(objects: list[IdfObject], item: InjectedEffect, buildi
         name = schedules.setdefault(design, f"buildenv night minimum flow {len(schedules) + 1}")
         o.extend([""] * (10 - len(o)))
         o[6], o[9] = "Scheduled", name  # edited in place: the objects are copies
-    new: list[IdfObject] = [["EnergyManagementSystem:Sensor", "buildenv_hvac_on", HVAC_AVAILABILITY_SCHEDULE,
-                             "Schedule Value"]]
+    new: list[IdfObject] = [
+        ["EnergyManagementSystem:Sensor", "buildenv_hvac_on", HVAC_AVAILABILITY_SCHEDULE, "Schedule Value"]
+    ]
     program = ["EnergyManagementSystem:Program", "buildenv_night_minimum_flow", "IF buildenv_hvac_on > 0.5"]
     night = []
     for j, (design, name) in enumerate(schedules.items()):
-        new += [["Schedule:Constant", name, "", design],
-                ["EnergyManagementSystem:Actuator", f"buildenv_minimum_flow_{j}", name, "Schedule:Constant",
-                 "Schedule Value"]]
+        new += [
+            ["Schedule:Constant", name, "", design],
+            [
+                "EnergyManagementSystem:Actuator",
+                f"buildenv_minimum_flow_{j}",
+                name,
+                "Schedule:Constant",
+                "Schedule Value",
+            ],
+        ]
         program.append(f"SET buildenv_minimum_flow_{j} = {design}")
         night.append(f"SET buildenv_minimum_flow_{j} = {min(1.0, float(design) + added):.6g}")
-    new += [program + ["ELSE", *night, "ENDIF"],
-            ["EnergyManagementSystem:ProgramCallingManager", "buildenv night minimum flow",
-             "BeginTimestepBeforePredictor", "buildenv_night_minimum_flow"]]
+    new += [
+        program + ["ELSE", *night, "ENDIF"],
+        [
+            "EnergyManagementSystem:ProgramCallingManager",
+            "buildenv night minimum flow",
+            "BeginTimestepBeforePredictor",
+            "buildenv_night_minimum_flow",
+        ],
+    ]
     return objects + new
 
 
 #: Heating components whose capacity the capacity limit scales: type (lower case) -> capacity field index.
-HEATING_CAPACITY_FIELDS: dict[str, int] = {"coil:heating:electric": 4, "coil:heating:fuel": 5,
-                                           "coil:heating:dx:singlespeed": 3, "boiler:hotwater": 3}
+HEATING_CAPACITY_FIELDS: dict[str, int] = {
+    "coil:heating:electric": 4,
+    "coil:heating:fuel": 5,
+    "coil:heating:dx:singlespeed": 3,
+    "boiler:hotwater": 3,
+}
 
 
 def design_capacities(eio: Path) -> dict[tuple[str, str], float]:
@@ -445,14 +522,20 @@ def design_capacities(eio: Path) -> dict[tuple[str, str], float]:
     found: dict[tuple[str, str], float] = {}
     for line in Path(eio).read_text(errors="replace").splitlines():
         f = [x.strip() for x in line.split(",")]
-        if (len(f) >= 5 and f[0] == "Component Sizing Information" and f[1].lower() in HEATING_CAPACITY_FIELDS
-                and f[3].startswith("Design Size") and "Capacity [W]" in f[3]):
+        if (
+            len(f) >= 5
+            and f[0] == "Component Sizing Information"
+            and f[1].lower() in HEATING_CAPACITY_FIELDS
+            and f[3].startswith("Design Size")
+            and "Capacity [W]" in f[3]
+        ):
             found[(f[1].lower(), f[2].upper())] = float(f[4])
     return found
 
 
-def _heating_capacity_limit(objects: list[IdfObject], item: InjectedEffect, building: str,
-                            eio: Path) -> list[IdfObject]:
+def _heating_capacity_limit(
+    objects: list[IdfObject], item: InjectedEffect, building: str, eio: Path
+) -> list[IdfObject]:
     """Hard-size every heating component of :data:`HEATING_CAPACITY_FIELDS` to ``magnitude / 100`` of its design
     capacity (autosized ones read from the sizing run's ``eio``); records the design and available kW in the
     effect's details. Air flows and every other size are unchanged."""
@@ -467,18 +550,23 @@ def _heating_capacity_limit(objects: list[IdfObject], item: InjectedEffect, buil
         if not value or value.lower() in ("autosize", "autocalculate"):
             key = (o[0].lower(), o[1].upper())
             if key not in sized:
-                raise ReferenceBuildingError(f"{building}: effect heating_capacity_limit: no design capacity of "
-                                             f"{o[0]} {o[1]} in the sizing run's {eio}")
+                raise ReferenceBuildingError(
+                    f"{building}: effect heating_capacity_limit: no design capacity of "
+                    f"{o[0]} {o[1]} in the sizing run's {eio}"
+                )
             design = sized[key]
         else:
             design = float(value)
         o[i] = f"{design * share:.6g}"
         total, limited = total + design, limited + design * share
     if total <= 0.0:
-        raise ReferenceBuildingError(f"{building}: effect heating_capacity_limit: no heating coil or boiler of "
-                                     f"the types {', '.join(HEATING_CAPACITY_FIELDS)}")
-    item.details.update({"design_capacity_kw": round(total / 1000.0, 1),
-                         "available_capacity_kw": round(limited / 1000.0, 1)})
+        raise ReferenceBuildingError(
+            f"{building}: effect heating_capacity_limit: no heating coil or boiler of "
+            f"the types {', '.join(HEATING_CAPACITY_FIELDS)}"
+        )
+    item.details.update(
+        {"design_capacity_kw": round(total / 1000.0, 1), "available_capacity_kw": round(limited / 1000.0, 1)}
+    )
     return objects
 
 
@@ -488,8 +576,10 @@ def _heat_recovery(objects: list[IdfObject], item: InjectedEffect, building: str
     a ``SetpointManager:OutdoorAirPretreat`` controls its outlet and the economizer does not lock it out."""
     systems = of_type(objects, "AirLoopHVAC:OutdoorAirSystem")
     if not systems:
-        raise ReferenceBuildingError(f"{building}: effect heat_recovery needs an AirLoopHVAC:OutdoorAirSystem "
-                                     "(an air handling unit with outdoor air); the model has none")
+        raise ReferenceBuildingError(
+            f"{building}: effect heat_recovery needs an AirLoopHVAC:OutdoorAirSystem "
+            "(an air handling unit with outdoor air); the model has none"
+        )
     lists = {o[1].lower(): o for o in of_type(objects, "AirLoopHVAC:OutdoorAirSystem:EquipmentList")}
     mixers = {o[1].lower(): o for o in of_type(objects, "OutdoorAir:Mixer")}
     setpoint_nodes = {o[-1].lower() for o in objects if o[0].lower().startswith("setpointmanager:")}
@@ -499,19 +589,60 @@ def _heat_recovery(objects: list[IdfObject], item: InjectedEffect, building: str
         equipment = lists.get(_field(system, 3).lower())
         kinds = [t.lower() for t in equipment[2::2]] if equipment else []
         if not equipment or kinds.count("outdoorair:mixer") != 1 or any(k.startswith("heatexchanger:") for k in kinds):
-            raise ReferenceBuildingError(f"{building}: effect heat_recovery: outdoor-air system {system[1]} must "
-                                         "have one OutdoorAir:Mixer and no heat exchanger to add one")
+            raise ReferenceBuildingError(
+                f"{building}: effect heat_recovery: outdoor-air system {system[1]} must "
+                "have one OutdoorAir:Mixer and no heat exchanger to add one"
+            )
         mixer = mixers[equipment[2 + 2 * kinds.index("outdoorair:mixer") + 1].lower()]
         mixed, outdoor, relief, ret = mixer[2:6]
-        hx, supply_out, exhaust_out = (f"{system[1]} buildenv heat recovery", f"{system[1]} buildenv HX supply outlet",
-                                       f"{system[1]} buildenv HX exhaust outlet")
+        hx, supply_out, exhaust_out = (
+            f"{system[1]} buildenv heat recovery",
+            f"{system[1]} buildenv HX supply outlet",
+            f"{system[1]} buildenv HX exhaust outlet",
+        )
         control = "Yes" if mixed.lower() in setpoint_nodes else "No"
         lockout = "No" if control == "Yes" else "Yes"  # the outlet control already stops it overheating
-        new.append(["HeatExchanger:AirToAir:SensibleAndLatent", hx, "", "Autosize", eff, "0", eff, "0", outdoor,
-                    supply_out, relief, exhaust_out, "0", control, "Plate", "None", "1.7", "0.083", "0.012", lockout])
+        new.append(
+            [
+                "HeatExchanger:AirToAir:SensibleAndLatent",
+                hx,
+                "",
+                "Autosize",
+                eff,
+                "0",
+                eff,
+                "0",
+                outdoor,
+                supply_out,
+                relief,
+                exhaust_out,
+                "0",
+                control,
+                "Plate",
+                "None",
+                "1.7",
+                "0.083",
+                "0.012",
+                lockout,
+            ]
+        )
         if control == "Yes":
-            new.append(["SetpointManager:OutdoorAirPretreat", f"{hx} outlet temperature", "Temperature", "-99", "99",
-                        "0.00001", "1.0", mixed, mixed, outdoor, ret, supply_out])
+            new.append(
+                [
+                    "SetpointManager:OutdoorAirPretreat",
+                    f"{hx} outlet temperature",
+                    "Temperature",
+                    "-99",
+                    "99",
+                    "0.00001",
+                    "1.0",
+                    mixed,
+                    mixed,
+                    outdoor,
+                    ret,
+                    supply_out,
+                ]
+            )
         equipment[2:2] = ["HeatExchanger:AirToAir:SensibleAndLatent", hx]
         mixer[3] = supply_out  # the mixer now draws the preheated outdoor air
     return objects + new
@@ -548,12 +679,13 @@ def apply_sensor_effects(temperature_c: np.ndarray, effects: Sequence[InjectedEf
     return reading
 
 
-def sensor_effect_series(temperature_c: np.ndarray, warmup_c: np.ndarray | None,
-                         effects: Sequence[InjectedEffect]) -> np.ndarray:
+def sensor_effect_series(
+    temperature_c: np.ndarray, warmup_c: np.ndarray | None, effects: Sequence[InjectedEffect]
+) -> np.ndarray:
     """:func:`apply_sensor_effects` over the warm-up hours ``(warmup_hours,)`` then the measured
     ``(weeks, 168)`` temperatures; returns the measured part ``(weeks, 168)`` (a copy)."""
     if not any(e.active and e.effect.kind == "sensor" for e in effects):
         return temperature_c
     warm = np.zeros(0) if warmup_c is None else np.asarray(warmup_c, float).reshape(-1)
     full = apply_sensor_effects(np.concatenate([warm, np.asarray(temperature_c, float).reshape(-1)]), effects)
-    return full[len(warm):].reshape(np.shape(temperature_c))
+    return full[len(warm) :].reshape(np.shape(temperature_c))

@@ -38,6 +38,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.defaults import default_week
+from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.injections import (
     InjectedEffect,
     inject_energyplus,
@@ -45,7 +46,6 @@ from buildenv.energyplus.injections import (
     sensor_effect_series,
     sizing_objects,
 )
-from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.runner import clean_outputs, run_energyplus
 from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
 from buildenv.errors import ReferenceBuildingError, SimulationError
@@ -71,7 +71,8 @@ OUTDOOR_AIR_SIZING_WEATHER = "usa_il_chicago"
 _DATA_CENTRE_COIL_ERROR = (
     "{}: EnergyPlus failed (Severe FindRootSimpleController) on the data centre's zero-capacity extra heating "
     "coil, which the model's EMS switches on when the data centre heats below 10 degC outdoors, with its setpoint "
-    "at its inlet temperature (the BMS setbacks of the offices around it make it heat): try a warmer period")
+    "at its inlet temperature (the BMS setbacks of the offices around it make it heat): try a warmer period"
+)
 # names of the systems of 24/7 spaces, which keep their own schedules (see serves_24h_space)
 _24H_NAME = re.compile(r"data[\s_-]*cent(er|re)|server[\s_-]*room", re.IGNORECASE)
 
@@ -146,9 +147,11 @@ def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
     unoccupied = _unoccupied_thermostats(objects)
     objects = [o for o in objects if not serves_24h_space(o, unoccupied)]
     dual = of_type(objects, "ThermostatSetpoint:DualSetpoint")
-    found = ScheduleMap(heating_setpoint=sorted({o[2] for o in dual}), cooling_setpoint=sorted({o[3] for o in dual}),
-                        outdoor_air=sorted({o[17] for o in of_type(objects, "Controller:OutdoorAir")
-                                            if len(o) > 17 and o[17]}))
+    found = ScheduleMap(
+        heating_setpoint=sorted({o[2] for o in dual}),
+        cooling_setpoint=sorted({o[3] for o in dual}),
+        outdoor_air=sorted({o[17] for o in of_type(objects, "Controller:OutdoorAir") if len(o) > 17 and o[17]}),
+    )
     hvac = {o[3] for o in of_type(objects, "AvailabilityManager:NightCycle") if len(o) > 3 and o[3]}
     for kind in ("Fan:VariableVolume", "Fan:ConstantVolume", "Fan:OnOff", "Fan:SystemModel"):
         hvac |= {o[2] for o in of_type(objects, kind) if len(o) > 2 and o[2]}
@@ -167,14 +170,23 @@ def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.n
     occupancy[..., 0], occupancy[..., 1] = cat.get("occupancy_start_hour").min, cat.get("occupancy_end_hour").max
     s = {k: v.reshape(-1) for k, v in hourly_schedules(settings, occupancy).items()}
     hvac = np.maximum.reduce([s["heating_comfort_on"], s["cooling_comfort_on"], s["ventilation_on"]])
-    return {"heating_setpoint": s["heating_setpoint_c"], "cooling_setpoint": s["cooling_setpoint_c"],
-            "hvac_availability": hvac, "outdoor_air": s["ventilation_on"] * np.minimum(
-                1.0, s["ventilation_ach"] / design_ach)}
+    return {
+        "heating_setpoint": s["heating_setpoint_c"],
+        "cooling_setpoint": s["cooling_setpoint_c"],
+        "hvac_availability": hvac,
+        "outdoor_air": s["ventilation_on"] * np.minimum(1.0, s["ventilation_ach"] / design_ach),
+    }
 
 
-def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdir: Path,
-                  schedule_map: ScheduleMap | None = None, effects: Sequence[InjectedEffect] = (),
-                  epw: Path | None = None) -> tuple[Path, ScheduleMap]:
+def prepare_model(
+    source: Path,
+    settings: np.ndarray,
+    first_day: dt.date,
+    workdir: Path,
+    schedule_map: ScheduleMap | None = None,
+    effects: Sequence[InjectedEffect] = (),
+    epw: Path | None = None,
+) -> tuple[Path, ScheduleMap]:
     """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
 
     ``effects`` (planned with :func:`buildenv.energyplus.injections.plan_effects`): the ``kind="energyplus"`` ones
@@ -188,21 +200,23 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
     mapping = schedule_map or detect_schedule_map(objects)
     missing = [r for r in SCHEDULE_ROLES if not getattr(mapping, r)]
     if missing:
-        raise ReferenceBuildingError(f"{source}: no schedule found for {', '.join(missing)}; "
-                              "name them with --map ROLE=SCHEDULE")
+        raise ReferenceBuildingError(
+            f"{source}: no schedule found for {', '.join(missing)}; name them with --map ROLE=SCHEDULE"
+        )
     last_day = first_day + dt.timedelta(days=7 * len(settings) - 1)
     if last_day.year != first_day.year:
-        raise ReferenceBuildingError(f"the run {first_day}..{last_day} crosses a new year; "
-                                     "start it earlier or shorten it")
+        raise ReferenceBuildingError(
+            f"the run {first_day}..{last_day} crosses a new year; start it earlier or shorten it"
+        )
     # the Schedule:File: a year of hourly values, the run's hours filled from the settings
     columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
     start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
     table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
     for j, role in enumerate(SCHEDULE_ROLES):
         values = columns[role]
-        table[:, j] = values[:cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
+        table[:, j] = values[: cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
         stop = min(start + len(values), HOURS_PER_YEAR)
-        table[start:stop, j] = values[:stop - start]
+        table[start:stop, j] = values[: stop - start]
     csv = (workdir / "buildenv_schedules.csv").resolve()
     workdir.mkdir(parents=True, exist_ok=True)
     np.savetxt(csv, table, fmt="%.4f", delimiter=",", header=",".join(SCHEDULE_ROLES), comments="")
@@ -211,28 +225,60 @@ def prepare_model(source: Path, settings: np.ndarray, first_day: dt.date, workdi
     kept_kinds = ("schedule:", "energymanagementsystem:", "output:")
     unoccupied = _unoccupied_thermostats(objects)
     edited = []
-    for o in without(objects, kinds={"RunPeriod", "RunPeriodControl:SpecialDays",
-                                     "RunPeriodControl:DaylightSavingTime", "OutputControl:Files",
-                                     "Output:SQLite", "OutputControl:Table:Style", "Output:Variable",
-                                     "Output:Meter", "Output:Meter:MeterFileOnly", "Output:Table:Monthly",
-                                     "Output:Table:SummaryReports", "Output:Table:TimeBins"}):
+    for o in without(
+        objects,
+        kinds={
+            "RunPeriod",
+            "RunPeriodControl:SpecialDays",
+            "RunPeriodControl:DaylightSavingTime",
+            "OutputControl:Files",
+            "Output:SQLite",
+            "OutputControl:Table:Style",
+            "Output:Variable",
+            "Output:Meter",
+            "Output:Meter:MeterFileOnly",
+            "Output:Table:Monthly",
+            "Output:Table:SummaryReports",
+            "Output:Table:TimeBins",
+        },
+    ):
         if not o[0].lower().startswith(kept_kinds) and not serves_24h_space(o, unoccupied):
             o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
         edited.append(o)
     sim = of_type(edited, "SimulationControl")
     if sim:
         sim[0][1:6] = ["Yes", "Yes", "Yes", "No", "Yes"]  # autosize on design days, simulate the run period only
-    edited += [["Schedule:File", f"buildenv_{role}", "", str(csv), str(j + 1), "1", str(HOURS_PER_YEAR), "Comma",
-                "No", "60"] for j, role in enumerate(SCHEDULE_ROLES)]
-    edited.append(["RunPeriod", "buildenv", str(first_day.month), str(first_day.day), str(first_day.year),
-                   str(last_day.month), str(last_day.day), str(last_day.year), "", "No", "No", "No", "No", "No",
-                   "No"])
-    edited += [["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
-               ["Output:Meter", "HeatingCoils:EnergyTransfer", "Hourly"],
-               ["Output:Meter", "CoolingCoils:EnergyTransfer", "Hourly"],
-               ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
-               ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
-               ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29]
+    edited += [
+        ["Schedule:File", f"buildenv_{role}", "", str(csv), str(j + 1), "1", str(HOURS_PER_YEAR), "Comma", "No", "60"]
+        for j, role in enumerate(SCHEDULE_ROLES)
+    ]
+    edited.append(
+        [
+            "RunPeriod",
+            "buildenv",
+            str(first_day.month),
+            str(first_day.day),
+            str(first_day.year),
+            str(last_day.month),
+            str(last_day.day),
+            str(last_day.year),
+            "",
+            "No",
+            "No",
+            "No",
+            "No",
+            "No",
+            "No",
+        ]
+    )
+    edited += [
+        ["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
+        ["Output:Meter", "HeatingCoils:EnergyTransfer", "Hourly"],
+        ["Output:Meter", "CoolingCoils:EnergyTransfer", "Hourly"],
+        ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
+        ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
+        ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29,
+    ]
     if any(e.active and e.effect.kind == "energyplus" for e in effects):
         edited = inject_energyplus(edited, effects, source.stem, sizing=_sizing_run(source, workdir, epw))
     idf = workdir / f"{source.stem}_buildenv.idf"
@@ -330,18 +376,20 @@ def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
     run period (simulated last) has overwritten them (checked against ``eplusout.eso``, EnergyPlus 25.2).
     """
     day0 = dt.datetime(first_day.year, first_day.month, first_day.day)
-    expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00"
-                for h in range(hours)]
+    expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00" for h in range(hours)]
     stamps = frame["Date/Time"].astype(str).str.strip()
     rows = frame[stamps.isin(set(expected)).to_numpy()]
     if list(stamps[rows.index]) != expected:
-        raise ReferenceBuildingError(f"{csv}: {len(rows)} hourly rows stamped {first_day} and after ({len(frame)} "
-                                     f"in all), expected {hours} consecutive hours")
+        raise ReferenceBuildingError(
+            f"{csv}: {len(rows)} hourly rows stamped {first_day} and after ({len(frame)} "
+            f"in all), expected {hours} consecutive hours"
+        )
     return rows.reset_index(drop=True)
 
 
-def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int,
-                 first_day: dt.date | None = None) -> ReferenceRun:
+def read_sensors(
+    out: Path, occupied: list[str], weeks: int, warmup_weeks: int, first_day: dt.date | None = None
+) -> ReferenceRun:
     """Aggregate a finished reference run as the two sensors (see the module docstring).
 
     ``first_day`` (the run period's first day): read only the rows stamped with the run period's hours
@@ -351,8 +399,7 @@ def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int,
 
     frame = pd.read_csv(out / "eplusout.csv")
     if first_day is not None:
-        frame = _run_period_rows(frame, first_day, (weeks + warmup_weeks) * cat.HOURS_PER_WEEK,
-                                 out / "eplusout.csv")
+        frame = _run_period_rows(frame, first_day, (weeks + warmup_weeks) * cat.HOURS_PER_WEEK, out / "eplusout.csv")
     areas = zone_areas(out / "eplusout.eio")
     zones = [z for z in occupied if z.upper() in areas]
     temps, weights = [], []
@@ -377,15 +424,27 @@ def read_sensors(out: Path, occupied: list[str], weeks: int, warmup_weeks: int,
         raise ReferenceBuildingError(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
     skip = warmup_weeks * cat.HOURS_PER_WEEK
     shape = (weeks, cat.HOURS_PER_WEEK)
-    return ReferenceRun(temperature[skip:].reshape(shape), consumption[skip:].reshape(shape),
-                        float(sum(areas[z.upper()] for z in zones)), zones, hvac[skip:].reshape(shape),
-                        warmup_temperature_c=temperature[:skip].copy())
+    return ReferenceRun(
+        temperature[skip:].reshape(shape),
+        consumption[skip:].reshape(shape),
+        float(sum(areas[z.upper()] for z in zones)),
+        zones,
+        hvac[skip:].reshape(shape),
+        warmup_temperature_c=temperature[:skip].copy(),
+    )
 
 
-def run_reference(building: str | Path, epw: str | Path, start: dt.date, settings: np.ndarray,
-                  warmup_weeks: int = 1, workdir: Path | None = None, schedule_map: ScheduleMap | None = None,
-                  effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
-                  effect_seed: int = 0) -> ReferenceRun:
+def run_reference(
+    building: str | Path,
+    epw: str | Path,
+    start: dt.date,
+    settings: np.ndarray,
+    warmup_weeks: int = 1,
+    workdir: Path | None = None,
+    schedule_map: ScheduleMap | None = None,
+    effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
+    effect_seed: int = 0,
+) -> ReferenceRun:
     """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
 
     Args:
@@ -451,11 +510,20 @@ def historical_settings(weeks: int, ventilation_ach: float | None = None) -> np.
     return settings
 
 
-def make_reference_site(out: str | Path, building: str | Path = "medium_office", epw: str | Path = "usa_il_chicago",
-                        start: dt.date = dt.date(2019, 11, 4), weeks: int = 4, settings: np.ndarray | None = None,
-                        seed: int = 0, floors: int | None = None, schedule_map: ScheduleMap | None = None,
-                        effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
-                        effect_seed: int = 0, known: dict[str, float] | None = None) -> Path:
+def make_reference_site(
+    out: str | Path,
+    building: str | Path = "medium_office",
+    epw: str | Path = "usa_il_chicago",
+    start: dt.date = dt.date(2019, 11, 4),
+    weeks: int = 4,
+    settings: np.ndarray | None = None,
+    seed: int = 0,
+    floors: int | None = None,
+    schedule_map: ScheduleMap | None = None,
+    effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
+    effect_seed: int = 0,
+    known: dict[str, float] | None = None,
+) -> Path:
     """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.sites`).
 
     Args:
@@ -485,16 +553,32 @@ def make_reference_site(out: str | Path, building: str | Path = "medium_office",
     if settings is None:
         settings = historical_settings(weeks, historical_ventilation_ach(building))
     settings = np.asarray(settings, float)
-    run = run_reference(building, epw, start, settings, schedule_map=schedule_map, effects=effects,
-                        effect_seed=effect_seed)
+    run = run_reference(
+        building, epw, start, settings, schedule_map=schedule_map, effects=effects, effect_seed=effect_seed
+    )
     temperature, consumption = add_sensor_noise(run, seed)
-    source = {"kind": "reference building stand-in", "building": str(building),
-              "idf": reference_idf(building).name, "weather": str(epw), "seed": seed,
-              "temperature_sensor": f"occupied-zone mean of {len(run.zones)} zones, noise {TEMPERATURE_NOISE_K} K, "
-                                    f"resolution {TEMPERATURE_RESOLUTION_K} K",
-              "consumption_meter": "heating coils + interior lights + interior equipment, noise "
-                                   f"{CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh"}
-    return write_site(out, name=f"{building} in {epw} (reference-building stand-in)", weather=str(epw), start=start,
-                      floor_area_m2=round(run.floor_area_m2, 1), number_of_floors=int(floors), settings=settings,
-                      temperature_c=temperature, consumption_kwh=consumption, source=source,
-                      truth={"building": str(building), "effects": run.effects}, known=known)
+    source = {
+        "kind": "reference building stand-in",
+        "building": str(building),
+        "idf": reference_idf(building).name,
+        "weather": str(epw),
+        "seed": seed,
+        "temperature_sensor": f"occupied-zone mean of {len(run.zones)} zones, noise {TEMPERATURE_NOISE_K} K, "
+        f"resolution {TEMPERATURE_RESOLUTION_K} K",
+        "consumption_meter": "heating coils + interior lights + interior equipment, noise "
+        f"{CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh",
+    }
+    return write_site(
+        out,
+        name=f"{building} in {epw} (reference-building stand-in)",
+        weather=str(epw),
+        start=start,
+        floor_area_m2=round(run.floor_area_m2, 1),
+        number_of_floors=int(floors),
+        settings=settings,
+        temperature_c=temperature,
+        consumption_kwh=consumption,
+        source=source,
+        truth={"building": str(building), "effects": run.effects},
+        known=known,
+    )

@@ -107,8 +107,12 @@ def run_energyplus(model: dict | Path, epw: Path, workdir: Path, label: str = "m
     err = workdir / "eplusout.err"
     severe = severe_lines(err, limit=_ALL_LINES)
     if code == 0 and warmup_settled(severe):
-        log.warning("%s: warm-up did not fully converge (zone temperatures within %.1f K a day): %s", model_path,
-                    WARMUP_TEMPERATURE_LIMIT_K, " | ".join(severe[:8]))
+        log.warning(
+            "%s: warm-up did not fully converge (zone temperatures within %.1f K a day): %s",
+            model_path,
+            WARMUP_TEMPERATURE_LIMIT_K,
+            " | ".join(severe[:8]),
+        )
         severe = []
     if code != 0 or severe:
         detail = " | ".join(severe[:8]) if severe else f"exit code {code}, see {err}"

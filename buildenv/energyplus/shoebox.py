@@ -86,8 +86,14 @@ OUTPUT_VARIABLES: dict[str, tuple[str, str]] = {
 
 #: Columns of the Schedule:File, in order.
 SCHEDULE_COLUMNS: tuple[str, ...] = (
-    "heating_setpoint_c", "cooling_setpoint_c", "occupancy_fraction", "lighting_fraction",
-    "equipment_fraction", "ventilation_on", "ventilation_fraction", "supply_air_c",
+    "heating_setpoint_c",
+    "cooling_setpoint_c",
+    "occupancy_fraction",
+    "lighting_fraction",
+    "equipment_fraction",
+    "ventilation_on",
+    "ventilation_fraction",
+    "supply_air_c",
 )
 
 FACADES = ("north", "east", "south", "west")
@@ -147,14 +153,18 @@ def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
     """``{zone: share of the floor area (and volume)}`` of a zoning; the shares sum to 1."""
     if check_zoning(zoning) == "single":
         return dict(zip(zone_names(zoning), (1.0,)))
-    core = (g.side_m - 2.0 * g.perimeter_depth_m) ** 2 / g.side_m ** 2
+    core = (g.side_m - 2.0 * g.perimeter_depth_m) ** 2 / g.side_m**2
     return dict(zip(zone_names(zoning), (1.0 - core, core)))
 
 
 def zone_hvac_names(zone: str) -> dict[str, str]:
     """Names of a zone's fan coils (ideal loads), air handling unit and its coils."""
-    return {"fan_coils": f"{zone} {FAN_COILS}", "ahu": f"{zone} AHU", "heating_coil": f"{zone} {AHU_HEATING_COIL}",
-            "cooling_coil": f"{zone} {AHU_COOLING_COIL}"}
+    return {
+        "fan_coils": f"{zone} {FAN_COILS}",
+        "ahu": f"{zone} AHU",
+        "heating_coil": f"{zone} {AHU_HEATING_COIL}",
+        "cooling_coil": f"{zone} {AHU_COOLING_COIL}",
+    }
 
 
 def output_keys(name: str, zoning: str) -> list[tuple[str, str]]:
@@ -194,8 +204,11 @@ def theta_dict(theta: np.ndarray | dict[str, float], check: bool = True) -> dict
     """theta_build as ``{name: value}``, validated against the catalogue (``check=False``: a vector outside its
     ranges is kept, for sensitivity studies past them; the metamodel knows nothing there)."""
     if isinstance(theta, dict):
-        vector = cat.from_mapping("theta_build", theta, where="theta_build") if check else np.array(
-            [float(theta[name]) for name in cat.THETA_NAMES])
+        vector = (
+            cat.from_mapping("theta_build", theta, where="theta_build")
+            if check
+            else np.array([float(theta[name]) for name in cat.THETA_NAMES])
+        )
     else:
         vector = np.asarray(theta, dtype=float)
         if check:
@@ -206,10 +219,20 @@ def theta_dict(theta: np.ndarray | dict[str, float], check: bool = True) -> dict
 def _rect(origin: np.ndarray, along: np.ndarray, x0: float, width: float, z0: float, height: float) -> list[dict]:
     """Four vertices, upper-left first, counter-clockwise seen from outside."""
     up = np.array([0.0, 0.0, 1.0])
-    pts = [origin + along * x0 + up * (z0 + height), origin + along * x0 + up * z0,
-           origin + along * (x0 + width) + up * z0, origin + along * (x0 + width) + up * (z0 + height)]
-    return [{"vertex_x_coordinate": round(float(p[0]), 4), "vertex_y_coordinate": round(float(p[1]), 4),
-             "vertex_z_coordinate": round(float(p[2]), 4)} for p in pts]
+    pts = [
+        origin + along * x0 + up * (z0 + height),
+        origin + along * x0 + up * z0,
+        origin + along * (x0 + width) + up * z0,
+        origin + along * (x0 + width) + up * (z0 + height),
+    ]
+    return [
+        {
+            "vertex_x_coordinate": round(float(p[0]), 4),
+            "vertex_y_coordinate": round(float(p[1]), 4),
+            "vertex_z_coordinate": round(float(p[2]), 4),
+        }
+        for p in pts
+    ]
 
 
 def _xyz(points: list[tuple[float, float, float]]) -> list[dict]:
@@ -217,8 +240,14 @@ def _xyz(points: list[tuple[float, float, float]]) -> list[dict]:
 
 
 def _material(thickness: float, props: dict, roughness: str = "MediumRough") -> dict:
-    return {"roughness": roughness, "thickness": round(thickness, 5), **props,
-            "thermal_absorptance": 0.9, "solar_absorptance": 0.6, "visible_absorptance": 0.6}
+    return {
+        "roughness": roughness,
+        "thickness": round(thickness, 5),
+        **props,
+        "thermal_absorptance": 0.9,
+        "solar_absorptance": 0.6,
+        "visible_absorptance": 0.6,
+    }
 
 
 def ground_temperatures_c(weather: Weather) -> list[float]:
@@ -234,8 +263,7 @@ def hourly_ground_temperature_c(weather: Weather) -> np.ndarray:
     return np.asarray(ground_temperatures_c(weather), dtype=np.float32)[month_of_hour()]
 
 
-def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
-                   start_week: int) -> np.ndarray:
+def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray, start_week: int) -> np.ndarray:
     """The Schedule:File contents: ``(8760, len(SCHEDULE_COLUMNS))`` for weeks starting at ``start_week``.
 
     Args:
@@ -261,20 +289,28 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
     block = np.stack([columns[c].reshape(-1) for c in SCHEDULE_COLUMNS], axis=1)  # (weeks*168, n)
     table = np.tile(block[: cat.HOURS_PER_WEEK], (53, 1))[:8760]
     lo = start_week * cat.HOURS_PER_WEEK
-    table[lo: lo + weeks * cat.HOURS_PER_WEEK] = block
+    table[lo : lo + weeks * cat.HOURS_PER_WEEK] = block
     return table
 
 
-def write_schedule_file(path: Path, theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
-                        start_week: int) -> Path:
+def write_schedule_file(
+    path: Path, theta: dict[str, float], settings: np.ndarray, occupancy: np.ndarray, start_week: int
+) -> Path:
     """Write the Schedule:File CSV (header row + 8760 rows) of :func:`schedule_table`; returns ``path``."""
     table = schedule_table(theta, settings, occupancy, start_week)
     np.savetxt(path, table, delimiter=",", fmt="%.4f", header=",".join(SCHEDULE_COLUMNS), comments="")
     return Path(path)
 
 
-def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedule_csv: Path,
-                 start_week: int, n_weeks: int, zoning: str = DEFAULT_ZONING, check: bool = True) -> dict:
+def build_epjson(
+    theta: np.ndarray | dict[str, float],
+    weather: Weather,
+    schedule_csv: Path,
+    start_week: int,
+    n_weeks: int,
+    zoning: str = DEFAULT_ZONING,
+    check: bool = True,
+) -> dict:
     """Generate the shoebox as an epJSON document.
 
     Args:
@@ -293,8 +329,10 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
     check_zoning(zoning)
     csv = str(Path(schedule_csv).resolve())
     if start_week < 0 or start_week + n_weeks > cat.WEEKS_PER_YEAR:
-        raise ValueError(f"weeks {start_week}..{start_week + n_weeks - 1} do not fit in weeks "
-                         f"0..{cat.WEEKS_PER_YEAR - 1} of the year")
+        raise ValueError(
+            f"weeks {start_week}..{start_week + n_weeks - 1} do not fit in weeks "
+            f"0..{cat.WEEKS_PER_YEAR - 1} of the year"
+        )
     first = dt.date(2001, 1, 1) + dt.timedelta(days=7 * start_week)
     last = first + dt.timedelta(days=7 * n_weeks - 1)
 
@@ -304,35 +342,114 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
         m.setdefault(kind, {})[name] = fields
 
     add("Version", "Version 1", version_identifier="25.2")
-    add("SimulationControl", "SimulationControl 1", do_zone_sizing_calculation="No",
-        do_system_sizing_calculation="No", do_plant_sizing_calculation="No",
-        run_simulation_for_sizing_periods="No", run_simulation_for_weather_file_run_periods="Yes")
-    warmup = {} if zoning == "single" else {"loads_convergence_tolerance_value": CORE_WARMUP_LOADS_TOLERANCE,
-                                            "maximum_number_of_warmup_days": 50}
-    add("Building", "buildenv shoebox", north_axis=0.0, terrain="City", solar_distribution="FullExterior",
-        **{"maximum_number_of_warmup_days": 25, "minimum_number_of_warmup_days": 6, **warmup})
+    add(
+        "SimulationControl",
+        "SimulationControl 1",
+        do_zone_sizing_calculation="No",
+        do_system_sizing_calculation="No",
+        do_plant_sizing_calculation="No",
+        run_simulation_for_sizing_periods="No",
+        run_simulation_for_weather_file_run_periods="Yes",
+    )
+    warmup = (
+        {}
+        if zoning == "single"
+        else {"loads_convergence_tolerance_value": CORE_WARMUP_LOADS_TOLERANCE, "maximum_number_of_warmup_days": 50}
+    )
+    add(
+        "Building",
+        "buildenv shoebox",
+        north_axis=0.0,
+        terrain="City",
+        solar_distribution="FullExterior",
+        **{"maximum_number_of_warmup_days": 25, "minimum_number_of_warmup_days": 6, **warmup},
+    )
     add("Timestep", "Timestep 1", number_of_timesteps_per_hour=TIMESTEPS_PER_HOUR)
-    add("GlobalGeometryRules", "GlobalGeometryRules 1", starting_vertex_position="UpperLeftCorner",
-        vertex_entry_direction="Counterclockwise", coordinate_system="Relative")
-    add("Site:Location", weather.name, latitude=weather.latitude_deg, longitude=weather.longitude_deg,
-        time_zone=weather.timezone_h, elevation=weather.elevation_m)
-    add("RunPeriod", "weeks", begin_month=first.month, begin_day_of_month=first.day, end_month=last.month,
-        end_day_of_month=last.day, day_of_week_for_start_day="Monday",
-        use_weather_file_holidays_and_special_days="No", use_weather_file_daylight_saving_period="No",
-        apply_weekend_holiday_rule="No", use_weather_file_rain_indicators="Yes",
-        use_weather_file_snow_indicators="Yes")
-    months = ["january", "february", "march", "april", "may", "june", "july", "august", "september",
-              "october", "november", "december"]
-    add("Site:GroundTemperature:BuildingSurface", "ground",
-        **{f"{mo}_ground_temperature": tg for mo, tg in zip(months, ground_temperatures_c(weather))})
-    add("OutputControl:Files", "OutputControl:Files 1", output_csv="Yes", output_eso="No", output_mtr="No",
-        output_eio="No", output_tabular="No", output_sqlite="No", output_json="No", output_audit="No",
-        output_bnd="No", output_rdd="No", output_mdd="No", output_mtd="No", output_end="No", output_shd="No",
-        output_dfs="No", output_perflog="No", output_sln="No", output_sci="No", output_wrl="No",
-        output_screen="No", output_extshd="No", output_tarcog="No", output_dxf="No", output_edd="No",
-        output_dbg="No", output_space_sizing="No", output_zone_sizing="No", output_system_sizing="No",
-        output_plant_component_sizing="No", output_delightin="No", output_delighteldmp="No",
-        output_delightdfdmp="No", output_glhe="No")
+    add(
+        "GlobalGeometryRules",
+        "GlobalGeometryRules 1",
+        starting_vertex_position="UpperLeftCorner",
+        vertex_entry_direction="Counterclockwise",
+        coordinate_system="Relative",
+    )
+    add(
+        "Site:Location",
+        weather.name,
+        latitude=weather.latitude_deg,
+        longitude=weather.longitude_deg,
+        time_zone=weather.timezone_h,
+        elevation=weather.elevation_m,
+    )
+    add(
+        "RunPeriod",
+        "weeks",
+        begin_month=first.month,
+        begin_day_of_month=first.day,
+        end_month=last.month,
+        end_day_of_month=last.day,
+        day_of_week_for_start_day="Monday",
+        use_weather_file_holidays_and_special_days="No",
+        use_weather_file_daylight_saving_period="No",
+        apply_weekend_holiday_rule="No",
+        use_weather_file_rain_indicators="Yes",
+        use_weather_file_snow_indicators="Yes",
+    )
+    months = [
+        "january",
+        "february",
+        "march",
+        "april",
+        "may",
+        "june",
+        "july",
+        "august",
+        "september",
+        "october",
+        "november",
+        "december",
+    ]
+    add(
+        "Site:GroundTemperature:BuildingSurface",
+        "ground",
+        **{f"{mo}_ground_temperature": tg for mo, tg in zip(months, ground_temperatures_c(weather))},
+    )
+    add(
+        "OutputControl:Files",
+        "OutputControl:Files 1",
+        output_csv="Yes",
+        output_eso="No",
+        output_mtr="No",
+        output_eio="No",
+        output_tabular="No",
+        output_sqlite="No",
+        output_json="No",
+        output_audit="No",
+        output_bnd="No",
+        output_rdd="No",
+        output_mdd="No",
+        output_mtd="No",
+        output_end="No",
+        output_shd="No",
+        output_dfs="No",
+        output_perflog="No",
+        output_sln="No",
+        output_sci="No",
+        output_wrl="No",
+        output_screen="No",
+        output_extshd="No",
+        output_tarcog="No",
+        output_dxf="No",
+        output_edd="No",
+        output_dbg="No",
+        output_space_sizing="No",
+        output_zone_sizing="No",
+        output_system_sizing="No",
+        output_plant_component_sizing="No",
+        output_delightin="No",
+        output_delighteldmp="No",
+        output_delightdfdmp="No",
+        output_glhe="No",
+    )
 
     # Materials and constructions.
     add("Material", "Concrete wall", **_material(WALL_CONCRETE_M, CONCRETE))
@@ -342,55 +459,106 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
     add("Material", "Ground insulation", **_material(GROUND_INSULATION_M, INSULATION))
     for facade in FACADES:
         add("Material", f"Insulation {facade}", **_material(t[f"wall_insulation_{facade}_m"], INSULATION))
-        add("Construction", f"Wall {facade}", outside_layer="Concrete wall", layer_2=f"Insulation {facade}",
-            layer_3="Plasterboard")
+        add(
+            "Construction",
+            f"Wall {facade}",
+            outside_layer="Concrete wall",
+            layer_2=f"Insulation {facade}",
+            layer_3="Plasterboard",
+        )
     add("Material", "Insulation roof", **_material(t["roof_insulation_m"], INSULATION))
     add("Construction", "Roof", outside_layer="Membrane", layer_2="Insulation roof", layer_3="Concrete roof")
     add("Construction", "Ground floor", outside_layer="Ground insulation", layer_2="Concrete roof")
-    add("WindowMaterial:SimpleGlazingSystem", "Glazing", u_factor=GLAZING_U,
-        solar_heat_gain_coefficient=GLAZING_SHGC, visible_transmittance=0.6)
+    add(
+        "WindowMaterial:SimpleGlazingSystem",
+        "Glazing",
+        u_factor=GLAZING_U,
+        solar_heat_gain_coefficient=GLAZING_SHGC,
+        visible_transmittance=0.6,
+    )
     add("Construction", "Window", outside_layer="Glazing")
 
     # Zones and surfaces.
     add("Material:AirGap", "Partition air gap", thermal_resistance=PARTITION_AIR_GAP_M2K_W)
-    add("Construction", "Partition", outside_layer="Plasterboard", layer_2="Partition air gap",
-        layer_3="Plasterboard")
+    add("Construction", "Partition", outside_layer="Plasterboard", layer_2="Partition air gap", layer_3="Plasterboard")
     shares = zone_shares(g, zoning)
     for zone, share in shares.items():
-        add("Zone", zone, ceiling_height=FLOOR_HEIGHT_M, volume=round(share * g.volume_m3, 3),
-            floor_area=round(share * g.floor_area_m2, 3), part_of_total_floor_area="Yes")
+        add(
+            "Zone",
+            zone,
+            ceiling_height=FLOOR_HEIGHT_M,
+            volume=round(share * g.volume_m3, 3),
+            floor_area=round(share * g.floor_area_m2, 3),
+            part_of_total_floor_area="Yes",
+        )
     envelope = PERIMETER if zoning == "core_perimeter" else ZONE
     s, h = g.side_m, g.height_m
     for facade in FACADES:
         origin, along = g.facade(facade)
-        add("BuildingSurface:Detailed", f"Wall {facade}", surface_type="Wall", construction_name=f"Wall {facade}",
-            zone_name=envelope, outside_boundary_condition="Outdoors", sun_exposure="SunExposed",
-            wind_exposure="WindExposed", vertices=_rect(origin, along, 0.0, s, 0.0, h))
+        add(
+            "BuildingSurface:Detailed",
+            f"Wall {facade}",
+            surface_type="Wall",
+            construction_name=f"Wall {facade}",
+            zone_name=envelope,
+            outside_boundary_condition="Outdoors",
+            sun_exposure="SunExposed",
+            wind_exposure="WindExposed",
+            vertices=_rect(origin, along, 0.0, s, 0.0, h),
+        )
         wwr = t[f"window_to_wall_{facade}_percent"] / 100.0
         width = s * (1.0 - 2.0 * WINDOW_MARGIN)
         height = wwr * s * h / width
-        fields = {"surface_type": "Window", "construction_name": "Window", "building_surface_name": f"Wall {facade}",
-                  "number_of_vertices": 4}
+        fields = {
+            "surface_type": "Window",
+            "construction_name": "Window",
+            "building_surface_name": f"Wall {facade}",
+            "number_of_vertices": 4,
+        }
         for i, v in enumerate(_rect(origin, along, s * WINDOW_MARGIN, width, (h - height) / 2.0, height), 1):
             fields.update({f"vertex_{i}_{axis}_coordinate": v[f"vertex_{axis}_coordinate"] for axis in "xyz"})
         add("FenestrationSurface:Detailed", f"Window {facade}", **fields)
     for name, (zone, outline) in _horizontal_outlines(g, zoning).items():
-        add("BuildingSurface:Detailed", f"Roof {name}".strip(), surface_type="Roof", construction_name="Roof",
-            zone_name=zone, outside_boundary_condition="Outdoors", sun_exposure="SunExposed",
-            wind_exposure="WindExposed", vertices=_xyz([(x, y, h) for x, y in outline]))
-        add("BuildingSurface:Detailed", f"Ground floor {name}".strip(), surface_type="Floor",
-            construction_name="Ground floor", zone_name=zone, outside_boundary_condition="Ground",
-            sun_exposure="NoSun", wind_exposure="NoWind", vertices=_xyz([(x, y, 0.0) for x, y in outline[::-1]]))
+        add(
+            "BuildingSurface:Detailed",
+            f"Roof {name}".strip(),
+            surface_type="Roof",
+            construction_name="Roof",
+            zone_name=zone,
+            outside_boundary_condition="Outdoors",
+            sun_exposure="SunExposed",
+            wind_exposure="WindExposed",
+            vertices=_xyz([(x, y, h) for x, y in outline]),
+        )
+        add(
+            "BuildingSurface:Detailed",
+            f"Ground floor {name}".strip(),
+            surface_type="Floor",
+            construction_name="Ground floor",
+            zone_name=zone,
+            outside_boundary_condition="Ground",
+            sun_exposure="NoSun",
+            wind_exposure="NoWind",
+            vertices=_xyz([(x, y, 0.0) for x, y in outline[::-1]]),
+        )
     if zoning == "core_perimeter":
         inner = s - 2.0 * g.perimeter_depth_m
         for facade in FACADES:  # the core's walls face the perimeter; the perimeter's face the core
             origin, along = g.core_facade(facade)
             core_side = _rect(origin, along, 0.0, inner, 0.0, h)
             for zone, other, vertices in ((CORE, PERIMETER, core_side), (PERIMETER, CORE, core_side[::-1])):
-                add("BuildingSurface:Detailed", f"Partition {facade} {zone}", surface_type="Wall",
-                    construction_name="Partition", zone_name=zone, outside_boundary_condition="Surface",
-                    outside_boundary_condition_object=f"Partition {facade} {other}", sun_exposure="NoSun",
-                    wind_exposure="NoWind", vertices=vertices)
+                add(
+                    "BuildingSurface:Detailed",
+                    f"Partition {facade} {zone}",
+                    surface_type="Wall",
+                    construction_name="Partition",
+                    zone_name=zone,
+                    outside_boundary_condition="Surface",
+                    outside_boundary_condition_object=f"Partition {facade} {other}",
+                    sun_exposure="NoSun",
+                    wind_exposure="NoWind",
+                    vertices=vertices,
+                )
 
     # Schedules: constants and one Schedule:File column per hourly series.
     add("ScheduleTypeLimits", "Any Number")
@@ -398,16 +566,47 @@ def build_epjson(theta: np.ndarray | dict[str, float], weather: Weather, schedul
     add("Schedule:Constant", "Dual setpoint", schedule_type_limits_name="Any Number", hourly_value=4.0)
     add("Schedule:Constant", "Activity", schedule_type_limits_name="Any Number", hourly_value=PERSON_ACTIVITY_W)
     for column, name in enumerate(SCHEDULE_COLUMNS, 1):
-        add("Schedule:File", name, schedule_type_limits_name="Any Number", file_name=csv, column_number=column,
-            rows_to_skip_at_top=1, number_of_hours_of_data=8760, column_separator="Comma",
-            interpolate_to_timestep="No", minutes_per_item=60)
-    add("ThermostatSetpoint:DualSetpoint", "Setpoints", heating_setpoint_temperature_schedule_name="heating_setpoint_c",
-        cooling_setpoint_temperature_schedule_name="cooling_setpoint_c")
-    add("Curve:Biquadratic", "Constant biquadratic", coefficient1_constant=1.0, coefficient2_x=0.0,
-        coefficient3_x_2=0.0, coefficient4_y=0.0, coefficient5_y_2=0.0, coefficient6_x_y=0.0,
-        minimum_value_of_x=-50.0, maximum_value_of_x=60.0, minimum_value_of_y=-50.0, maximum_value_of_y=60.0)
-    add("Curve:Quadratic", "Constant quadratic", coefficient1_constant=1.0, coefficient2_x=0.0,
-        coefficient3_x_2=0.0, minimum_value_of_x=0.0, maximum_value_of_x=1.5)
+        add(
+            "Schedule:File",
+            name,
+            schedule_type_limits_name="Any Number",
+            file_name=csv,
+            column_number=column,
+            rows_to_skip_at_top=1,
+            number_of_hours_of_data=8760,
+            column_separator="Comma",
+            interpolate_to_timestep="No",
+            minutes_per_item=60,
+        )
+    add(
+        "ThermostatSetpoint:DualSetpoint",
+        "Setpoints",
+        heating_setpoint_temperature_schedule_name="heating_setpoint_c",
+        cooling_setpoint_temperature_schedule_name="cooling_setpoint_c",
+    )
+    add(
+        "Curve:Biquadratic",
+        "Constant biquadratic",
+        coefficient1_constant=1.0,
+        coefficient2_x=0.0,
+        coefficient3_x_2=0.0,
+        coefficient4_y=0.0,
+        coefficient5_y_2=0.0,
+        coefficient6_x_y=0.0,
+        minimum_value_of_x=-50.0,
+        maximum_value_of_x=60.0,
+        minimum_value_of_y=-50.0,
+        maximum_value_of_y=60.0,
+    )
+    add(
+        "Curve:Quadratic",
+        "Constant quadratic",
+        coefficient1_constant=1.0,
+        coefficient2_x=0.0,
+        coefficient3_x_2=0.0,
+        minimum_value_of_x=0.0,
+        maximum_value_of_x=1.5,
+    )
 
     capacity_j_per_k = t["capacitance_kj_per_k_m3"] * 1000.0 * g.volume_m3
     mass_thickness = capacity_j_per_k / (CONCRETE["density"] * CONCRETE["specific_heat"] * 2.0 * g.floor_area_m2)
@@ -426,92 +625,213 @@ def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geomet
     """Internal mass, people, lighting, workstations (each ``share`` of the building's) and infiltration (the
     whole building's, in the zone with the envelope) of one zone."""
     area = share * g.floor_area_m2
-    add("InternalMass", f"{zone} internal mass", construction_name="Internal mass", zone_or_zonelist_name=zone,
-        surface_area=round(2.0 * area, 3))
-    add("People", f"{zone} occupants", zone_or_zonelist_or_space_or_spacelist_name=zone,
-        number_of_people_schedule_name="occupancy_fraction", number_of_people_calculation_method="People",
-        number_of_people=round(t["occupant_density_per_m2"] * area, 3), fraction_radiant=0.3,
-        sensible_heat_fraction="Autocalculate", activity_level_schedule_name="Activity")
-    add("Lights", f"{zone} lighting", zone_or_zonelist_or_space_or_spacelist_name=zone,
-        schedule_name="lighting_fraction", design_level_calculation_method="LightingLevel",
-        lighting_level=round(LIGHTING_W_M2 * area, 3), fraction_radiant=0.42, fraction_visible=0.18)
-    add("ElectricEquipment", f"{zone} workstations", zone_or_zonelist_or_space_or_spacelist_name=zone,
-        schedule_name="equipment_fraction", design_level_calculation_method="EquipmentLevel",
-        design_level=round(t["pc_density_per_m2"] * area * PC_POWER_W, 3), fraction_radiant=0.3)
+    add(
+        "InternalMass",
+        f"{zone} internal mass",
+        construction_name="Internal mass",
+        zone_or_zonelist_name=zone,
+        surface_area=round(2.0 * area, 3),
+    )
+    add(
+        "People",
+        f"{zone} occupants",
+        zone_or_zonelist_or_space_or_spacelist_name=zone,
+        number_of_people_schedule_name="occupancy_fraction",
+        number_of_people_calculation_method="People",
+        number_of_people=round(t["occupant_density_per_m2"] * area, 3),
+        fraction_radiant=0.3,
+        sensible_heat_fraction="Autocalculate",
+        activity_level_schedule_name="Activity",
+    )
+    add(
+        "Lights",
+        f"{zone} lighting",
+        zone_or_zonelist_or_space_or_spacelist_name=zone,
+        schedule_name="lighting_fraction",
+        design_level_calculation_method="LightingLevel",
+        lighting_level=round(LIGHTING_W_M2 * area, 3),
+        fraction_radiant=0.42,
+        fraction_visible=0.18,
+    )
+    add(
+        "ElectricEquipment",
+        f"{zone} workstations",
+        zone_or_zonelist_or_space_or_spacelist_name=zone,
+        schedule_name="equipment_fraction",
+        design_level_calculation_method="EquipmentLevel",
+        design_level=round(t["pc_density_per_m2"] * area * PC_POWER_W, 3),
+        fraction_radiant=0.3,
+    )
     if infiltration:  # air changes of the whole building's volume, through the envelope
-        add("ZoneInfiltration:DesignFlowRate", f"{zone} infiltration",
-            zone_or_zonelist_or_space_or_spacelist_name=zone, schedule_name="Always on",
+        add(
+            "ZoneInfiltration:DesignFlowRate",
+            f"{zone} infiltration",
+            zone_or_zonelist_or_space_or_spacelist_name=zone,
+            schedule_name="Always on",
             design_flow_rate_calculation_method="Flow/Zone",
-            design_flow_rate=round(t["infiltration_ach"] * g.volume_m3 / 3600.0, 6), constant_term_coefficient=1.0,
-            temperature_term_coefficient=0.0, velocity_term_coefficient=0.0, velocity_squared_term_coefficient=0.0)
+            design_flow_rate=round(t["infiltration_ach"] * g.volume_m3 / 3600.0, 6),
+            constant_term_coefficient=1.0,
+            temperature_term_coefficient=0.0,
+            velocity_term_coefficient=0.0,
+            velocity_squared_term_coefficient=0.0,
+        )
 
 
 def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometry) -> None:
     """Thermostat, fan coils (ideal loads) and air handling unit of one zone, each ``share`` of the building's."""
     area = share * g.floor_area_m2
     names = zone_hvac_names(zone)
-    add("ZoneControl:Thermostat", f"{zone} thermostat", zone_or_zonelist_name=zone,
-        control_type_schedule_name="Dual setpoint", control_1_object_type="ThermostatSetpoint:DualSetpoint",
-        control_1_name="Setpoints")
-    add("NodeList", f"{zone} inlets", nodes=[{"node_name": f"{zone} fan coil supply"},
-                                             {"node_name": f"{zone} AHU supply"}])
-    add("NodeList", f"{zone} exhausts", nodes=[{"node_name": f"{zone} fan coil exhaust"},
-                                               {"node_name": f"{zone} AHU exhaust"}])
-    add("ZoneHVAC:EquipmentConnections", zone, zone_name=zone,
+    add(
+        "ZoneControl:Thermostat",
+        f"{zone} thermostat",
+        zone_or_zonelist_name=zone,
+        control_type_schedule_name="Dual setpoint",
+        control_1_object_type="ThermostatSetpoint:DualSetpoint",
+        control_1_name="Setpoints",
+    )
+    add(
+        "NodeList",
+        f"{zone} inlets",
+        nodes=[{"node_name": f"{zone} fan coil supply"}, {"node_name": f"{zone} AHU supply"}],
+    )
+    add(
+        "NodeList",
+        f"{zone} exhausts",
+        nodes=[{"node_name": f"{zone} fan coil exhaust"}, {"node_name": f"{zone} AHU exhaust"}],
+    )
+    add(
+        "ZoneHVAC:EquipmentConnections",
+        zone,
+        zone_name=zone,
         zone_conditioning_equipment_list_name=f"{zone} equipment",
         zone_air_inlet_node_or_nodelist_name=f"{zone} inlets",
-        zone_air_exhaust_node_or_nodelist_name=f"{zone} exhausts", zone_air_node_name=f"{zone} air",
-        zone_return_air_node_or_nodelist_name=f"{zone} return")
-    add("ZoneHVAC:EquipmentList", f"{zone} equipment", load_distribution_scheme="SequentialLoad", equipment=[
-        {"zone_equipment_object_type": "ZoneHVAC:OutdoorAirUnit", "zone_equipment_name": names["ahu"],
-         "zone_equipment_cooling_sequence": 1, "zone_equipment_heating_or_no_load_sequence": 1},
-        {"zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem", "zone_equipment_name": names["fan_coils"],
-         "zone_equipment_cooling_sequence": 2, "zone_equipment_heating_or_no_load_sequence": 2}])
-    add("ZoneHVAC:IdealLoadsAirSystem", names["fan_coils"], zone_supply_air_node_name=f"{zone} fan coil supply",
-        zone_exhaust_air_node_name=f"{zone} fan coil exhaust", maximum_heating_supply_air_temperature=50.0,
-        minimum_cooling_supply_air_temperature=13.0, maximum_heating_supply_air_humidity_ratio=0.0156,
-        minimum_cooling_supply_air_humidity_ratio=0.0077, heating_limit="LimitCapacity",
+        zone_air_exhaust_node_or_nodelist_name=f"{zone} exhausts",
+        zone_air_node_name=f"{zone} air",
+        zone_return_air_node_or_nodelist_name=f"{zone} return",
+    )
+    add(
+        "ZoneHVAC:EquipmentList",
+        f"{zone} equipment",
+        load_distribution_scheme="SequentialLoad",
+        equipment=[
+            {
+                "zone_equipment_object_type": "ZoneHVAC:OutdoorAirUnit",
+                "zone_equipment_name": names["ahu"],
+                "zone_equipment_cooling_sequence": 1,
+                "zone_equipment_heating_or_no_load_sequence": 1,
+            },
+            {
+                "zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem",
+                "zone_equipment_name": names["fan_coils"],
+                "zone_equipment_cooling_sequence": 2,
+                "zone_equipment_heating_or_no_load_sequence": 2,
+            },
+        ],
+    )
+    add(
+        "ZoneHVAC:IdealLoadsAirSystem",
+        names["fan_coils"],
+        zone_supply_air_node_name=f"{zone} fan coil supply",
+        zone_exhaust_air_node_name=f"{zone} fan coil exhaust",
+        maximum_heating_supply_air_temperature=50.0,
+        minimum_cooling_supply_air_temperature=13.0,
+        maximum_heating_supply_air_humidity_ratio=0.0156,
+        minimum_cooling_supply_air_humidity_ratio=0.0077,
+        heating_limit="LimitCapacity",
         maximum_sensible_heating_capacity=round(t["heating_power_w_m2"] * area, 3),
-        cooling_limit="LimitCapacity", maximum_total_cooling_capacity=round(t["cooling_power_w_m2"] * area, 3),
-        dehumidification_control_type="None", humidification_control_type="None")
+        cooling_limit="LimitCapacity",
+        maximum_total_cooling_capacity=round(t["cooling_power_w_m2"] * area, 3),
+        dehumidification_control_type="None",
+        humidification_control_type="None",
+    )
 
     # Air handling unit: outdoor air -> DX cooling coil -> electric heating coil -> supply fan -> zone.
     oa_flow = cat.get("ventilation_ach").max * share * g.volume_m3 / 3600.0
-    add("ZoneHVAC:OutdoorAirUnit", names["ahu"], availability_schedule_name="ventilation_on", zone_name=zone,
-        outdoor_air_flow_rate=round(oa_flow, 5), outdoor_air_schedule_name="ventilation_fraction",
-        supply_fan_name=f"{zone} AHU supply fan", supply_fan_placement="DrawThrough",
-        exhaust_fan_name=f"{zone} AHU exhaust fan", exhaust_air_flow_rate=round(oa_flow, 5),
-        exhaust_air_schedule_name="ventilation_fraction", unit_control_type="TemperatureControl",
+    add(
+        "ZoneHVAC:OutdoorAirUnit",
+        names["ahu"],
+        availability_schedule_name="ventilation_on",
+        zone_name=zone,
+        outdoor_air_flow_rate=round(oa_flow, 5),
+        outdoor_air_schedule_name="ventilation_fraction",
+        supply_fan_name=f"{zone} AHU supply fan",
+        supply_fan_placement="DrawThrough",
+        exhaust_fan_name=f"{zone} AHU exhaust fan",
+        exhaust_air_flow_rate=round(oa_flow, 5),
+        exhaust_air_schedule_name="ventilation_fraction",
+        unit_control_type="TemperatureControl",
         high_air_control_temperature_schedule_name="supply_air_c",
-        low_air_control_temperature_schedule_name="supply_air_c", outdoor_air_node_name=f"{zone} AHU outdoor air",
-        airoutlet_node_name=f"{zone} AHU supply", airinlet_node_name=f"{zone} AHU exhaust",
-        supply_fanoutlet_node_name=f"{zone} AHU supply", outdoor_air_unit_list_name=f"{zone} AHU components")
-    add("ZoneHVAC:OutdoorAirUnit:EquipmentList", f"{zone} AHU components",
-        component_1_object_type="CoilSystem:Cooling:DX", component_1_name=f"{zone} AHU cooling system",
-        component_2_object_type="Coil:Heating:Electric", component_2_name=names["heating_coil"])
-    add("CoilSystem:Cooling:DX", f"{zone} AHU cooling system", availability_schedule_name="ventilation_on",
+        low_air_control_temperature_schedule_name="supply_air_c",
+        outdoor_air_node_name=f"{zone} AHU outdoor air",
+        airoutlet_node_name=f"{zone} AHU supply",
+        airinlet_node_name=f"{zone} AHU exhaust",
+        supply_fanoutlet_node_name=f"{zone} AHU supply",
+        outdoor_air_unit_list_name=f"{zone} AHU components",
+    )
+    add(
+        "ZoneHVAC:OutdoorAirUnit:EquipmentList",
+        f"{zone} AHU components",
+        component_1_object_type="CoilSystem:Cooling:DX",
+        component_1_name=f"{zone} AHU cooling system",
+        component_2_object_type="Coil:Heating:Electric",
+        component_2_name=names["heating_coil"],
+    )
+    add(
+        "CoilSystem:Cooling:DX",
+        f"{zone} AHU cooling system",
+        availability_schedule_name="ventilation_on",
         dx_cooling_coil_system_inlet_node_name=f"{zone} AHU outdoor air",
         dx_cooling_coil_system_outlet_node_name=f"{zone} AHU cooled air",
         dx_cooling_coil_system_sensor_node_name=f"{zone} AHU cooled air",
-        cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed", cooling_coil_name=names["cooling_coil"])
-    add("Coil:Cooling:DX:SingleSpeed", names["cooling_coil"], availability_schedule_name="ventilation_on",
+        cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed",
+        cooling_coil_name=names["cooling_coil"],
+    )
+    add(
+        "Coil:Cooling:DX:SingleSpeed",
+        names["cooling_coil"],
+        availability_schedule_name="ventilation_on",
         gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * oa_flow / DX_FLOW_PER_CAPACITY, 2),
-        gross_rated_sensible_heat_ratio=0.75, gross_rated_cooling_cop=3.0,
+        gross_rated_sensible_heat_ratio=0.75,
+        gross_rated_cooling_cop=3.0,
         rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * oa_flow, 5),
-        air_inlet_node_name=f"{zone} AHU outdoor air", air_outlet_node_name=f"{zone} AHU cooled air",
+        air_inlet_node_name=f"{zone} AHU outdoor air",
+        air_outlet_node_name=f"{zone} AHU cooled air",
         total_cooling_capacity_function_of_temperature_curve_name="Constant biquadratic",
         total_cooling_capacity_function_of_flow_fraction_curve_name="Constant quadratic",
         energy_input_ratio_function_of_temperature_curve_name="Constant biquadratic",
         energy_input_ratio_function_of_flow_fraction_curve_name="Constant quadratic",
-        part_load_fraction_correlation_curve_name="Constant quadratic")
-    add("Coil:Heating:Electric", names["heating_coil"], availability_schedule_name="ventilation_on", efficiency=1.0,
+        part_load_fraction_correlation_curve_name="Constant quadratic",
+    )
+    add(
+        "Coil:Heating:Electric",
+        names["heating_coil"],
+        availability_schedule_name="ventilation_on",
+        efficiency=1.0,
         nominal_capacity=round(oa_flow * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
-        air_inlet_node_name=f"{zone} AHU cooled air", air_outlet_node_name=f"{zone} AHU heated air")
-    add("Fan:ConstantVolume", f"{zone} AHU supply fan", availability_schedule_name="ventilation_on",
-        fan_total_efficiency=0.6, pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5),
-        motor_efficiency=0.9, motor_in_airstream_fraction=1.0, air_inlet_node_name=f"{zone} AHU heated air",
-        air_outlet_node_name=f"{zone} AHU supply")
-    add("Fan:ConstantVolume", f"{zone} AHU exhaust fan", availability_schedule_name="ventilation_on",
-        fan_total_efficiency=0.6, pressure_rise=AHU_FAN_PRESSURE_PA, maximum_flow_rate=round(oa_flow, 5),
-        motor_efficiency=0.9, motor_in_airstream_fraction=1.0, air_inlet_node_name=f"{zone} AHU exhaust",
-        air_outlet_node_name=f"{zone} AHU relief")
+        air_inlet_node_name=f"{zone} AHU cooled air",
+        air_outlet_node_name=f"{zone} AHU heated air",
+    )
+    add(
+        "Fan:ConstantVolume",
+        f"{zone} AHU supply fan",
+        availability_schedule_name="ventilation_on",
+        fan_total_efficiency=0.6,
+        pressure_rise=AHU_FAN_PRESSURE_PA,
+        maximum_flow_rate=round(oa_flow, 5),
+        motor_efficiency=0.9,
+        motor_in_airstream_fraction=1.0,
+        air_inlet_node_name=f"{zone} AHU heated air",
+        air_outlet_node_name=f"{zone} AHU supply",
+    )
+    add(
+        "Fan:ConstantVolume",
+        f"{zone} AHU exhaust fan",
+        availability_schedule_name="ventilation_on",
+        fan_total_efficiency=0.6,
+        pressure_rise=AHU_FAN_PRESSURE_PA,
+        maximum_flow_rate=round(oa_flow, 5),
+        motor_efficiency=0.9,
+        motor_in_airstream_fraction=1.0,
+        air_inlet_node_name=f"{zone} AHU exhaust",
+        air_outlet_node_name=f"{zone} AHU relief",
+    )

@@ -43,9 +43,16 @@ class WeeksResult:
     start_week: int
 
 
-def simulate_weeks(theta: np.ndarray | dict[str, float], settings: np.ndarray, occupancy: np.ndarray,
-                   epw: str | Path, start_week: int, workdir: Path | None = None,
-                   keep_files: bool = False, zoning: str = DEFAULT_ZONING) -> WeeksResult:
+def simulate_weeks(
+    theta: np.ndarray | dict[str, float],
+    settings: np.ndarray,
+    occupancy: np.ndarray,
+    epw: str | Path,
+    start_week: int,
+    workdir: Path | None = None,
+    keep_files: bool = False,
+    zoning: str = DEFAULT_ZONING,
+) -> WeeksResult:
     """Run EnergyPlus for ``len(settings)`` consecutive weeks of one building.
 
     Args:
@@ -99,8 +106,9 @@ def read_outputs(csv_path: Path, theta: dict[str, float], n_weeks: int, zoning: 
     """
     shares = zone_shares(Geometry.from_theta(theta), zoning)
     zones = zone_names(zoning)
-    pairs = {f"{name}|{zone}": pair for name in cat.OUTPUT_NAMES
-             for zone, pair in zip(zones, output_keys(name, zoning))}
+    pairs = {
+        f"{name}|{zone}": pair for name in cat.OUTPUT_NAMES for zone, pair in zip(zones, output_keys(name, zoning))
+    }
     raw = read_hourly_csv(Path(csv_path), pairs)
     hours = n_weeks * cat.HOURS_PER_WEEK
     columns = []

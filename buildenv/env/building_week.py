@@ -16,21 +16,29 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 
-from buildenv.env import actions as act
 from buildenv import catalogue as cat
+from buildenv.env import actions as act
 from buildenv.env import objectives as obj
-from buildenv.errors import BuildingEnvError
 from buildenv.env.observations import BOUND, OBSERVATION_KINDS, observation_size, observe
+from buildenv.env.registration import ENV_ID
+from buildenv.errors import BuildingEnvError
 from buildenv.sites.week_simulator import SiteModel
 
-from buildenv.env.registration import ENV_ID
 DEFAULT_SITE = Path(__file__).resolve().parents[1] / "data" / "sites" / "default"
 BACKENDS = ("metamodel", "energyplus")
 WEEK_SPLITS = ("train", "test", "all")
 ARGUMENTS: dict[str, Any] = {
-    "site": "default", "metamodel": "default", "comfort_weight": 1.0, "target_temperature_c": obj.T_STAR_C,
-    "comfort": "rms", "comfort_band_k": 1.0, "observation": "compact", "episode_weeks": 1, "weeks": "train",
-    "backend": "metamodel", "render_mode": None,
+    "site": "default",
+    "metamodel": "default",
+    "comfort_weight": 1.0,
+    "target_temperature_c": obj.T_STAR_C,
+    "comfort": "rms",
+    "comfort_band_k": 1.0,
+    "observation": "compact",
+    "episode_weeks": 1,
+    "weeks": "train",
+    "backend": "metamodel",
+    "render_mode": None,
 }
 
 
@@ -55,17 +63,19 @@ class _Building:
     def __init__(self, **kwargs: Any) -> None:
         unknown = sorted(set(kwargs) - set(ARGUMENTS))
         if unknown:
-            raise BuildingEnvError(f"{ENV_ID}: unknown argument(s) {', '.join(unknown)}; "
-                                   f"allowed: {', '.join(ARGUMENTS)}")
+            raise BuildingEnvError(
+                f"{ENV_ID}: unknown argument(s) {', '.join(unknown)}; allowed: {', '.join(ARGUMENTS)}"
+            )
         args = {**ARGUMENTS, **kwargs}
         self.args = args
-        for key, allowed in (("comfort", obj.COMFORT_KINDS), ("observation", OBSERVATION_KINDS),
-                             ("backend", BACKENDS)):
+        for key, allowed in (("comfort", obj.COMFORT_KINDS), ("observation", OBSERVATION_KINDS), ("backend", BACKENDS)):
             if args[key] not in allowed:
                 raise BuildingEnvError(f"{ENV_ID}: {key}={args[key]!r}; choose one of {', '.join(allowed)}")
         if args["render_mode"] is not None:
-            raise BuildingEnvError(f"{ENV_ID}: render_mode={args['render_mode']!r}; it has no rendering "
-                                   "(plot the info's settings and series instead)")
+            raise BuildingEnvError(
+                f"{ENV_ID}: render_mode={args['render_mode']!r}; it has no rendering "
+                "(plot the info's settings and series instead)"
+            )
         self.episode_weeks = int(args["episode_weeks"])
         if self.episode_weeks < 1:
             raise BuildingEnvError(f"{ENV_ID}: episode_weeks={args['episode_weeks']}; give 1 or more")
@@ -98,16 +108,20 @@ class _Building:
             return self.model.simulate(settings, weeks, previous)
         from buildenv.env.energyplus_backend import as_outputs, run_weeks
 
-        t, q = run_weeks(self.site, [self.model.week_starts[w] for w in weeks], settings, previous,
-                         self.model.historical)
+        t, q = run_weeks(
+            self.site, [self.model.week_starts[w] for w in weeks], settings, previous, self.model.historical
+        )
         return as_outputs(t, q)
 
     def historical(self, weeks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Energy (Wh/m2 per hour) and comfort (K) of the historical settings in ``weeks``, cached."""
         missing = sorted({int(w) for w in weeks} - set(self._historical))
         if missing:
-            out = self.outputs(np.broadcast_to(self.model.historical, (len(missing), *self.model.historical.shape)),
-                               np.array(missing), None)
+            out = self.outputs(
+                np.broadcast_to(self.model.historical, (len(missing), *self.model.historical.shape)),
+                np.array(missing),
+                None,
+            )
             for w, e, c in zip(missing, obj.hvac_energy(out), self.comfort(out)):
                 self._historical[w] = (float(e), float(c))
         pairs = np.array([self._historical[int(w)] for w in weeks]).reshape(len(weeks), 2)
@@ -115,11 +129,17 @@ class _Building:
 
     def comfort(self, outputs: np.ndarray) -> np.ndarray:
         """Comfort term (K) of outputs ``(N, 168, 8)``."""
-        return obj.comfort_deviation(obj.indoor_temperature(outputs), self.occupied, self.target_c,
-                                     self.args["comfort"], float(self.args["comfort_band_k"]))
+        return obj.comfort_deviation(
+            obj.indoor_temperature(outputs),
+            self.occupied,
+            self.target_c,
+            self.args["comfort"],
+            float(self.args["comfort_band_k"]),
+        )
 
-    def score(self, actions: np.ndarray, weeks: np.ndarray,
-              previous: np.ndarray | None = None) -> dict[str, np.ndarray]:
+    def score(
+        self, actions: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None = None
+    ) -> dict[str, np.ndarray]:
         """Everything ``step`` and ``evaluate`` report for actions ``(N, 84)`` in weeks ``(N,)``."""
         settings, clipped = act.decode(actions)
         weeks = np.asarray(weeks, dtype=int)
@@ -129,26 +149,38 @@ class _Building:
         hist_energy, hist_comfort = self.historical(weeks)
         ratio = obj.energy_ratio(energy, hist_energy)
         kwh = cat.HOURS_PER_WEEK * self.model.floor_area_m2 / 1000.0
-        return {"reward": -(ratio + self.comfort_weight * comfort), "energy_term": ratio, "comfort_k": comfort,
-                "energy_wh_m2": energy, "energy_kwh": energy * kwh, "energy_historical_kwh": hist_energy * kwh,
-                "comfort_historical_k": hist_comfort, "savings_percent": 100.0 * (1.0 - ratio),
-                "mean_temperature_occupied_c": obj.indoor_temperature(out)[:, self.occupied].mean(-1),
-                "clipped_components": clipped, "settings": settings,
-                "temperature_c": obj.indoor_temperature(out), "hvac_wh_m2": obj.hvac_energy_hourly(out)}
+        return {
+            "reward": -(ratio + self.comfort_weight * comfort),
+            "energy_term": ratio,
+            "comfort_k": comfort,
+            "energy_wh_m2": energy,
+            "energy_kwh": energy * kwh,
+            "energy_historical_kwh": hist_energy * kwh,
+            "comfort_historical_k": hist_comfort,
+            "savings_percent": 100.0 * (1.0 - ratio),
+            "mean_temperature_occupied_c": obj.indoor_temperature(out)[:, self.occupied].mean(-1),
+            "clipped_components": clipped,
+            "settings": settings,
+            "temperature_c": obj.indoor_temperature(out),
+            "hvac_wh_m2": obj.hvac_energy_hourly(out),
+        }
 
     def observe(self, weeks: np.ndarray) -> np.ndarray:
         """Observations ``(N, obs)`` of the weeks' starts."""
         weeks = np.asarray(weeks, dtype=int)
-        return observe(self.model.weather(weeks), weeks, self.model.occupancy, self.model.theta,
-                       self.args["observation"])
+        return observe(
+            self.model.weather(weeks), weeks, self.model.occupancy, self.model.theta, self.args["observation"]
+        )
 
     def pick_week(self, rng: np.random.Generator, options: dict | None) -> int:
         """The first week of a new episode: ``options["week"]`` if given (it must be a valid start), else drawn."""
         if options and "week" in options:
             week = int(options["week"])
             if week not in self.starts:
-                raise BuildingEnvError(f"{ENV_ID}: week {week} cannot start an episode of weeks="
-                                       f"{self.args['weeks']!r} (valid starts: {self.starts})")
+                raise BuildingEnvError(
+                    f"{ENV_ID}: week {week} cannot start an episode of weeks="
+                    f"{self.args['weeks']!r} (valid starts: {self.starts})"
+                )
             return week
         return int(self.starts[int(rng.integers(len(self.starts)))])
 
@@ -348,8 +380,9 @@ class BuildingWeekVectorEnv(VectorEnv):
         self.num_envs = int(num_envs)
         self.single_observation_space = self._b.observation_space
         self.single_action_space = self._b.action_space
-        self.observation_space = spaces.Box(-BOUND, BOUND, (self.num_envs, *self._b.observation_space.shape),
-                                            np.float32)
+        self.observation_space = spaces.Box(
+            -BOUND, BOUND, (self.num_envs, *self._b.observation_space.shape), np.float32
+        )
         self.action_space = spaces.Box(-1.0, 1.0, (self.num_envs, act.ACTION_SIZE), np.float32)
         self.render_mode = None
         self._weeks = np.zeros(self.num_envs, dtype=int)
@@ -386,8 +419,13 @@ class BuildingWeekVectorEnv(VectorEnv):
                 self._steps[i] = 0
                 self._previous[i] = self._b.model.historical
             obs = np.where(terminated[:, None], self._b.observe(self._weeks), obs)
-        return (obs.astype(np.float32), scores["reward"].astype(np.float32), terminated,
-                np.zeros(self.num_envs, bool), info)
+        return (
+            obs.astype(np.float32),
+            scores["reward"].astype(np.float32),
+            terminated,
+            np.zeros(self.num_envs, bool),
+            info,
+        )
 
     def evaluate(self, actions: np.ndarray, week: int) -> dict[str, np.ndarray]:
         """Score actions ``(N, 84)`` on one week (as :meth:`BuildingWeekEnv.evaluate`)."""
@@ -397,4 +435,3 @@ class BuildingWeekVectorEnv(VectorEnv):
     def historical_action(self) -> np.ndarray:
         """The action of the site's historical settings ``(84,)``."""
         return act.encode(self._b.model.historical)
-

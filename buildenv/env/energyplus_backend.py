@@ -26,25 +26,35 @@ def reference_building(site) -> str:
     """The reference building (name or IDF path) a site stands in for; raises if it has none."""
     building = (site.truth or {}).get("building")
     if not building:
-        raise BuildingEnvError(f"site {site.path} has no EnergyPlus model (truth.json names none): "
-                               "backend='energyplus' needs a site made by `buildenv site reference`")
+        raise BuildingEnvError(
+            f"site {site.path} has no EnergyPlus model (truth.json names none): "
+            "backend='energyplus' needs a site made by `buildenv site reference`"
+        )
     return str(building)
 
 
-def _run_one(building: str, epw: str, monday: dt.date, settings: np.ndarray,
-             previous: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+def _run_one(
+    building: str, epw: str, monday: dt.date, settings: np.ndarray, previous: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, float]:
     from buildenv.energyplus.reference import run_reference
 
     if (monday - dt.timedelta(days=7)).year == monday.year:
-        run = run_reference(building, epw, monday - dt.timedelta(days=7), np.stack([previous, settings]),
-                            warmup_weeks=1)
+        run = run_reference(
+            building, epw, monday - dt.timedelta(days=7), np.stack([previous, settings]), warmup_weeks=1
+        )
         return run.temperature_c[1], run.hvac_kwh[1], run.floor_area_m2
     run = run_reference(building, epw, monday, settings[None], warmup_weeks=0)
     return run.temperature_c[0], run.hvac_kwh[0], run.floor_area_m2
 
 
-def run_weeks(site, week_starts: list[dt.date], settings: np.ndarray, previous: np.ndarray | None = None,
-              historical: np.ndarray | None = None, workers: int | None = None) -> tuple[np.ndarray, np.ndarray]:
+def run_weeks(
+    site,
+    week_starts: list[dt.date],
+    settings: np.ndarray,
+    previous: np.ndarray | None = None,
+    historical: np.ndarray | None = None,
+    workers: int | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
     """Run weeks on the site's reference model.
 
     Args:
@@ -80,4 +90,3 @@ def as_outputs(temperature: np.ndarray, hvac_wh_m2: np.ndarray) -> np.ndarray:
     out[..., cat.OUTPUT_NAMES.index("T_INT_OFFICE")] = temperature
     out[..., cat.OUTPUT_NAMES.index("Q_HEAT_OFFICE")] = hvac_wh_m2
     return out
-

@@ -41,15 +41,16 @@ def indoor_temperature(outputs: np.ndarray) -> np.ndarray:
     return outputs[..., cat.OUTPUT_NAMES.index("T_INT_OFFICE")]
 
 
-def comfort_deviation(temperature_c: np.ndarray, occupied: np.ndarray, target_c: float = T_STAR_C,
-                      kind: str = "rms", band_k: float = 1.0) -> np.ndarray:
+def comfort_deviation(
+    temperature_c: np.ndarray, occupied: np.ndarray, target_c: float = T_STAR_C, kind: str = "rms", band_k: float = 1.0
+) -> np.ndarray:
     """Comfort term (K) of hourly temperatures ``(..., 168)`` over the ``occupied`` hours ``(168,)``.
 
     Raises ``ValueError`` for an unknown ``kind`` (see :data:`COMFORT_KINDS`).
     """
     dev = np.asarray(temperature_c)[..., np.asarray(occupied, bool)] - target_c
     if kind == "rms":
-        return np.sqrt((dev ** 2).mean(-1))
+        return np.sqrt((dev**2).mean(-1))
     if kind == "band":
         return np.maximum(np.abs(dev) - band_k, 0.0).mean(-1)
     if kind == "mean_abs":

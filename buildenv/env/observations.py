@@ -24,8 +24,16 @@ from buildenv import catalogue as cat
 
 OBSERVATION_KINDS = ("compact", "forecast")
 BOUND = 10.0
-_SCALE = {"DNI": 300.0, "IBEAM_H": 300.0, "IBEAM_N": 300.0, "IDIFF_H": 300.0, "IGLOB_H": 300.0, "RHUM": 100.0,
-          "TAMB": 20.0, "WIND_SPEED": 10.0}
+_SCALE = {
+    "DNI": 300.0,
+    "IBEAM_H": 300.0,
+    "IBEAM_N": 300.0,
+    "IDIFF_H": 300.0,
+    "IGLOB_H": 300.0,
+    "RHUM": 100.0,
+    "TAMB": 20.0,
+    "WIND_SPEED": 10.0,
+}
 FORECAST_CHANNELS = tuple(_SCALE)
 
 
@@ -40,8 +48,9 @@ def _unit(values: np.ndarray, group: str) -> np.ndarray:
     return 2.0 * (np.asarray(values, dtype=float) - lo) / (hi - lo) - 1.0
 
 
-def observe(weather: np.ndarray, week_of_year: np.ndarray, occupancy: np.ndarray, theta: np.ndarray,
-            kind: str = "compact") -> np.ndarray:
+def observe(
+    weather: np.ndarray, week_of_year: np.ndarray, occupancy: np.ndarray, theta: np.ndarray, kind: str = "compact"
+) -> np.ndarray:
     """Observations ``(N, observation_size(kind))`` float32 of N weeks.
 
     Args:
@@ -58,15 +67,24 @@ def observe(weather: np.ndarray, week_of_year: np.ndarray, occupancy: np.ndarray
     def ch(name: str) -> np.ndarray:
         return daily[..., cat.WEATHER_NAMES.index(name)]
 
-    per_day = np.stack([ch("TAMB").mean(-1) / _SCALE["TAMB"], ch("TAMB").min(-1) / _SCALE["TAMB"],
-                        ch("TAMB").max(-1) / _SCALE["TAMB"], ch("IGLOB_H").mean(-1) / _SCALE["IGLOB_H"],
-                        ch("WIND_SPEED").mean(-1) / _SCALE["WIND_SPEED"], ch("RHUM").mean(-1) / _SCALE["RHUM"]],
-                       axis=-1).reshape(n, -1)
+    per_day = np.stack(
+        [
+            ch("TAMB").mean(-1) / _SCALE["TAMB"],
+            ch("TAMB").min(-1) / _SCALE["TAMB"],
+            ch("TAMB").max(-1) / _SCALE["TAMB"],
+            ch("IGLOB_H").mean(-1) / _SCALE["IGLOB_H"],
+            ch("WIND_SPEED").mean(-1) / _SCALE["WIND_SPEED"],
+            ch("RHUM").mean(-1) / _SCALE["RHUM"],
+        ],
+        axis=-1,
+    ).reshape(n, -1)
     angle = 2.0 * np.pi * np.asarray(week_of_year, dtype=float) / cat.WEEKS_PER_YEAR
-    parts = [per_day,
-             np.broadcast_to(_unit(occupancy, "occupancy").reshape(-1), (n, occupancy.size)),
-             np.stack([np.sin(angle), np.cos(angle)], axis=-1),
-             np.broadcast_to(_unit(theta, "theta_build"), (n, len(cat.THETA_NAMES)))]
+    parts = [
+        per_day,
+        np.broadcast_to(_unit(occupancy, "occupancy").reshape(-1), (n, occupancy.size)),
+        np.stack([np.sin(angle), np.cos(angle)], axis=-1),
+        np.broadcast_to(_unit(theta, "theta_build"), (n, len(cat.THETA_NAMES))),
+    ]
     if kind == "forecast":
         idx = [cat.WEATHER_NAMES.index(c) for c in FORECAST_CHANNELS]
         scale = np.array([_SCALE[c] for c in FORECAST_CHANNELS])

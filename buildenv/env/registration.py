@@ -15,5 +15,8 @@ def register_envs() -> None:
     import gymnasium
 
     if ENV_ID not in gymnasium.registry:
-        gymnasium.register(id=ENV_ID, entry_point="buildenv.env.building_week:BuildingWeekEnv",
-                           vector_entry_point="buildenv.env.building_week:BuildingWeekVectorEnv")
+        gymnasium.register(
+            id=ENV_ID,
+            entry_point="buildenv.env.building_week:BuildingWeekEnv",
+            vector_entry_point="buildenv.env.building_week:BuildingWeekVectorEnv",
+        )

@@ -34,16 +34,22 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
-from buildenv.schedules import HOURLY_CHANNELS, hourly_encoding
 from buildenv.metamodel.threads import MetamodelWorkers, split_calls
+from buildenv.schedules import HOURLY_CHANNELS, hourly_encoding
 
 #: Hours before the week the model sees by default (a checkpoint records its own, ``metadata["context_hours"]``)
 CONTEXT_HOURS = 24
 WEATHER_INPUTS: tuple[str, ...] = ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H", "RHUM", "TAMB", "WIND_SPEED")
 CALENDAR_INPUTS: tuple[str, ...] = ("hour_sin", "hour_cos")
 GROUND_CHANNEL = "ground_temperature_c"
-INPUT_CHANNELS: tuple[str, ...] = (*WEATHER_INPUTS, *HOURLY_CHANNELS, *CALENDAR_INPUTS, *cat.THETA_NAMES,
-                                   "is_context", GROUND_CHANNEL)
+INPUT_CHANNELS: tuple[str, ...] = (
+    *WEATHER_INPUTS,
+    *HOURLY_CHANNELS,
+    *CALENDAR_INPUTS,
+    *cat.THETA_NAMES,
+    "is_context",
+    GROUND_CHANNEL,
+)
 #: the channels of a metamodel without the ground temperature (checkpoints made before it was an input)
 NO_GROUND_CHANNELS: tuple[str, ...] = INPUT_CHANNELS[:-1]
 _IS_CONTEXT = INPUT_CHANNELS.index("is_context")
@@ -80,10 +86,9 @@ _CALENDAR = slice(_SCHEDULES.stop, _SCHEDULES.stop + len(CALENDAR_INPUTS))
 _THETA = slice(_CALENDAR.stop, _CALENDAR.stop + len(cat.THETA_NAMES))
 
 
-def _fill_rows(out: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
-               hours: slice) -> None:
+def _fill_rows(out: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray, hours: slice) -> None:
     """Write the weather and schedule channels of the week's ``hours`` into ``out`` ``(N, len(hours), C)``."""
-    out[..., :len(WEATHER_INPUTS)] = np.asarray(weather)[:, hours][..., _W_IDX]
+    out[..., : len(WEATHER_INPUTS)] = np.asarray(weather)[:, hours][..., _W_IDX]
     out[..., _SCHEDULES] = hourly_encoding(settings, occupancy)[:, hours]
 
 
@@ -102,13 +107,14 @@ def context_of(x) -> int:
 def first_day_repeated(week, hours: int):
     """The first 24 hours of ``week`` (hours on axis 1) repeated to ``hours``: the context of a week whose
     preceding week is unknown, as EnergyPlus's warm-up repeats the first day (numpy or torch)."""
-    day = week[:, :cat.HOURS_PER_DAY]
+    day = week[:, : cat.HOURS_PER_DAY]
     reps = [1, hours // cat.HOURS_PER_DAY] + [1] * (week.ndim - 2)
     return np.tile(day, reps) if isinstance(day, np.ndarray) else day.repeat(*reps)
 
 
-def ground_hours(hourly_ground_c: np.ndarray, first_hours: np.ndarray, context_hours: int = CONTEXT_HOURS
-                 ) -> np.ndarray:
+def ground_hours(
+    hourly_ground_c: np.ndarray, first_hours: np.ndarray, context_hours: int = CONTEXT_HOURS
+) -> np.ndarray:
     """``(N, context_hours + 168)`` ground temperature (degC) of weeks starting at hours ``first_hours`` ``(N,)``
     of the year, context included, from a year of hourly values ``(8760,)`` (wrapping around the year's ends)."""
     hourly = np.asarray(hourly_ground_c, dtype=np.float32)
@@ -121,10 +127,17 @@ def _week_hours(first_hours: np.ndarray, context_hours: int, year_hours: int) ->
     return (np.asarray(first_hours, dtype=np.int64)[:, None] + offsets) % year_hours
 
 
-def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
-                 previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                 has_previous: np.ndarray | None = None, context_hours: int = CONTEXT_HOURS,
-                 ground_c: np.ndarray | None = None, temperature_before_c: np.ndarray | None = None) -> np.ndarray:
+def encode_weeks(
+    theta: np.ndarray,
+    settings: np.ndarray,
+    occupancy: np.ndarray,
+    weather: np.ndarray,
+    previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    has_previous: np.ndarray | None = None,
+    context_hours: int = CONTEXT_HOURS,
+    ground_c: np.ndarray | None = None,
+    temperature_before_c: np.ndarray | None = None,
+) -> np.ndarray:
     """Model inputs of weeks, physical units (not yet standardised).
 
     Args:
@@ -147,14 +160,14 @@ def encode_weeks(theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray,
     _fill_rows(x[:, ctx:], settings, occupancy, weather, slice(None))
     x[:, ctx:, _CALENDAR] = _calendar(cat.HOURS_PER_WEEK)
     x[:, :, _THETA] = np.asarray(theta, dtype=np.float32)[:, None, :]
-    x[:, :ctx, :_CALENDAR.stop] = first_day_repeated(x[:, ctx:, :_CALENDAR.stop], ctx)  # EnergyPlus's warm-up
+    x[:, :ctx, : _CALENDAR.stop] = first_day_repeated(x[:, ctx:, : _CALENDAR.stop], ctx)  # EnergyPlus's warm-up
     if previous is not None:
         use = np.ones(n, bool) if has_previous is None else np.asarray(has_previous, bool)
         if use.any():
             prev_settings, prev_occ, prev_weather = (np.asarray(a)[use] for a in previous)
             rows = np.empty((int(use.sum()), ctx, len(INPUT_CHANNELS)), dtype=np.float32)
             _fill_rows(rows, prev_settings, prev_occ, prev_weather, slice(cat.HOURS_PER_WEEK - ctx, None))
-            x[use, :ctx, :_SCHEDULES.stop] = rows[..., :_SCHEDULES.stop]
+            x[use, :ctx, : _SCHEDULES.stop] = rows[..., : _SCHEDULES.stop]
     x[:, :, _IS_CONTEXT] = 0.0
     x[:, :ctx, _IS_CONTEXT] = 1.0
     x[..., _GROUND] = np.nan if ground_c is None else np.asarray(ground_c, dtype=np.float32).reshape(n, -1)
@@ -186,8 +199,9 @@ def _read(ds, name: str, ids: np.ndarray) -> np.ndarray:
     return getattr(ds, name)[unique][back]
 
 
-def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048, context_hours: int = CONTEXT_HOURS,
-                   temperature_before: bool = False) -> tuple[np.ndarray, np.ndarray]:
+def encode_dataset(
+    ds, indices: np.ndarray, chunk: int = 2048, context_hours: int = CONTEXT_HOURS, temperature_before: bool = False
+) -> tuple[np.ndarray, np.ndarray]:
     """Inputs ``(n, context_hours + 168, C)`` and outputs ``(n, 168, 8)`` of dataset weeks (in ``indices``
     order), each with its real preceding hours as context where the dataset has them (``temperature_before``:
     with the previous week's simulated indoor temperature as the temperature measured before the week, unknown
@@ -198,7 +212,7 @@ def encode_dataset(ds, indices: np.ndarray, chunk: int = 2048, context_hours: in
     climate, week_of_year = (getattr(ds, name)[:].astype(np.int64) for name in ("weather_index", "week_of_year"))
     xs, ys = [], []
     for start in range(0, len(indices), chunk):
-        idx = indices[start:start + chunk]
+        idx = indices[start : start + chunk]
         has = previous[idx] >= 0
         prev_idx = np.where(has, previous[idx], idx)
         prev = tuple(_read(ds, name, prev_idx) for name in ("settings", "occupancy", "weather"))
@@ -247,9 +261,12 @@ def input_channels(ground: bool = True, temperature_before: bool = False) -> tup
 def metadata(context_hours: int = CONTEXT_HOURS, ground: bool = True, temperature_before: bool = False) -> dict:
     """What a checkpoint records about its encoding: the catalogue and channels it must share with this
     buildenv to be usable (:func:`input_channels`), and its context length."""
-    return {"catalogue_hash": cat.catalogue_hash(),
-            "input_channels": list(input_channels(ground, temperature_before)),
-            "output_channels": list(cat.OUTPUT_NAMES), "context_hours": check_context_hours(context_hours)}
+    return {
+        "catalogue_hash": cat.catalogue_hash(),
+        "input_channels": list(input_channels(ground, temperature_before)),
+        "output_channels": list(cat.OUTPUT_NAMES),
+        "context_hours": check_context_hours(context_hours),
+    }
 
 
 @dataclass
@@ -315,10 +332,18 @@ class Surrogate:
                     log.info("metamodel runs eagerly (tracing failed: %s)", exc)
         return self._runner
 
-    def predict(self, theta: np.ndarray, settings: np.ndarray, occupancy: np.ndarray, weather: np.ndarray,
-                previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
-                has_previous: np.ndarray | None = None, batch_size: int = INFERENCE_BATCH,
-                ground_c: np.ndarray | None = None, temperature_before_c: np.ndarray | None = None) -> np.ndarray:
+    def predict(
+        self,
+        theta: np.ndarray,
+        settings: np.ndarray,
+        occupancy: np.ndarray,
+        weather: np.ndarray,
+        previous: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+        has_previous: np.ndarray | None = None,
+        batch_size: int = INFERENCE_BATCH,
+        ground_c: np.ndarray | None = None,
+        temperature_before_c: np.ndarray | None = None,
+    ) -> np.ndarray:
         """Hourly outputs ``(N, 168, 8)`` (Wh/m2, degC) of N weeks in as few model calls as the batch allows.
 
         Arguments as :func:`encode_weeks`; ``ground_c`` is needed where :attr:`uses_ground`;
@@ -335,10 +360,22 @@ class Surrogate:
             ground = None if ground_c is None or not self.uses_ground else np.asarray(ground_c)[part]
             before = None
             if self.uses_temperature_before:
-                before = (np.full((len(theta[part]), self.context_hours), np.nan, np.float32)
-                          if temperature_before_c is None else np.asarray(temperature_before_c)[part])
-            x = encode_weeks(theta[part], settings[part], occupancy[part], weather[part], prev, has,
-                             self.context_hours, ground, before)
+                before = (
+                    np.full((len(theta[part]), self.context_hours), np.nan, np.float32)
+                    if temperature_before_c is None
+                    else np.asarray(temperature_before_c)[part]
+                )
+            x = encode_weeks(
+                theta[part],
+                settings[part],
+                occupancy[part],
+                weather[part],
+                prev,
+                has,
+                self.context_hours,
+                ground,
+                before,
+            )
             self._check_inputs(x)
             out[part] = self._call(model, x, own=True)
 
@@ -369,14 +406,20 @@ class Surrogate:
     def _check_inputs(self, x: np.ndarray) -> None:
         """:class:`CheckpointError` where encoded inputs ``x`` do not suit this metamodel."""
         if context_of(x) != self.context_hours:
-            raise CheckpointError(f"inputs carry {context_of(x)} context hours, this metamodel was trained with "
-                                  f"{self.context_hours}: encode them with context_hours={self.context_hours}")
+            raise CheckpointError(
+                f"inputs carry {context_of(x)} context hours, this metamodel was trained with "
+                f"{self.context_hours}: encode them with context_hours={self.context_hours}"
+            )
         if x.shape[-1] not in (len(INPUT_CHANNELS), len(ALL_CHANNELS)):
-            raise CheckpointError(f"inputs carry {x.shape[-1]} channels, encode_weeks gives {len(INPUT_CHANNELS)} "
-                                  f"({len(ALL_CHANNELS)} with the temperature before the week)")
+            raise CheckpointError(
+                f"inputs carry {x.shape[-1]} channels, encode_weeks gives {len(INPUT_CHANNELS)} "
+                f"({len(ALL_CHANNELS)} with the temperature before the week)"
+            )
         if self.uses_ground and np.isnan(x[..., _GROUND]).any():
-            raise CheckpointError("this metamodel needs the ground temperature under the slab: pass ground_c "
-                                  "(buildenv.metamodel.surrogate.ground_hours of the weather file's hourly values)")
+            raise CheckpointError(
+                "this metamodel needs the ground temperature under the slab: pass ground_c "
+                "(buildenv.metamodel.surrogate.ground_hours of the weather file's hourly values)"
+            )
 
     def _spread(self, n: int, batch_size: int, call) -> None:
         """``call(part)`` for the model calls ``n`` weeks split into (:func:`buildenv.metamodel.threads.split_calls`),
@@ -397,7 +440,7 @@ class Surrogate:
             full = x
         else:
             full = np.empty(x.shape[:-1] + (wanted,), dtype=np.float32)
-            full[..., :x.shape[-1]] = x
+            full[..., : x.shape[-1]] = x
         if x.shape[-1] < wanted:
             set_temperature_before(full, None)
         value = full[..., len(INPUT_CHANNELS)]
@@ -419,15 +462,20 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
     ck = load_checkpoint(path)
     try:
         channels = ck.metadata.get("input_channels", ())
-        expected = metadata(ck.metadata.get("context_hours", CONTEXT_HOURS), GROUND_CHANNEL in channels,
-                            TEMPERATURE_BEFORE_CHANNELS[0] in channels)
+        expected = metadata(
+            ck.metadata.get("context_hours", CONTEXT_HOURS),
+            GROUND_CHANNEL in channels,
+            TEMPERATURE_BEFORE_CHANNELS[0] in channels,
+        )
     except CheckpointError as exc:
         raise CheckpointError(f"{path}: {exc}") from None
     for key, value in expected.items():
         if ck.metadata.get(key) != value:
             found = ck.metadata.get(key)
             if key == "catalogue_hash":
-                raise CheckpointError(f"{path} was trained for catalogue {found}, this buildenv has {value}: "
-                                      "retrain it on a dataset simulated with this catalogue")
+                raise CheckpointError(
+                    f"{path} was trained for catalogue {found}, this buildenv has {value}: "
+                    "retrain it on a dataset simulated with this catalogue"
+                )
             raise CheckpointError(f"{path}: its {key} differs from this buildenv's; retrain it")
     return Surrogate(ck, path)

@@ -13,9 +13,9 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.metamodel import surrogate as sg
 from buildenv.campaign.dataset import open_dataset
 from buildenv.errors import BuildenvError
+from buildenv.metamodel import surrogate as sg
 from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
 
 
@@ -48,18 +48,29 @@ def hide_temperature_before(x: np.ndarray, share: float, seed: int) -> np.ndarra
     return x
 
 
-def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = "weather_weeks",
-                    max_weeks: int | None = None, model_config: dict | None = None, seed: int = 0,
-                    holdout_climates: list[str] | None = None, progress: bool = True,
-                    context_hours: int = sg.CONTEXT_HOURS, init: str | Path | None = None,
-                    ground_temperature: bool = True, temperature_before: bool = False, **train_options) -> dict:
+def train_metamodel(
+    data: str | Path,
+    model: str,
+    out: str | Path,
+    split: str = "weather_weeks",
+    max_weeks: int | None = None,
+    model_config: dict | None = None,
+    seed: int = 0,
+    holdout_climates: list[str] | None = None,
+    progress: bool = True,
+    context_hours: int = sg.CONTEXT_HOURS,
+    init: str | Path | None = None,
+    ground_temperature: bool = True,
+    temperature_before: bool = False,
+    **train_options,
+) -> dict:
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
         data: dataset directory (``buildenv simulate --out``).
         model: ``transformer``, ``bigru``, ``lstm``, ``convgru`` or ``ffn``.
         out: checkpoint path (``out.last`` and ``out.csv`` are written beside it; a rerun resumes).
-        split: ``weather_weeks``, ``buildings``, ``random`` or ``climate`` (:meth:`buildenv.campaign.dataset.Dataset.split`).
+        split: ``weather_weeks``, ``buildings``, ``random`` or ``climate`` (:meth:`.Dataset.split`).
         max_weeks: use at most this many training weeks (a seeded random subset), e.g. for learning curves.
         model_config: keyword arguments of the model class.
         seed: seed of the split, the subset, the weights and the batch order.
@@ -96,14 +107,20 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
 
         was = load_checkpoint(last).metadata
         if was.get("context_hours", sg.CONTEXT_HOURS) != ctx:
-            raise BuildenvError(f"{last} was trained with --context-hours {was.get('context_hours')}, not {ctx}: "
-                                "rerun with that to resume it, or remove it to start over")
+            raise BuildenvError(
+                f"{last} was trained with --context-hours {was.get('context_hours')}, not {ctx}: "
+                "rerun with that to resume it, or remove it to start over"
+            )
         if (sg.GROUND_CHANNEL in was.get("input_channels", ())) != ground_temperature:
-            raise BuildenvError(f"{last} was trained {'with' if not ground_temperature else 'without'} the ground "
-                                "temperature: rerun as it was to resume it, or remove it to start over")
+            raise BuildenvError(
+                f"{last} was trained {'with' if not ground_temperature else 'without'} the ground "
+                "temperature: rerun as it was to resume it, or remove it to start over"
+            )
         if (sg.TEMPERATURE_BEFORE_CHANNELS[0] in was.get("input_channels", ())) != temperature_before:
-            raise BuildenvError(f"{last} was trained {'with' if not temperature_before else 'without'} the "
-                                "temperature before the week: rerun as it was to resume it, or remove it to start over")
+            raise BuildenvError(
+                f"{last} was trained {'with' if not temperature_before else 'without'} the "
+                "temperature before the week: rerun as it was to resume it, or remove it to start over"
+            )
     with open_dataset(data) as ds:
         parts = training_split(ds, split, seed, holdout_climates, max_weeks)
         ds_zoning = ds.zoning
@@ -116,23 +133,36 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
         for name, y in (("training", y_tr), ("validation", y_va)):
             missing = ~np.isfinite(y).all(axis=(1, 2))
             if missing.any():
-                raise BuildenvError(f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that "
-                                    "are not finite (NaN or inf): the dataset lacks them or is damaged; simulate it "
-                                    "again or train on a subset that has them (--max-weeks of a carried pack)")
+                raise BuildenvError(
+                    f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that "
+                    "are not finite (NaN or inf): the dataset lacks them or is damaged; simulate it "
+                    "again or train on a subset that has them (--max-weeks of a carried pack)"
+                )
         x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx, temperature_before=temperature_before)
-        apart = (sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx,
-                                   temperature_before=temperature_before) if holdout_climates else None)
+        apart = (
+            sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx, temperature_before=temperature_before)
+            if holdout_climates
+            else None
+        )
     torch.manual_seed(seed)
     config = dict(model_config or {})
-    metadata = {**sg.metadata(ctx, ground_temperature, temperature_before), "dataset": str(Path(data).resolve()),
-                "split": split,
-                "split_seed": seed, "holdout_climates": list(holdout_climates or []),
-                "train_weeks": int(len(train_idx)), "zoning": ds_zoning}
+    metadata = {
+        **sg.metadata(ctx, ground_temperature, temperature_before),
+        "dataset": str(Path(data).resolve()),
+        "split": split,
+        "split_seed": seed,
+        "holdout_climates": list(holdout_climates or []),
+        "train_weeks": int(len(train_idx)),
+        "zoning": ds_zoning,
+    }
     if init is not None:
         start = _initial_checkpoint(init, model, model_config, split, seed, holdout_climates, ds_zoning)
-        metadata["initialised_from"] = {"checkpoint": str(init), "dataset": start.metadata.get("dataset"),
-                                        "train_weeks": start.metadata.get("train_weeks"),
-                                        "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS)}
+        metadata["initialised_from"] = {
+            "checkpoint": str(init),
+            "dataset": start.metadata.get("dataset"),
+            "train_weeks": start.metadata.get("train_weeks"),
+            "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS),
+        }
         ck = Checkpoint(model, dict(start.config), start.model, start.input_norm, start.output_norm, metadata)
         had = tuple(start.metadata.get("input_channels", sg.NO_GROUND_CHANNELS))
         if sg.GROUND_CHANNEL in had and not ground_temperature:
@@ -141,23 +171,51 @@ def train_metamodel(data: str | Path, model: str, out: str | Path, split: str = 
             raise BuildenvError(f"--init {init} reads the temperature before the week: pass --temperature-before")
         if len(wanted) > len(had):
             ck = _with_inputs(ck, x_tr[..., channels], len(had))
-            metadata["initialised_from"]["added_inputs"] = list(wanted[len(had):])
+            metadata["initialised_from"]["added_inputs"] = list(wanted[len(had) :])
     else:
         net = build(model, x_tr[..., channels].shape[-1], y_tr.shape[-1], **config)
         ck = Checkpoint(model, config, net, Standardiser.fit(x_tr[..., channels]), Standardiser.fit(y_tr), metadata)
-    cfg = TrainConfig(seed=seed, temperature_channels=sg.TEMPERATURE_CHANNELS,
-                      consumption_channels=sg.CONSUMPTION_CHANNELS, **train_options)
+    cfg = TrainConfig(
+        seed=seed,
+        temperature_channels=sg.TEMPERATURE_CHANNELS,
+        consumption_channels=sg.CONSUMPTION_CHANNELS,
+        **train_options,
+    )
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-    history = fit(ck, *standardised_tensors(x_tr[..., channels], y_tr, ck),
-                  *standardised_tensors(x_va[..., channels], y_va, ck), hour_mask, cfg, Path(out), progress)
+    history = fit(
+        ck,
+        *standardised_tensors(x_tr[..., channels], y_tr, ck),
+        *standardised_tensors(x_va[..., channels], y_va, ck),
+        hour_mask,
+        cfg,
+        Path(out),
+        progress,
+    )
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
-    extra = {"holdout_climate": {"climates": list(holdout_climates), "weeks": int(len(apart[0])),
-                                 **score(surrogate, *apart)}} if apart else {}
-    return {"model": model, "config": ck.config, "train": asdict(cfg), "train_weeks": int(len(train_idx)),
-            "val_weeks": int(len(parts["val"])), "test_weeks": int(len(parts["test"])),
-            "seconds": round(time.perf_counter() - started, 1),
-            "fit": {k: v for k, v in history.items() if k != "history"}, "test": test, **extra}
+    extra = (
+        {
+            "holdout_climate": {
+                "climates": list(holdout_climates),
+                "weeks": int(len(apart[0])),
+                **score(surrogate, *apart),
+            }
+        }
+        if apart
+        else {}
+    )
+    return {
+        "model": model,
+        "config": ck.config,
+        "train": asdict(cfg),
+        "train_weeks": int(len(train_idx)),
+        "val_weeks": int(len(parts["val"])),
+        "test_weeks": int(len(parts["test"])),
+        "seconds": round(time.perf_counter() - started, 1),
+        "fit": {k: v for k, v in history.items() if k != "history"},
+        "test": test,
+        **extra,
+    }
 
 
 def _with_inputs(ck, x_tr: np.ndarray, had: int):
@@ -169,14 +227,16 @@ def _with_inputs(ck, x_tr: np.ndarray, had: int):
     from metamodels.normalisation import Standardiser
 
     added = Standardiser.fit(x_tr[..., had:])
-    norm = Standardiser(np.concatenate([ck.input_norm.mean, added.mean]),
-                        np.concatenate([ck.input_norm.std, added.std]))
+    norm = Standardiser(
+        np.concatenate([ck.input_norm.mean, added.mean]), np.concatenate([ck.input_norm.std, added.std])
+    )
     net = with_more_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, x_tr.shape[-1] - had)
     return Checkpoint(ck.name, ck.config, net, norm, ck.output_norm, ck.metadata)
 
 
-def training_split(ds, split: str, seed: int, holdout_climates: list[str] | None = None,
-                   max_weeks: int | None = None) -> dict[str, np.ndarray]:
+def training_split(
+    ds, split: str, seed: int, holdout_climates: list[str] | None = None, max_weeks: int | None = None
+) -> dict[str, np.ndarray]:
     """The weeks a training run uses: :meth:`buildenv.campaign.dataset.Dataset.split`, its training part cut to a
     seeded random ``max_weeks`` subset when given (the subset :func:`train_metamodel` draws)."""
     parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
@@ -186,8 +246,15 @@ def training_split(ds, split: str, seed: int, holdout_climates: list[str] | None
     return parts
 
 
-def _initial_checkpoint(init: str | Path, model: str, model_config: dict | None, split: str, seed: int,
-                        holdout_climates: list[str] | None, zoning: str):
+def _initial_checkpoint(
+    init: str | Path,
+    model: str,
+    model_config: dict | None,
+    split: str,
+    seed: int,
+    holdout_climates: list[str] | None,
+    zoning: str,
+):
     """The checkpoint a fine-tuning run starts from, refused where it would not fit the run (see ``init``)."""
     start = sg.load_metamodel(init).checkpoint
     meta = start.metadata
@@ -199,9 +266,11 @@ def _initial_checkpoint(init: str | Path, model: str, model_config: dict | None,
     if meta.get("zoning", "core_perimeter") != zoning:
         raise BuildenvError(f"--init {init} was trained on {meta.get('zoning')} buildings, this dataset is {zoning}")
     if (meta.get("split"), meta.get("split_seed"), held) != (split, seed, sorted(holdout_climates or [])):
-        raise BuildenvError(f"--init {init} was trained with --split {meta.get('split')} --seed "
-                            f"{meta.get('split_seed')} and held-out climates {held or 'none'}: use the same, or "
-                            "its test weeks may be trained on")
+        raise BuildenvError(
+            f"--init {init} was trained with --split {meta.get('split')} --seed "
+            f"{meta.get('split_seed')} and held-out climates {held or 'none'}: use the same, or "
+            "its test weeks may be trained on"
+        )
     return start
 
 
@@ -214,7 +283,7 @@ def checkpoint_split(ds, meta: dict) -> dict[str, np.ndarray]:
 def week_scores(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray, pred: np.ndarray) -> dict[str, np.ndarray]:
     """Per-week metrics (:func:`buildenv.metrics.week_metrics`, in the surrogate's standardised units) of its
     predictions ``pred`` of encoded weeks ``x`` with true outputs ``y``."""
-    occupied = x[:, sg.context_of(x):, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
+    occupied = x[:, sg.context_of(x) :, sg.INPUT_CHANNELS.index("occupancy_fraction")] > 0
     norm = surrogate.checkpoint.output_norm
     return week_metrics(y, pred, occupied, norm.mean, norm.std)
 
@@ -223,8 +292,11 @@ def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, fl
     """Metrics (mean and std over weeks) of a surrogate on encoded weeks ``x`` with true outputs ``y``."""
     pred = surrogate.predict_encoded(x)
     norm = surrogate.checkpoint.output_norm
-    return {**summarise(week_scores(surrogate, x, y, pred)),
-            **pooled_scores(y, pred, norm.mean, norm.std), **daily_errors(y, pred, norm.mean, norm.std)}
+    return {
+        **summarise(week_scores(surrogate, x, y, pred)),
+        **pooled_scores(y, pred, norm.mean, norm.std),
+        **daily_errors(y, pred, norm.mean, norm.std),
+    }
 
 
 def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: str = "test") -> dict:
@@ -247,8 +319,9 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
             idx = checkpoint_split(ds, meta)["test"]
         else:
             idx = np.arange(len(ds))
-        x, y = sg.encode_dataset(ds, idx, context_hours=surrogate.context_hours,
-                                 temperature_before=surrogate.uses_temperature_before)
+        x, y = sg.encode_dataset(
+            ds, idx, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
+        )
     result = score(surrogate, x, y)
     result["subset"] = subset if subset == "holdout_climate" or (subset == "test" and same) else "all"
     return result

@@ -6,5 +6,12 @@ from buildenv.sites.model import MEASUREMENT_COLUMNS, SETTINGS_COLUMNS, Site
 from buildenv.sites.reader import known_parameter, load_site
 from buildenv.sites.writer import save_calibration, write_site
 
-__all__ = ["MEASUREMENT_COLUMNS", "SETTINGS_COLUMNS", "Site", "known_parameter", "load_site", "save_calibration",
-           "write_site"]
+__all__ = [
+    "MEASUREMENT_COLUMNS",
+    "SETTINGS_COLUMNS",
+    "Site",
+    "known_parameter",
+    "load_site",
+    "save_calibration",
+    "write_site",
+]

@@ -43,8 +43,16 @@ DEFAULT_MEASUREMENTS = "measurements.csv"
 DEFAULT_SETTINGS = "settings.csv"
 MEASUREMENT_COLUMNS: tuple[str, ...] = ("timestamp", "indoor_temperature_c", "heat_consumption_kwh")
 SETTINGS_COLUMNS: tuple[str, ...] = ("date", *cat.SETTING_NAMES)
-TOP_LEVEL_KEYS: tuple[str, ...] = ("name", "weather", "measurements", "settings", "effects", "geometry", "known",
-                                   "source")
+TOP_LEVEL_KEYS: tuple[str, ...] = (
+    "name",
+    "weather",
+    "measurements",
+    "settings",
+    "effects",
+    "geometry",
+    "known",
+    "source",
+)
 GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
 #: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
 KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
@@ -162,5 +170,8 @@ class Site:
     def theta_known(self) -> dict[str, float]:
         """The building parameters the site fixes, catalogue units: the geometry (``floor_area_m2`` in m2,
         ``number_of_floors``) and whatever ``[known]`` declares."""
-        return {"floor_area_m2": float(self.floor_area_m2), "number_of_floors": float(self.number_of_floors),
-                **{k: float(v) for k, v in self.known.items()}}
+        return {
+            "floor_area_m2": float(self.floor_area_m2),
+            "number_of_floors": float(self.number_of_floors),
+            **{k: float(v) for k, v in self.known.items()},
+        }

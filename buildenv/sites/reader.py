@@ -50,11 +50,24 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 log = logging.getLogger(__name__)
 
-_TEMPERATURE_UNITS = {"f": "degF", "degf": "degF", "fahrenheit": "degF", "k": "K", "kelvin": "K",
-                      "degk": "K"}
-_ENERGY_UNITS = {"wh": "Wh", "mwh": "MWh", "gwh": "GWh", "j": "J", "kj": "kJ", "mj": "MJ", "gj": "GJ",
-                 "btu": "Btu", "kbtu": "kBtu", "mmbtu": "MMBtu", "therm": "therm", "therms": "therm",
-                 "w": "W", "kw": "kW", "mw": "MW"}
+_TEMPERATURE_UNITS = {"f": "degF", "degf": "degF", "fahrenheit": "degF", "k": "K", "kelvin": "K", "degk": "K"}
+_ENERGY_UNITS = {
+    "wh": "Wh",
+    "mwh": "MWh",
+    "gwh": "GWh",
+    "j": "J",
+    "kj": "kJ",
+    "mj": "MJ",
+    "gj": "GJ",
+    "btu": "Btu",
+    "kbtu": "kBtu",
+    "mmbtu": "MMBtu",
+    "therm": "therm",
+    "therms": "therm",
+    "w": "W",
+    "kw": "kW",
+    "mw": "MW",
+}
 _TIMESTAMP = re.compile(r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2})(?::(\d{2}))?")
 _TIMESTAMP_WITH_ZONE = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2})?(?:\.\d+)?\s*(?:Z|[+-]\d{2}:?\d{2})")
 _DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
@@ -140,16 +153,18 @@ def _allowed(keys: tuple[str, ...]) -> str:
     return ", ".join(keys)
 
 
-def _reject_unknown_keys(descriptor: Path, text: str, table: Mapping[str, Any], allowed: tuple[str, ...],
-                         name: str | None = None) -> None:
+def _reject_unknown_keys(
+    descriptor: Path, text: str, table: Mapping[str, Any], allowed: tuple[str, ...], name: str | None = None
+) -> None:
     """SiteError naming the first key of ``table`` (the top level, or ``[name]``) not in ``allowed``."""
     for key in table:
         if key not in allowed:
             close = difflib.get_close_matches(key, allowed, n=1)
             hint = f" (did you mean {close[0]!r}?)" if close else ""
             where = f" in [{name}]" if name else ""
-            raise SiteError(f"{_where(descriptor, text, key, name)}: unknown key {key!r}{where}{hint}; "
-                            f"allowed: {_allowed(allowed)}")
+            raise SiteError(
+                f"{_where(descriptor, text, key, name)}: unknown key {key!r}{where}{hint}; allowed: {_allowed(allowed)}"
+            )
 
 
 def _read_descriptor(descriptor: Path) -> dict[str, Any]:
@@ -167,17 +182,18 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
     _reject_unknown_keys(descriptor, text, data, TOP_LEVEL_KEYS)
     for key in ("name", "weather", "geometry"):
         if key not in data:
-            what = {"name": "free text", "weather": "an EPW short name such as 'usa_il_chicago' or a path",
-                    "geometry": f"a table with {_allowed(GEOMETRY_KEYS)}"}[key]
+            what = {
+                "name": "free text",
+                "weather": "an EPW short name such as 'usa_il_chicago' or a path",
+                "geometry": f"a table with {_allowed(GEOMETRY_KEYS)}",
+            }[key]
             raise SiteError(f"{descriptor}: missing {key!r} ({what})")
     for key in ("name", "weather", "measurements", "settings"):
         if key in data and (not isinstance(data[key], str) or not data[key].strip()):
-            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, "
-                            f"got {data[key]!r}")
+            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, got {data[key]!r}")
     for key in ("geometry", "known", "source"):
         if key in data and not isinstance(data[key], dict):
-            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a table ([{key}]), "
-                            f"got {data[key]!r}")
+            raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a table ([{key}]), got {data[key]!r}")
 
     geometry = data["geometry"]
     _reject_unknown_keys(descriptor, text, geometry, GEOMETRY_KEYS, "geometry")
@@ -249,8 +265,9 @@ def _read_effects(descriptor: Path, text: str, value: Any) -> tuple[str, ...]:
     line."""
     where = _where(descriptor, text, "effects")
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
-        raise SiteError(f"{where}: 'effects' must be a list of effect names (`buildenv effects` lists them), "
-                        f"got {value!r}")
+        raise SiteError(
+            f"{where}: 'effects' must be a list of effect names (`buildenv effects` lists them), got {value!r}"
+        )
     try:
         return check_declarable(value)
     except EffectError as exc:
@@ -274,8 +291,10 @@ def _resolve_weather(descriptor: Path, text: str, weather: str) -> str:
         return str(path.resolve())
     where = _where(descriptor, text, "weather")
     names = ", ".join(shipped) if shipped else "(none installed)"
-    raise SiteError(f"{where}: weather {weather!r} is neither a shipped EPW short name nor a file "
-                    f"(looked for {path}); short names: {names}")
+    raise SiteError(
+        f"{where}: weather {weather!r} is neither a shipped EPW short name nor a file "
+        f"(looked for {path}); short names: {names}"
+    )
 
 
 def _data_file(descriptor: Path, desc: dict[str, Any], key: str, default: str) -> Path:
@@ -300,8 +319,9 @@ def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
             except csv.Error as exc:
                 raise SiteError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from exc
     except UnicodeDecodeError as exc:
-        raise SiteError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); "
-                        "save the export as UTF-8 CSV") from exc
+        raise SiteError(
+            f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); save the export as UTF-8 CSV"
+        ) from exc
     except OSError as exc:
         raise SiteError(f"{path}: cannot read: {exc}") from exc
 
@@ -309,8 +329,7 @@ def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
 def _check_width(path: Path, line: int, cells: list[str], columns: tuple[str, ...]) -> None:
     if len(cells) != len(columns):
         many = "too many" if len(cells) > len(columns) else "too few"
-        raise SiteError(f"{path}:{line}: {many} columns: {len(cells)} instead of {len(columns)} "
-                        f"({','.join(columns)})")
+        raise SiteError(f"{path}:{line}: {many} columns: {len(cells)} instead of {len(columns)} ({','.join(columns)})")
 
 
 def _separator_hint(header: list[str]) -> str:
@@ -326,35 +345,47 @@ def _check_measurement_header(path: Path, header: list[str]) -> None:
         return
     for column in header:
         low = column.lower()
-        for prefix, units, expected in (("indoor_temperature_", _TEMPERATURE_UNITS, "indoor_temperature_c (degC)"),
-                                        ("heat_consumption_", _ENERGY_UNITS, "heat_consumption_kwh (kWh)")):
+        for prefix, units, expected in (
+            ("indoor_temperature_", _TEMPERATURE_UNITS, "indoor_temperature_c (degC)"),
+            ("heat_consumption_", _ENERGY_UNITS, "heat_consumption_kwh (kWh)"),
+        ):
             if low.startswith(prefix) and low != expected.split()[0]:
-                unit = low[len(prefix):]
+                unit = low[len(prefix) :]
                 label = f" is in {units[unit]}" if unit in units else f" has unit {unit!r}"
-                raise SiteError(f"{path}:1: wrong unit: column {column!r}{label}; expected {expected}: "
-                                "convert the values and rename the column")
+                raise SiteError(
+                    f"{path}:1: wrong unit: column {column!r}{label}; expected {expected}: "
+                    "convert the values and rename the column"
+                )
     if header and _TIMESTAMP.fullmatch(header[0]):
         raise SiteError(f"{path}:1: missing header: the first line must be {','.join(MEASUREMENT_COLUMNS)}")
-    raise SiteError(f"{path}:1: header is {','.join(header)!r}, expected the columns "
-                    f"{','.join(MEASUREMENT_COLUMNS)!r}{_separator_hint(header)}")
+    raise SiteError(
+        f"{path}:1: header is {','.join(header)!r}, expected the columns "
+        f"{','.join(MEASUREMENT_COLUMNS)!r}{_separator_hint(header)}"
+    )
 
 
 def _parse_timestamp(path: Path, line: int, text: str) -> dt.datetime:
     m = _TIMESTAMP.fullmatch(text)
     if m is None:
         if _TIMESTAMP_WITH_ZONE.fullmatch(text):
-            raise SiteError(f"{path}:{line}: timestamp {text!r} has a UTC offset: give local standard time "
-                            "without an offset, as 'YYYY-MM-DD HH:MM'")
-        raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM' "
-                        "(or with a 'T'), local standard time of the start of the hour")
+            raise SiteError(
+                f"{path}:{line}: timestamp {text!r} has a UTC offset: give local standard time "
+                "without an offset, as 'YYYY-MM-DD HH:MM'"
+            )
+        raise SiteError(
+            f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM' "
+            "(or with a 'T'), local standard time of the start of the hour"
+        )
     year, month, day, hour, minute, second = (int(g) if g else 0 for g in m.groups())
     try:
         stamp = dt.datetime(year, month, day, hour, minute, second)
     except ValueError as exc:
         raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: {exc}") from exc
     if minute or second:
-        raise SiteError(f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "
-                        "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)")
+        raise SiteError(
+            f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "
+            "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)"
+        )
     return stamp
 
 
@@ -368,8 +399,7 @@ def _parse_value(path: Path, line: int, column: str, text: str, *, missing_ok: b
         value = float(text)
     except ValueError:
         blank = ", leave the cell empty for a missing value" if missing_ok else ""
-        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a number (use '.' as decimal mark{blank})") \
-            from None
+        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a number (use '.' as decimal mark{blank})") from None
     if not math.isfinite(value):
         raise SiteError(f"{path}:{line}: {column}: {text!r} is not a finite number")
     return value
@@ -384,20 +414,26 @@ def _check_temperature(path: Path, line: int, value: float) -> None:
         hint = f"; looks like degF ({value:g} degF = {(value - 32) / 1.8:.1f} degC)"
     elif 240 < value < 340:
         hint = f"; looks like K ({value:g} K = {value - 273.15:.1f} degC)"
-    raise SiteError(f"{path}:{line}: indoor_temperature_c={value:g} is outside [{lo:g}, {hi:g}] degC{hint}; "
-                    "fix the unit or leave the cell empty if the sensor failed")
+    raise SiteError(
+        f"{path}:{line}: indoor_temperature_c={value:g} is outside [{lo:g}, {hi:g}] degC{hint}; "
+        "fix the unit or leave the cell empty if the sensor failed"
+    )
 
 
 def _check_consumption(path: Path, line: int, value: float, floor_area_m2: float) -> None:
     if value < 0:
-        raise SiteError(f"{path}:{line}: heat_consumption_kwh={value:g} is negative: give the energy used "
-                        "during the hour (not a meter difference across a reset); leave it empty if unknown")
+        raise SiteError(
+            f"{path}:{line}: heat_consumption_kwh={value:g} is negative: give the energy used "
+            "during the hour (not a meter difference across a reset); leave it empty if unknown"
+        )
     limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
     if value > limit:
         hint = "; looks like Wh (divide by 1000)" if value / 1000.0 <= limit else ""
-        raise SiteError(f"{path}:{line}: heat_consumption_kwh={value:g} is above "
-                        f"{MAX_KWH_PER_M2_PER_HOUR:g} kWh/m2 in one hour ({limit:g} kWh for "
-                        f"{floor_area_m2:g} m2){hint}")
+        raise SiteError(
+            f"{path}:{line}: heat_consumption_kwh={value:g} is above "
+            f"{MAX_KWH_PER_M2_PER_HOUR:g} kWh/m2 in one hour ({limit:g} kWh for "
+            f"{floor_area_m2:g} m2){hint}"
+        )
 
 
 def _fmt(stamp: dt.datetime) -> str:
@@ -422,18 +458,24 @@ def _read_measurements(path: Path, floor_area_m2: float) -> tuple[dt.date, np.nd
         stamp = _parse_timestamp(path, line, cells[0])
         if start is None:
             if stamp.weekday() != 0 or stamp.hour != 0:
-                raise SiteError(f"{path}:{line}: the first timestamp {_fmt(stamp)} is a "
-                                f"{calendar.day_name[stamp.weekday()]} at {stamp:%H:%M}: data must start on a "
-                                "Monday at 00:00 (drop the rows before the next Monday, or add empty rows "
-                                "from the previous Monday 00:00)")
+                raise SiteError(
+                    f"{path}:{line}: the first timestamp {_fmt(stamp)} is a "
+                    f"{calendar.day_name[stamp.weekday()]} at {stamp:%H:%M}: data must start on a "
+                    "Monday at 00:00 (drop the rows before the next Monday, or add empty rows "
+                    "from the previous Monday 00:00)"
+                )
             start = stamp
         elif previous is not None:
             if stamp == previous[1]:
-                raise SiteError(f"{path}:{line}: duplicate timestamp {_fmt(stamp)} (also on line {previous[0]}); "
-                                "if the BMS exports daylight-saving time, export in local standard time")
+                raise SiteError(
+                    f"{path}:{line}: duplicate timestamp {_fmt(stamp)} (also on line {previous[0]}); "
+                    "if the BMS exports daylight-saving time, export in local standard time"
+                )
             if stamp < previous[1]:
-                raise SiteError(f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
-                                f"{_fmt(previous[1])} (line {previous[0]}): sort the rows by time")
+                raise SiteError(
+                    f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
+                    f"{_fmt(previous[1])} (line {previous[0]}): sort the rows by time"
+                )
         t = _parse_value(path, line, MEASUREMENT_COLUMNS[1], cells[1])
         q = _parse_value(path, line, MEASUREMENT_COLUMNS[2], cells[2])
         if not math.isnan(t):
@@ -450,9 +492,11 @@ def _read_measurements(path: Path, floor_area_m2: float) -> tuple[dt.date, np.nd
     last_line, last = previous
     if hours[-1] % cat.HOURS_PER_WEEK != cat.HOURS_PER_WEEK - 1:
         week_end = start + dt.timedelta(hours=(hours[-1] // cat.HOURS_PER_WEEK + 1) * cat.HOURS_PER_WEEK - 1)
-        raise SiteError(f"{path}:{last_line}: the data end at {calendar.day_name[last.weekday()]} {_fmt(last)}: "
-                        f"they must cover whole weeks, ending on a Sunday at 23:00; add rows up to "
-                        f"{_fmt(week_end)} with empty cells for the hours not measured")
+        raise SiteError(
+            f"{path}:{last_line}: the data end at {calendar.day_name[last.weekday()]} {_fmt(last)}: "
+            f"they must cover whole weeks, ending on a Sunday at 23:00; add rows up to "
+            f"{_fmt(week_end)} with empty cells for the hours not measured"
+        )
     weeks = hours[-1] // cat.HOURS_PER_WEEK + 1
     t_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
     q_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
@@ -482,8 +526,10 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
             parts.append(f"unknown {column!r}" + (f" (did you mean {close[0]!r}?)" if close else ""))
         if not parts:
             parts.append("columns in the wrong order" if len(set(header)) == len(header) else "repeated columns")
-        raise SiteError(f"{path}:1: wrong header ({'; '.join(parts)}{_separator_hint(header)}); expected "
-                        f"{expected} (the catalogue's settings in order; see `buildenv catalogue --group settings`)")
+        raise SiteError(
+            f"{path}:1: wrong header ({'; '.join(parts)}{_separator_hint(header)}); expected "
+            f"{expected} (the catalogue's settings in order; see `buildenv catalogue --group settings`)"
+        )
 
     days = weeks * 7
     last_day = start + dt.timedelta(days=days - 1)
@@ -492,8 +538,10 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
     last_line = 1
     for line, cells in rows:
         if count == days:
-            raise SiteError(f"{path}:{line}: one row too many: the measurements end on Sunday {last_day} "
-                            f"({weeks} week(s) from {start}); settings need one row per day of those weeks")
+            raise SiteError(
+                f"{path}:{line}: one row too many: the measurements end on Sunday {last_day} "
+                f"({weeks} week(s) from {start}); settings need one row per day of those weeks"
+            )
         _check_width(path, line, cells, SETTINGS_COLUMNS)
         m = _DATE.fullmatch(cells[0])
         try:
@@ -505,8 +553,10 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
         wanted = start + dt.timedelta(days=count)
         if day != wanted:
             what = "the first measured Monday" if count == 0 else "the day after the previous row"
-            raise SiteError(f"{path}:{line}: date {day} should be {wanted} ({what}): one row per day, "
-                            f"consecutive, from {start} to {last_day}")
+            raise SiteError(
+                f"{path}:{line}: date {day} should be {wanted} ({what}): one row per day, "
+                f"consecutive, from {start} to {last_day}"
+            )
         for i, var in enumerate(cat.SETTINGS):
             value = _parse_value(path, line, var.name, cells[i + 1], missing_ok=False)
             try:
@@ -518,8 +568,10 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
         last_line = line
     if count < days:
         seen = f"end on {start + dt.timedelta(days=count - 1)}" if count else "have no data rows"
-        raise SiteError(f"{path}:{last_line}: the settings {seen}, but the measurements run to Sunday {last_day}: "
-                        f"expected {days} rows (one per day), found {count}")
+        raise SiteError(
+            f"{path}:{last_line}: the settings {seen}, but the measurements run to Sunday {last_day}: "
+            f"expected {days} rows (one per day), found {count}"
+        )
     return values.reshape(weeks, 7, len(cat.SETTINGS))
 
 
@@ -536,5 +588,3 @@ def _read_json(path: Path) -> dict | None:
     if not isinstance(data, dict):
         raise SiteError(f"{path}:1: expected a JSON object, got {type(data).__name__}")
     return data
-
-

@@ -28,8 +28,8 @@ from buildenv import catalogue as cat
 from buildenv.diagnosis import model_effects as em
 from buildenv.diagnosis.effects import get_effect
 from buildenv.errors import BuildingEnvError
-from buildenv.schedules import hourly_schedules
 from buildenv.metamodel.surrogate import INFERENCE_BATCH, encode_weeks, weather_ground_c
+from buildenv.schedules import hourly_schedules
 from buildenv.weather.epw import epw_day_of_year
 
 
@@ -95,11 +95,24 @@ class SiteModel:
         days = [day0 + dt.timedelta(days=d) for d in range((starts[-1] - day0).days + 7)]
         hourly = np.asarray(load_weather(site.weather).hourly)
         rows = np.array([epw_day_of_year(d) for d in days])[:, None] * cat.HOURS_PER_DAY + np.arange(24)
-        effects = {name: np.array([[values[p.name] for p in get_effect(name).parameters]], dtype=float)
-                   for name, values in (calib.get("effects") or {}).items()
-                   if name in em.BUILDING_EFFECTS}
-        return cls(surrogate, theta, occupancy, np.asarray(site.settings[0], float), starts, hourly[rows],
-                   weather_ground_c(site.weather)[rows], float(site.floor_area_m2), site.name, effects, day0)
+        effects = {
+            name: np.array([[values[p.name] for p in get_effect(name).parameters]], dtype=float)
+            for name, values in (calib.get("effects") or {}).items()
+            if name in em.BUILDING_EFFECTS
+        }
+        return cls(
+            surrogate,
+            theta,
+            occupancy,
+            np.asarray(site.settings[0], float),
+            starts,
+            hourly[rows],
+            weather_ground_c(site.weather)[rows],
+            float(site.floor_area_m2),
+            site.name,
+            effects,
+            day0,
+        )
 
     @property
     def weeks(self) -> int:
@@ -126,7 +139,7 @@ class SiteModel:
     def _weeks_of_days(self, mondays: np.ndarray) -> np.ndarray:
         """Weather ``(N, 168, 9)`` of the 7 days from each index ``mondays`` (a broadcast view if all agree)."""
         if len(mondays) and (mondays == mondays[0]).all():
-            one = self.weather_days[mondays[0]:mondays[0] + 7].reshape(1, cat.HOURS_PER_WEEK, -1)
+            one = self.weather_days[mondays[0] : mondays[0] + 7].reshape(1, cat.HOURS_PER_WEEK, -1)
             return np.broadcast_to(one, (len(mondays), *one.shape[1:]))
         d = mondays[:, None] + np.arange(7)
         return self.weather_days[d].reshape(len(d), cat.HOURS_PER_WEEK, -1)
@@ -157,9 +170,15 @@ class SiteModel:
         weather = self.weather(weeks)
         for start in range(0, n, INFERENCE_BATCH):  # the extended model: effects act on inputs and outputs
             part = slice(start, start + INFERENCE_BATCH)
-            x = encode_weeks(theta[part], settings[part], occ[part], weather[part],
-                             tuple(a[part] for a in previous_week), context_hours=self.surrogate.context_hours,
-                             ground_c=ground[part])
+            x = encode_weeks(
+                theta[part],
+                settings[part],
+                occ[part],
+                weather[part],
+                tuple(a[part] for a in previous_week),
+                context_hours=self.surrogate.context_hours,
+                ground_c=ground[part],
+            )
             x = em.transform_inputs(x, self.effects)
             out[part] = em.transform_outputs(self.surrogate.predict_encoded(x), x, self.effects)
         return out

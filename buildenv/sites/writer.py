@@ -67,8 +67,9 @@ def _setting_cell(value: float) -> str:
 
 
 def _atomic_write(path: Path, text: str) -> None:
-    with tempfile.NamedTemporaryFile("w", encoding="utf-8", dir=path.parent, prefix=f".{path.name}.",
-                                     suffix=".tmp", delete=False, newline="") as handle:
+    with tempfile.NamedTemporaryFile(
+        "w", encoding="utf-8", dir=path.parent, prefix=f".{path.name}.", suffix=".tmp", delete=False, newline=""
+    ) as handle:
         handle.write(text)
         tmp = Path(handle.name)
     try:
@@ -147,8 +148,9 @@ def write_site(
     if consumption.shape != temperature.shape:
         raise SiteError(f"write_site: consumption_kwh has shape {consumption.shape}, expected {temperature.shape}")
     if setting_values.shape != (weeks, 7, len(cat.SETTINGS)):
-        raise SiteError(f"write_site: settings has shape {setting_values.shape}, "
-                        f"expected ({weeks}, 7, {len(cat.SETTINGS)})")
+        raise SiteError(
+            f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
+        )
 
     folder.mkdir(parents=True, exist_ok=True)
     descriptor: dict[str, Any] = {"name": str(name), "weather": str(weather)}
@@ -205,5 +207,3 @@ def save_calibration(site_path: str | os.PathLike, result: Mapping[str, Any]) ->
     target = folder / CALIBRATION_FILE
     _atomic_write(target, text)
     return target
-
-

@@ -45,8 +45,9 @@ def epw_hours(start: dt.date, weeks: int) -> np.ndarray:
     """Row of a 365-day EPW year (8760 hourly rows) for every hour of ``weeks`` weeks from ``start``,
     ``(weeks, 168)`` int in ``0 .. 8759``: each day matched to the same calendar day of the EPW year
     (:func:`epw_day_of_year`), a week that runs past Dec 31 continuing at the start of the EPW year."""
-    days = np.array([[epw_day_of_year(start + dt.timedelta(days=7 * k + d)) for d in range(7)]
-                     for k in range(weeks)], dtype=int)
+    days = np.array(
+        [[epw_day_of_year(start + dt.timedelta(days=7 * k + d)) for d in range(7)] for k in range(weeks)], dtype=int
+    )
     return (days[:, :, None] * 24 + np.arange(24)).reshape(weeks, 7 * 24)
 
 
@@ -109,7 +110,7 @@ class Weather:
         """Mean outdoor dry-bulb temperature of each month, degC, shape ``(12,)``."""
         edges = np.concatenate([[0], np.cumsum(DAYS_PER_MONTH * 24)])
         tamb = self.channel("TAMB")
-        return np.array([tamb[edges[m]:edges[m + 1]].mean() for m in range(12)])
+        return np.array([tamb[edges[m] : edges[m + 1]].mean() for m in range(12)])
 
 
 @functools.lru_cache(maxsize=32)
@@ -122,8 +123,10 @@ def _load_cached(path: str, mtime_ns: int, size: int) -> Weather:  # keyed on th
     except Exception as exc:  # pvlib raises assorted parser errors on a malformed file
         raise WeatherError(f"cannot read EPW {path}: {exc}") from exc
     if len(data) != HOURS_PER_YEAR:
-        raise WeatherError(f"{path}: expected {HOURS_PER_YEAR} hourly rows, found {len(data)} "
-                           "(sub-hourly or leap-year EPW files are not supported)")
+        raise WeatherError(
+            f"{path}: expected {HOURS_PER_YEAR} hourly rows, found {len(data)} "
+            "(sub-hourly or leap-year EPW files are not supported)"
+        )
     lat, lon, alt = float(meta["latitude"]), float(meta["longitude"]), float(meta.get("altitude", 0.0))
     mid_hour = data.index + pd.Timedelta(minutes=30)
     solpos = pvlib.solarposition.get_solarposition(mid_hour, lat, lon, altitude=alt)

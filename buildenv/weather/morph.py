@@ -35,14 +35,29 @@ from buildenv.weather.epw import HOURS_PER_YEAR, month_of_hour, resolve_epw
 
 #: Ranges the random morphs are drawn from (uniform), spanning neighbouring US climate zones' differences in
 #: mean temperature, synoptic swings, annual irradiation and exposure to wind
-MORPH_RANGES: dict[str, tuple[float, float]] = {"shift_k": (-4.0, 4.0), "stretch": (0.8, 1.2),
-                                                "solar_scale": (0.85, 1.15), "wind_scale": (0.7, 1.3)}
+MORPH_RANGES: dict[str, tuple[float, float]] = {
+    "shift_k": (-4.0, 4.0),
+    "stretch": (0.8, 1.2),
+    "solar_scale": (0.85, 1.15),
+    "wind_scale": (0.7, 1.3),
+}
 
 _DRY_BULB, _DEW_POINT, _RH, _IR, _WIND = 7, 8, 9, 13, 22
 _SOLAR = (14, 15, 16, 17, 18, 19)  # GHI, DNI, DHI (Wh/m2) and their illuminances (lux)
 #: EPW's "missing" codes of the fields a morph changes (EnergyPlus Auxiliary Programs, "Weather Data Format").
-_MISSING = {_DRY_BULB: 99.9, _DEW_POINT: 99.9, _RH: 999.0, _IR: 9999.0, 14: 9999.0, 15: 9999.0, 16: 9999.0,
-            17: 999999.0, 18: 999999.0, 19: 999999.0, _WIND: 999.0}
+_MISSING = {
+    _DRY_BULB: 99.9,
+    _DEW_POINT: 99.9,
+    _RH: 999.0,
+    _IR: 9999.0,
+    14: 9999.0,
+    15: 9999.0,
+    16: 9999.0,
+    17: 999999.0,
+    18: 999999.0,
+    19: 999999.0,
+    _WIND: 999.0,
+}
 _FIELDS = 35
 _HEADER_LINES = 8
 _NOTE = "COMMENTS 2,buildenv morph of "
@@ -143,8 +158,9 @@ def morph_epw(source: str | os.PathLike, out: str | os.PathLike, morph: Morph) -
             try:
                 numeric[i, j - 1] = float(row[j - 1])
             except ValueError:
-                raise WeatherError(f"{path}, line {i + _HEADER_LINES + 1}, field {j}: {row[j - 1]!r} is not "
-                                   "a number") from None
+                raise WeatherError(
+                    f"{path}, line {i + _HEADER_LINES + 1}, field {j}: {row[j - 1]!r} is not a number"
+                ) from None
     new = morph_rows(numeric, morph)
     for i, row in enumerate(fields):
         for j in (_DRY_BULB, _DEW_POINT):
@@ -154,8 +170,10 @@ def morph_epw(source: str | os.PathLike, out: str | os.PathLike, morph: Morph) -
         row[_WIND - 1] = f"{new[i, _WIND - 1]:.1f}"
         for j in _SOLAR:
             row[j - 1] = str(int(round(new[i, j - 1])))
-    header = [_shift_ground(line, morph.shift_k) if line.upper().startswith("GROUND TEMPERATURES") else line
-              for line in header]
+    header = [
+        _shift_ground(line, morph.shift_k) if line.upper().startswith("GROUND TEMPERATURES") else line
+        for line in header
+    ]
     note = _NOTE + path.name + " " + json.dumps(asdict(morph)).replace(",", ";")
     header = [note if line.upper().startswith("COMMENTS 2") else line for line in header]
     target = Path(out)
@@ -205,5 +223,5 @@ def morph_source(path: str | os.PathLike) -> str | None:
     with epw.open(encoding="latin-1") as f:
         for _, line in zip(range(_HEADER_LINES), f):
             if line.startswith(_NOTE):
-                return line[len(_NOTE):].rsplit(" {", 1)[0]
+                return line[len(_NOTE) :].rsplit(" {", 1)[0]
     return None

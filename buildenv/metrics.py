@@ -149,6 +149,8 @@ def week_summary(outputs: np.ndarray, occupancy_fraction: np.ndarray, floor_area
 # Site metrics: predictions against a site's measurements, hours ``(weeks, 168)``; NaN marks a missing hour.
 
 GUIDELINE14_P = 1  # parameters counted in ASHRAE Guideline 14's n - p degrees of freedom
+#: ASHRAE Guideline 14's limits for a calibrated model on hourly data: CV(RMSE) and |NMBE|, percent
+GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT = 30.0, 10.0
 
 
 def r2_masked(y: np.ndarray, p: np.ndarray, mask: np.ndarray) -> np.ndarray:

@@ -443,6 +443,9 @@ def build_parser() -> argparse.ArgumentParser:
     from buildenv.cli.effects import register as register_effects
 
     register_effects(sub)
+    from buildenv.cli.suite import register as register_suite
+
+    register_suite(sub)
     for plugin in sorted(entry_points(group="buildenv.commands"), key=lambda e: e.name):
         plugin.load()(sub)  # e.g. `optimize` and `demo` from the agents package
     return parser

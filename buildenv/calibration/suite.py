@@ -1,0 +1,108 @@
+"""Calibrating every site of the suite with the unchanged calibration, one table of held-out figures.
+
+Each made site of a suite folder (:mod:`buildenv.sites.suite`) is calibrated by
+:func:`buildenv.calibration.calibrate.calibrate_site` with its defaults (first half fitted, second half held out) and
+scored on its held-out weeks: CV(RMSE)_Q and NMBE_Q (ASHRAE Guideline 14), R2_T, RMSE_T, seconds and the parameters
+left at a catalogue bound. :func:`summarise` gives the shares that meet Guideline 14 per part of the suite
+(development, held out), reported apart.
+"""
+
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Sequence
+from pathlib import Path
+
+import numpy as np
+
+from buildenv.errors import BuildenvError
+from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT
+
+RESULTS = "calibration.json"
+#: a tighter band than Guideline 14's, which a site calibrated well should meet: CV(RMSE)_Q and |NMBE_Q|, percent
+TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT = 15.0, 5.0
+
+
+def calibrate_case(record: dict, surrogate, seed: int = 0, max_evaluations: int = 6000) -> dict:
+    """Calibrate one suite site (a :func:`buildenv.sites.suite.make_case` record) and return its row."""
+    from buildenv.calibration.calibrate import calibrate_site
+    from buildenv.sites.reader import load_site
+
+    site = load_site(record["site"])
+    started = time.perf_counter()
+    result = calibrate_site(site, surrogate, seed=seed, max_evaluations=max_evaluations)
+    held = result["heldout"]
+    cv, nmbe = held["cv_rmse_q_percent"], held["nmbe_q_percent"]
+    return {
+        **{k: record[k] for k in ("building", "climate", "season", "part", "site")},
+        "cv_rmse_q_percent": round(cv, 2),
+        "nmbe_q_percent": round(nmbe, 2),
+        "r2_t": round(held["r2_t"], 4),
+        "r2_q": round(held["r2_q"], 4),
+        "rmse_t_celsius": round(held["rmse_t_celsius"], 3),
+        "guideline14": bool(cv <= GUIDELINE14_HOURLY_CV_PERCENT and abs(nmbe) <= GUIDELINE14_HOURLY_NMBE_PERCENT),
+        "at_bounds": len(result["at_bounds"]),
+        "at_bound_names": [b["name"] for b in result["at_bounds"]],
+        "seconds": round(time.perf_counter() - started, 1),
+    }
+
+
+def calibrate_suite(
+    suite: str | Path,
+    parts: Sequence[str] = ("development", "held_out"),
+    checkpoint: str | None = None,
+    seed: int = 0,
+    max_evaluations: int = 6000,
+    progress: bool = True,
+) -> list[dict]:
+    """Calibrate every made site of ``suite`` in ``parts``; rows are also written to ``<suite>/calibration.json``.
+
+    Raises:
+        BuildenvError: the folder has no suite manifest or no made site in ``parts``.
+    """
+    from tqdm import tqdm
+
+    from buildenv.metamodel.surrogate import load_metamodel
+    from buildenv.sites.suite import read_manifest
+
+    records = [r for r in read_manifest(suite) if r["status"] in ("made", "reused") and r["part"] in parts]
+    if not records:
+        raise BuildenvError(f"{suite}: no made site in the parts {', '.join(parts)}; run buildenv suite make")
+    surrogate = load_metamodel(checkpoint)
+    rows = []
+    for record in tqdm(records, desc="calibrate", unit="site", disable=not progress):
+        rows.append(calibrate_case(record, surrogate, seed, max_evaluations))
+    path = Path(suite) / RESULTS
+    path.write_text(json.dumps({"rows": rows, "summary": summarise(rows)}, indent=1) + "\n", encoding="utf-8")
+    return rows
+
+
+def summarise(rows: Sequence[dict]) -> dict[str, dict]:
+    """Per part (and ``all``): sites, shares meeting Guideline 14 hourly and the tighter band, R2_T >= 0.9,
+    mean parameters at a bound, median seconds."""
+    out = {}
+    for part in ("development", "held_out", "all"):
+        sel = [r for r in rows if part == "all" or r["part"] == part]
+        if not sel:
+            continue
+        out[part] = {
+            "sites": len(sel),
+            "guideline14_share": round(float(np.mean([r["guideline14"] for r in sel])), 3),
+            "tight_share": round(
+                float(
+                    np.mean(
+                        [
+                            r["cv_rmse_q_percent"] <= TIGHT_CV_PERCENT
+                            and abs(r["nmbe_q_percent"]) <= TIGHT_NMBE_PERCENT
+                            for r in sel
+                        ]
+                    )
+                ),
+                3,
+            ),
+            "r2_t_above_0_9_share": round(float(np.mean([r["r2_t"] >= 0.9 for r in sel])), 3),
+            "mean_at_bounds": round(float(np.mean([r["at_bounds"] for r in sel])), 2),
+            "median_seconds": round(float(np.median([r["seconds"] for r in sel])), 1),
+        }
+    return out

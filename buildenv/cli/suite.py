@@ -1,0 +1,106 @@
+"""``buildenv suite ...``: the matrix of reference-office stand-ins to develop against and judge on."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+
+def _split(text: str | None) -> list[str] | None:
+    return [t.strip() for t in text.split(",") if t.strip()] if text else None
+
+
+def _cases(args: argparse.Namespace):
+    from buildenv.sites.suite import suite_cases
+
+    return suite_cases(_split(args.buildings), _split(args.climates), _split(args.seasons))
+
+
+def _cmd_suite_list(args: argparse.Namespace) -> int:
+    from buildenv.sites.suite import SUITE_CLIMATES
+
+    cases = _cases(args)
+    if args.json:
+        print(json.dumps([{"name": c.name, "part": c.part, "start": c.start().isoformat()} for c in cases]))
+        return 0
+    print(f"{'case':<52} {'zone':<5} {'part':<12} start")
+    for c in cases:
+        print(f"{c.name:<52} {SUITE_CLIMATES[c.climate]:<5} {c.part:<12} {c.start()}")
+    held = sum(c.part == "held_out" for c in cases)
+    print(f"{len(cases)} cases, {held} held out")
+    return 0
+
+
+def _cmd_suite_make(args: argparse.Namespace) -> int:
+    from buildenv.sites.suite import make_suite
+
+    records = make_suite(
+        args.out, _cases(args), weeks=args.weeks, workers=args.workers, suite_seed=args.seed, progress=not args.quiet
+    )
+    made = sum(r["status"] in ("made", "reused") for r in records)
+    for r in records:
+        if r["status"] == "refused":
+            print(f"refused {r['building']}-{r['climate']}-{r['season']}: {r['reason']}", file=sys.stderr)
+    print(json.dumps({"suite": args.out, "cases": len(records), "sites": made, "refused": len(records) - made}))
+    return 0
+
+
+def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
+    from buildenv.calibration.suite import calibrate_suite, summarise
+
+    parts = ("development", "held_out") if args.part == "all" else (args.part,)
+    rows = calibrate_suite(
+        args.suite, parts, args.checkpoint, seed=args.seed, max_evaluations=args.evaluations, progress=not args.quiet
+    )
+    if args.json:
+        print(json.dumps({"rows": rows, "summary": summarise(rows)}))
+        return 0
+    print(f"{'site':<52} {'part':<12} {'CV_Q %':>7} {'NMBE_Q %':>8} {'R2_T':>6} {'G14':>4} {'bounds':>6}")
+    for r in rows:
+        name = f"{r['building']}-{r['climate']}-{r['season']}"
+        print(
+            f"{name:<52} {r['part']:<12} {r['cv_rmse_q_percent']:>7.1f} {r['nmbe_q_percent']:>8.1f} "
+            f"{r['r2_t']:>6.3f} {'yes' if r['guideline14'] else 'no':>4} {r['at_bounds']:>6}"
+        )
+    for part, s in summarise(rows).items():
+        print(
+            f"{part}: {s['sites']} sites, Guideline 14 met by {s['guideline14_share']:.0%}, "
+            f"CV <= 15 % and |NMBE| <= 5 % by {s['tight_share']:.0%}, R2_T >= 0.9 by {s['r2_t_above_0_9_share']:.0%}, "
+            f"{s['mean_at_bounds']} parameters at a bound on average"
+        )
+    return 0
+
+
+def register(sub) -> None:
+    """Add the ``suite`` subcommands to the main parser's subparsers."""
+    from buildenv.sites.suite import SUITE_WEEKS
+
+    suite = sub.add_parser("suite", help="the matrix of reference-office sites (offices x climates x seasons)")
+    suite_sub = suite.add_subparsers(dest="suite_command", required=True)
+    for name, helptext, func in (
+        ("list", "list the suite's cases and which are held out", _cmd_suite_list),
+        ("make", "run every case's stand-in and write its site folder (resumable)", _cmd_suite_make),
+    ):
+        p = suite_sub.add_parser(name, help=helptext)
+        p.add_argument("--buildings", default=None, help="comma-separated reference offices (default: all six)")
+        p.add_argument("--climates", default=None, help="comma-separated weather short names (default: the suite's)")
+        p.add_argument("--seasons", default=None, help="heating, cooling or both (default)")
+        p.set_defaults(func=func)
+        if name == "list":
+            p.add_argument("--json", action="store_true", help="one JSON list")
+        else:
+            p.add_argument("--out", required=True, help="suite folder (one site folder per case, suite.json)")
+            p.add_argument("--weeks", type=int, default=SUITE_WEEKS, help="measured weeks per site")
+            p.add_argument("--workers", type=int, default=None, help="EnergyPlus processes (default: the CPUs)")
+            p.add_argument("--seed", type=int, default=0, help="seed of the BMS histories and the sensor noise")
+            p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p = suite_sub.add_parser("calibrate", help="calibrate every made site (held-out weeks scored), one table")
+    p.add_argument("--suite", required=True, help="suite folder (buildenv suite make --out)")
+    p.add_argument("--part", default="all", choices=["all", "development", "held_out"], help="which sites")
+    p.add_argument("--checkpoint", default=None, help="metamodel checkpoint (default: the shipped one)")
+    p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations per site")
+    p.add_argument("--seed", type=int, default=0, help="seed of CMA-ES")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_suite_calibrate)

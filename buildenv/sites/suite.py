@@ -1,0 +1,265 @@
+"""The suite: reference-office stand-ins over buildings x climates x seasons, to develop against and judge on.
+
+Each case is one shipped reference office (:data:`buildenv.energyplus.reference.REFERENCE_BUILDINGS`) run in one
+shipped climate over one season (8 weeks by default) under a BMS history whose settings change from week to week
+(:func:`bms_history`), read as sensors into a site folder (:func:`buildenv.energyplus.reference.make_reference_site`).
+The climates run from hot (Miami) to cold (Denver); the seasons are a heating season from mid-January and a
+cooling season from July.
+
+**Held out.** The climates of :data:`HELD_OUT_CLIMATES` (both seasons, every building) are set aside before any
+tuning: figures meant to judge a model are reported on them apart from the development part. Newark is one of
+them because the shipped metamodel never trained on it.
+
+:func:`make_suite` writes ``<out>/<case>/`` site folders and ``<out>/suite.json`` (one record per case: made,
+refused with the one-line reason, or failed); it is resumable (a case whose site folder loads is not run again).
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import logging
+import multiprocessing
+import os
+import shutil
+import time
+import zlib
+from collections.abc import Iterable, Sequence
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.defaults import default_week
+from buildenv.errors import BuildenvError
+
+log = logging.getLogger(__name__)
+
+#: Climates of the suite, hot to cold (shipped TMY3 short names), with their ASHRAE 169 climate zone.
+SUITE_CLIMATES: dict[str, str] = {
+    "usa_fl_miami": "1A",
+    "usa_az_phoenix": "2B",
+    "usa_ca_san_francisco": "3C",
+    "usa_ok_oklahoma": "3A",
+    "usa_nj_newark": "4A",
+    "usa_il_chicago": "5A",
+    "usa_co_denver": "5B",
+}
+#: Climates set aside for judging; never used to choose or tune anything.
+HELD_OUT_CLIMATES: tuple[str, ...] = ("usa_az_phoenix", "usa_nj_newark")
+#: Season -> (month, day) on or after which its first Monday falls.
+SEASONS: dict[str, tuple[int, int]] = {"heating": (1, 14), "cooling": (7, 1)}
+SUITE_YEAR = 2019
+SUITE_WEEKS = 8
+MANIFEST = "suite.json"
+
+
+@dataclass(frozen=True)
+class SuiteCase:
+    """One site of the suite: a reference office in a climate over a season."""
+
+    building: str
+    climate: str
+    season: str
+
+    @property
+    def name(self) -> str:
+        return f"{self.building}-{self.climate}-{self.season}"
+
+    @property
+    def part(self) -> str:
+        """``held_out`` or ``development`` (see :data:`HELD_OUT_CLIMATES`)."""
+        return "held_out" if self.climate in HELD_OUT_CLIMATES else "development"
+
+    def start(self, year: int = SUITE_YEAR) -> dt.date:
+        """The first Monday of the season in ``year``."""
+        month, day = SEASONS[self.season]
+        first = dt.date(year, month, day)
+        return first + dt.timedelta(days=(7 - first.weekday()) % 7)
+
+    def seed(self, suite_seed: int = 0) -> int:
+        """A seed that depends only on the case's name and ``suite_seed`` (stable across Python runs)."""
+        return zlib.crc32(f"{self.name}:{suite_seed}".encode())
+
+
+def suite_cases(
+    buildings: Sequence[str] | None = None,
+    climates: Sequence[str] | None = None,
+    seasons: Sequence[str] | None = None,
+) -> list[SuiteCase]:
+    """The cases of the suite (all of them by default), buildings x climates x seasons.
+
+    Raises:
+        BuildenvError: an unknown building, climate or season, named with the known ones.
+    """
+    from buildenv.energyplus.reference import REFERENCE_BUILDINGS
+
+    chosen = []
+    for label, given, known in (
+        ("building", buildings, tuple(REFERENCE_BUILDINGS)),
+        ("climate", climates, tuple(SUITE_CLIMATES)),
+        ("season", seasons, tuple(SEASONS)),
+    ):
+        values = tuple(known if not given else given)
+        unknown = [v for v in values if v not in known]
+        if unknown:
+            raise BuildenvError(f"unknown suite {label} {', '.join(unknown)}; choose from {', '.join(known)}")
+        chosen.append(values)
+    return [SuiteCase(b, c, s) for b in chosen[0] for c in chosen[1] for s in chosen[2]]
+
+
+def _step(settings: np.ndarray, names: Iterable[str], delta: float) -> None:
+    """Add ``delta`` to the named settings of every day, snapped to their catalogue step and range (in place)."""
+    for name in names:
+        var = cat.get(name)
+        j = cat.SETTING_NAMES.index(name)
+        settings[..., j] = var.snap(np.clip(settings[..., j] + delta, var.min, var.max))
+
+
+def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) -> np.ndarray:
+    """Historical settings ``(weeks, 7, 12)`` that change from week to week as BMS histories do.
+
+    Starts from the typical settings (:func:`buildenv.defaults.default_week`) with ``ventilation_ach`` (1/h), then,
+    from the second week on, each week may move the heating or cooling comfort setpoint by one step, a setback by
+    1 K, or the occupied schedule (heating, cooling and ventilation together) by an hour; one week in the middle
+    changes the ventilation by one step. Each change holds until the next; every value stays on its catalogue
+    step and range. Weeks >= 3 always hold at least one setpoint, one schedule and one ventilation change.
+    """
+    settings = default_week(weeks)[0].copy()
+    vent = cat.get("ventilation_ach")
+    settings[..., cat.SETTING_NAMES.index("ventilation_ach")] = vent.snap(np.clip(ventilation_ach, vent.min, vent.max))
+    if weeks < 2:
+        return settings
+    moves = {
+        "heating_comfort": (("heating_comfort_c",), 0.5),
+        "cooling_comfort": (("cooling_comfort_c",), 0.5),
+        "heating_setback": (("heating_setback_c",), 1.0),
+        "cooling_setback": (("cooling_setback_c",), 1.0),
+        "schedule_start": (("heating_start_hour", "cooling_start_hour", "ventilation_start_hour"), 1.0),
+        "schedule_end": (("heating_end_hour", "cooling_end_hour", "ventilation_end_hour"), 1.0),
+    }
+    weeks_changed = list(range(1, weeks))
+    plan: dict[int, list[str]] = {w: [m for m in moves if rng.random() < 0.25] for w in weeks_changed}
+    if weeks >= 3:  # at least one setpoint, one schedule and one ventilation change
+        plan[int(rng.integers(1, weeks))].append(str(rng.choice(["heating_comfort", "cooling_comfort"])))
+        plan[int(rng.integers(1, weeks))].append(str(rng.choice(["schedule_start", "schedule_end"])))
+    vent_week = weeks // 2
+    for w in weeks_changed:
+        for move in dict.fromkeys(plan[w]):
+            names, size = moves[move]
+            sign = 1.0 if rng.random() < 0.5 else -1.0
+            var, j = cat.get(names[0]), cat.SETTING_NAMES.index(names[0])
+            if not var.min <= settings[w, 0, j] + sign * size <= var.max:  # a move that would hit the bound turns
+                sign = -sign
+            _step(settings[w:], names, sign * size)
+        if w == vent_week:
+            j = cat.SETTING_NAMES.index("ventilation_ach")
+            up = settings[w, 0, j] + vent.step <= vent.max + 1e-9
+            _step(settings[w:], ("ventilation_ach",), vent.step if up else -vent.step)
+    cat.check_values("settings", settings, "bms_history")
+    return settings
+
+
+def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_seed: int = 0) -> dict:
+    """Make one case's site folder ``<out>/<case.name>`` (or reuse it when it already loads).
+
+    Returns:
+        the case's record: its fields, ``part``, ``start``, ``site`` (folder), ``status`` (``made``, ``reused``,
+        ``refused``: the stand-in or the site format cannot take the case, ``reason`` says why in one line),
+        ``seconds``.
+    """
+    from buildenv.energyplus.reference import historical_ventilation_ach, make_reference_site
+    from buildenv.sites.reader import load_site
+
+    folder = Path(out) / case.name
+    record = {**asdict(case), "part": case.part, "start": case.start().isoformat(), "weeks": weeks, "site": str(folder)}
+    started = time.perf_counter()
+    existed = folder.exists()
+    try:
+        if (folder / "site.toml").is_file():
+            site = load_site(folder)
+            if site.weeks == weeks and site.start == case.start():
+                return {**record, "status": "reused", "seconds": 0.0}
+        rng = np.random.default_rng(case.seed(suite_seed))
+        settings = bms_history(weeks, historical_ventilation_ach(case.building), rng)
+        make_reference_site(
+            folder, case.building, case.climate, case.start(), weeks, settings=settings, seed=case.seed(suite_seed)
+        )
+        status = {"status": "made"}
+    except BuildenvError as error:
+        status = {"status": "refused", "reason": str(error).splitlines()[0]}
+        if not existed:  # a refused case leaves nothing behind
+            shutil.rmtree(folder, ignore_errors=True)
+    return {**record, **status, "seconds": round(time.perf_counter() - started, 1)}
+
+
+def _make_case_star(job: tuple) -> dict:
+    return make_case(*job)
+
+
+def make_suite(
+    out: str | Path,
+    cases: Sequence[SuiteCase] | None = None,
+    weeks: int = SUITE_WEEKS,
+    workers: int | None = None,
+    suite_seed: int = 0,
+    progress: bool = True,
+) -> list[dict]:
+    """Make the suite's site folders under ``out`` and write ``out/suite.json``.
+
+    Args:
+        out: the suite folder (created if needed).
+        cases: the cases to make; default every case (:func:`suite_cases`).
+        weeks: measured weeks per site.
+        workers: EnergyPlus processes side by side; default the CPU count.
+        suite_seed: seed of the BMS histories and the sensor noise (each case draws its own from it).
+        progress: a progress bar.
+    Returns:
+        one record per case (:func:`make_case`), in the order of ``cases``; the manifest keeps every record,
+        earlier ones of cases not in ``cases`` included.
+    """
+    from tqdm import tqdm
+
+    cases = list(suite_cases() if cases is None else cases)
+    folder = Path(out)
+    folder.mkdir(parents=True, exist_ok=True)
+    jobs = [(case, folder, weeks, suite_seed) for case in cases]
+    workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
+    records: list[dict] = []
+    bar = tqdm(total=len(jobs), desc="suite", unit="site", disable=not progress)
+    if workers == 1:
+        for job in jobs:
+            records.append(_make_case_star(job))
+            bar.update()
+    else:  # fresh processes: EnergyPlus leaves state behind in the process that ran it
+        with multiprocessing.get_context("spawn").Pool(workers, maxtasksperchild=1) as pool:
+            for record in pool.imap(_make_case_star, jobs):
+                records.append(record)
+                bar.update()
+    bar.close()
+    write_manifest(folder, records)
+    return records
+
+
+def read_manifest(out: str | Path) -> list[dict]:
+    """The records of ``out/suite.json``; raises :class:`BuildenvError` when the folder has none."""
+    path = Path(out) / MANIFEST
+    if not path.is_file():
+        raise BuildenvError(f"{path}: not found; make the suite first (buildenv suite make --out {out})")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))["cases"]
+    except (json.JSONDecodeError, KeyError, TypeError) as error:
+        raise BuildenvError(f"{path}: not a suite manifest ({error}); make the suite again") from error
+
+
+def write_manifest(out: Path, records: Sequence[dict]) -> Path:
+    """Merge ``records`` into ``out/suite.json`` by site folder (later records replace earlier ones)."""
+    path = out / MANIFEST
+    merged = {r["site"]: r for r in (read_manifest(out) if path.is_file() else [])}
+    merged.update({r["site"]: r for r in records})
+    text = json.dumps({"held_out_climates": list(HELD_OUT_CLIMATES), "cases": list(merged.values())}, indent=1)
+    tmp = path.with_suffix(".json.tmp")
+    tmp.write_text(text + "\n", encoding="utf-8")
+    tmp.replace(path)
+    return path

@@ -1,0 +1,78 @@
+"""The suite: its matrix, its BMS histories, sites made by EnergyPlus and calibrated by the unchanged command."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from buildenv import catalogue as cat
+from buildenv.cli.main import main
+from buildenv.errors import BuildenvError
+from buildenv.sites import load_site
+from buildenv.sites.suite import (
+    HELD_OUT_CLIMATES,
+    SUITE_CLIMATES,
+    SuiteCase,
+    bms_history,
+    make_case,
+    read_manifest,
+    suite_cases,
+)
+
+
+def test_the_matrix_covers_every_office_climate_and_season_with_a_held_out_part():
+    cases = suite_cases()
+    assert len(cases) == 6 * len(SUITE_CLIMATES) * 2
+    assert {c.part for c in cases if c.climate in HELD_OUT_CLIMATES} == {"held_out"}
+    assert {c.part for c in cases if c.climate not in HELD_OUT_CLIMATES} == {"development"}
+    assert all(c.start().weekday() == 0 for c in cases)
+    assert len({c.seed() for c in cases}) == len(cases)
+    with pytest.raises(BuildenvError, match="unknown suite climate usa_xx_nowhere"):
+        suite_cases(climates=["usa_xx_nowhere"])
+
+
+def test_bms_history_changes_setpoints_schedules_and_ventilation_within_the_catalogue():
+    settings = bms_history(8, 1.0, np.random.default_rng(3))
+    cat.check_values("settings", settings, "test")
+    assert settings.shape == (8, 7, len(cat.SETTING_NAMES))
+    assert (settings == settings[:, :1]).all()  # one program a week: every day the same
+
+    def changed(*names):
+        idx = [cat.SETTING_NAMES.index(n) for n in names]
+        return bool((np.diff(settings[:, 0, idx], axis=0) != 0).any())
+
+    assert changed("heating_comfort_c", "cooling_comfort_c")
+    assert changed("heating_start_hour", "heating_end_hour", "cooling_start_hour", "cooling_end_hour")
+    assert changed("ventilation_ach")
+    np.testing.assert_array_equal(settings, bms_history(8, 1.0, np.random.default_rng(3)))
+
+
+def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path):
+    case = SuiteCase("medium_office", "usa_ca_san_francisco", "cooling")
+    record = make_case(case, tmp_path, weeks=2)
+    assert record["status"] == "made" and record["part"] == "development"
+    site = load_site(record["site"])
+    assert site.weeks == 2 and site.start == case.start()
+    assert make_case(case, tmp_path, weeks=2)["status"] == "reused"
+
+    small = make_case(SuiteCase("small_office", "usa_fl_miami", "heating"), tmp_path, weeks=1)
+    assert small["status"] == "refused" and "floor_area_m2" in small["reason"]
+    assert not (tmp_path / "small_office-usa_fl_miami-heating").exists()
+
+
+def test_suite_make_and_calibrate_from_the_command_line(tmp_path, capsys):
+    out = tmp_path / "suite"
+    args = ["--buildings", "medium_office", "--climates", "usa_nj_newark", "--seasons", "heating"]
+    assert main(["suite", "make", *args, "--out", str(out), "--weeks", "2", "--workers", "1", "--quiet"]) == 0
+    made = json.loads(capsys.readouterr().out)
+    assert made == {"suite": str(out), "cases": 1, "sites": 1, "refused": 0}
+    assert [r["part"] for r in read_manifest(out)] == ["held_out"]
+
+    assert main(["suite", "calibrate", "--suite", str(out), "--evaluations", "200", "--quiet", "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    (row,) = result["rows"]
+    assert row["part"] == "held_out" and np.isfinite(row["cv_rmse_q_percent"]) and row["seconds"] > 0
+    assert result["summary"]["held_out"]["sites"] == 1
+    assert json.loads((out / "calibration.json").read_text())["rows"] == result["rows"]

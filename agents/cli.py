@@ -27,12 +27,9 @@ def make_env(site: str, metamodel: str = "default", comfort_weight: float = 1.0,
 def default_week(env) -> int:
     """The week to optimise when none is given: the site's first held-out (not calibrated-on) measured week,
     else its last measured week."""
-    import datetime as dt
+    from buildenv.env.response import first_heldout_week
 
-    base = env.unwrapped
-    site = base.site
-    held = (site.calibration or {}).get("heldout_weeks") or [site.weeks - 1]
-    return base.site_model.week_of(site.start + dt.timedelta(days=7 * int(held[0])))
+    return first_heldout_week(env)
 
 
 def optimise(
@@ -149,6 +146,33 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_verify(args: argparse.Namespace) -> int:
+    from buildenv.env.response import response_check
+
+    env = make_env(args.site, args.metamodel)
+    week = default_week(env) if args.week is None else args.week
+    check = response_check(env, week, n=args.random, seed=args.seed)
+    if args.json:
+        print(json.dumps(check.summary))
+        return 0
+    s = check.summary
+    print(
+        f"{'setting':>7} {'savings predicted %':>20} {'realised %':>10} {'comfort predicted K':>20} {'realised K':>10}"
+    )
+    for i in range(len(check.actions)):
+        print(
+            f"{i:>7} {check.predicted_savings[i]:>20.1f} {check.realised_savings[i]:>10.1f} "
+            f"{check.predicted_comfort[i]:>20.3f} {check.realised_comfort[i]:>10.3f}"
+        )
+    print(
+        f"week {week}: savings error {s['savings_error_mean_abs_points']} points on average "
+        f"({s['savings_error_p90_abs_points']} at the 90th percentile, bias {s['savings_bias_points']}), "
+        f"Spearman {s['savings_spearman']}; comfort error {s['comfort_error_mean_abs_k']} K, "
+        f"Spearman {s['comfort_spearman']}"
+    )
+    return 0
+
+
 def _cmd_demo(args: argparse.Namespace) -> int:
     from agents.demo import run_demo
 
@@ -158,7 +182,7 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 
 
 def register(sub) -> None:
-    """Add ``optimize`` and ``demo`` to the ``buildenv`` subcommands."""
+    """Add ``optimize``, ``verify`` and ``demo`` to the ``buildenv`` subcommands."""
     p = sub.add_parser("optimize", help="find the week's settings that save energy at equal comfort")
     p.add_argument("--method", required=True, choices=METHODS)
     p.add_argument("--site", default="default", help="calibrated site folder or 'default'")
@@ -183,6 +207,15 @@ def register(sub) -> None:
     p.add_argument("--out", default=None, help="also write the JSON into this folder")
     p.add_argument("--json", action="store_true", help="one-line JSON, no progress bar")
     p.set_defaults(func=_cmd_optimize)
+
+    p = sub.add_parser("verify", help="the response check: random settings on the metamodel and on EnergyPlus")
+    p.add_argument("--site", required=True, help="calibrated site folder made by `buildenv site reference`")
+    p.add_argument("--random", type=int, default=20, help="random settings to check")
+    p.add_argument("--week", type=int, default=None, help="week of the site's year; default its first held-out week")
+    p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random settings")
+    p.add_argument("--json", action="store_true", help="the summary as one JSON line")
+    p.set_defaults(func=_cmd_verify)
 
     p = sub.add_parser("demo", help="the end-to-end pipeline on the default site: calibrate, optimise, verify, report")
     p.add_argument("--out", default="out/demo", help="folder of the report (report.md and PNGs)")

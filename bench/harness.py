@@ -82,17 +82,18 @@ def write_results(
     out: Path | None = None,
     keep: str | None = None,
     echo: bool = False,
+    run: Mapping | None = None,
 ) -> Path:
     """Write ``<out>/<name>.md`` and ``<out>/<name>.json`` (``out``: ``bench/results``) and return the page's path.
 
     ``page``: Markdown text or lines, its first line the title; the provenance line goes under it. ``data``: the
     record (the provenance is added under ``"provenance"``), or JSON text written as it is. ``keep``: a heading
     whose section of the old page is kept at the end of the new one (a hand-written reading of the run). ``echo``:
-    print the page.
+    print the page. ``run``: the provenance of the run the page shows, when the page is written again from its record.
     """
     out = RESULTS if out is None else Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    p = provenance()
+    p = dict(run) if run is not None else provenance()
     lines = page.rstrip("\n").split("\n") if isinstance(page, str) else list(page)
     title, rest = (lines[:1], lines[1:]) if lines and lines[0].startswith("# ") else ([], lines)
     text = "\n".join([*title, "", provenance_line(p), *rest]).rstrip("\n") + "\n"

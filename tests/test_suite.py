@@ -9,6 +9,7 @@ import pytest
 
 from buildenv import catalogue as cat
 from buildenv.cli.main import main
+from buildenv.env.response import summarise
 from buildenv.errors import BuildenvError
 from buildenv.sites import load_site
 from buildenv.sites.suite import (
@@ -62,7 +63,7 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
     assert not (tmp_path / "small_office-usa_fl_miami-heating").exists()
 
 
-def test_suite_make_and_calibrate_from_the_command_line(tmp_path, capsys):
+def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys):
     out = tmp_path / "suite"
     args = ["--buildings", "medium_office", "--climates", "usa_nj_newark", "--seasons", "heating"]
     assert main(["suite", "make", *args, "--out", str(out), "--weeks", "2", "--workers", "1", "--quiet"]) == 0
@@ -76,3 +77,21 @@ def test_suite_make_and_calibrate_from_the_command_line(tmp_path, capsys):
     assert row["part"] == "held_out" and np.isfinite(row["cv_rmse_q_percent"]) and row["seconds"] > 0
     assert result["summary"]["held_out"]["sites"] == 1
     assert json.loads((out / "calibration.json").read_text())["rows"] == result["rows"]
+
+    # the response check: random settings on the calibrated metamodel and on the site's EnergyPlus model
+    assert main(["suite", "verify", "--suite", str(out), "--random", "3", "--quiet", "--json"]) == 0
+    (checked,) = json.loads(capsys.readouterr().out)["rows"]
+    assert checked["settings"] == 3 and -1.0 <= checked["savings_spearman"] <= 1.0
+    assert checked["savings_error_p90_abs_points"] >= checked["savings_error_mean_abs_points"] * 0.5
+    assert main(["verify", "--site", row["site"], "--random", "3", "--json"]) == 0
+    single = json.loads(capsys.readouterr().out)  # the same site, week and seed: the same figures
+    assert {k: v for k, v in single.items() if k != "seconds_energyplus"} == {
+        k: checked[k] for k in single if k != "seconds_energyplus"
+    }
+
+
+def test_the_response_summary_scores_agreement_and_disagreement():
+    same = summarise([10.0, -5.0, 3.0], [10.0, -5.0, 3.0], [0.2, 0.5, 0.1], [0.2, 0.5, 0.1])
+    assert same["savings_error_p90_abs_points"] == 0.0 and same["savings_spearman"] == 1.0
+    off = summarise([30.0, -15.0, 9.0], [10.0, -5.0, 3.0], [0.2, 0.5, 0.1], [0.1, 0.6, 0.3])
+    assert off["savings_bias_points"] > 0 and off["savings_spearman"] == 1.0 and off["comfort_spearman"] < 1.0

@@ -72,6 +72,28 @@ def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_suite_verify(args: argparse.Namespace) -> int:
+    from buildenv.env.response import check_suite
+
+    parts = ("development", "held_out") if args.part == "all" else (args.part,)
+    rows = check_suite(
+        args.suite, parts, n=args.random, seed=args.seed, metamodel=args.metamodel, progress=not args.quiet
+    )
+    if args.json:
+        print(json.dumps({"rows": rows}))
+        return 0
+    print(f"{'site':<52} {'part':<12} {'error p90':>9} {'bias':>6} {'Spearman':>8} {'comfort K':>9}")
+    for r in rows:
+        name = f"{r['building']}-{r['climate']}-{r['season']}"
+        print(
+            f"{name:<52} {r['part']:<12} {r['savings_error_p90_abs_points']:>9.1f} {r['savings_bias_points']:>6.1f} "
+            f"{r['savings_spearman']:>8.2f} {r['comfort_error_mean_abs_k']:>9.3f}"
+        )
+    met = sum(r["meets_target"] for r in rows)
+    print(f"{met} of {len(rows)} sites within 5 points at the 90th percentile with Spearman >= 0.9")
+    return 0
+
+
 def register(sub) -> None:
     """Add the ``suite`` subcommands to the main parser's subparsers."""
     from buildenv.sites.suite import SUITE_WEEKS
@@ -104,3 +126,12 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_suite_calibrate)
+    p = suite_sub.add_parser("verify", help="the response check on every calibrated site (runs EnergyPlus)")
+    p.add_argument("--suite", required=True, help="suite folder (calibrated by buildenv suite calibrate)")
+    p.add_argument("--part", default="held_out", choices=["all", "development", "held_out"], help="which sites")
+    p.add_argument("--random", type=int, default=20, help="random settings per site")
+    p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random settings")
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_suite_verify)

@@ -1,0 +1,139 @@
+"""The suite calibrated and checked with the unchanged commands: Guideline 14 and the response to settings.
+
+Makes the suite (``buildenv suite make``: the six reference offices x seven climates x a heating and a cooling
+season, 8 weeks each under BMS histories that change week to week; resumable) and calibrates every site it could
+make (``buildenv suite calibrate``: the default calibration, first half fitted, second half held out). The
+development part and the held-out climates (Phoenix, Newark) are reported apart; the held-out part is what the
+any-office targets are judged on. With ``--random N`` (default 20) the response check (``buildenv suite verify``)
+runs N random settings on each held-out site's calibrated metamodel and on its EnergyPlus model.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import time
+from pathlib import Path
+
+import harness
+
+from buildenv.calibration.suite import TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT, calibrate_suite, summarise
+from buildenv.env.response import TARGET_P90_POINTS, TARGET_SPEARMAN, check_suite
+from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT
+from buildenv.sites.suite import HELD_OUT_CLIMATES, make_suite, suite_cases
+
+
+def _table(rows: list[dict]) -> list[str]:
+    lines = [
+        "| site | CV(RMSE)_Q % | NMBE_Q % | R2_T | RMSE_T K | Guideline 14 | at a bound | s |",
+        "|---|---|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['building']} {r['climate']} {r['season']} | {r['cv_rmse_q_percent']:.1f} | "
+            f"{r['nmbe_q_percent']:.1f} | {r['r2_t']:.3f} | {r['rmse_t_celsius']:.2f} | "
+            f"{'yes' if r['guideline14'] else 'no'} | {r['at_bounds']} | {r['seconds']:.0f} |"
+        )
+    return lines
+
+
+def _refusals(refused: list[dict]) -> list[str]:
+    """One line per building and reason, the cases it refused counted (paths and EnergyPlus detail left out)."""
+    groups: dict[tuple[str, str], list[str]] = {}
+    for r in refused:
+        reason = re.sub(r"\S*/", "", r["reason"])  # no folders
+        reason = re.sub(r"^site\.toml:\d+: ", "", reason).split(" | ")[0][:200]
+        groups.setdefault((r["building"], reason), []).append(f"{r['climate']} {r['season']}")
+    return [f"- {b} ({len(cases)} of its cases): {reason}" for (b, reason), cases in groups.items()]
+
+
+def render(record: dict, random: int) -> list[str]:
+    """The page of a run's record."""
+    made, rows, response, summary = record["made"], record["rows"], record["response"], record["summary"]
+    refused = [r for r in made if r["status"] == "refused"]
+    lines = [
+        "# The suite calibrated and checked: Guideline 14 and the response to settings",
+        "",
+        f"{len(made)} cases, {len(made) - len(refused)} sites made, {len(refused)} refused; held-out climates: "
+        f"{', '.join(HELD_OUT_CLIMATES)}. Making took {record['make_seconds'] / 60:.1f} min (EnergyPlus, sites "
+        f"already made reused), calibrating {record['calibrate_seconds'] / 60:.1f} min. Guideline 14 hourly: "
+        f"CV(RMSE)_Q <= {GUIDELINE14_HOURLY_CV_PERCENT:.0f} % and |NMBE_Q| <= {GUIDELINE14_HOURLY_NMBE_PERCENT:.0f} %;"
+        f" the tighter band: {TIGHT_CV_PERCENT:.0f} % and {TIGHT_NMBE_PERCENT:.0f} %. All figures on held-out weeks.",
+        "",
+        "| part | sites | Guideline 14 | tighter band | R2_T >= 0.9 | at a bound (mean) | s a site (median) |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for part, s in summary.items():
+        lines.append(
+            f"| {part} | {s['sites']} | {s['guideline14_share']:.0%} | {s['tight_share']:.0%} | "
+            f"{s['r2_t_above_0_9_share']:.0%} | {s['mean_at_bounds']} | {s['median_seconds']} |"
+        )
+    if response:
+        met = sum(r["meets_target"] for r in response)
+        lines += [
+            "",
+            "## The response check, held-out sites",
+            "",
+            f"{random} random settings on each site's first held-out week, through the calibrated metamodel "
+            f"and the site's EnergyPlus model ({record['response_seconds'] / 60:.1f} min): savings against the "
+            f"historical settings, predicted - realised, in points. {met} of {len(response)} sites within "
+            f"{TARGET_P90_POINTS:.0f} points at the 90th percentile with Spearman >= {TARGET_SPEARMAN}.",
+            "",
+            "| site | error mean abs | error p90 | bias | Spearman | comfort error K | comfort Spearman |",
+            "|---|---|---|---|---|---|---|",
+        ]
+        for r in response:
+            lines.append(
+                f"| {r['building']} {r['climate']} {r['season']} | {r['savings_error_mean_abs_points']:.1f} | "
+                f"{r['savings_error_p90_abs_points']:.1f} | {r['savings_bias_points']:.1f} | "
+                f"{r['savings_spearman']:.2f} | {r['comfort_error_mean_abs_k']:.3f} | {r['comfort_spearman']:.2f} |"
+            )
+    for part in ("held_out", "development"):
+        lines += [
+            "",
+            f"## Calibration, {part.replace('_', '-')} sites",
+            "",
+            *_table([r for r in rows if r["part"] == part]),
+        ]
+    if refused:
+        lines += ["", "## Refused", "", *_refusals(refused)]
+    return lines
+
+
+def main() -> None:
+    p = harness.parser(__doc__, first_line=True)
+    p.add_argument("--suite", default="out/suite", help="suite folder (made or reused)")
+    p.add_argument("--workers", type=int, default=None, help="EnergyPlus processes (default: the CPUs)")
+    p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget per site")
+    p.add_argument("--random", type=int, default=20, help="random settings of the response check (0: none)")
+    p.add_argument("--render", default=None, metavar="JSON", help="only write the page again from a run's record")
+    p.add_argument("--name", default="suite")
+    args = p.parse_args()
+    if args.render:
+        record = json.loads(Path(args.render).read_text())
+        run = record.pop("provenance", None)
+        harness.write_results(args.name, render(record, args.random), record, run=run)
+        return
+
+    started = time.perf_counter()
+    made = make_suite(args.suite, suite_cases(), workers=args.workers)
+    make_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    rows = calibrate_suite(args.suite, max_evaluations=args.evaluations)
+    calibrate_seconds = time.perf_counter() - started
+    started = time.perf_counter()
+    response = check_suite(args.suite, ("held_out",), n=args.random) if args.random else []
+    record = {
+        "summary": summarise(rows),
+        "rows": rows,
+        "response": response,
+        "made": made,
+        "make_seconds": round(make_seconds, 1),
+        "calibrate_seconds": round(calibrate_seconds, 1),
+        "response_seconds": round(time.perf_counter() - started, 1),
+    }
+    harness.write_results(args.name, render(record, args.random), record)
+
+
+if __name__ == "__main__":
+    main()

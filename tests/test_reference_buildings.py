@@ -60,3 +60,27 @@ def test_data_centre_keeps_its_schedules():
 def test_reference_building_one_week(building):
     run = run_reference(building, "usa_il_chicago", START, historical_settings(1))
     _check_run(run)
+
+
+def test_a_stand_in_is_sized_with_the_design_days_of_its_own_climate():
+    from buildenv.energyplus.design_days import climate_design_days, design_conditions
+    from buildenv.weather.epw import resolve_epw
+
+    miami, chicago = design_conditions(resolve_epw("usa_fl_miami")), design_conditions(resolve_epw("usa_il_chicago"))
+    phoenix = design_conditions(resolve_epw("usa_az_phoenix"))
+    assert miami["heating"]["dry_bulb_c"] > chicago["heating"]["dry_bulb_c"] + 20  # a mild winter
+    assert phoenix["cooling"]["dry_bulb_c"] > miami["cooling"]["dry_bulb_c"]  # a hotter summer...
+    assert phoenix["cooling"]["dew_point_c"] < miami["cooling"]["dew_point_c"] - 5  # ...and a drier one
+    assert (
+        -23 < chicago["heating"]["dry_bulb_c"] < -18 and 30 < chicago["cooling"]["dry_bulb_c"] < 34
+    )  # ASHRAE: -20.6, 31.2
+
+    objects = read_idf(reference_idf("medium_office"))  # a Chicago model
+    assert climate_design_days(objects, resolve_epw("usa_il_chicago")) is objects  # its own climate: unchanged
+    moved = climate_design_days(objects, resolve_epw("usa_fl_miami"))
+    assert "Miami" in of_type(moved, "Site:Location")[0][1]
+    days = of_type(moved, "SizingPeriod:DesignDay")
+    assert [(d[4], float(d[5])) for d in days] == [
+        ("WinterDesignDay", miami["heating"]["dry_bulb_c"]),
+        ("SummerDesignDay", miami["cooling"]["dry_bulb_c"]),
+    ]

@@ -38,6 +38,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.defaults import default_week
+from buildenv.energyplus.design_days import climate_design_days
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.injections import (
     InjectedEffect,
@@ -245,6 +246,8 @@ def prepare_model(
         if not o[0].lower().startswith(kept_kinds) and not serves_24h_space(o, unoccupied):
             o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
         edited.append(o)
+    if epw is not None:
+        edited = climate_design_days(edited, epw)
     sim = of_type(edited, "SimulationControl")
     if sim:
         sim[0][1:6] = ["Yes", "Yes", "Yes", "No", "Yes"]  # autosize on design days, simulate the run period only
@@ -342,7 +345,7 @@ def _sizing_run(source: Path, workdir: Path, epw: Path | None):
         folder = workdir / "sizing"
         folder.mkdir(parents=True, exist_ok=True)
         idf = folder / f"{source.stem}_sizing.idf"
-        idf.write_text(format_idf(objects))
+        idf.write_text(format_idf(climate_design_days(objects, epw)))
         run_energyplus(idf, epw, folder, label=f"{source.stem} sizing")
         return folder / "eplusout.eio"
 

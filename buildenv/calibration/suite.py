@@ -18,6 +18,7 @@ import numpy as np
 
 from buildenv.errors import BuildenvError
 from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT
+from buildenv.sites.suite import CASE_FIELDS, read_manifest
 
 RESULTS = "calibration.json"
 #: a tighter band than Guideline 14's, which a site calibrated well should meet: CV(RMSE)_Q and |NMBE_Q|, percent
@@ -35,7 +36,7 @@ def calibrate_case(record: dict, surrogate, seed: int = 0, max_evaluations: int 
     held = result["heldout"]
     cv, nmbe = held["cv_rmse_q_percent"], held["nmbe_q_percent"]
     return {
-        **{k: record[k] for k in ("building", "climate", "season", "part", "site")},
+        **{k: record[k] for k in CASE_FIELDS},
         "cv_rmse_q_percent": round(cv, 2),
         "nmbe_q_percent": round(nmbe, 2),
         "r2_t": round(held["r2_t"], 4),
@@ -64,7 +65,6 @@ def calibrate_suite(
     from tqdm import tqdm
 
     from buildenv.metamodel.surrogate import load_metamodel
-    from buildenv.sites.suite import read_manifest
 
     records = [r for r in read_manifest(suite) if r["status"] in ("made", "reused") and r["part"] in parts]
     if not records:
@@ -78,6 +78,10 @@ def calibrate_suite(
     return rows
 
 
+def _tight(row: dict) -> bool:
+    return row["cv_rmse_q_percent"] <= TIGHT_CV_PERCENT and abs(row["nmbe_q_percent"]) <= TIGHT_NMBE_PERCENT
+
+
 def summarise(rows: Sequence[dict]) -> dict[str, dict]:
     """Per part (and ``all``): sites, shares meeting Guideline 14 hourly and the tighter band, R2_T >= 0.9,
     mean parameters at a bound, median seconds."""
@@ -86,22 +90,15 @@ def summarise(rows: Sequence[dict]) -> dict[str, dict]:
         sel = [r for r in rows if part == "all" or r["part"] == part]
         if not sel:
             continue
+
+        def share(test, sel=sel) -> float:
+            return round(float(np.mean([test(r) for r in sel])), 3)
+
         out[part] = {
             "sites": len(sel),
-            "guideline14_share": round(float(np.mean([r["guideline14"] for r in sel])), 3),
-            "tight_share": round(
-                float(
-                    np.mean(
-                        [
-                            r["cv_rmse_q_percent"] <= TIGHT_CV_PERCENT
-                            and abs(r["nmbe_q_percent"]) <= TIGHT_NMBE_PERCENT
-                            for r in sel
-                        ]
-                    )
-                ),
-                3,
-            ),
-            "r2_t_above_0_9_share": round(float(np.mean([r["r2_t"] >= 0.9 for r in sel])), 3),
+            "guideline14_share": share(lambda r: r["guideline14"]),
+            "tight_share": share(_tight),
+            "r2_t_above_0_9_share": share(lambda r: r["r2_t"] >= 0.9),
             "mean_at_bounds": round(float(np.mean([r["at_bounds"] for r in sel])), 2),
             "median_seconds": round(float(np.median([r["seconds"] for r in sel])), 1),
         }

@@ -9,12 +9,17 @@ settings whose savings do not materialise.
 from __future__ import annotations
 
 import datetime as dt
+import json
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 from scipy.stats import spearmanr
+
+from buildenv.errors import BuildenvError
+from buildenv.sites.suite import CASE_FIELDS, read_manifest
 
 
 @dataclass
@@ -118,14 +123,7 @@ def check_suite(
     Raises:
         BuildenvError: no calibrated site in ``parts`` (run ``buildenv suite calibrate`` first).
     """
-    import json
-    from pathlib import Path
-
     from tqdm import tqdm
-
-    import buildenv  # noqa: F401  (registers BuildingWeek-v0)
-    from buildenv.errors import BuildenvError
-    from buildenv.sites.suite import read_manifest
 
     records = [
         r
@@ -141,7 +139,7 @@ def check_suite(
         s = check.summary
         rows.append(
             {
-                **{k: r[k] for k in ("building", "climate", "season", "part", "site")},
+                **{k: r[k] for k in CASE_FIELDS},
                 **s,
                 "meets_target": bool(
                     s["savings_error_p90_abs_points"] <= TARGET_P90_POINTS and s["savings_spearman"] >= TARGET_SPEARMAN

@@ -53,6 +53,8 @@ SEASONS: dict[str, tuple[int, int]] = {"heating": (1, 14), "cooling": (7, 1)}
 SUITE_YEAR = 2019
 SUITE_WEEKS = 8
 MANIFEST = "suite.json"
+#: the fields of a case's record that every table of the suite repeats
+CASE_FIELDS: tuple[str, ...] = ("building", "climate", "season", "part", "site")
 
 
 @dataclass(frozen=True)

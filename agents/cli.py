@@ -50,7 +50,7 @@ def optimise(
     ``rules`` is the rule-based schedule of :mod:`agents.rules`.
 
     Returns:
-        ``{"method", "week", "week_start", "seconds", "action" (84,), "chosen", "historical"
+        ``{"method", "week", "week_start", "seconds", "action" (A,), "chosen", "historical"
         (scalar scores), "predicted_savings_percent", "comfort_historical_predicted",
         "comfort_chosen_predicted"}`` and the method's ``"evaluations"`` (NSGA-II: also ``"hypervolume"``,
         ``"front"``, ``"pareto"``).

@@ -14,7 +14,7 @@ class WeekResult:
 
     Attributes:
         week: week of the year.
-        action: ``(84,)`` action in [-1, 1].
+        action: ``(A,)`` action in [-1, 1] (A: the environment's action size).
         scores: the environment's ``evaluate`` scores of ``action`` (reward, energy_term, comfort_k, ...).
         evaluations: weeks the optimiser scored.
         seconds: wall time.
@@ -43,7 +43,7 @@ def optimise_week(
     seed: int = 0,
     x0: np.ndarray | None = None,
 ) -> WeekResult:
-    """Maximise the reward of one week with CMA-ES over the 84 action components.
+    """Maximise the reward of one week with CMA-ES over the action components.
 
     Args:
         env: a ``BuildingWeek-v0`` environment (``env.unwrapped.evaluate`` is used).

@@ -32,7 +32,7 @@ class ParetoResult:
 
     Attributes:
         week: week of the year.
-        actions: ``(M, 84)`` non-dominated actions.
+        actions: ``(M, A)`` non-dominated actions (A: the action size).
         energy_term: ``(M,)`` energy relative to the historical settings.
         comfort_k: ``(M,)`` comfort term, K.
         hypervolume: of the front against :data:`HV_REFERENCE`.

@@ -1,7 +1,7 @@
 """PPO (stable-baselines3) trained across the training weeks of BuildingWeek-v0, evaluated on held-out weeks.
 
 One PPO policy maps a week's observation (weather forecast summary, occupancy, week of the year, calibrated
-building) to the week's 84 settings: after training, choosing a week's settings is one small forward pass
+building) to the week's settings: after training, choosing a week's settings is one small forward pass
 instead of a per-week optimisation (:func:`agents.cmaes.optimise_week`, thousands of scored weeks).
 
 - :class:`BuildingVecEnv`: a stable-baselines3 ``VecEnv`` over the native batched
@@ -107,7 +107,7 @@ class BuildingVecEnv(VecEnv):
         return np.asarray(obs, dtype=np.float32)
 
     def step_async(self, actions: np.ndarray) -> None:
-        """Store the actions ``(N, 84)`` of the next :meth:`step_wait`."""
+        """Store the actions ``(N, A)`` of the next :meth:`step_wait`."""
         self._actions = np.asarray(actions, dtype=np.float32)
 
     def step_wait(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[dict]]:
@@ -166,7 +166,7 @@ class BuildingVecEnv(VecEnv):
         return [None] * self.num_envs
 
     def evaluate(self, actions: np.ndarray, week: int) -> dict[str, np.ndarray]:
-        """Score actions ``(N, 84)`` on one week (the vector environment's batched ``evaluate``)."""
+        """Score actions ``(N, A)`` on one week (the vector environment's batched ``evaluate``)."""
         return self.venv.unwrapped.evaluate(actions, week=week)
 
 
@@ -258,7 +258,7 @@ def train_ppo(
             (``policy_kwargs`` are merged with the defaults').
     Returns:
         The trained ``stable_baselines3.PPO`` model (CPU). ``model.predict(obs, deterministic=True)`` gives
-        actions ``(N, 84)``; :func:`policy_actions` does the same.
+        actions ``(N, A)``; :func:`policy_actions` does the same.
     Raises:
         BuildingEnvError: ``timesteps`` < 1.
     """
@@ -288,7 +288,7 @@ def train_ppo(
 
 # ---------------------------------------------------------------------------------------------- acting
 def policy_actions(model: PPO, observations: np.ndarray) -> np.ndarray:
-    """Deterministic actions ``(N, 84)`` in [-1, 1] (the policy's mean, clipped) of observations ``(N, obs)``."""
+    """Deterministic actions ``(N, A)`` in [-1, 1] (the policy's mean, clipped) of observations ``(N, obs)``."""
     actions, _ = model.predict(np.asarray(observations, dtype=np.float32), deterministic=True)
     return np.asarray(actions, dtype=np.float32)
 

@@ -63,6 +63,6 @@ def rule_based_settings(occupancy: np.ndarray) -> np.ndarray:
 
 
 def rule_based_action(env) -> np.ndarray:
-    """The rule-based schedule of an environment's calibrated occupancy, as an action ``(84,)``."""
+    """The rule-based schedule of an environment's calibrated occupancy, as an action."""
     base = env.unwrapped
     return base.encode(rule_based_settings(base.site_model.occupancy))

@@ -39,7 +39,7 @@ def verify(env, week: int, action: np.ndarray) -> Verification:
     Args:
         env: the metamodel ``BuildingWeek-v0`` the action was chosen on (its arguments are reused).
         week: week of the year.
-        action: ``(84,)`` chosen action.
+        action: ``(A,)`` chosen action (A: the action size).
     Returns:
         the :class:`Verification`; its ``summary`` keys: ``predicted_savings_percent``,
         ``realised_savings_percent``, ``comfort_historical``, ``comfort_chosen``, ``comfort_historical_predicted``,

@@ -58,7 +58,8 @@ def render(record: dict, random: int) -> list[str]:
         f"{', '.join(HELD_OUT_CLIMATES)}. Making took {record['make_seconds'] / 60:.1f} min (EnergyPlus, sites "
         f"already made reused), calibrating {record['calibrate_seconds'] / 60:.1f} min. Guideline 14 hourly: "
         f"CV(RMSE)_Q <= {GUIDELINE14_HOURLY_CV_PERCENT:.0f} % and |NMBE_Q| <= {GUIDELINE14_HOURLY_NMBE_PERCENT:.0f} %;"
-        f" the tighter band: {TIGHT_CV_PERCENT:.0f} % and {TIGHT_NMBE_PERCENT:.0f} %. All figures on held-out weeks.",
+        f" the tighter band: {TIGHT_CV_PERCENT:.0f} % and {TIGHT_NMBE_PERCENT:.0f} %. All figures on held-out weeks."
+        f" Metamodel: {record.get('checkpoint', 'default')}.",
         "",
         "| part | sites | Guideline 14 | tighter band | R2_T >= 0.9 | at a bound (mean) | s a site (median) |",
         "|---|---|---|---|---|---|---|",
@@ -107,6 +108,7 @@ def main() -> None:
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget per site")
     p.add_argument("--random", type=int, default=20, help="random settings of the response check (0: none)")
     p.add_argument("--render", default=None, metavar="JSON", help="only write the page again from a run's record")
+    p.add_argument("--checkpoint", default="default", help="metamodel checkpoint (default: the shipped one)")
     p.add_argument("--name", default="suite")
     args = p.parse_args()
     if args.render:
@@ -119,11 +121,12 @@ def main() -> None:
     made = make_suite(args.suite, suite_cases(), workers=args.workers)
     make_seconds = time.perf_counter() - started
     started = time.perf_counter()
-    rows = calibrate_suite(args.suite, max_evaluations=args.evaluations)
+    rows = calibrate_suite(args.suite, checkpoint=args.checkpoint, max_evaluations=args.evaluations)
     calibrate_seconds = time.perf_counter() - started
     started = time.perf_counter()
-    response = check_suite(args.suite, ("held_out",), n=args.random) if args.random else []
+    response = check_suite(args.suite, ("held_out",), n=args.random, metamodel=args.checkpoint) if args.random else []
     record = {
+        "checkpoint": args.checkpoint,
         "summary": summarise(rows),
         "rows": rows,
         "response": response,

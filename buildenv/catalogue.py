@@ -7,10 +7,10 @@ The single source of truth for names, units, ranges, steps and granularity: samp
 Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize energy loads"):
 
 ``theta_build`` (static, one value per building)
-    The paper's 17 building parameters plus floor area and number of floors = 19 variables; extensive
-    quantities are per m2 of floor area, so one model covers offices of any size. To cover the reference
-    offices in colder and hotter climates than Paris, fan-coil power spans 10-100 W/m2 (the paper's
-    0-35 W/m2 cannot hold a Chicago or Phoenix summer) and the window-to-wall ratio 20-60 %.
+    21 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
+    floor area, number of floors, lighting power and heat recovery; extensive quantities are per m2 of floor
+    area, so one model covers offices of any size. Ranges are taken from practice (the ASHRAE 90.1 2004-2019
+    reference offices) and are wide enough for the six shipped reference offices.
 ``settings`` (I_k, per day of the week: 12 settings x 7 days = 84 values a week)
     Heating, cooling and ventilation schedules and setpoints of the building management system (BMS).
 ``occupancy`` (O_k, per weekday Monday-Friday: 2 x 5 = 10 values a week)
@@ -21,7 +21,10 @@ Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to cal
     The paper's 8 outputs; energies in Wh per m2 of floor area in the hour (x floor area / 1000 for kWh).
 
 A variable with a ``step`` is sampled on the grid ``min, min + step, ...`` up to ``max`` (the paper's uniform
-sampling): ``vol_ventilation`` (0.7-1.7 step 0.3) takes 0.7, 1.0, 1.3 and 1.6, as the paper's table reads.
+sampling): ``ventilation_ach`` (0.1-1.7 step 0.3) takes 0.1, 0.4, ..., 1.6, the paper's 0.7-1.6 among them.
+
+Data and checkpoints made with a catalogue this one replaced are read through :data:`EARLIER_CATALOGUES`
+(its ranges, renamed variables and the values it implies for variables it lacked).
 """
 
 from __future__ import annotations
@@ -120,9 +123,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "floor_area_m2",
         "theta_build",
         "m2",
-        1000,
+        300,
         50000,
-        1000,
+        100,
         S,
         "Conditioned floor area of the whole building (all floors).",
         "(geometry)",
@@ -142,18 +145,30 @@ THETA_BUILD: tuple[Variable, ...] = (
         "infiltration_ach",
         "theta_build",
         "1/h",
-        0.1,
-        0.5,
-        0.1,
+        0.05,
+        1.0,
+        0.05,
         S,
         "Infiltration air changes per hour of the zone volume (constant, wind-independent).",
         "airchange_infiltration_vol_per_h",
     ),
     _v(
+        "heat_recovery_effectiveness",
+        "theta_build",
+        "-",
+        0,
+        0.8,
+        0.1,
+        S,
+        "Sensible effectiveness of the air handling unit's heat recovery between exhaust and outdoor air "
+        "(0: none; plate exchangers 0.5-0.7, wheels 0.7-0.8).",
+        "(heat recovery)",
+    ),
+    _v(
         "capacitance_kj_per_k_m3",
         "theta_build",
         "kJ/(K m3)",
-        50,
+        20,
         300,
         10,
         S,
@@ -164,9 +179,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "heating_power_w_m2",
         "theta_build",
         "W/m2",
-        10,
-        100,
-        10,
+        5,
+        150,
+        5,
         S,
         "Installed zone (fan-coil) heating power per m2 of floor area.",
         "power_VCV_kW_heat",
@@ -175,9 +190,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "cooling_power_w_m2",
         "theta_build",
         "W/m2",
-        10,
-        100,
-        10,
+        5,
+        150,
+        5,
         S,
         "Installed zone (fan-coil) cooling power per m2 of floor area.",
         "power_VCV_kW_clim",
@@ -186,23 +201,36 @@ THETA_BUILD: tuple[Variable, ...] = (
         "occupant_density_per_m2",
         "theta_build",
         "1/m2",
-        0.035,
-        0.070,
+        0.02,
+        0.1,
         0.005,
         S,
         "Occupants per m2 of floor area at full occupancy.",
         "nb_occupants",
     ),
     _v(
-        "pc_density_per_m2",
+        "plug_load_w_m2",
         "theta_build",
-        "1/m2",
-        0.035,
-        0.070,
-        0.005,
+        "W/m2",
+        2,
+        20,
+        1,
         S,
-        "Workstations (PC with screen and its share of shared equipment) per m2 of floor area.",
-        "nb_PCs",
+        "Plug-load (equipment) power per m2 of floor area at full occupancy: workstations, screens, printers, "
+        "kitchenettes (ASHRAE 90.1 reference offices: 8.1 in 2019, 10.8 in 2004).",
+        "(nb_PCs x PC power)",
+    ),
+    _v(
+        "lighting_power_w_m2",
+        "theta_build",
+        "W/m2",
+        4,
+        16,
+        1,
+        S,
+        "Installed lighting power per m2 of floor area (ASHRAE 90.1 office: 6.9 in 2019, 10.8 in 2004, about 16 "
+        "in buildings of the 1980s).",
+        "(lighting power density)",
     ),
     _v(
         "light_night_percent",
@@ -230,9 +258,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "wall_insulation_north_m",
         "theta_build",
         "m",
-        0.05,
-        0.15,
-        0.05,
+        0.02,
+        0.3,
+        0.02,
         S,
         "Insulation thickness of the north facade (layer 2 of concrete/insulation/plasterboard).",
         "facade_1_thickness_2",
@@ -241,9 +269,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "wall_insulation_east_m",
         "theta_build",
         "m",
-        0.05,
-        0.15,
-        0.05,
+        0.02,
+        0.3,
+        0.02,
         S,
         "Insulation thickness of the east facade.",
         "facade_2_thickness_2",
@@ -252,9 +280,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "wall_insulation_south_m",
         "theta_build",
         "m",
-        0.05,
-        0.15,
-        0.05,
+        0.02,
+        0.3,
+        0.02,
         S,
         "Insulation thickness of the south facade.",
         "facade_3_thickness_2",
@@ -263,9 +291,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "wall_insulation_west_m",
         "theta_build",
         "m",
-        0.05,
-        0.15,
-        0.05,
+        0.02,
+        0.3,
+        0.02,
         S,
         "Insulation thickness of the west facade.",
         "facade_4_thickness_2",
@@ -274,9 +302,9 @@ THETA_BUILD: tuple[Variable, ...] = (
         "roof_insulation_m",
         "theta_build",
         "m",
-        0.05,
-        0.15,
-        0.05,
+        0.02,
+        0.3,
+        0.02,
         S,
         "Insulation thickness of the roof.",
         "roof_1_thickness_3",
@@ -285,8 +313,8 @@ THETA_BUILD: tuple[Variable, ...] = (
         "window_to_wall_north_percent",
         "theta_build",
         "%",
-        20,
-        60,
+        10,
+        70,
         5,
         S,
         "Glazed share of the north facade.",
@@ -296,8 +324,8 @@ THETA_BUILD: tuple[Variable, ...] = (
         "window_to_wall_east_percent",
         "theta_build",
         "%",
-        20,
-        60,
+        10,
+        70,
         5,
         S,
         "Glazed share of the east facade.",
@@ -307,8 +335,8 @@ THETA_BUILD: tuple[Variable, ...] = (
         "window_to_wall_south_percent",
         "theta_build",
         "%",
-        20,
-        60,
+        10,
+        70,
         5,
         S,
         "Glazed share of the south facade.",
@@ -318,8 +346,8 @@ THETA_BUILD: tuple[Variable, ...] = (
         "window_to_wall_west_percent",
         "theta_build",
         "%",
-        20,
-        60,
+        10,
+        70,
         5,
         S,
         "Glazed share of the west facade.",
@@ -453,7 +481,7 @@ SETTINGS: tuple[Variable, ...] = (
         "ventilation_ach",
         "settings",
         "1/h",
-        0.7,
+        0.1,
         1.7,
         0.3,
         D,
@@ -611,6 +639,25 @@ OUTPUT_NAMES: tuple[str, ...] = tuple(v.name for v in OUTPUTS)
 TEMPERATURE_OUTPUTS: tuple[str, ...] = ("T_INT_OFFICE",)
 #: Outputs summed into the measured "heat consumption" of the paper's calibration appendix.
 HEAT_CONSUMPTION_OUTPUTS: tuple[str, ...] = ("Q_HEAT_OFFICE", "Q_AHU_H", "Q_EQP", "Q_LIGHT")
+#: End uses a site's consumption meter may sum (``site.toml`` ``[meters] consumption``) and the outputs each
+#: maps onto; heating and cooling are the energy delivered (heat meter, chilled-water / cooling-coil energy).
+END_USE_OUTPUTS: dict[str, tuple[str, ...]] = {
+    "heating": ("Q_HEAT_OFFICE", "Q_AHU_H"),
+    "cooling": ("Q_AC_OFFICE", "Q_AHU_C"),
+    "lighting": ("Q_LIGHT",),
+    "plug_loads": ("Q_EQP",),
+}
+#: End uses of a site without ``[meters]``: the sum of :data:`HEAT_CONSUMPTION_OUTPUTS`.
+DEFAULT_END_USES: tuple[str, ...] = ("heating", "lighting", "plug_loads")
+
+
+def consumption_outputs(end_uses: Iterable[str] = DEFAULT_END_USES) -> tuple[str, ...]:
+    """Output names a consumption meter over ``end_uses`` (keys of :data:`END_USE_OUTPUTS`) sums, in catalogue
+    order; raises ``KeyError`` on an unknown end use."""
+    names = {n for use in end_uses for n in END_USE_OUTPUTS[use]}
+    return tuple(n for n in OUTPUT_NAMES if n in names)
+
+
 #: Outputs summed into the HVAC energy the optimisation minimises (the paper's Delta_Q^opt): heating and
 #: cooling delivered by the zone units and the air handling unit.
 HVAC_OUTPUTS: tuple[str, ...] = ("Q_AC_OFFICE", "Q_HEAT_OFFICE", "Q_AHU_C", "Q_AHU_H")
@@ -693,6 +740,77 @@ def catalogue_hash() -> str:
     """SHA-256 (first 16 hex digits) of every variable definition; stored in datasets and checkpoints."""
     payload = json.dumps([{**asdict(v), "granularity": v.granularity.value} for v in ALL_VARIABLES], sort_keys=True)
     return hashlib.sha256(payload.encode()).hexdigest()[:16]
+
+
+@dataclass(frozen=True)
+class EarlierCatalogue:
+    """What data and checkpoints made with a catalogue this one replaced need to be read under this one.
+
+    Attributes:
+        theta_names: its theta_build names, in its order.
+        ranges: ``{name: (min, max, step)}`` of the variables whose range or grid it drew from differently, in
+            this catalogue's names and units (a metamodel trained on it knows only these).
+        renamed: ``{its name: (this catalogue's name, factor)}``: the value here is ``factor`` x its value.
+        implied: ``{name: value}`` of this catalogue's variables it lacked: the value its building model had.
+    """
+
+    theta_names: tuple[str, ...]
+    ranges: dict[str, tuple[float, float, float]]
+    renamed: dict[str, tuple[str, float]]
+    implied: dict[str, float]
+
+
+_WALLS = ("north", "east", "south", "west")
+#: Catalogues this one replaced, by :func:`catalogue_hash`.
+EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
+    "bf68f6178dc1d1b3": EarlierCatalogue(
+        theta_names=(
+            "floor_area_m2",
+            "number_of_floors",
+            "infiltration_ach",
+            "capacitance_kj_per_k_m3",
+            "heating_power_w_m2",
+            "cooling_power_w_m2",
+            "occupant_density_per_m2",
+            "pc_density_per_m2",
+            "light_night_percent",
+            "pc_night_percent",
+            *(f"wall_insulation_{w}_m" for w in _WALLS),
+            "roof_insulation_m",
+            *(f"window_to_wall_{w}_percent" for w in _WALLS),
+        ),
+        ranges={
+            "floor_area_m2": (1000.0, 50000.0, 1000.0),
+            "infiltration_ach": (0.1, 0.5, 0.1),
+            "capacitance_kj_per_k_m3": (50.0, 300.0, 10.0),
+            "heating_power_w_m2": (10.0, 100.0, 10.0),
+            "cooling_power_w_m2": (10.0, 100.0, 10.0),
+            "occupant_density_per_m2": (0.035, 0.07, 0.005),
+            "plug_load_w_m2": (5.25, 10.5, 0.75),
+            **{f"wall_insulation_{w}_m": (0.05, 0.15, 0.05) for w in _WALLS},
+            "roof_insulation_m": (0.05, 0.15, 0.05),
+            **{f"window_to_wall_{w}_percent": (20.0, 60.0, 5.0) for w in _WALLS},
+            "ventilation_ach": (0.7, 1.7, 0.3),
+        },
+        renamed={"pc_density_per_m2": ("plug_load_w_m2", 150.0)},  # workstations of 150 W
+        implied={"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0},
+    ),
+}
+
+
+def upgrade_theta(values: Mapping[str, float]) -> dict[str, float]:
+    """theta_build ``{name: value}`` written under an earlier catalogue, in this one's names and units: renamed
+    variables converted, variables it lacked at the value its building model had (others pass unchanged)."""
+    out = {k: float(v) for k, v in values.items()}
+    for earlier in EARLIER_CATALOGUES.values():
+        if not any(k in out for k in earlier.renamed):
+            continue
+        for old, (new, factor) in earlier.renamed.items():
+            if old in out and new not in out:
+                out[new] = factor * out.pop(old)
+        for name, value in earlier.implied.items():
+            out.setdefault(name, value)
+    return out
 
 
 def describe(groups: Iterable[str] | None = None) -> list[dict]:

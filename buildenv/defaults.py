@@ -20,11 +20,13 @@ DEFAULT_THETA: dict[str, float] = {
     "floor_area_m2": 5000,
     "number_of_floors": 3,
     "infiltration_ach": 0.3,
+    "heat_recovery_effectiveness": 0.0,
     "capacitance_kj_per_k_m3": 150,
     "heating_power_w_m2": 60,
     "cooling_power_w_m2": 80,
     "occupant_density_per_m2": 0.05,
-    "pc_density_per_m2": 0.055,
+    "plug_load_w_m2": 8.25,
+    "lighting_power_w_m2": 10.0,
     "light_night_percent": 10,
     "pc_night_percent": 30,
     "wall_insulation_north_m": 0.1,
@@ -57,7 +59,7 @@ DEFAULT_OCCUPANCY_DAY: dict[str, float] = {"occupancy_start_hour": 8, "occupancy
 
 
 def default_theta() -> np.ndarray:
-    """theta_build of the default building, catalogue order, shape ``(19,)``."""
+    """theta_build of the default building, catalogue order, shape ``(21,)``."""
     return cat.from_mapping("theta_build", DEFAULT_THETA, where="default building")
 
 

@@ -399,9 +399,16 @@ def build(name: str, inputs: int, outputs: int, **config) -> nn.Module:
 def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, outputs: int, extra: int) -> nn.Module:
     """A copy of ``model`` (``build(name, inputs, outputs, **config)``) that takes ``extra`` more input channels,
     appended after the others, with zero weights: it computes what ``model`` did whatever they hold, and
-    training then learns their use (fine-tuning a trained model with a new input).
+    training then learns their use (fine-tuning a trained model with a new input)."""
+    return with_inputs(model, name, config, inputs, outputs, [*range(inputs), *([-1] * extra)])
 
-    Every weight whose second axis reads the inputs is widened: ``k x inputs`` columns (``k`` hours of a patch
+
+def with_inputs(model: nn.Module, name: str, config: dict, inputs: int, outputs: int, sources: list[int]) -> nn.Module:
+    """A copy of ``model`` (``build(name, inputs, outputs, **config)``) whose input channel ``j`` is the
+    model's channel ``sources[j]``, or a new channel with zero weights where ``sources[j]`` is -1: fed the same
+    values on the channels it had, it computes what ``model`` did, and training then learns the new ones.
+
+    Every weight whose second axis reads the inputs is rebuilt: ``k x inputs`` columns (``k`` hours of a patch
     or lags, flattened hour by hour where the class sets ``hour_major_inputs``, channel by channel otherwise).
     """
     old = model.state_dict()
@@ -412,7 +419,12 @@ def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, out
             f"{name}: cannot widen a model that is not build({name!r}, {inputs}, {outputs}, "
             f"**config): {str(exc).splitlines()[0]}"
         ) from None
-    wide = build(name, inputs + extra, outputs, **config)
+    n = len(sources)
+    if n == inputs and list(sources) != list(range(inputs)):
+        raise ValueError(f"{name}: reordering inputs needs a different number of them ({inputs} given)")
+    src = torch.tensor(sources)
+    kept = src >= 0
+    wide = build(name, n, outputs, **config)
     state = wide.state_dict()
     hour_major = getattr(type(model), "hour_major_inputs", False)
     for key, target in state.items():
@@ -421,19 +433,17 @@ def with_more_inputs(model: nn.Module, name: str, config: dict, inputs: int, out
             state[key] = source.clone()
             continue
         k = source.shape[1] // inputs
-        fits = source.shape[1] == k * inputs and target.shape[1] == k * (inputs + extra)
+        fits = source.shape[1] == k * inputs and target.shape[1] == k * n
         if source.shape[0] != target.shape[0] or not fits:
             raise ValueError(f"{name}: cannot widen {key} from {tuple(source.shape)} to {tuple(target.shape)}")
         rest = tuple(source.shape[2:])
         grown = torch.zeros_like(target)
         if hour_major:
-            grown.view(target.shape[0], k, inputs + extra, *rest)[:, :, :inputs] = source.view(
-                source.shape[0], k, inputs, *rest
-            )
+            view, old_view = grown.view(target.shape[0], k, n, *rest), source.view(source.shape[0], k, inputs, *rest)
+            view[:, :, kept] = old_view[:, :, src[kept]]
         else:
-            grown.view(target.shape[0], inputs + extra, k, *rest)[:, :inputs] = source.view(
-                source.shape[0], inputs, k, *rest
-            )
+            view, old_view = grown.view(target.shape[0], n, k, *rest), source.view(source.shape[0], inputs, k, *rest)
+            view[:, kept] = old_view[:, src[kept]]
         state[key] = grown
     wide.load_state_dict(state)
     return wide.train(model.training)

@@ -48,6 +48,9 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert weekday_day > 2 * night > 0  # lights and plug loads of an occupied office
     assert np.allclose(t * 10, np.round(t * 10), atol=1e-6)  # the sensor's 0.1 K resolution
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
+    # [bms]: what the stand-in maps; its ventilation up to the design outdoor air (0.7 1/h on the grid)
+    assert "supply_air_c" not in site.controllable and len(site.controllable) == len(cat.SETTING_NAMES) - 1
+    assert site.setting_limits == {"ventilation_ach": (cat.get("ventilation_ach").min, 0.7)}
 
 
 def _synthetic_site(
@@ -100,7 +103,9 @@ def _truth() -> np.ndarray:
         "heating_power_w_m2": 50,
         "cooling_power_w_m2": 60,
         "occupant_density_per_m2": 0.05,
-        "pc_density_per_m2": 0.06,
+        "plug_load_w_m2": 9.0,  # 0.06 workstations of 150 W per m2
+        "lighting_power_w_m2": 10.0,
+        "heat_recovery_effectiveness": 0.0,
         "light_night_percent": 20,
         "pc_night_percent": 25,
         "wall_insulation_north_m": 0.1,
@@ -133,18 +138,20 @@ def test_calibration_recovers_known_parameters(tmp_path, surrogate):
     occ = np.ceil(np.asarray(result["occupancy"]))
     assert np.abs(occ - np.array([[8, 18]] * 5)).max() <= 1.0
     got = result["theta"]
-    assert got["pc_density_per_m2"] == pytest.approx(0.06, abs=0.006)
+    assert got["plug_load_w_m2"] == pytest.approx(9.0, abs=0.9)
     assert got["infiltration_ach"] == pytest.approx(0.5, abs=0.1)
     assert got["capacitance_kj_per_k_m3"] == pytest.approx(120, abs=30)
     assert (tmp_path / "calibration.json").is_file() and load_site(tmp_path).calibration["method"] == "cmaes"
+    ranges = cal.parameter_ranges({}, surrogate)
     for entry in result["at_bounds"]:  # estimates only, each within its tolerance of the bound it names
-        var = cat.get(entry["name"])
-        assert entry["name"] not in cal.KNOWN_GEOMETRY and entry["limit"] == getattr(var, entry["bound"])
-        assert abs(result["theta"][entry["name"]] - entry["limit"]) <= cal.AT_BOUND_SHARE * (var.max - var.min) + 1e-5
+        lo, hi = ranges[entry["name"]]  # the catalogue's range within the metamodel's
+        assert entry["name"] not in cal.KNOWN_GEOMETRY and entry["limit"] == {"min": lo, "max": hi}[entry["bound"]]
+        assert abs(result["theta"][entry["name"]] - entry["limit"]) <= cal.AT_BOUND_SHARE * (hi - lo) + 1e-5
 
 
-def test_parameters_at_a_bound_of_the_catalogue_are_reported():
-    theta = {n: (cat.get(n).min + cat.get(n).max) / 2 for n in cat.THETA_NAMES}
+def test_parameters_at_a_bound_of_the_catalogue_are_reported(surrogate):
+    ranges = cal.parameter_ranges({}, surrogate)  # the ranges the shipped metamodel was trained on
+    theta = {n: sum(ranges.get(n, (cat.get(n).min, cat.get(n).max))) / 2 for n in cat.THETA_NAMES}
     theta.update(
         capacitance_kj_per_k_m3=54.0,  # 4 of a 250 range from its minimum: at it (2 % = 5)
         heating_power_w_m2=97.0,  # 3 of a 90 range from its maximum: not (2 % = 1.8)
@@ -152,13 +159,15 @@ def test_parameters_at_a_bound_of_the_catalogue_are_reported():
         light_night_percent=0.0,
         floor_area_m2=1000.0,
     )
-    found = cal.parameters_at_bounds(theta, known={"light_night_percent": 0.0})  # known: not an estimate
+    found = cal.parameters_at_bounds(theta, {"light_night_percent": 0.0}, surrogate)  # known: not an estimate
     assert [(e["name"], e["bound"], e["limit"]) for e in found] == [
         ("capacitance_kj_per_k_m3", "min", 50.0),
         ("pc_night_percent", "max", 70.0),
     ]  # geometry is not either
     assert found[0]["value"] == 54.0
-    note = cal.at_bounds_note({"at_bounds": found, "known": ["light_night_percent"]})
+    note = cal.at_bounds_note(
+        {"at_bounds": found, "known": ["light_night_percent"], "not_read": sorted(surrogate.implied)}
+    )
     assert "\n" not in note and note.startswith("note: 2 of 16 estimated building parameters")
     assert "capacitance_kj_per_k_m3 at its min 50" in note and "pc_night_percent at its max 70" in note
     assert cal.at_bounds_note({"at_bounds": [], "known": []}) is None
@@ -406,3 +415,47 @@ def test_declared_effects_stage_keeps_the_building(tmp_path, surrogate, bias_k):
 def test_declaring_a_wrong_effect_is_a_clear_error(effects, message):
     with pytest.raises(cal.CalibrationError, match=message):
         cal.check_declared_effects(effects)
+
+
+def test_the_problem_sums_the_outputs_of_the_sites_metered_end_uses(tmp_path):
+    arrays = {
+        "settings": historical_settings(1),
+        "temperature_c": np.full((1, 168), 22.0),
+        "consumption_kwh": np.full((1, 168), 10.0),
+    }
+    common = {"name": "s", "weather": "usa_il_chicago", "start": START, "floor_area_m2": 5000, "number_of_floors": 3}
+    plain = load_site(write_site(tmp_path / "plain", **common, **arrays))
+    cooled = write_site(tmp_path / "cooled", **common, **arrays, consumption_end_uses=("cooling", "lighting"))
+    cooled = load_site(cooled)
+    outputs = np.random.default_rng(0).random((2, 1, 168, len(cat.OUTPUT_NAMES)))
+    col = {n: outputs[..., cat.OUTPUT_NAMES.index(n)] for n in cat.OUTPUT_NAMES}
+    _, q_plain = cal.model_series(cal.build_problem(plain, [0]), outputs)
+    _, q_cooled = cal.model_series(cal.build_problem(cooled, [0]), outputs)
+    np.testing.assert_allclose(q_plain, col["Q_HEAT_OFFICE"] + col["Q_AHU_H"] + col["Q_EQP"] + col["Q_LIGHT"])
+    np.testing.assert_allclose(q_cooled, col["Q_AC_OFFICE"] + col["Q_AHU_C"] + col["Q_LIGHT"])
+
+
+@pytest.mark.slow
+def test_a_site_metering_cooling_calibrates_on_its_cooling(tmp_path, surrogate):
+    """A July stand-in whose meter sums heating + cooling + lighting + plug loads: calibrated on the outputs of
+    those end uses it fits its consumption; the same series taken as the default meter (no cooling) does not."""
+    uses = ("heating", "cooling", "lighting", "plug_loads")
+    july = dt.date(2019, 7, 1)
+    site = load_site(make_reference_site(tmp_path / "site", "medium_office", "usa_il_chicago", july, 2, end_uses=uses))
+    assert site.consumption_end_uses == uses
+    assert site.source["consumption_meter"].startswith("heating coils + cooling coils + interior lights")
+    result = calibrate_site(site, surrogate, method="cmaes", seed=0, max_evaluations=1000, save=False)
+    assert result["fit"]["r2_q"] > 0.85 and result["heldout"]["r2_q"] > 0.8
+    heat_only = write_site(
+        tmp_path / "heat_only",
+        name="the same series, no [meters]",
+        weather=site.weather,
+        start=site.start,
+        settings=site.settings,
+        floor_area_m2=site.floor_area_m2,
+        number_of_floors=site.number_of_floors,
+        temperature_c=site.temperature_c,
+        consumption_kwh=site.consumption_kwh,
+    )
+    wrong = calibrate_site(load_site(heat_only), surrogate, method="cmaes", seed=0, max_evaluations=1000, save=False)
+    assert wrong["heldout"]["r2_q"] < 0.3

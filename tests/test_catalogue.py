@@ -19,12 +19,15 @@ STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
 
 # --------------------------------------------------------------------------- group sizes
 def test_group_sizes_match_the_paper():
-    assert len(cat.THETA_BUILD) == 19
+    # theta_build: the paper's 17 (nb_PCs as plug-load power) + floor area, floors, lighting power, heat recovery
+    assert len(cat.THETA_BUILD) == 21
+    assert {"lighting_power_w_m2", "heat_recovery_effectiveness", "plug_load_w_m2"} <= set(cat.THETA_NAMES)
+    assert "pc_density_per_m2" not in cat.THETA_NAMES
     assert len(cat.SETTINGS) == 12
     assert len(cat.OCCUPANCY) == 2
     assert len(cat.WEATHER) == 9
     assert len(cat.OUTPUTS) == 8
-    assert len(cat.ALL_VARIABLES) == 19 + 12 + 2 + 9 + 8
+    assert len(cat.ALL_VARIABLES) == 21 + 12 + 2 + 9 + 8
     assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
 
 
@@ -41,7 +44,7 @@ def test_geometry_variables():
     area = cat.get("floor_area_m2")
     floors = cat.get("number_of_floors")
     assert area.group == floors.group == "theta_build"
-    assert (area.min, area.max) == (1000.0, 50000.0)
+    assert (area.min, area.max, area.step) == (300.0, 50000.0, 100.0)
     assert (floors.min, floors.max) == (1.0, 15.0)
     assert floors.step == 1.0
     np.testing.assert_array_equal(floors.grid(), np.arange(1, 16))
@@ -82,8 +85,11 @@ def test_grid_starts_at_min_stays_within_max_and_has_the_step(var):
     np.testing.assert_allclose(np.diff(grid), var.step, rtol=0, atol=1e-9)
 
 
-def test_vol_ventilation_grid_is_the_papers():
-    np.testing.assert_allclose(cat.get("ventilation_ach").grid(), [0.7, 1.0, 1.3, 1.6])
+def test_vol_ventilation_grid_holds_the_papers():
+    grid = cat.get("ventilation_ach").grid()
+    np.testing.assert_allclose(grid, [0.1, 0.4, 0.7, 1.0, 1.3, 1.6])
+    # the paper's 0.7, 1.0, 1.3 and 1.6 are on it, with the same step
+    assert np.isclose(grid[:, None], [0.7, 1.0, 1.3, 1.6]).any(axis=0).all()
     assert cat.get("ventilation_ach").max == 1.7  # 1.7 itself is not on the grid
 
 
@@ -93,18 +99,21 @@ def test_grid_of_continuous_variable_raises():
 
 
 # --------------------------------------------------------------------------- per-m2 conversions
-def test_paper_occupants_per_m2_match_density_range():
+def test_paper_occupants_and_pcs_per_m2_within_range():
     paper_area = 28_733.0
+    lo, hi = round(1000 / paper_area, 3), round(2000 / paper_area, 3)  # 1,000-2,000 occupants (and PCs)
     dens = cat.get("occupant_density_per_m2")
-    assert round(1000 / paper_area, 3) == pytest.approx(dens.min)
-    assert round(2000 / paper_area, 3) == pytest.approx(dens.max)
-    # same workstation density range (nb_PCs)
-    pcs = cat.get("pc_density_per_m2")
-    assert (pcs.min, pcs.max) == (dens.min, dens.max)
+    assert dens.min < lo and hi < dens.max
+    # the earlier catalogue drew the paper's range itself, for occupants and (x 150 W) for workstations
+    earlier = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"]
+    assert earlier.ranges["occupant_density_per_m2"][:2] == pytest.approx((lo, hi))
+    assert earlier.ranges["plug_load_w_m2"][:2] == pytest.approx((150 * lo, 150 * hi))
+    plug = cat.get("plug_load_w_m2")
+    assert plug.min < 150 * lo and 150 * hi < plug.max
 
 
 def test_paper_fan_coil_power_per_m2_within_range():
-    # the paper's 1,000 kW on 28,733 m2 is about 35 W/m2, inside 5-50 W/m2
+    # the paper's 1,000 kW on 28,733 m2 is about 35 W/m2, inside the catalogue's range
     w_m2 = 1000e3 / 28_733
     assert w_m2 == pytest.approx(34.8, abs=0.05)
     for name in ("heating_power_w_m2", "cooling_power_w_m2"):
@@ -124,10 +133,10 @@ def test_snap_rounds_to_nearest_and_clips():
     assert float(vent.snap(1.1)) == pytest.approx(1.0)
     assert float(vent.snap(1.2)) == pytest.approx(1.3)
     assert float(vent.snap(1.7)) == pytest.approx(1.6)  # max is clipped to the last grid point
-    assert float(vent.snap(-5.0)) == pytest.approx(0.7)
+    assert float(vent.snap(-5.0)) == pytest.approx(0.1)
     assert float(vent.snap(99.0)) == pytest.approx(1.6)
     area = cat.get("floor_area_m2")
-    np.testing.assert_array_equal(area.snap([10.0, 2499.0, 2501.0, 1e9]), [1000.0, 2000.0, 3000.0, 50000.0])
+    np.testing.assert_array_equal(area.snap([10.0, 2449.0, 2451.0, 1e9]), [300.0, 2400.0, 2500.0, 50000.0])
     # a continuous variable is only clipped
     tamb = cat.get("TAMB")
     np.testing.assert_array_equal(tamb.snap([-100.0, 12.34, 100.0]), [-60.0, 12.34, 60.0])
@@ -235,7 +244,7 @@ def _theta_mapping(**overrides):
 def test_from_mapping_builds_vector_in_catalogue_order():
     mapping = _theta_mapping()
     vector = cat.from_mapping("theta_build", dict(reversed(list(mapping.items()))))
-    assert vector.shape == (19,)
+    assert vector.shape == (21,)
     np.testing.assert_array_equal(vector, [mapping[n] for n in cat.THETA_NAMES])
 
 
@@ -300,6 +309,56 @@ def test_weekly_names_sizes_and_order():
     # the flat order matches a C-order reshape of (7, 12) arrays
     idx = np.arange(84).reshape(7, 12)
     assert settings[idx[3, 7]] == f"{cat.SETTING_NAMES[7]}_{cat.DAYS[3]}"
+
+
+# --------------------------------------------------------------------------- earlier catalogues
+def test_earlier_catalogue_describes_the_one_it_replaced():
+    assert cat.catalogue_hash() not in cat.EARLIER_CATALOGUES
+    earlier = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"]
+    assert len(earlier.theta_names) == 19 and "pc_density_per_m2" in earlier.theta_names
+    # its names, renamed, plus what it lacked, are exactly this catalogue's theta_build
+    renamed = {earlier.renamed.get(n, (n, 1.0))[0] for n in earlier.theta_names}
+    assert renamed | set(earlier.implied) == set(cat.THETA_NAMES) and not renamed & set(earlier.implied)
+    assert earlier.implied == {"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0}
+    for name, value in earlier.implied.items():
+        cat.get(name).check(value)
+    # the catalogue widened: each earlier range lies inside this one's
+    for name, (lo, hi, _) in earlier.ranges.items():
+        var = cat.get(name)
+        assert var.min <= lo < hi <= var.max, name
+    assert earlier.ranges["ventilation_ach"] == (0.7, 1.7, 0.3)
+
+
+def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
+    old = {"pc_density_per_m2": 0.055, "infiltration_ach": 0.3, "floor_area_m2": 5000.0}
+    new = cat.upgrade_theta(old)
+    assert "pc_density_per_m2" not in new
+    assert new["plug_load_w_m2"] == pytest.approx(150 * 0.055)
+    assert new["lighting_power_w_m2"] == 10.0 and new["heat_recovery_effectiveness"] == 0.0
+    assert new["infiltration_ach"] == 0.3 and new["floor_area_m2"] == 5000.0  # others pass unchanged
+    assert old == {"pc_density_per_m2": 0.055, "infiltration_ach": 0.3, "floor_area_m2": 5000.0}  # not mutated
+    # written under this catalogue: nothing is converted or filled in
+    current = {"plug_load_w_m2": 12.0, "infiltration_ach": 0.3}
+    assert cat.upgrade_theta(current) == current
+    # an earlier full theta becomes a vector of this catalogue
+    earlier = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"]
+    mid = {n: float(np.mean(earlier.ranges.get(n, (cat.get(n).min, cat.get(n).max))[:2])) for n in cat.THETA_NAMES}
+    mid["pc_density_per_m2"] = mid.pop("plug_load_w_m2") / 150
+    upgraded = cat.upgrade_theta({n: mid[n] for n in earlier.theta_names})
+    vector = cat.from_mapping("theta_build", upgraded)
+    assert vector[cat.THETA_NAMES.index("plug_load_w_m2")] == pytest.approx(150 * mid["pc_density_per_m2"])
+
+
+def test_shipped_checkpoint_is_read_through_the_earlier_catalogue_and_keeps_its_bounds():
+    from buildenv.metamodel.surrogate import load_metamodel
+
+    surrogate = load_metamodel()
+    assert surrogate.checkpoint.metadata["catalogue_hash"] in cat.EARLIER_CATALOGUES
+    assert surrogate.earlier is cat.EARLIER_CATALOGUES[surrogate.checkpoint.metadata["catalogue_hash"]]
+    assert surrogate.domain["ventilation_ach"] == (0.7, 1.7)
+    assert surrogate.domain["floor_area_m2"] == (1000.0, 50000.0)
+    assert set(surrogate.domain) == set(cat.THETA_NAMES) | set(cat.SETTING_NAMES)
+    assert surrogate.implied == {"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0}
 
 
 # --------------------------------------------------------------------------- hash / describe

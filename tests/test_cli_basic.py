@@ -16,10 +16,10 @@ def test_catalogue_json(capsys):
     out = capsys.readouterr().out
     data = json.loads(out)
     assert data["catalogue_hash"] == cat.catalogue_hash()
-    assert len(data["variables"]) == len(cat.ALL_VARIABLES) == 50
+    assert len(data["variables"]) == len(cat.ALL_VARIABLES) == 52
     assert [v["name"] for v in data["variables"]] == [v.name for v in cat.ALL_VARIABLES]
     area = data["variables"][0]
-    assert area["name"] == "floor_area_m2" and area["min"] == 1000 and area["max"] == 50000
+    assert area["name"] == "floor_area_m2" and area["min"] == 300 and area["max"] == 50000 and area["step"] == 100
 
 
 def test_catalogue_json_one_group(capsys):
@@ -35,7 +35,7 @@ def test_catalogue_table(capsys):
     assert lines[0] == f"catalogue {cat.catalogue_hash()}"
     assert len(lines) == 2 + len(cat.ALL_VARIABLES)
     row = next(line for line in lines if " ventilation_ach " in line)
-    assert "vol_ventilation_day" in row and "0.7" in row and "1.7" in row and "0.3" in row
+    assert row.split() == ["settings", "ventilation_ach", "1/h", "0.1", "1.7", "0.3", "per_day", "vol_ventilation_day"]
 
 
 def test_catalogue_unknown_group_is_a_usage_error(capsys):
@@ -203,3 +203,30 @@ def test_site_show_lists_what_the_site_declares_known(tmp_path, capsys):
     info = json.loads(capsys.readouterr().out)
     assert info["known"] == {"pc_night_percent": 44.4} and info["weeks"] == 6
     assert info["effects"] == ["night_cycle_cold_air", "evening_departure", "temperature_sensor_bias"]
+
+
+@pytest.mark.parametrize(
+    "item, error",
+    [
+        ("heating,fans", "'fans': the model has no fan output"),
+        ("heating,heating", "'heating' given twice"),
+        ("heating,steam", "unknown end use 'steam'; allowed: heating, cooling, lighting, plug_loads"),
+        (",", "must be a non-empty list of end uses"),
+    ],
+)
+def test_site_reference_rejects_a_bad_meter_in_one_line(item, error, tmp_path, capsys):
+    assert main(["site", "reference", "--meter", item, "--out", str(tmp_path / "s")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and f"--meter {item!r}: {error}" in err[0]
+    assert not (tmp_path / "s").exists()  # refused before EnergyPlus ran
+
+
+def test_meter_parses_from_the_command_line_and_site_show_lists_it(tmp_path, capsys):
+    from buildenv.cli.sites import parse_meter
+    from buildenv.env.building_week import DEFAULT_SITE
+
+    assert parse_meter(None) == ("heating", "lighting", "plug_loads")
+    assert parse_meter("heating, cooling,lighting,plug_loads") == ("heating", "cooling", "lighting", "plug_loads")
+    shutil.copytree(DEFAULT_SITE, tmp_path / "s")
+    assert main(["site", "show", str(tmp_path / "s")]) == 0
+    assert json.loads(capsys.readouterr().out)["meters"] == ["heating", "lighting", "plug_loads"]

@@ -380,7 +380,8 @@ def test_cli_lists_the_catalogue(capsys):
         {"magnitude_unit", "magnitude_range", "default_magnitude", "series", "parameters"} <= set(r) for r in rows
     )
     named_from = {r["name"]: r["named_from"] for r in rows}
-    assert named_from["heating_capacity_limit"].startswith("heating_power_w_m2 <= 90 W/m2 (")  # a step below the top
+    # one catalogue step below the top of its range, in the catalogue the diagnosis was measured under
+    assert named_from["heating_capacity_limit"].startswith("heating_power_w_m2 <= 90 W/m2 (")
     assert named_from["heat_recovery"].startswith("effectiveness >= 0.3 (")
     assert named_from["temperature_sensor_bias"].startswith("|bias_k + 0.233| >= 0.4 K (")
     beyond = {r["name"]: r["named_beyond"] for r in rows}

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
+from buildenv import catalogue as cat
 from buildenv.env import actions as act
 from buildenv.env.building_week import BuildingWeekEnv, BuildingWeekVectorEnv, split_weeks
 from buildenv.errors import BuildingEnvError
@@ -22,7 +23,8 @@ def test_make_without_arguments_passes_both_checkers(env):
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
     assert isinstance(env.unwrapped, BuildingWeekEnv)
-    assert env.action_space.shape == (84,) and env.observation_space.shape == (73,)
+    # compact observation: daily forecast 42 + occupancy 10 + calendar 2 + theta_build 21
+    assert env.action_space.shape == (84,) and env.observation_space.shape == (75,)
     check_env(env.unwrapped, skip_render_check=True)
     sb3_check_env(env.unwrapped, warn=True)
 
@@ -97,7 +99,7 @@ def test_native_vector_env_matches_single_env(env):
     venv = gym.make_vec("BuildingWeek-v0", num_envs=4)
     assert isinstance(venv.unwrapped if hasattr(venv, "unwrapped") else venv, BuildingWeekVectorEnv)
     obs, info = venv.reset(seed=7)
-    assert obs.shape == (4, 73)
+    assert obs.shape == (4, 75)
     actions = np.tile(env.unwrapped.historical_action, (4, 1))
     weeks = info["week"].copy()
     _, rewards, terminated, _, step_info = venv.step(actions)
@@ -110,7 +112,7 @@ def test_native_vector_env_matches_single_env(env):
 def test_several_weeks_per_episode_and_forecast_observation():
     env = gym.make("BuildingWeek-v0", episode_weeks=2, observation="forecast", weeks="all")
     obs, info = env.reset(seed=0)
-    assert obs.shape == (73 + 168 * 8,)
+    assert obs.shape == (75 + 168 * 8,)
     action = env.unwrapped.historical_action
     _, _, terminated, _, first = env.step(action)
     assert not terminated
@@ -139,3 +141,26 @@ def test_a_metamodel_with_a_longer_context_runs_the_environment(tmp_path):
     env.reset(seed=0, options={"week": 2})
     _, reward, *_, info = env.step(env.unwrapped.historical_action)
     assert info["energy_term"] == pytest.approx(1.0) and np.isfinite(reward)
+
+
+def test_only_the_settings_the_building_can_act_on_are_actions():
+    import dataclasses
+
+    from buildenv.env.building_week import DEFAULT_SITE
+    from buildenv.sites import load_site
+
+    site = load_site(DEFAULT_SITE)
+    controllable = tuple(n for n in cat.SETTING_NAMES if n != "supply_air_c")
+    limited = dataclasses.replace(site, controllable=controllable, setting_limits={"ventilation_ach": (0.7, 1.0)})
+    env = gym.make("BuildingWeek-v0", site=limited)
+    base = env.unwrapped
+    assert env.action_space.shape == (77,) and "supply_air_c_monday" not in base.action_names
+    supply, vent = cat.SETTING_NAMES.index("supply_air_c"), cat.SETTING_NAMES.index("ventilation_ach")
+    for a in (-1.0, 1.0):
+        settings = base.decode(np.full(77, a, np.float32))
+        np.testing.assert_array_equal(settings[:, supply], site.settings[0][:, supply])  # the historical value
+        assert set(settings[:, vent]) == {0.7 if a < 0 else 1.0}  # within the site's limits
+    np.testing.assert_array_equal(base.decode(base.historical_action), site.settings[0])
+    env.reset(seed=0)
+    _, _, _, _, info = env.step(env.action_space.sample())
+    assert info["settings"][:, supply].tolist() == site.settings[0][:, supply].tolist()

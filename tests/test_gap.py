@@ -765,8 +765,13 @@ def test_loads_left_on_at_night_past_the_plug_loads_night_share_are_named_agains
     assert result["selected"] == (["night_plug_loads"] if named else [])
     assert set(entry["parameters"]) == {"light_night_percent", "night_electricity_w_m2"}
     true_night = night_electricity_w_m2(
-        {"light_night_percent": light_night_percent, "pc_night_percent": 70.0, "pc_density_per_m2": 0.06}
-    )  # test_calibration._truth's density
+        {
+            "light_night_percent": light_night_percent,
+            "pc_night_percent": 70.0,
+            "plug_load_w_m2": 9.0,
+            "lighting_power_w_m2": 10.0,
+        }
+    )  # test_calibration._truth's loads
     assert entry["parameters"]["night_electricity_w_m2"] == pytest.approx(true_night, rel=0.15)
     if named:
         assert entry["parameters"]["light_night_percent"] > 30.0 and entry["score"] > 0.3
@@ -1027,8 +1032,8 @@ def test_a_site_declaring_parameters_known_is_judged_by_the_ceilings_of_such_sit
 
 
 def test_the_night_electricity_adds_the_lights_and_equipment_left_on():
-    theta = {"light_night_percent": 20.0, "pc_density_per_m2": 0.05, "pc_night_percent": 40.0}
-    assert night_electricity_w_m2(theta) == pytest.approx(10.0 * 0.2 + 150.0 * 0.05 * 0.4)  # W/m2
+    theta = {"light_night_percent": 20.0, "lighting_power_w_m2": 10.0, "plug_load_w_m2": 7.5, "pc_night_percent": 40.0}
+    assert night_electricity_w_m2(theta) == pytest.approx(10.0 * 0.2 + 7.5 * 0.4)  # W/m2
     moved = theta | {"light_night_percent": 50.0, "pc_night_percent": 0.0}  # the same load, carried by the lights
     assert night_electricity_w_m2(moved) == pytest.approx(night_electricity_w_m2(theta))
 

@@ -44,7 +44,7 @@ def test_adapter_steps_with_same_step_autoreset_and_terminal_observation(vec):
     checked = VecCheckNan(vec, raise_exception=True)  # SB3's VecEnv sanity wrapper: no NaN/inf in or out
     vec.seed(7)
     obs = checked.reset()
-    assert obs.shape == (N_ENVS, 73) and obs.dtype == np.float32 and vec.observation_space.contains(obs[0])
+    assert obs.shape == (N_ENVS, 75) and obs.dtype == np.float32 and vec.observation_space.contains(obs[0])
     weeks = np.array([info["week"] for info in vec.reset_infos])
     assert set(weeks) <= {12, 13}
     vec.seed(7)

@@ -64,15 +64,19 @@ def test_lhs_gives_near_equal_shares():
         assert counts.sum() == n
 
 
-def test_lhs_three_value_grids_exact_over_seeds():
-    # insulation thicknesses have 3 grid values; 300 LHS points give 100 +/- 1 each for every seed
-    cols = [cat.THETA_NAMES.index(n) for n in ("wall_insulation_north_m", "roof_insulation_m")]
+def test_lhs_grids_dividing_n_exact_over_seeds():
+    # a grid of g values with g dividing n gets n / g +/- 1 LHS points per value, for every seed
+    n = 300
+    cols = [i for i, v in enumerate(cat.THETA_BUILD) if n % len(v.grid()) == 0]
+    names = {cat.THETA_NAMES[c] for c in cols}
+    assert {"number_of_floors", "infiltration_ach", "heating_power_w_m2", "roof_insulation_m"} <= names
     for seed in range(5):
-        x = sample_group("theta_build", 300, np.random.default_rng(seed), "lhs")
+        x = sample_group("theta_build", n, np.random.default_rng(seed), "lhs")
         for c in cols:
-            _, counts = np.unique(x[:, c], return_counts=True)
-            assert len(counts) == 3
-            assert np.all(np.abs(counts - 100) <= 1), counts
+            grid = cat.THETA_BUILD[c].grid()
+            values, counts = np.unique(x[:, c], return_counts=True)
+            np.testing.assert_allclose(values, grid)
+            assert np.all(np.abs(counts - n // len(grid)) <= 1), (cat.THETA_NAMES[c], counts)
 
 
 def test_unknown_method_raises():

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +16,7 @@ from buildenv.sites import Site, load_site, save_calibration, write_site
 from buildenv.weather.epw import load_weather
 
 START = dt.date(2024, 1, 1)  # a Monday
-AREA = 4982.0  # not on the catalogue's 1000 m2 step: must be kept as is
+AREA = 4982.0  # not on the catalogue's 100 m2 step: must be kept as is
 WEEKS = 2
 
 
@@ -73,6 +74,12 @@ def _cells(path: Path, line: int) -> list[str]:
 
 def _stamp(hour: int) -> str:
     return (dt.datetime.combine(START, dt.time()) + dt.timedelta(hours=hour)).strftime("%Y-%m-%d %H:%M")
+
+
+def _range(name: str) -> str:
+    """A variable's catalogue range as its out-of-range error writes it, escaped for a regex (``[5, 150] W/m2``)."""
+    v = cat.get(name)
+    return re.escape(f"[{v.min:g}, {v.max:g}] {v.unit}")
 
 
 # --------------------------------------------------------------------------- round trip
@@ -193,7 +200,7 @@ def test_unknown_top_level_key(site_dir: Path):
     with pytest.raises(
         SiteError,
         match=r"site\.toml:3: unknown key 'wether'.*allowed: name, weather, "
-        r"measurements, settings, effects, geometry, known, source",
+        r"measurements, settings, effects, geometry, known, meters, bms, source",
     ):
         load_site(site_dir)
 
@@ -218,6 +225,17 @@ def test_known_parameters_round_trip_and_join_the_fixed_theta(tmp_path: Path):
         "window_to_wall_south_percent": 33.0,
     }
     assert load_site(_write(tmp_path / "plain")).known == {}
+    # the building parameters this catalogue added can be declared too
+    site = load_site(_write(tmp_path / "new", known={"plug_load_w_m2": 8.1, "lighting_power_w_m2": 6.9}))
+    assert site.known == {"plug_load_w_m2": 8.1, "lighting_power_w_m2": 6.9}
+
+
+def test_calibration_of_an_earlier_catalogue_is_read_in_this_ones_names(site_dir: Path):
+    save_calibration(site_dir, {"theta": {"pc_density_per_m2": 0.06, "infiltration_ach": 0.3}, "loss": 0.5})
+    theta = load_site(site_dir).calibration["theta"]
+    assert theta["plug_load_w_m2"] == pytest.approx(150 * 0.06) and "pc_density_per_m2" not in theta
+    assert theta["lighting_power_w_m2"] == 10.0 and theta["heat_recovery_effectiveness"] == 0.0
+    assert theta["infiltration_ach"] == 0.3
 
 
 def test_declared_effects_round_trip(tmp_path: Path):
@@ -251,11 +269,145 @@ def test_declared_effect_errors_name_the_line(site_dir: Path, line: str, error: 
             r"'pc_night_percent'\?\)",
         ),
         ('pc_night_percent = "40 %"', r"site\.toml:9: pc_night_percent must be a number \(%\), got '40 %'"),
-        ("heating_power_w_m2 = 400", r"site\.toml:9: heating_power_w_m2=400 is outside its range \[10, 100\] W/m2"),
+        (
+            "heating_power_w_m2 = 400",
+            r"site\.toml:9: heating_power_w_m2=400 is outside its range " + _range("heating_power_w_m2"),
+        ),
+        (
+            "pc_density_per_m2 = 0.05",
+            r"site\.toml:9: 'pc_density_per_m2' is now 'plug_load_w_m2' \(W/m2, 150 x the old value\); rename it",
+        ),
     ],
 )
 def test_known_parameter_errors_name_the_line(site_dir: Path, line: str, error: str):
     _toml(site_dir, GOOD_TOML + "\n[known]\n" + line + "\n")
+    with pytest.raises(SiteError, match=error):
+        load_site(site_dir)
+
+
+def test_meters_round_trip_and_default_to_heating_lighting_and_plug_loads(tmp_path: Path):
+    site = load_site(_write(tmp_path / "s", consumption_end_uses=("heating", "cooling", "lighting", "plug_loads")))
+    assert site.consumption_end_uses == ("heating", "cooling", "lighting", "plug_loads")
+    assert site.consumption_outputs() == ("Q_AC_OFFICE", "Q_HEAT_OFFICE", "Q_EQP", "Q_LIGHT", "Q_AHU_C", "Q_AHU_H")
+    assert "[meters]" in (tmp_path / "s" / "site.toml").read_text()
+    plain = _write(tmp_path / "plain")
+    assert "[meters]" not in (plain / "site.toml").read_text()  # the default is not written
+    assert load_site(plain).consumption_end_uses == ("heating", "lighting", "plug_loads")
+    assert load_site(plain).consumption_outputs() == cat.consumption_outputs(cat.DEFAULT_END_USES)
+    assert set(cat.consumption_outputs(cat.DEFAULT_END_USES)) == set(cat.HEAT_CONSUMPTION_OUTPUTS)
+    _toml(plain, GOOD_TOML + '\n[meters]\nconsumption = ["cooling"]\n')
+    assert load_site(plain).consumption_outputs() == ("Q_AC_OFFICE", "Q_AHU_C")
+
+
+@pytest.mark.parametrize(
+    "line, error",
+    [
+        (
+            'consumption = ["heating", "chilled_water"]',
+            r"site\.toml:9: \[meters\] consumption: unknown end use 'chilled_water'; allowed: heating, cooling, "
+            r"lighting, plug_loads$",
+        ),
+        ('consumption = ["lightning"]', r"site\.toml:9: .*unknown end use 'lightning' \(did you mean 'lighting'\?\)"),
+        ('consumption = ["heating", "fans"]', r"site\.toml:9: \[meters\] consumption: 'fans': the model has no fan"),
+        ("consumption = []", r"site\.toml:9: \[meters\] consumption: must be a non-empty list of end uses"),
+        ('consumption = "heating"', r"site\.toml:9: \[meters\] consumption: must be a non-empty list"),
+        ('consumption = ["heating", "heating"]', r"site\.toml:9: \[meters\] consumption: 'heating' given twice"),
+        ('electricity = ["lighting"]', r"site\.toml:9: unknown key 'electricity' in \[meters\]"),
+    ],
+)
+def test_meter_errors_name_the_line(site_dir: Path, line: str, error: str):
+    _toml(site_dir, GOOD_TOML + "\n[meters]\n" + line + "\n")
+    with pytest.raises(SiteError, match=error):
+        load_site(site_dir)
+
+
+def test_bms_round_trips_and_defaults_to_all_settings_in_their_catalogue_ranges(tmp_path: Path):
+    plain = _write(tmp_path / "plain")
+    assert "[bms" not in (plain / "site.toml").read_text()  # the default is not written
+    site = load_site(plain)
+    assert site.controllable == cat.SETTING_NAMES and site.setting_limits == {}
+    lo, hi = site.setting_ranges()
+    np.testing.assert_array_equal(lo, cat.bounds("settings")[0])
+    np.testing.assert_array_equal(hi, cat.bounds("settings")[1])
+
+    arrays = _arrays()
+    vent = cat.SETTING_NAMES.index("ventilation_ach")
+    assert arrays["settings"][..., vent].max() > 0.4  # the history may leave the limits
+    limited = _write(
+        tmp_path / "s",
+        **arrays,
+        controllable=("ventilation_ach", "heating_comfort_c", "heating_setback_c"),  # not catalogue order
+        setting_limits={"ventilation_ach": (0.1, 0.4), "heating_setback_c": (18, 18)},
+    )
+    site = load_site(limited)
+    assert site.controllable == ("heating_setback_c", "heating_comfort_c", "ventilation_ach")  # catalogue order
+    assert site.setting_limits == {"ventilation_ach": (0.1, 0.4), "heating_setback_c": (18.0, 18.0)}
+    np.testing.assert_allclose(site.settings, arrays["settings"])
+    lo, hi = site.setting_ranges()
+    assert lo.shape == hi.shape == (len(cat.SETTINGS),)
+    assert (lo[vent], hi[vent]) == (0.1, 0.4)
+    setback = cat.SETTING_NAMES.index("heating_setback_c")
+    assert lo[setback] == hi[setback] == 18.0
+    others = [i for i in range(len(cat.SETTINGS)) if i not in (vent, setback)]
+    np.testing.assert_array_equal(lo[others], cat.bounds("settings")[0][others])
+    np.testing.assert_array_equal(hi[others], cat.bounds("settings")[1][others])
+
+    # limits as an inline table of [bms] read the same
+    _toml(limited, GOOD_TOML + '\n[bms]\ncontrollable = ["ventilation_ach"]\nlimits = { ventilation_ach = [0.4, 1] }\n')
+    site = load_site(limited)
+    assert site.controllable == ("ventilation_ach",) and site.setting_limits == {"ventilation_ach": (0.4, 1.0)}
+    _toml(limited, GOOD_TOML + "\n[bms.limits]\nsupply_air_c = [19, 21]\n")  # all controllable, one limited
+    site = load_site(limited)
+    assert site.controllable == cat.SETTING_NAMES and site.setting_limits == {"supply_air_c": (19.0, 21.0)}
+
+
+@pytest.mark.parametrize(
+    "lines, error",
+    [
+        (
+            'controllable = ["heating_comfort", "ventilation_ach"]',
+            r"site\.toml:9: \[bms\] controllable: unknown setting 'heating_comfort' \(did you mean "
+            r"'heating_comfort_c'\?\)",
+        ),
+        (
+            'controllable = ["ventilation_ach", "ventilation_ach"]',
+            r"site\.toml:9: \[bms\] controllable: 'ventilation_ach' given twice",
+        ),
+        ("controllable = []", r"site\.toml:9: \[bms\] controllable: empty list"),
+        ('controllable = "ventilation_ach"', r"site\.toml:9: \[bms\] controllable: must be a list of setting names"),
+        (
+            'controllable = ["heating_comfort_c"]\nlimits = { ventilation_ach = [0.1, 0.7] }',
+            r"site\.toml:10: \[bms\] limits: 'ventilation_ach' is not in \[bms\] controllable",
+        ),
+        (
+            "limits = { ventilation_ach = [0.1, 2.0] }",
+            r"site\.toml:9: \[bms\] limits: ventilation_ach limits \[0\.1, 2\] leave the catalogue range "
+            r"\[0\.1, 1\.7\] 1/h",
+        ),
+        (
+            'controllable = ["heating_comfort_c"]\n\n[bms.limits]\nheating_comfort_c = [21, 23]',
+            r"site\.toml:12: \[bms\] limits: heating_comfort_c limits \[21, 23\] leave the catalogue range",
+        ),
+        (
+            "limits.heating_comfort_c = [23.5, 22.5]",
+            r"site\.toml:9: \[bms\] limits: heating_comfort_c limits \[23\.5, 22\.5\]: min is above max",
+        ),
+        ("limits = { ventilation_ach = 0.7 }", r"site\.toml:9: \[bms\] limits: ventilation_ach must be a list"),
+        (
+            'limits = { ventilation_ach = [0.1, "0.7"] }',
+            r"site\.toml:9: \[bms\] limits: ventilation_ach must be a list \[min, max\] of two numbers",
+        ),
+        ("limits = { ventilation_ach = [0.1, 0.4, 0.7] }", r"site\.toml:9: .*must be a list \[min, max\] of two"),
+        (
+            "limits = { ventilation_ac = [0.1, 0.7] }",
+            r"site\.toml:9: \[bms\] limits: unknown setting 'ventilation_ac' \(did you mean 'ventilation_ach'\?\)",
+        ),
+        ("limits = [0.1, 0.7]", r"site\.toml:9: \[bms\] limits must be a table"),
+        ('controlable = ["ventilation_ach"]', r"site\.toml:9: unknown key 'controlable' in \[bms\] \(did you mean"),
+    ],
+)
+def test_bms_errors_name_the_line(site_dir: Path, lines: str, error: str):
+    _toml(site_dir, GOOD_TOML + "\n[bms]\n" + lines + "\n")
     with pytest.raises(SiteError, match=error):
         load_site(site_dir)
 
@@ -270,8 +422,11 @@ def test_missing_keys(site_dir: Path):
 
 
 def test_floor_area_outside_catalogue_range(site_dir: Path):
-    _toml(site_dir, GOOD_TOML.replace("4982", "500"))
-    with pytest.raises(SiteError, match=r"site\.toml:5: floor_area_m2=500 is outside its range \[1000, 50000\]"):
+    small = cat.get("floor_area_m2").min - 100
+    _toml(site_dir, GOOD_TOML.replace("4982", f"{small:g}"))
+    with pytest.raises(
+        SiteError, match=rf"site\.toml:5: floor_area_m2={small:g} is outside its range " + _range("floor_area_m2")
+    ):
         load_site(site_dir)
 
 
@@ -619,8 +774,7 @@ def test_settings_value_out_of_range_names_the_variable(site_dir: Path):
     _set_cell(_settings(site_dir), 4, "heating_comfort_c", "30")
     with pytest.raises(
         SiteError,
-        match=r"settings\.csv:4: heating_comfort_c=30 is outside its range "
-        r"\[22, 24\] degC",
+        match=r"settings\.csv:4: heating_comfort_c=30 is outside its range " + _range("heating_comfort_c"),
     ):
         load_site(site_dir)
 

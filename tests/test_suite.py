@@ -8,9 +8,11 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
+from buildenv.calibration.calibrate import calibrate_site
 from buildenv.cli.main import main
 from buildenv.env.response import summarise
 from buildenv.errors import BuildenvError
+from buildenv.metamodel.surrogate import load_metamodel
 from buildenv.sites import load_site
 from buildenv.sites.suite import (
     HELD_OUT_CLIMATES,
@@ -56,11 +58,23 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
     assert record["status"] == "made" and record["part"] == "development"
     site = load_site(record["site"])
     assert site.weeks == 2 and site.start == case.start()
+    cooling_meter = ("heating", "cooling", "lighting", "plug_loads")  # a cooling-season site meters its cooling
+    assert site.consumption_end_uses == cooling_meter and record["meters"] == list(cooling_meter)
     assert make_case(case, tmp_path, weeks=2)["status"] == "reused"
 
-    small = make_case(SuiteCase("small_office", "usa_fl_miami", "heating"), tmp_path, weeks=1)
-    assert small["status"] == "refused" and "floor_area_m2" in small["reason"]
-    assert not (tmp_path / "small_office-usa_fl_miami-heating").exists()
+    # an EnergyPlus model that cannot run the case: the 2019 large office's data-centre coil
+    refused = make_case(SuiteCase("large_office_2019", "usa_ok_oklahoma", "heating"), tmp_path, weeks=1)
+    assert refused["status"] == "refused" and "EnergyPlus failed" in refused["reason"]
+    assert not (tmp_path / "large_office_2019-usa_ok_oklahoma-heating").exists()
+
+
+def test_a_small_office_site_builds_and_calibrates(tmp_path):
+    record = make_case(SuiteCase("small_office", "usa_fl_miami", "heating"), tmp_path, weeks=3)
+    assert record["status"] == "made", record.get("reason")
+    site = load_site(record["site"])
+    assert 300 <= site.floor_area_m2 < 1000  # the DOE small office, 511 m2
+    result = calibrate_site(site, load_metamodel(), weeks=[0, 1], max_evaluations=300)
+    assert np.isfinite(result["heldout"]["cv_rmse_q_percent"]) and result["heldout"]["r2_t"] > 0.0
 
 
 def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys):

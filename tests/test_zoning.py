@@ -12,10 +12,12 @@ from buildenv import catalogue as cat
 from buildenv.campaign.runs import CampaignConfig, run_campaign
 from buildenv.defaults import DEFAULT_THETA, default_week
 from buildenv.energyplus.reference import (
+    UNMAPPED_SETTINGS,
     _schedule_columns,
     design_outdoor_air_ach,
     historical_settings,
     historical_ventilation_ach,
+    reference_bms,
     reference_idf,
 )
 from buildenv.energyplus.shoebox import (
@@ -122,6 +124,9 @@ def test_reference_design_ventilation_is_recorded_in_model_units():
     medium = design_outdoor_air_ach(reference_idf("medium_office"), resolve_epw("usa_il_chicago"))
     assert 0.6 < medium < 0.8  # 3 air handlers x 1.117 m3/s over 4,982 m2 x 3.5 m
     assert historical_ventilation_ach("medium_office") == pytest.approx(0.7)
+    controllable, limits = reference_bms("medium_office")
+    assert controllable == tuple(n for n in cat.SETTING_NAMES if n not in UNMAPPED_SETTINGS)
+    assert "supply_air_c" in UNMAPPED_SETTINGS and limits == {"ventilation_ach": (0.1, 0.7)}
     settings = historical_settings(1, 1.3)
     assert np.all(settings[..., cat.SETTING_NAMES.index("ventilation_ach")] == 1.3)
     low = historical_settings(1, 0.7)

@@ -86,7 +86,11 @@ def calibrate_site(
         else (sorted(weeks), [w for w in range(site.weeks) if w not in weeks])
     )
     problem = build_problem(
-        site, fit_weeks, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
+        site,
+        fit_weeks,
+        context_hours=surrogate.context_hours,
+        temperature_before=surrogate.uses_temperature_before,
+        metamodel=surrogate,
     )
     if method == "cmaes":
         best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
@@ -104,6 +108,7 @@ def calibrate_site(
             effects,
             context_hours=surrogate.context_hours,
             temperature_before=surrogate.uses_temperature_before,
+            metamodel=surrogate,
         )
         best, stage = fit_declared_effects(problem, surrogate, best, seed)
         info = {**info, "evaluations": info["evaluations"] + stage["evaluations"], "cost": stage["cost"]}
@@ -125,8 +130,9 @@ def calibrate_site(
         "guideline14_p": GUIDELINE14_P,
         "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
         "known": sorted(site.known),
+        "not_read": sorted(surrogate.implied),
         "occupancy": np.round(occ[0], 3).tolist(),
-        "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known),
+        "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known, surrogate),
         "metamodel": _metamodel_name(surrogate),
         "catalogue_hash": cat.catalogue_hash(),
         **declared,
@@ -157,7 +163,11 @@ def _score_runs(
     """``calibrate_site``'s ``runs``: each CMA-ES run's seed, cost and held-out RMSE_T (degC) and R2_T of its
     parameters without the declared effects, the held-out weeks encoded once."""
     problem = build_problem(
-        site, heldout, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
+        site,
+        heldout,
+        context_hours=surrogate.context_hours,
+        temperature_before=surrogate.uses_temperature_before,
+        metamodel=surrogate,
     )
     runs = []
     for k, (cost, params) in enumerate(zip(run_costs, run_parameters)):

@@ -133,7 +133,7 @@ def simulate_site_run(
 
     Args:
         run: what to simulate (:func:`plan_site_run`).
-        theta: theta_build ``(19,)``, catalogue order, physical units (geometry included).
+        theta: theta_build ``(21,)``, catalogue order, physical units (geometry included).
         occupancy: weekday occupancy ``(5, 2)`` (start hour, end hour), used in every week.
         workdir: where EnergyPlus runs (a temporary directory, removed afterwards, if ``None``).
         within_catalogue: refuse a theta_build outside the catalogue's ranges (``False`` runs it, for
@@ -232,7 +232,7 @@ class ShoeboxPool:
             self._pool = None
 
     def simulate(self, run: SiteRun, theta: np.ndarray, occupancy: np.ndarray) -> np.ndarray:
-        """Outputs ``(pop, len(run.keep), 168, 8)`` of candidates ``theta (pop, 19)``, ``occupancy (pop, 5, 2)``."""
+        """Outputs ``(pop, len(run.keep), 168, 8)`` of candidates ``theta (pop, 21)``, ``occupancy (pop, 5, 2)``."""
         tasks = [(run, th, oc, self.within_catalogue) for th, oc in zip(theta, occupancy)]
         if self._pool is None:
             return np.stack([_simulate_task(t) for t in tasks])

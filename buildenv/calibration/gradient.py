@@ -15,7 +15,6 @@ from buildenv import catalogue as cat
 from buildenv.calibration.problem import (
     KNOWN_GEOMETRY,
     RAMP_HOURS,
-    SITE_CONSUMPTION_OUTPUTS,
     WEIGHTS,
     Problem,
     evaluate,
@@ -56,8 +55,13 @@ def calibrate_adam(
     free = free_theta()
     theta_const = torch.tensor([problem.theta_known.get(n, 0.0) for n in cat.THETA_NAMES], dtype=torch.float32)
     theta_cols = [j for j, n in enumerate(cat.THETA_NAMES) if n not in KNOWN_GEOMETRY]
+    # where the model reads each theta variable and the occupancy (and the factor into its units)
+    index, scale = surrogate.channel_map()
     t0 = sg.INPUT_CHANNELS.index(cat.THETA_NAMES[0])
-    c_occ = sg.INPUT_CHANNELS.index("occupancy_fraction")
+    read = [(p, int(i) - t0, float(f)) for p, (i, f) in enumerate(zip(index, scale)) if 0 <= i - t0 < len(theta_const)]
+    t_pos, t_src = [r[0] for r in read], [r[1] for r in read]
+    t_scale = torch.tensor([r[2] for r in read], dtype=torch.float32)
+    c_occ = int(np.flatnonzero(index == sg.INPUT_CHANNELS.index("occupancy_fraction"))[0])
     ctx = sg.context_of(x_base)
     hour = torch.arange(cat.HOURS_PER_DAY, dtype=torch.float32) + 0.5
     in_mean = torch.as_tensor(ck.input_norm.mean, dtype=torch.float32)
@@ -69,7 +73,7 @@ def calibrate_adam(
     m_t = torch.tensor(np.isfinite(problem.temperature_c))
     m_q = torch.tensor(np.isfinite(problem.consumption_wh_m2))
     t_idx = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
-    q_idx = [cat.OUTPUT_NAMES.index(n) for n in SITE_CONSUMPTION_OUTPUTS]
+    q_idx = list(problem.consumption_idx)  # the outputs the site's consumption meter sums
     optimiser = torch.optim.Adam([z], lr=lr)
 
     def forward(params: torch.Tensor) -> torch.Tensor:
@@ -79,7 +83,7 @@ def calibrate_adam(
         on = torch.sigmoid((hour - occ[..., :1]) / RAMP_HOURS) * torch.sigmoid((occ[..., 1:] - hour) / RAMP_HOURS)
         week = torch.cat([on.reshape(len(params), -1), torch.zeros(len(params), 2 * cat.HOURS_PER_DAY)], 1)
         x = x_base.expand(len(params), *x_base.shape).clone()
-        x[..., t0 : t0 + len(cat.THETA_NAMES)] = theta[:, None, None, :]
+        x[..., t_pos] = (theta[:, t_src] * t_scale)[:, None, None, :]
         x[:, :, ctx:, c_occ] = week[:, None, :]
         x[:, :, :ctx, c_occ] = week[:, None, -ctx:]  # context: the last days of the week before (build_problem)
         y = model(((x - in_mean) / in_std).reshape(-1, *x.shape[2:]))[:, ctx:] * out_std + out_mean

@@ -14,7 +14,7 @@ from buildenv.plotting import save_figure, shade_occupancy
 def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) -> Path:
     """Plot every week of the site: measured (black) and calibrated metamodel (colour), held-out weeks marked.
 
-    Top: occupied-zone mean temperature (degC); bottom: heat consumption (Wh/m2 per hour).
+    Top: occupied-zone mean temperature (degC); bottom: the consumption the site meters (Wh/m2 per hour).
     """
     import matplotlib
 
@@ -28,6 +28,7 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
         tuple(result.get("declared_effects", ())),
         context_hours=surrogate.context_hours,
         temperature_before=surrogate.uses_temperature_before,
+        metamodel=surrogate,
     )
     params = calibrated_parameters(result, problem.effects)
     t, q = predict(problem, surrogate, params)
@@ -36,7 +37,7 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
     fig, (ax_t, ax_q) = plt.subplots(2, 1, figsize=(min(4 + 3 * len(weeks), 24), 6), sharex=True)
     for ax, measured, model, label in (
         (ax_t, problem.temperature_c, t, "indoor temperature (degC)"),
-        (ax_q, problem.consumption_wh_m2, q, "heat consumption (Wh/m2)"),
+        (ax_q, problem.consumption_wh_m2, q, "consumption (Wh/m2)"),
     ):
         shade_occupancy(ax, occupied)
         ax.plot(hours, measured.reshape(-1), color="black", lw=1.0, label="measured")

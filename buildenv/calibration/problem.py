@@ -6,8 +6,9 @@ weekly occupancy schedule (start and end hour of each weekday) shared by all wee
 catalogue; the optimisers search ``[0, 1]`` per free parameter, mapped linearly onto ``[min, max]``.
 
 **Cost** (the paper's): ``w_T (1 - R2_T) + w_Q (1 - R2_Q)`` (:data:`WEIGHTS`), R2 pooled over the
-calibration weeks' measured hours; missing hours are left out. The site's heat consumption (kWh per hour) per
-floor area is compared with the metamodel's :data:`SITE_CONSUMPTION_OUTPUTS` summed (Wh/m2 per hour).
+calibration weeks' measured hours; missing hours are left out. The site's consumption (kWh per hour) per floor
+area is compared with the sum of the metamodel outputs of the end uses its meter sums
+(:meth:`buildenv.sites.Site.consumption_outputs`, Wh/m2 per hour; :attr:`Problem.consumption_idx`).
 
 **Optimisers.** :func:`calibrate_cmaes` (CMA-ES, each generation one batched metamodel call);
 :func:`buildenv.calibration.gradient.calibrate_adam` (Adam, occupancy switched over a sigmoid ramp of
@@ -39,7 +40,6 @@ from buildenv.metrics import r2_masked, site_metrics
 from buildenv.schedules import hourly_schedules
 
 WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
-SITE_CONSUMPTION_OUTPUTS = cat.HEAT_CONSUMPTION_OUTPUTS
 RAMP_HOURS = 0.5
 KNOWN_GEOMETRY = ("floor_area_m2", "number_of_floors")
 #: A parameter this share of its catalogue range (or less) from one end of it is reported at that bound.
@@ -68,6 +68,8 @@ class Problem:
     hi: np.ndarray
     effects: tuple[str, ...] = ()  # model-side effects (buildenv.diagnosis.model_effects) whose parameters follow
     absent: np.ndarray | None = None  # (weeks, 7) absence shares of the days (the holidays effect; 0 = normal)
+    # indices into catalogue.OUTPUT_NAMES of the outputs the site's consumption meter sums (Site.consumption_outputs)
+    consumption_idx: tuple[int, ...] = tuple(cat.OUTPUT_NAMES.index(n) for n in cat.consumption_outputs())
 
     @property
     def free(self) -> np.ndarray:
@@ -116,6 +118,7 @@ def build_problem(
     absent: np.ndarray | None = None,
     context_hours: int = sg.CONTEXT_HOURS,
     temperature_before: bool = False,
+    metamodel: sg.Surrogate | None = None,
 ) -> Problem:
     """Encode a site's weeks, each with the days before it as context.
 
@@ -134,6 +137,10 @@ def build_problem(
         temperature_before: encode the temperature measured over each week's context hours (unknown before
             the site's first week), for a metamodel that reads it (``Surrogate.uses_temperature_before``);
             a modelled sensor bias is taken off it (:func:`buildenv.diagnosis.model_effects.transform_inputs`).
+        metamodel: the metamodel the problem is for: its bounds stay inside the ranges it was trained on
+            (:attr:`~buildenv.metamodel.surrogate.Surrogate.domain`) and the variables it does not read are held
+            at the value it learnt (:attr:`~buildenv.metamodel.surrogate.Surrogate.implied`); ``None``: the
+            catalogue's ranges.
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
@@ -165,13 +172,11 @@ def build_problem(
         ground_c=ground,
         temperature_before_c=before,
     )
+    ranges = parameter_ranges(known, metamodel)
     free = free_theta()
-    lo = np.array(
-        [known.get(v, cat.get(v).min) for v in free] + [v.min for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]]
-    )
-    hi = np.array(
-        [known.get(v, cat.get(v).max) for v in free] + [v.max for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]]
-    )
+    occupancy = [(v.min, v.max) for _ in cat.WEEKDAYS for v in cat.GROUPS["occupancy"]]
+    lo = np.array([ranges[v][0] for v in free] + [r[0] for r in occupancy])
+    hi = np.array([ranges[v][1] for v in free] + [r[1] for r in occupancy])
     e_lo, e_hi = em.bounds(effects)
     return Problem(
         x,
@@ -183,11 +188,27 @@ def build_problem(
         np.concatenate([hi, e_hi]),
         tuple(effects),
         None if absent is None else np.asarray(absent)[idx],
+        consumption_idx=tuple(cat.OUTPUT_NAMES.index(n) for n in site.consumption_outputs()),
     )
 
 
+def parameter_ranges(known: dict[str, float], metamodel: sg.Surrogate | None = None) -> dict[str, tuple[float, float]]:
+    """``{name: (min, max)}`` of the theta_build variables calibration estimates (:func:`free_theta`): the
+    catalogue's range within what ``metamodel`` was trained on, a single value for a ``known`` one or one the
+    metamodel does not read."""
+    domain = {} if metamodel is None else metamodel.domain
+    fixed = {} if metamodel is None else metamodel.implied
+    out = {}
+    for name in free_theta():
+        var = cat.get(name)
+        lo, hi = domain.get(name, (var.min, var.max))
+        value = known.get(name, fixed.get(name))
+        out[name] = (value, value) if value is not None else (max(var.min, lo), min(var.max, hi))
+    return out
+
+
 def _split(problem: Problem, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Physical ``(pop, 19)`` theta and ``(pop, 5, 2)`` occupancy from ``(pop, dim)`` physical parameters."""
+    """Physical ``(pop, 21)`` theta and ``(pop, 5, 2)`` occupancy from ``(pop, dim)`` physical parameters."""
     free = free_theta()
     theta = np.empty((len(params), len(cat.THETA_NAMES)))
     for j, name in enumerate(cat.THETA_NAMES):
@@ -244,8 +265,9 @@ def simulate(
 
 
 def model_series(problem: Problem, outputs: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Temperature (degC) and site consumption (Wh/m2) ``(..., 168)`` from metamodel outputs ``(..., 168, 8)``."""
-    q = [cat.OUTPUT_NAMES.index(n) for n in SITE_CONSUMPTION_OUTPUTS]
+    """Temperature (degC) and site consumption (Wh/m2: the outputs of :attr:`Problem.consumption_idx` summed)
+    ``(..., 168)`` from metamodel outputs ``(..., 168, 8)``."""
+    q = list(problem.consumption_idx)
     return outputs[..., cat.OUTPUT_NAMES.index("T_INT_OFFICE")], outputs[..., q].sum(-1)
 
 
@@ -417,23 +439,26 @@ def default_weeks(n_weeks: int) -> tuple[list[int], list[int]]:
     return list(range(n_fit)), list(range(n_fit, n_weeks))
 
 
-def parameters_at_bounds(theta: dict[str, float], known=()) -> list[dict]:
-    """The estimated building parameters that calibrated at a bound of their catalogue range.
+def parameters_at_bounds(theta: dict[str, float], known=(), metamodel: sg.Surrogate | None = None) -> list[dict]:
+    """The estimated building parameters that calibrated at a bound of their range.
 
     Args:
         theta: calibrated theta_build ``{name: value}`` in catalogue units (``calibration.json``'s ``theta``).
         known: names the site fixed (its ``[known]`` table); they and the known geometry are not estimates.
+        metamodel: the metamodel calibrated with: the ranges are those of :func:`parameter_ranges` (the
+            catalogue's where ``None``); the variables it does not read are not estimates.
     Returns:
         ``[{"name", "value", "bound": "min" | "max", "limit"}]`` in catalogue order, for each estimated
         parameter within :data:`AT_BOUND_SHARE` of its range from that end.
     """
+    ranges = parameter_ranges({}, metamodel)
     out = []
     for name, value in theta.items():
-        if name in KNOWN_GEOMETRY or name in known:
+        if name in KNOWN_GEOMETRY or name in known or name not in ranges or ranges[name][0] == ranges[name][1]:
             continue
-        var = cat.get(name)
-        tol = AT_BOUND_SHARE * (var.max - var.min)
-        for bound, limit in (("min", var.min), ("max", var.max)):
+        lo, hi = ranges[name]
+        tol = AT_BOUND_SHARE * (hi - lo)
+        for bound, limit in (("min", lo), ("max", hi)):
             if abs(float(value) - limit) <= tol:
                 out.append({"name": name, "value": round(float(value), 5), "bound": bound, "limit": limit})
     return out
@@ -444,7 +469,8 @@ def at_bounds_note(result: dict) -> str | None:
     found = result.get("at_bounds") or []
     if not found:
         return None
-    estimated = len([n for n in free_theta() if n not in result.get("known", [])])
+    fixed = {*result.get("known", []), *result.get("not_read", [])}  # known, or held where the metamodel is blind
+    estimated = len([n for n in free_theta() if n not in fixed])
     listed = ", ".join(f"{e['name']} at its {e['bound']} {e['limit']:g}" for e in found)
     return (
         f"note: {len(found)} of {estimated} estimated building parameters calibrated at a bound of the "
@@ -541,7 +567,9 @@ def score_weeks(
 ) -> dict[str, float]:
     """Metrics of the parameters ``params`` (physical, problem order) on some of the site's weeks (with the
     model-side ``effects`` whose parameters follow in ``params``, and the ``absent`` days of the site)."""
-    problem = build_problem(site, weeks, effects, absent, surrogate.context_hours, surrogate.uses_temperature_before)
+    problem = build_problem(
+        site, weeks, effects, absent, surrogate.context_hours, surrogate.uses_temperature_before, surrogate
+    )
     return score_series(problem, *predict(problem, surrogate, params), params, scale)
 
 

@@ -6,7 +6,7 @@ A dataset directory holds ``dataset.h5`` (chunked HDF5, read lazily: nothing is 
 ==============  =========================  ==========================================================
 name            shape                      content
 ==============  =========================  ==========================================================
-theta           (weeks, 19)                theta_build of the week's building
+theta           (weeks, 21)                theta_build of the week's building
 settings        (weeks, 7, 12)             I_k, day x setting
 occupancy       (weeks, 5, 2)              O_k, weekday x (start hour, end hour)
 weather         (weeks, 168, 9)            W_k, hourly

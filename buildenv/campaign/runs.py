@@ -90,7 +90,7 @@ class RunTask:
     """One EnergyPlus run of a campaign: a building, a weather file and consecutive weeks."""
 
     run_id: int
-    theta: np.ndarray  # (19,)
+    theta: np.ndarray  # (21,)
     settings: np.ndarray  # (weeks, 7, 12)
     occupancy: np.ndarray  # (weeks, 5, 2)
     epw: str

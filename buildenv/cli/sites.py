@@ -81,11 +81,27 @@ def parse_known(items: list[str]) -> dict[str, float]:
     return known
 
 
+def parse_meter(text: str | None) -> tuple[str, ...]:
+    """``--meter USE[,USE...]`` -> the end uses the consumption meter sums (default
+    :data:`buildenv.catalogue.DEFAULT_END_USES`); raises :class:`~buildenv.errors.SiteError` (one line)."""
+    from buildenv import catalogue as cat
+    from buildenv.errors import SiteError
+    from buildenv.sites.reader import check_end_uses
+
+    if text is None:
+        return cat.DEFAULT_END_USES
+    try:
+        return check_end_uses([u.strip() for u in text.split(",") if u.strip()])
+    except SiteError as exc:
+        raise SiteError(f"--meter {text!r}: {exc}") from None
+
+
 def _cmd_site_reference(args: argparse.Namespace) -> int:
     from buildenv.energyplus.reference import make_reference_site
 
     start = parse_start(args.start, args.year)
     effects = parse_effects(args.effect)
+    end_uses = parse_meter(args.meter)
     path = make_reference_site(
         args.out,
         args.building,
@@ -98,8 +114,10 @@ def _cmd_site_reference(args: argparse.Namespace) -> int:
         effects=effects,
         effect_seed=args.effect_seed,
         known=parse_known(args.known),
+        end_uses=end_uses,
     )
     info = {"site": str(path), "building": args.building, "weather": args.epw, "start": str(start), "weeks": args.weeks}
+    info["meters"] = list(end_uses)
     if effects:
         info["effects"] = [{"name": n, "magnitude": m} for n, m in effects]
     print(json.dumps(info))
@@ -122,6 +140,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
         "number_of_floors": site.number_of_floors,
         "known": site.known,
         "effects": list(site.effects),
+        "meters": list(site.consumption_end_uses),
         "temperature_hours": int(site.temperature_mask.sum()),
         "consumption_hours": int(site.consumption_mask.sum()),
         "mean_temperature_c": round(float(np.nanmean(site.temperature_c)), 2),
@@ -218,6 +237,13 @@ def register(sub) -> None:
     )
     p.add_argument("--effect-seed", type=int, default=0, help="seed of the effects' random choices (holiday dates)")
     add_known_argument(p)
+    p.add_argument(
+        "--meter",
+        default=None,
+        metavar="USE[,USE...]",
+        help="end uses the consumption meter sums: heating, cooling, lighting, plug_loads (default "
+        "heating,lighting,plug_loads); written to site.toml's [meters]",
+    )
     p.add_argument("--out", required=True, help="site folder to write")
     p.set_defaults(func=_cmd_site_reference)
     p = site_sub.add_parser("show", help="summarise a site folder (validates it)")

@@ -31,7 +31,6 @@ import difflib
 from dataclasses import dataclass
 
 from buildenv import catalogue as cat
-from buildenv.energyplus.shoebox import LIGHTING_W_M2, PC_POWER_W
 from buildenv.errors import BuildenvError
 
 # How a gap diagnosis scores a candidate effect (buildenv.diagnosis.gap.DiagnosisSettings.judge): on both measured
@@ -76,6 +75,19 @@ CAPACITY_CEILING_SOURCE = (
 
 #: ``share x wind speed`` (m/s) at which the wind term of ``wind_infiltration`` adds nothing: about its mean over
 #: the blind checks' Chicago weeks. Centred there, the calibrated air changes stay those of a typical hour.
+#: The catalogue (:func:`buildenv.catalogue.catalogue_hash`) the ceilings and limits below were measured under,
+#: with the metamodel trained on it.
+MEASURED_UNDER = "bf68f6178dc1d1b3"
+
+
+def measured_range(name: str) -> tuple[float, float, float]:
+    """``(min, max, step)`` of a building parameter in the catalogue the diagnosis was measured under
+    (:data:`MEASURED_UNDER`)."""
+    var = cat.get(name)
+    earlier = cat.EARLIER_CATALOGUES.get(MEASURED_UNDER)
+    return earlier.ranges.get(name, (var.min, var.max, var.step)) if earlier else (var.min, var.max, var.step)
+
+
 WIND_REFERENCE_M_S = 3.0
 
 # Where the wind's ceiling comes from (measured with the term centred on WIND_REFERENCE_M_S).
@@ -95,13 +107,13 @@ BIAS_READING_SOURCE = "estimate calibrated on 464 clean sites of the blind check
 
 
 def night_electricity_w_m2(theta: dict[str, float]) -> float:
-    """Electric power the shoebox leaves on outside occupied hours, W/m2 of floor: its lighting density
-    (``LIGHTING_W_M2``) times the lights' night share, plus its workstations' power (``PC_POWER_W`` x
-    ``pc_density_per_m2``) times their night share. Both night shares heat the zones and load the meter alike, so
-    a calibration can move a night load from one to the other; their sum is what the data fix."""
+    """Electric power the shoebox leaves on outside occupied hours, W/m2 of floor: its lighting power
+    (``lighting_power_w_m2``) times the lights' night share, plus its plug loads (``plug_load_w_m2``) times
+    their night share. Both night shares heat the zones and load the meter alike, so a calibration can move a
+    night load from one to the other; their sum is what the data fix."""
     return (
-        LIGHTING_W_M2 * theta["light_night_percent"]
-        + PC_POWER_W * theta["pc_density_per_m2"] * theta["pc_night_percent"]
+        theta["lighting_power_w_m2"] * theta["light_night_percent"]
+        + theta["plug_load_w_m2"] * theta["pc_night_percent"]
     ) / 100.0
 
 
@@ -229,8 +241,8 @@ class Effect:
         building at the catalogue's resolution, and a held-out gain between them is the refits' own spread."""
         if self.building_parameter is None:
             return None
-        var = cat.get(self.building_parameter)
-        return var.max - var.step if self.vanishes_at == "max" else var.min + var.step
+        lo, hi, step = measured_range(self.building_parameter)
+        return hi - step if self.vanishes_at == "max" else lo + step
 
     def strength(self, value: float) -> float:
         """A value of :attr:`building_parameter` oriented so that larger means a stronger effect: negated where
@@ -245,8 +257,8 @@ class Effect:
         """The value of :attr:`building_parameter` at which the effect vanishes (None for an effect not carried)."""
         if self.building_parameter is None:
             return None
-        var = cat.get(self.building_parameter)
-        return var.max if self.vanishes_at == "max" else var.min
+        lo, hi, _ = measured_range(self.building_parameter)
+        return hi if self.vanishes_at == "max" else lo
 
     def named_from(self) -> str:
         """The smallest estimate a diagnosis names, with its unit and where it comes from ("" when any is)."""

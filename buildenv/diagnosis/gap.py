@@ -289,6 +289,7 @@ def _problem(ctx: _Context, fit: ModelFit, weeks: list[int], absent: np.ndarray 
         mask if mask.any() else None,
         ctx.surrogate.context_hours,
         ctx.surrogate.uses_temperature_before,
+        ctx.surrogate,
     )
     for name, value in fit.pinned.items():
         j = problem.names.index(name)
@@ -449,7 +450,7 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
         calib
         and calib.get("fit_weeks") == ctx.fit_weeks
         and set(calib.get("effects") or ()) == set(declared)
-        and calib.get("catalogue_hash") == cat.catalogue_hash()
+        and calib.get("catalogue_hash") in (cat.catalogue_hash(), *cat.EARLIER_CATALOGUES)  # read upgraded
     ):
         fit = ModelFit(declared, cal.calibrated_parameters(calib, declared), none, float(calib.get("cost", np.nan)), 0)
     else:
@@ -950,7 +951,7 @@ def diagnose(
         "heldout_base": _metrics(ctx, base, heldout, *predict(ctx, base, heldout)),
         "residual_sigma": list(ctx.sigma),
         "base_at_bounds": cal.parameters_at_bounds(
-            dict(zip(cal.free_theta(), base.params[: len(cal.free_theta())].tolist())), site.known
+            dict(zip(cal.free_theta(), base.params[: len(cal.free_theta())].tolist())), site.known, ctx.surrogate
         ),
         "split_weather": split_weather(site, settings.split),
         "verdict": _verdict(selected, first_step, settings.min_gain, steps, by_estimate, ctx.irradiance),

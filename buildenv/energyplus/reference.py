@@ -5,19 +5,21 @@ pyenergyplus-lbnl (:data:`REFERENCE_BUILDINGS`) or a user's IDF. The site's sett
 through one Schedule:File, the schedules of four roles (:data:`SCHEDULE_ROLES`, :func:`prepare_model`): the
 heating and cooling setpoints of every ``ThermostatSetpoint:DualSetpoint``, the HVAC availability (the union
 of the heating, cooling and ventilation periods) and the minimum outdoor air of every ``Controller:OutdoorAir``
-(``ventilation_on * min(1, ventilation_ach / design_ach)``, :func:`design_outdoor_air_ach`); ``supply_air_c``
-is not mapped. Schedules are re-pointed, not rewritten. Systems of 24/7 spaces keep their own schedules
-(:func:`serves_24h_space`); occupancy, lighting, equipment, constructions and systems are untouched; public
-holidays and daylight-saving time are removed. The run starts ``warmup_weeks`` before the first measured week.
+(``ventilation_on * min(1, ventilation_ach / design_ach)``, :func:`design_outdoor_air_ach`); the settings of
+:data:`UNMAPPED_SETTINGS` are not mapped. A stand-in site declares that in its ``[bms]`` (:func:`reference_bms`):
+the mapped settings are controllable, ventilation up to the design outdoor air. Schedules are re-pointed, not
+rewritten. Systems of 24/7 spaces keep their own schedules (:func:`serves_24h_space`); occupancy, lighting,
+equipment, constructions and systems are untouched; public holidays and daylight-saving time are removed. The
+run starts ``warmup_weeks`` before the first measured week.
 
 Unmodelled effects (:mod:`buildenv.diagnosis.effects`) are put in by :mod:`buildenv.energyplus.injections`:
 model edits after the schedules are re-pointed, sensor effects on the true temperature before the noise.
 
 The two sensors (:func:`read_sensors`): the occupied-zone mean air temperature (floor-area weighted, zone
-multipliers counted) and the heat consumption, kWh per hour: heating coils (``HeatingCoils:EnergyTransfer``) +
-interior lighting + interior equipment, the counterpart of the model's Q_HEAT_OFFICE + Q_AHU_H + Q_EQP +
-Q_LIGHT. The HVAC energy (heating + cooling coils, no noise), for verifying optimised settings, is the
-counterpart of :data:`buildenv.catalogue.HVAC_OUTPUTS`.
+multipliers counted) and the consumption, kWh per hour: the EnergyPlus meters of the site's end uses
+(:data:`END_USE_METERS`; default heating + lighting + plug loads), the counterpart of the model's outputs of
+those end uses (:data:`buildenv.catalogue.END_USE_OUTPUTS`). The HVAC energy (heating + cooling coils, no
+noise), for verifying optimised settings, is the counterpart of :data:`buildenv.catalogue.HVAC_OUTPUTS`.
 
 Sensor noise (seeded, :func:`add_sensor_noise`): temperature ``N(0, 0.1 K)`` with a 0.1 K resolution (a
 class-B Pt1000 read by a BMS); consumption ``N(0, 1 %)`` multiplicative with a 0.1 kWh meter resolution.
@@ -63,6 +65,16 @@ REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
     "large_office_2019": ("ASHRAE901_OfficeLarge_STD2019_Denver.idf", 12),
 }
 SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
+#: Settings the stand-in's schedules do not map: they do not act on the reference model.
+UNMAPPED_SETTINGS: tuple[str, ...] = ("supply_air_c",)
+#: End use (:data:`buildenv.catalogue.END_USE_OUTPUTS`) -> (EnergyPlus meter the stand-in's consumption sums,
+#: what it is in words). Heating and cooling: energy the coils deliver, as the model's outputs are.
+END_USE_METERS: dict[str, tuple[str, str]] = {
+    "heating": ("HeatingCoils:EnergyTransfer", "heating coils"),
+    "cooling": ("CoolingCoils:EnergyTransfer", "cooling coils"),
+    "lighting": ("InteriorLights:Electricity", "interior lights"),
+    "plug_loads": ("InteriorEquipment:Electricity", "interior equipment"),
+}
 TEMPERATURE_NOISE_K, TEMPERATURE_RESOLUTION_K = 0.1, 0.1
 CONSUMPTION_NOISE_FRACTION, CONSUMPTION_RESOLUTION_KWH = 0.01, 0.1
 HOURS_PER_YEAR = 8760
@@ -93,7 +105,7 @@ class ReferenceRun:
     """Hourly sensor readings of a reference run (before noise), one row per measured week."""
 
     temperature_c: np.ndarray  # (weeks, 168) occupied-zone mean air temperature
-    consumption_kwh: np.ndarray  # (weeks, 168) heat consumption per hour
+    consumption_kwh: np.ndarray  # (weeks, 168) consumption of the metered end uses per hour
     floor_area_m2: float  # occupied (people-bearing) floor area, multipliers counted
     zones: list[str]  # zones averaged into the temperature
     hvac_kwh: np.ndarray | None = None  # (weeks, 168) heat delivered by heating coils + cooling coils per hour
@@ -276,10 +288,7 @@ def prepare_model(
     )
     edited += [
         ["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
-        ["Output:Meter", "HeatingCoils:EnergyTransfer", "Hourly"],
-        ["Output:Meter", "CoolingCoils:EnergyTransfer", "Hourly"],
-        ["Output:Meter", "InteriorLights:Electricity", "Hourly"],
-        ["Output:Meter", "InteriorEquipment:Electricity", "Hourly"],
+        *(["Output:Meter", meter, "Hourly"] for meter, _ in END_USE_METERS.values()),
         ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29,
     ]
     if any(e.active and e.effect.kind == "energyplus" for e in effects):
@@ -319,6 +328,15 @@ def historical_ventilation_ach(building: str | Path) -> float:
     var = cat.get("ventilation_ach")
     design = design_outdoor_air_ach(reference_idf(building), resolve_epw(OUTDOOR_AIR_SIZING_WEATHER))
     return float(var.snap(np.clip(design, var.min, var.max)))
+
+
+def reference_bms(building: str | Path) -> tuple[tuple[str, ...], dict[str, tuple[float, float]]]:
+    """What a reference building's site declares in ``[bms]``: ``(controllable, setting_limits)``, the settings
+    its schedules map (all but :data:`UNMAPPED_SETTINGS`, catalogue order) and ``ventilation_ach`` limited to
+    ``[catalogue min, historical_ventilation_ach(building)]`` (1/h): above its design the model delivers no more
+    outdoor air."""
+    controllable = tuple(n for n in cat.SETTING_NAMES if n not in UNMAPPED_SETTINGS)
+    return controllable, {"ventilation_ach": (cat.get("ventilation_ach").min, historical_ventilation_ach(building))}
 
 
 def zone_outdoor_air_m3_s(eio: Path) -> dict[str, float]:
@@ -391,12 +409,18 @@ def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
 
 
 def read_sensors(
-    out: Path, occupied: list[str], weeks: int, warmup_weeks: int, first_day: dt.date | None = None
+    out: Path,
+    occupied: list[str],
+    weeks: int,
+    warmup_weeks: int,
+    first_day: dt.date | None = None,
+    end_uses: Sequence[str] = cat.DEFAULT_END_USES,
 ) -> ReferenceRun:
     """Aggregate a finished reference run as the two sensors (see the module docstring).
 
     ``first_day`` (the run period's first day): read only the rows stamped with the run period's hours
-    (:func:`_run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run period's.
+    (:func:`_run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run period's. ``end_uses``
+    (keys of :data:`END_USE_METERS`): the meters the consumption sums.
     """
     import pandas as pd
 
@@ -419,9 +443,8 @@ def read_sensors(
         col = [c for c in frame.columns if c.upper().startswith(meter.upper() + " [")]
         return frame[col[0]].to_numpy(float) / 3.6e6 if col else np.zeros(len(frame))  # J -> kWh
 
-    heating = meter_kwh("HeatingCoils:EnergyTransfer")
-    consumption = heating + meter_kwh("InteriorLights:Electricity") + meter_kwh("InteriorEquipment:Electricity")
-    hvac = heating + meter_kwh("CoolingCoils:EnergyTransfer")
+    consumption = sum((meter_kwh(END_USE_METERS[use][0]) for use in end_uses), np.zeros(len(frame)))
+    hvac = meter_kwh(END_USE_METERS["heating"][0]) + meter_kwh(END_USE_METERS["cooling"][0])
     hours = (weeks + warmup_weeks) * cat.HOURS_PER_WEEK
     if len(frame) != hours:
         raise ReferenceBuildingError(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
@@ -447,6 +470,7 @@ def run_reference(
     schedule_map: ScheduleMap | None = None,
     effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
     effect_seed: int = 0,
+    end_uses: Sequence[str] = cat.DEFAULT_END_USES,
 ) -> ReferenceRun:
     """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
 
@@ -462,6 +486,7 @@ def run_reference(
             :mod:`buildenv.energyplus.injections`); the sensor effects act on the returned ``temperature_c`` (before
             noise), ``hvac_kwh`` and ``warmup_temperature_c`` stay true. Recorded in ``ReferenceRun.effects``.
         effect_seed: seed of the effects' random choices (holiday dates).
+        end_uses: end uses the consumption sums (keys of :data:`END_USE_METERS`).
     Returns:
         the :class:`ReferenceRun` of the measured weeks (true readings, no noise).
     Raises:
@@ -487,7 +512,7 @@ def run_reference(
             if "FindRootSimpleController" in str(error) and "DATACENTER" in str(error).upper():
                 raise ReferenceBuildingError(_DATA_CENTRE_COIL_ERROR.format(source.stem)) from error
             raise
-        result = read_sensors(work, occupied, len(settings), warmup_weeks, first_day)
+        result = read_sensors(work, occupied, len(settings), warmup_weeks, first_day, end_uses)
         clean_outputs(work, keep=("eplusout.err",))
     result.temperature_c = sensor_effect_series(result.temperature_c, result.warmup_temperature_c, planned)
     result.effects = [e.truth() for e in planned]
@@ -526,6 +551,7 @@ def make_reference_site(
     effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
     effect_seed: int = 0,
     known: dict[str, float] | None = None,
+    end_uses: Sequence[str] = cat.DEFAULT_END_USES,
 ) -> Path:
     """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.sites`).
 
@@ -546,8 +572,19 @@ def make_reference_site(
         effect_seed: seed of the effects' random choices (holiday dates).
         known: building parameters the site declares known (``site.toml``'s ``[known]``, catalogue units):
             what the building's documents say, which calibration then keeps fixed.
+        end_uses: end uses the consumption meter sums (keys of :data:`END_USE_METERS`), written as ``site.toml``'s
+            ``[meters] consumption``.
+
+    The site's ``[bms]`` declares what the stand-in maps (:func:`reference_bms`).
+
+    Raises:
+        SiteError: ``end_uses`` is empty, repeats one or names one that is not an end use.
+        ReferenceBuildingError: as :func:`run_reference`.
     """
     from buildenv.sites import write_site
+    from buildenv.sites.reader import check_end_uses
+
+    end_uses = check_end_uses(list(end_uses))
 
     if floors is None:
         if str(building) not in REFERENCE_BUILDINGS:
@@ -557,9 +594,17 @@ def make_reference_site(
         settings = historical_settings(weeks, historical_ventilation_ach(building))
     settings = np.asarray(settings, float)
     run = run_reference(
-        building, epw, start, settings, schedule_map=schedule_map, effects=effects, effect_seed=effect_seed
+        building,
+        epw,
+        start,
+        settings,
+        schedule_map=schedule_map,
+        effects=effects,
+        effect_seed=effect_seed,
+        end_uses=end_uses,
     )
     temperature, consumption = add_sensor_noise(run, seed)
+    controllable, setting_limits = reference_bms(building)
     source = {
         "kind": "reference building stand-in",
         "building": str(building),
@@ -568,8 +613,8 @@ def make_reference_site(
         "seed": seed,
         "temperature_sensor": f"occupied-zone mean of {len(run.zones)} zones, noise {TEMPERATURE_NOISE_K} K, "
         f"resolution {TEMPERATURE_RESOLUTION_K} K",
-        "consumption_meter": "heating coils + interior lights + interior equipment, noise "
-        f"{CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh",
+        "consumption_meter": " + ".join(END_USE_METERS[use][1] for use in end_uses)
+        + f", noise {CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh",
     }
     return write_site(
         out,
@@ -584,4 +629,7 @@ def make_reference_site(
         source=source,
         truth={"building": str(building), "effects": run.effects},
         known=known,
+        consumption_end_uses=end_uses,
+        controllable=controllable,
+        setting_limits=setting_limits,
     )

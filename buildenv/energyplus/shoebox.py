@@ -12,13 +12,17 @@ Modelling choices (each a constant below, so that a reader can find and change i
   annual mean) of the weather file; simple glazing (``GLAZING_U``, ``GLAZING_SHGC``).
 - Capacitance: an InternalMass of concrete (both faces exposed) whose thickness gives ``capacitance x volume``.
 - Infiltration: constant air changes per hour of the volume (no wind or stack dependence).
-- Internal gains: ``PERSON_ACTIVITY_W`` per occupant, ``PC_POWER_W`` per workstation and ``LIGHTING_W_M2``,
-  following the hourly occupancy; lights and equipment at theta's night percentage outside it.
+- Internal gains: ``PERSON_ACTIVITY_W`` per occupant, theta's plug loads (``ElectricEquipment``) and lighting
+  power (``Lights``) per m2, following the hourly occupancy; lights and equipment at theta's night percentage
+  outside it.
 - Fan coils: ``ZoneHVAC:IdealLoadsAirSystem`` on a dual-setpoint thermostat, limited to theta's heating and
   cooling power, sensible only (Q_HEAT_OFFICE / Q_AC_OFFICE), setpoints from :mod:`buildenv.schedules`.
 - Air handling unit: ``ZoneHVAC:OutdoorAirUnit``, 100 % outdoor air (``ventilation_ach`` x volume while on)
   heated by an electric coil (Q_AHU_H) or cooled by a DX coil (Q_AHU_C) to the day's supply temperature
-  (``TemperatureControl``), supply fan heat included, balanced by an exhaust fan.
+  (``TemperatureControl``), supply fan heat included, balanced by an exhaust fan. With a heat recovery
+  effectiveness above 0, a sensible plate exchanger (``HeatExchanger:AirToAir:SensibleAndLatent``, no latent
+  transfer) first passes the exhaust stream's heat (leaving the exhaust fan) to the outdoor air, bypassed where
+  it would carry that air past, or away from, the supply temperature; at 0 there is no exchanger.
 - Schedules: every hourly schedule is a column of one Schedule:File, so every week may differ.
 - Outputs: hourly, the zones' floor-area weighted mean air temperature and the seven energies summed over
   the zones, in Wh per m2 of floor area.
@@ -51,8 +55,6 @@ PARTITION_AIR_GAP_M2K_W = 0.15  # thermal resistance of the air gap in the core/
 CORE_WARMUP_LOADS_TOLERANCE = 0.1
 WINDOW_MARGIN = 0.05  # share of the facade width left opaque at each end of the window band
 PERSON_ACTIVITY_W = 120.0
-PC_POWER_W = 150.0
-LIGHTING_W_M2 = 10.0
 AHU_FAN_PRESSURE_PA = 300.0
 AHU_MAX_SUPPLY_DELTA_K = 60.0  # heating coil sized to lift the maximum outdoor air flow by this much
 DX_FLOW_PER_CAPACITY = 6.0e-5  # m3/s per W of rated cooling capacity (EnergyPlus admits 4.03e-5..6.04e-5)
@@ -70,6 +72,7 @@ ZONINGS = ("single", "core_perimeter")
 DEFAULT_ZONING = "core_perimeter"
 # HVAC objects of each zone are named f"{zone} {part}" (see zone_hvac_names)
 FAN_COILS, AHU_HEATING_COIL, AHU_COOLING_COIL = "Fan Coils", "AHU Heating Coil", "AHU Cooling Coil"
+AHU_HEAT_RECOVERY = "AHU Heat Recovery"
 
 #: EnergyPlus report variable (HVAC part of the key, name) behind each catalogue output; the key is the zone
 #: name for zone variables, else ``f"{zone} {part}"``.
@@ -158,10 +161,11 @@ def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
 
 
 def zone_hvac_names(zone: str) -> dict[str, str]:
-    """Names of a zone's fan coils (ideal loads), air handling unit and its coils."""
+    """Names of a zone's fan coils (ideal loads), air handling unit, its heat recovery and its coils."""
     return {
         "fan_coils": f"{zone} {FAN_COILS}",
         "ahu": f"{zone} AHU",
+        "heat_recovery": f"{zone} {AHU_HEAT_RECOVERY}",
         "heating_coil": f"{zone} {AHU_HEATING_COIL}",
         "cooling_coil": f"{zone} {AHU_COOLING_COIL}",
     }
@@ -622,7 +626,7 @@ def build_epjson(
 
 
 def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geometry, infiltration: bool) -> None:
-    """Internal mass, people, lighting, workstations (each ``share`` of the building's) and infiltration (the
+    """Internal mass, people, lighting, plug loads (each ``share`` of the building's) and infiltration (the
     whole building's, in the zone with the envelope) of one zone."""
     area = share * g.floor_area_m2
     add(
@@ -649,17 +653,17 @@ def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geomet
         zone_or_zonelist_or_space_or_spacelist_name=zone,
         schedule_name="lighting_fraction",
         design_level_calculation_method="LightingLevel",
-        lighting_level=round(LIGHTING_W_M2 * area, 3),
+        lighting_level=round(t["lighting_power_w_m2"] * area, 3),
         fraction_radiant=0.42,
         fraction_visible=0.18,
     )
     add(
         "ElectricEquipment",
-        f"{zone} workstations",
+        f"{zone} plug loads",
         zone_or_zonelist_or_space_or_spacelist_name=zone,
         schedule_name="equipment_fraction",
         design_level_calculation_method="EquipmentLevel",
-        design_level=round(t["pc_density_per_m2"] * area * PC_POWER_W, 3),
+        design_level=round(t["plug_load_w_m2"] * area, 3),
         fraction_radiant=0.3,
     )
     if infiltration:  # air changes of the whole building's volume, through the envelope
@@ -745,8 +749,11 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         humidification_control_type="None",
     )
 
-    # Air handling unit: outdoor air -> DX cooling coil -> electric heating coil -> supply fan -> zone.
+    # Air handling unit: outdoor air -> [heat recovery ->] DX cooling coil -> electric heating coil -> supply fan
+    # -> zone; zone -> exhaust fan [-> heat recovery] -> outdoors.
     oa_flow = cat.get("ventilation_ach").max * share * g.volume_m3 / 3600.0
+    recovery = t["heat_recovery_effectiveness"] > 0.0
+    cooling_inlet = f"{zone} AHU recovered air" if recovery else f"{zone} AHU outdoor air"
     add(
         "ZoneHVAC:OutdoorAirUnit",
         names["ahu"],
@@ -768,19 +775,27 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         supply_fanoutlet_node_name=f"{zone} AHU supply",
         outdoor_air_unit_list_name=f"{zone} AHU components",
     )
+    components = [
+        ("CoilSystem:Cooling:DX", f"{zone} AHU cooling system"),
+        ("Coil:Heating:Electric", names["heating_coil"]),
+    ]
+    if recovery:
+        components.insert(0, ("HeatExchanger:AirToAir:SensibleAndLatent", names["heat_recovery"]))
+        _add_heat_recovery(add, zone, names["heat_recovery"], t["heat_recovery_effectiveness"], oa_flow)
     add(
         "ZoneHVAC:OutdoorAirUnit:EquipmentList",
         f"{zone} AHU components",
-        component_1_object_type="CoilSystem:Cooling:DX",
-        component_1_name=f"{zone} AHU cooling system",
-        component_2_object_type="Coil:Heating:Electric",
-        component_2_name=names["heating_coil"],
+        **{
+            field: value
+            for i, (kind, name) in enumerate(components, 1)
+            for field, value in ((f"component_{i}_object_type", kind), (f"component_{i}_name", name))
+        },
     )
     add(
         "CoilSystem:Cooling:DX",
         f"{zone} AHU cooling system",
         availability_schedule_name="ventilation_on",
-        dx_cooling_coil_system_inlet_node_name=f"{zone} AHU outdoor air",
+        dx_cooling_coil_system_inlet_node_name=cooling_inlet,
         dx_cooling_coil_system_outlet_node_name=f"{zone} AHU cooled air",
         dx_cooling_coil_system_sensor_node_name=f"{zone} AHU cooled air",
         cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed",
@@ -794,7 +809,7 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         gross_rated_sensible_heat_ratio=0.75,
         gross_rated_cooling_cop=3.0,
         rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * oa_flow, 5),
-        air_inlet_node_name=f"{zone} AHU outdoor air",
+        air_inlet_node_name=cooling_inlet,
         air_outlet_node_name=f"{zone} AHU cooled air",
         total_cooling_capacity_function_of_temperature_curve_name="Constant biquadratic",
         total_cooling_capacity_function_of_flow_fraction_curve_name="Constant quadratic",
@@ -834,4 +849,45 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         motor_in_airstream_fraction=1.0,
         air_inlet_node_name=f"{zone} AHU exhaust",
         air_outlet_node_name=f"{zone} AHU relief",
+    )
+
+
+def _add_heat_recovery(add, zone: str, name: str, effectiveness: float, oa_flow_m3_s: float) -> None:
+    """A sensible plate heat exchanger of one zone's air handling unit: outdoor air (supply side) against the
+    exhaust fan's outlet (exhaust side), at ``effectiveness`` whatever the flow (no effectiveness curves), no
+    latent transfer, available while ``ventilation_on``. A setpoint manager puts the day's supply temperature on
+    its supply outlet, so it bypasses outdoor air rather than heat or cool it past that temperature, or away from it.
+
+    Args:
+        add: the epJSON builder's ``add(kind, name, **fields)``.
+        zone: zone name (node names follow the air handling unit's).
+        name: the exchanger's name.
+        effectiveness: sensible effectiveness, heating and cooling (0-1).
+        oa_flow_m3_s: the unit's maximum outdoor air flow, the exchanger's nominal flow (m3/s).
+    """
+    add(
+        "HeatExchanger:AirToAir:SensibleAndLatent",
+        name,
+        availability_schedule_name="ventilation_on",
+        nominal_supply_air_flow_rate=round(oa_flow_m3_s, 5),
+        sensible_effectiveness_at_100_heating_air_flow=effectiveness,
+        latent_effectiveness_at_100_heating_air_flow=0.0,
+        sensible_effectiveness_at_100_cooling_air_flow=effectiveness,
+        latent_effectiveness_at_100_cooling_air_flow=0.0,
+        supply_air_inlet_node_name=f"{zone} AHU outdoor air",
+        supply_air_outlet_node_name=f"{zone} AHU recovered air",
+        exhaust_air_inlet_node_name=f"{zone} AHU relief",
+        exhaust_air_outlet_node_name=f"{zone} AHU exhaust outlet",
+        nominal_electric_power=0.0,
+        supply_air_outlet_temperature_control="Yes",
+        heat_exchanger_type="Plate",
+        frost_control_type="None",
+        economizer_lockout="No",
+    )
+    add(
+        "SetpointManager:Scheduled",
+        f"{name} setpoint",
+        control_variable="Temperature",
+        schedule_name="supply_air_c",
+        setpoint_node_or_nodelist_name=f"{zone} AHU recovered air",
     )

@@ -86,6 +86,7 @@ class _Building:
 
         self.surrogate = load_metamodel(args["metamodel"])
         self.model = SiteModel.from_site(self.site, self.surrogate)
+        self.actions = act.ActionMap.for_site(self.site, self.surrogate.domain, self.model.historical)
         self.occupied = self.model.occupied_hours()
         self.pool = split_weeks(self.model.weeks, args["weeks"])
         pool = set(self.pool)
@@ -99,7 +100,7 @@ class _Building:
         self._historical: dict[int, tuple[float, float]] = {}
         n_obs = observation_size(args["observation"])
         self.observation_space = spaces.Box(-BOUND, BOUND, (n_obs,), np.float32)
-        self.action_space = spaces.Box(-1.0, 1.0, (act.ACTION_SIZE,), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.actions.size,), np.float32)
 
     # ------------------------------------------------------------------ simulation and scoring
     def outputs(self, settings: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
@@ -140,8 +141,8 @@ class _Building:
     def score(
         self, actions: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None = None
     ) -> dict[str, np.ndarray]:
-        """Everything ``step`` and ``evaluate`` report for actions ``(N, 84)`` in weeks ``(N,)``."""
-        settings, clipped = act.decode(actions)
+        """Everything ``step`` and ``evaluate`` report for actions ``(N, 7 x k)`` in weeks ``(N,)``."""
+        settings, clipped = self.actions.decode(actions)
         weeks = np.asarray(weeks, dtype=int)
         out = self.outputs(settings, weeks, previous)
         energy = obj.hvac_energy(out)
@@ -218,16 +219,19 @@ class BuildingWeekEnv(gym.Env):
     (Cohen et al., "End-to-end deep metamodeling to calibrate and optimize energy loads").
 
     ## Action Space
-    ``Box(-1, 1, (84,), float32)``: the 12 settings of :data:`buildenv.catalogue.SETTINGS` for each day
-    Monday..Sunday, day-major (:func:`buildenv.env.actions.action_names`), each mapped linearly onto its
-    catalogue range and snapped to its step. ``env.unwrapped.decode(action)`` gives the physical ``(7, 12)``
-    settings, ``encode(settings)`` the action. Components outside [-1, 1] are clipped and counted in
-    ``info["clipped_components"]``; NaN or infinite ones raise :class:`buildenv.errors.BuildingEnvError`.
+    ``Box(-1, 1, (7 x k,), float32)``: the k settings of :data:`buildenv.catalogue.SETTINGS` the site's BMS can
+    change (``[bms] controllable`` in ``site.toml``; all 12, ``(84,)``, by default, as on the default site) for
+    each day Monday..Sunday, day-major (``env.unwrapped.action_names``), each mapped linearly onto its catalogue
+    range within the site's limits and what the metamodel was trained on (:class:`buildenv.env.actions.ActionMap`)
+    and snapped to its step; the other settings stay at the site's historical values.
+    ``env.unwrapped.decode(action)`` gives the physical ``(7, 12)`` settings, ``encode(settings)``
+    the action. Components outside [-1, 1] are clipped and counted in ``info["clipped_components"]``; NaN or
+    infinite ones raise :class:`buildenv.errors.BuildingEnvError`.
 
     ## Observation Space
-    ``Box(-10, 10, (73,), float32)`` (``observation="compact"``): the week's daily weather forecast, the
+    ``Box(-10, 10, (75,), float32)`` (``observation="compact"``): the week's daily weather forecast, the
     occupancy schedule, the week of the year (sine, cosine) and the calibrated building parameters, scaled to
-    order one; ``"forecast"`` appends the hourly forecast, ``(1417,)`` (:mod:`buildenv.env.observations`).
+    order one; ``"forecast"`` appends the hourly forecast, ``(1419,)`` (:mod:`buildenv.env.observations`).
 
     ## Rewards
     ``-(energy_term + comfort_weight * comfort_term)``. ``energy_term`` (the paper's Delta_Q^opt): the week's
@@ -251,7 +255,7 @@ class BuildingWeekEnv(gym.Env):
     ``comfort`` ("rms", "band", "mean_abs"), ``comfort_band_k`` (1.0 K), ``observation`` ("compact"),
     ``episode_weeks`` (1), ``weeks`` ("train"; "test" is weeks 12-15, 28-31 and 44-47; "all"; or a list),
     ``backend`` ("metamodel", or "energyplus": the site's reference building, for verification). Unknown
-    arguments are rejected. ``env.unwrapped.evaluate(actions)`` scores ``(N, 84)`` actions in one call.
+    arguments are rejected. ``env.unwrapped.evaluate(actions)`` scores ``(N, 7 x k)`` actions in one call.
 
     ## Version History
     * v0: first version.
@@ -296,7 +300,7 @@ class BuildingWeekEnv(gym.Env):
         """Score many weekly settings on one week in one batched call (the environment's state is unchanged).
 
         Args:
-            actions: ``(N, 84)`` actions (see Action Space).
+            actions: ``(N, 7 x k)`` actions (see Action Space).
             week: week of the year, after a week under the historical settings; default the current
                 episode's week, after the settings the episode applied the week before (if any).
         Returns:
@@ -315,15 +319,18 @@ class BuildingWeekEnv(gym.Env):
                 prev = np.broadcast_to(self._previous, (len(actions), *self._previous.shape))
         return self._b.score(actions, np.full(len(actions), int(week)), prev)
 
-    @staticmethod
-    def decode(action: np.ndarray) -> np.ndarray:
-        """Physical settings ``(..., 7, 12)`` of actions ``(..., 84)`` (see :func:`buildenv.env.actions.decode`)."""
-        return act.decode(action)[0]
+    def decode(self, action: np.ndarray) -> np.ndarray:
+        """Physical settings ``(..., 7, 12)`` of actions ``(..., 7 x k)`` (:meth:`.ActionMap.decode`)."""
+        return self._b.actions.decode(action)[0]
 
-    @staticmethod
-    def encode(settings: np.ndarray) -> np.ndarray:
-        """Actions ``(..., 84)`` of physical settings ``(..., 7, 12)``."""
-        return act.encode(settings)
+    def encode(self, settings: np.ndarray) -> np.ndarray:
+        """Actions ``(..., 7 x k)`` of physical settings ``(..., 7, 12)`` (the controllable ones)."""
+        return self._b.actions.encode(settings)
+
+    @property
+    def action_names(self) -> tuple[str, ...]:
+        """Names of the action components (``heating_comfort_c_monday``, ...)."""
+        return self._b.actions.names()
 
     @property
     def site(self):
@@ -337,8 +344,8 @@ class BuildingWeekEnv(gym.Env):
 
     @property
     def historical_action(self) -> np.ndarray:
-        """The action of the site's historical settings ``(84,)``."""
-        return act.encode(self._b.model.historical)
+        """The action of the site's historical settings ``(7 x k,)``."""
+        return self._b.actions.encode(self._b.model.historical)
 
     @property
     def week(self) -> int | None:
@@ -383,7 +390,7 @@ class BuildingWeekVectorEnv(VectorEnv):
         self.observation_space = spaces.Box(
             -BOUND, BOUND, (self.num_envs, *self._b.observation_space.shape), np.float32
         )
-        self.action_space = spaces.Box(-1.0, 1.0, (self.num_envs, act.ACTION_SIZE), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (self.num_envs, self._b.actions.size), np.float32)
         self.render_mode = None
         self._weeks = np.zeros(self.num_envs, dtype=int)
         self._steps = np.zeros(self.num_envs, dtype=int)
@@ -428,10 +435,10 @@ class BuildingWeekVectorEnv(VectorEnv):
         )
 
     def evaluate(self, actions: np.ndarray, week: int) -> dict[str, np.ndarray]:
-        """Score actions ``(N, 84)`` on one week (as :meth:`BuildingWeekEnv.evaluate`)."""
+        """Score actions ``(N, 7 x k)`` on one week (as :meth:`BuildingWeekEnv.evaluate`)."""
         return self._b.score(np.atleast_2d(actions), np.full(len(np.atleast_2d(actions)), int(week)))
 
     @property
     def historical_action(self) -> np.ndarray:
-        """The action of the site's historical settings ``(84,)``."""
-        return act.encode(self._b.model.historical)
+        """The action of the site's historical settings ``(7 x k,)``."""
+        return self._b.actions.encode(self._b.model.historical)

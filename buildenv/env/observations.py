@@ -1,6 +1,6 @@
 """What an operator knows before the week: the observation of BuildingWeek-v0.
 
-``compact`` (default, 73 values, every one roughly in [-3, 5]):
+``compact`` (default, 75 values, every one roughly in [-3, 5]):
 
 - weather forecast, per day Monday..Sunday (6 x 7 = 42): mean, minimum and maximum outdoor temperature
   (degC / 20), mean global horizontal irradiance (W/m2 / 300), mean wind speed (m/s / 10), mean relative
@@ -8,10 +8,10 @@
 - occupancy schedule (10): arrival and departure hour of each weekday, scaled onto [-1, 1] by the
   catalogue range;
 - calendar (2): sine and cosine of the week's angle in the year (week of the year / 52 x 2 pi);
-- calibrated building parameters (19): theta_build scaled onto [-1, 1] by the catalogue ranges.
+- calibrated building parameters (21): theta_build scaled onto [-1, 1] by the catalogue ranges.
 
 ``forecast``: ``compact`` followed by the full hourly forecast, 168 hours x 8 channels (DNI, IBEAM_H,
-IBEAM_N, IDIFF_H, IGLOB_H / 300; RHUM / 100; TAMB / 20; WIND_SPEED / 10), hour-major: 73 + 1,344 values.
+IBEAM_N, IDIFF_H, IGLOB_H / 300; RHUM / 100; TAMB / 20; WIND_SPEED / 10), hour-major: 75 + 1,344 values.
 
 Every value is clipped into [-10, 10] (the observation space's bounds).
 """
@@ -57,7 +57,7 @@ def observe(
         weather: hourly weather ``(N, 168, 9)`` (catalogue channels and units).
         week_of_year: ``(N,)`` week index in the year (0-based).
         occupancy: ``(5, 2)`` weekday arrival/departure hours.
-        theta: ``(19,)`` theta_build.
+        theta: ``(21,)`` theta_build.
         kind: ``compact`` or ``forecast``.
     """
     weather = np.asarray(weather, dtype=float)

@@ -30,7 +30,7 @@ class ResponseCheck:
         week: week of the site's year.
         predicted_savings, realised_savings: ``(N,)`` savings against the historical settings, percent.
         predicted_comfort, realised_comfort: ``(N,)`` comfort term, K (lower is better).
-        actions: ``(N, 84)`` the settings checked.
+        actions: ``(N, A)`` the settings checked (A: the action size).
         summary: the figures of :func:`summarise`, and ``seconds_energyplus``.
     """
 
@@ -53,7 +53,7 @@ def first_heldout_week(env) -> int:
 
 
 def random_actions(env, n: int, seed: int = 0) -> np.ndarray:
-    """``(n, 84)`` actions drawn uniformly over the environment's action space with ``seed``."""
+    """``(n, A)`` actions drawn uniformly over the environment's action space with ``seed``."""
     space = env.action_space
     rng = np.random.default_rng(seed)
     return rng.uniform(space.low, space.high, (n, *space.shape)).astype(np.float32)
@@ -76,7 +76,7 @@ def summarise(pred_s, real_s, pred_c, real_c) -> dict[str, float]:
 
 
 def response_check(env, week: int, n: int = 20, seed: int = 0, extra: np.ndarray | None = None) -> ResponseCheck:
-    """Run ``n`` random settings (and ``extra`` ``(M, 84)`` ones) on the metamodel and on the site's EnergyPlus model.
+    """Run ``n`` random settings (and ``extra`` ``(M, A)`` ones) on the metamodel and on the site's EnergyPlus model.
 
     Args:
         env: the metamodel ``BuildingWeek-v0`` of a site made by ``buildenv site reference`` (its arguments are

@@ -141,7 +141,7 @@ def encode_weeks(
     """Model inputs of weeks, physical units (not yet standardised).
 
     Args:
-        theta: ``(N, 19)``; settings: ``(N, 7, 12)``; occupancy: ``(N, 5, 2)``; weather: ``(N, 168, 9)``.
+        theta: ``(N, 21)``; settings: ``(N, 7, 12)``; occupancy: ``(N, 5, 2)``; weather: ``(N, 168, 9)``.
         previous: settings, occupancy and weather of each week's preceding week (same shapes), or ``None``.
         has_previous: ``(N,)`` booleans, False where ``previous`` holds no real preceding week.
         context_hours: hours before the week, a whole number of days (the checkpoint's:
@@ -286,6 +286,8 @@ class Surrogate:
     workers: int | None = None
     _runner: object = field(default=None, repr=False, compare=False)
     _pool: MetamodelWorkers | None = field(default=None, repr=False, compare=False)
+    _gather: tuple | None = field(default=None, repr=False, compare=False)
+    _warned: bool = field(default=False, repr=False, compare=False)
 
     @property
     def zoning(self) -> str:
@@ -351,6 +353,7 @@ class Surrogate:
         ignored otherwise.
         """
         n = len(theta)
+        self.check_implied(theta)
         out = np.empty((n, cat.HOURS_PER_WEEK, len(cat.OUTPUT_NAMES)), dtype=np.float32)
         model = self._inference_model()
 
@@ -432,8 +435,11 @@ class Surrogate:
         """The channels of encoded inputs ``x`` this metamodel reads, physical units, float32: those it does not
         read are dropped; the temperature before the week is added as unknown where ``x`` lacks it, and where it
         is unknown (NaN) the model reads the channel's training mean (written into ``x`` itself when
-        ``in_place`` and ``x`` already has the model's channels, saving a copy)."""
+        ``in_place`` and ``x`` already has the model's channels, saving a copy). A checkpoint of an earlier
+        catalogue gets its own channels, picked by name and converted (:attr:`earlier`)."""
         wanted = self.checkpoint.inputs
+        if self.earlier is not None:
+            return self._earlier_inputs(x)
         if not self.uses_temperature_before:
             return np.ascontiguousarray(x[..., :wanted], dtype=np.float32)
         if in_place and x.shape[-1] == wanted and x.dtype == np.float32 and x.flags.c_contiguous:
@@ -446,6 +452,75 @@ class Surrogate:
         value = full[..., len(INPUT_CHANNELS)]
         value[np.isnan(value)] = self.checkpoint.input_norm.mean[len(INPUT_CHANNELS)]
         return full
+
+    @property
+    def earlier(self) -> cat.EarlierCatalogue | None:
+        """The earlier catalogue this checkpoint was made with (:data:`buildenv.catalogue.EARLIER_CATALOGUES`),
+        ``None`` for this one."""
+        found = self.checkpoint.metadata.get("catalogue_hash")
+        return None if found == cat.catalogue_hash() else cat.EARLIER_CATALOGUES[found]
+
+    @property
+    def domain(self) -> dict[str, tuple[float, float]]:
+        """``{name: (min, max)}`` of every theta_build and settings variable over the range this metamodel was
+        trained on: the catalogue's, or an earlier catalogue's where it drew from another range."""
+        ranges = {v.name: (v.min, v.max) for v in (*cat.THETA_BUILD, *cat.SETTINGS)}
+        if self.earlier is not None:
+            ranges.update({name: (lo, hi) for name, (lo, hi, _) in self.earlier.ranges.items()})
+        return ranges
+
+    @property
+    def implied(self) -> dict[str, float]:
+        """``{name: value}`` of the theta_build variables this metamodel does not read: the value the building
+        model it learnt had (empty for a checkpoint of this catalogue)."""
+        return {} if self.earlier is None else dict(self.earlier.implied)
+
+    def channel_map(self) -> tuple[np.ndarray, np.ndarray]:
+        """For each channel the checkpoint reads, its index into :data:`ALL_CHANNELS` and the factor that
+        converts this catalogue's value into the checkpoint's (``(inputs,)`` each; identity but for a
+        checkpoint of an earlier catalogue)."""
+        if self._gather is None:
+            renamed = {} if self.earlier is None else self.earlier.renamed
+            index, scale = [], []
+            for name in self.checkpoint.metadata.get("input_channels", ALL_CHANNELS[: self.checkpoint.inputs]):
+                new, factor = renamed.get(name, (name, 1.0))
+                index.append(ALL_CHANNELS.index(new))
+                scale.append(1.0 / factor)
+            self._gather = (np.array(index), np.array(scale, np.float32))
+        return self._gather
+
+    def _earlier_inputs(self, x: np.ndarray) -> np.ndarray:
+        """The channels of a checkpoint of an earlier catalogue, by name, from inputs ``x`` encoded for this one."""
+        index, scale = self.channel_map()
+        if self.uses_temperature_before and x.shape[-1] < len(ALL_CHANNELS):
+            x = set_temperature_before(np.concatenate([x, np.empty(x.shape[:-1] + (2,), x.dtype)], axis=-1), None)
+        full = np.ascontiguousarray(x[..., index] * scale, dtype=np.float32)
+        if self.uses_temperature_before:
+            pos = int(np.flatnonzero(index == len(INPUT_CHANNELS))[0])
+            value = full[..., pos]
+            value[np.isnan(value)] = self.checkpoint.input_norm.mean[pos]
+        return full
+
+    def check_implied(self, theta: np.ndarray) -> None:
+        """Warn once where theta_build ``(N, 21)`` sets a variable this metamodel does not read
+        (:attr:`implied`) to another value than the one it learnt: its predictions ignore that value."""
+        if self._warned or not self.implied:
+            return
+        theta = np.asarray(theta, dtype=float).reshape(-1, len(cat.THETA_NAMES))
+        for name, value in self.implied.items():
+            column = theta[:, cat.THETA_NAMES.index(name)]
+            if not np.allclose(column, value):
+                self._warned = True
+                log.warning(
+                    "metamodel %s does not read %s: it learnt %g, this building has %g; "
+                    "its predictions are for %g (train a metamodel on this catalogue)",
+                    self.path,
+                    name,
+                    value,
+                    float(column[~np.isclose(column, value)][0]),
+                    value,
+                )
+                return
 
 
 def load_metamodel(path: str | Path | None = None) -> Surrogate:
@@ -460,8 +535,15 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
     if not path.is_file():
         raise CheckpointError(f"metamodel checkpoint not found: {path}")
     ck = load_checkpoint(path)
+    found = ck.metadata.get("catalogue_hash")
+    earlier = cat.EARLIER_CATALOGUES.get(found)
+    channels = ck.metadata.get("input_channels", ())
+    if earlier is not None:
+        unknown = [c for c in channels if earlier.renamed.get(c, (c, 1.0))[0] not in ALL_CHANNELS]
+        if unknown or ck.metadata.get("output_channels") != list(cat.OUTPUT_NAMES):
+            raise CheckpointError(f"{path}: its channels {unknown or 'outputs'} are not this buildenv's; retrain it")
+        return Surrogate(ck, path)
     try:
-        channels = ck.metadata.get("input_channels", ())
         expected = metadata(
             ck.metadata.get("context_hours", CONTEXT_HOURS),
             GROUND_CHANNEL in channels,
@@ -471,7 +553,6 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
         raise CheckpointError(f"{path}: {exc}") from None
     for key, value in expected.items():
         if ck.metadata.get(key) != value:
-            found = ck.metadata.get(key)
             if key == "catalogue_hash":
                 raise CheckpointError(
                     f"{path} was trained for catalogue {found}, this buildenv has {value}: "

@@ -169,7 +169,11 @@ def train_metamodel(
             raise BuildenvError(f"--init {init} reads the ground temperature: leave --no-ground-temperature out")
         if sg.TEMPERATURE_BEFORE_CHANNELS[0] in had and not temperature_before:
             raise BuildenvError(f"--init {init} reads the temperature before the week: pass --temperature-before")
-        if len(wanted) > len(had):
+        earlier = cat.EARLIER_CATALOGUES.get(start.metadata.get("catalogue_hash"))
+        if earlier is not None:
+            ck = _onto_catalogue(ck, earlier, had, wanted, x_tr[..., channels])
+            metadata["initialised_from"]["added_inputs"] = [w for w in wanted if _earlier_name(earlier, w) not in had]
+        elif len(wanted) > len(had):
             ck = _with_inputs(ck, x_tr[..., channels], len(had))
             metadata["initialised_from"]["added_inputs"] = list(wanted[len(had) :])
     else:
@@ -232,6 +236,34 @@ def _with_inputs(ck, x_tr: np.ndarray, had: int):
     )
     net = with_more_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, x_tr.shape[-1] - had)
     return Checkpoint(ck.name, ck.config, net, norm, ck.output_norm, ck.metadata)
+
+
+def _earlier_name(earlier: cat.EarlierCatalogue, name: str) -> str:
+    """The name a channel of this catalogue had in ``earlier``."""
+    return next((old for old, (new, _) in earlier.renamed.items() if new == name), name)
+
+
+def _onto_catalogue(ck, earlier: cat.EarlierCatalogue, had: tuple[str, ...], wanted: tuple[str, ...], x_tr):
+    """Checkpoint ``ck`` of an ``earlier`` catalogue (reading channels ``had``) moved onto this catalogue's
+    channels ``wanted``: a channel it read keeps its weights and its statistics (converted where renamed), so
+    it computes what it did; a new one gets zero weights, standardised over the training inputs ``x_tr``."""
+    from metamodels.checkpoint import Checkpoint
+    from metamodels.models import with_inputs
+    from metamodels.normalisation import Standardiser
+
+    fitted = Standardiser.fit(x_tr)
+    sources, mean, std = [], fitted.mean.copy(), fitted.std.copy()
+    for j, name in enumerate(wanted):
+        old = _earlier_name(earlier, name)
+        if old in had:
+            i = had.index(old)
+            factor = earlier.renamed.get(old, (name, 1.0))[1]
+            sources.append(i)
+            mean[j], std[j] = ck.input_norm.mean[i] * factor, ck.input_norm.std[i] * factor
+        else:
+            sources.append(-1)
+    net = with_inputs(ck.model, ck.name, ck.config, ck.inputs, ck.outputs, sources)
+    return Checkpoint(ck.name, ck.config, net, Standardiser(mean, std), ck.output_norm, ck.metadata)
 
 
 def training_split(

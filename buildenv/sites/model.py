@@ -5,7 +5,7 @@ Holds the file names (:data:`DESCRIPTOR`, ...), the CSV columns (:data:`MEASUREM
 checks and :mod:`buildenv.sites.writer` writes. A site folder holds (for users: ``docs/site-format.md``)::
 
     site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional effects, [known],
-                       [source]
+                       [meters], [bms], [source]
     measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
     settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
     calibration.json   optional, written by calibration (:func:`buildenv.sites.writer.save_calibration`)
@@ -17,9 +17,10 @@ Conventions:
   hour; weeks start Monday 00:00.
 - ``indoor_temperature_c`` is the occupied zone's mean air temperature over the hour, degC; it is compared
   with the catalogue output ``T_INT_OFFICE``.
-- ``heat_consumption_kwh`` is the energy used during the hour, kWh, for heating + equipment + lighting; it is
-  compared with :data:`buildenv.catalogue.HEAT_CONSUMPTION_OUTPUTS` summed (Wh/m2 in the hour) times floor
-  area / 1000.
+- ``heat_consumption_kwh`` is the energy used during the hour, kWh, by the end uses ``[meters] consumption``
+  lists (default heating + lighting + plug loads; heating and cooling as energy delivered); it is compared with
+  the sum of their outputs (:data:`buildenv.catalogue.END_USE_OUTPUTS`, Wh/m2 in the hour) times floor area /
+  1000.
 - Missing rows and empty / ``NaN`` cells are gaps: the hour is NaN and masked, never interpolated.
   Temperature and consumption have separate masks.
 """
@@ -51,11 +52,17 @@ TOP_LEVEL_KEYS: tuple[str, ...] = (
     "effects",
     "geometry",
     "known",
+    "meters",
+    "bms",
     "source",
 )
 GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
 #: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
 KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
+#: Keys of ``[meters]``: ``consumption``, the end uses the consumption series sums.
+METER_KEYS: tuple[str, ...] = ("consumption",)
+#: Keys of ``[bms]``: ``controllable``, the settings the BMS can change; ``limits``, their ranges in operation.
+BMS_KEYS: tuple[str, ...] = ("controllable", "limits")
 
 #: Plausible indoor air temperature, degC; a value outside is a unit or sensor error.
 TEMPERATURE_RANGE_C: tuple[float, float] = (-20.0, 50.0)
@@ -78,7 +85,7 @@ class Site:
             ``settings`` group (units of :data:`buildenv.catalogue.SETTINGS`: h, degC, 1/h).
         temperature_c: occupied-zone mean air temperature of each hour, degC, ``(weeks, 168)``, NaN where
             missing.
-        consumption_kwh: heat consumption (heating + equipment + lighting) in each hour, kWh,
+        consumption_kwh: consumption of the metered end uses (:attr:`consumption_end_uses`) in each hour, kWh,
             ``(weeks, 168)``, NaN where missing.
         source: the free ``[source]`` table of ``site.toml`` (what produced the data), not interpreted.
         known: the ``[known]`` table: building parameters the owner knows (design documents, BMS), in catalogue
@@ -86,6 +93,14 @@ class Site:
         effects: the ``effects`` list: effects of :mod:`buildenv.diagnosis.effects` the owner knows the building
             has; calibration fits them (declared effects) and the gap diagnosis takes them as part of the base
             model, not as candidates.
+        consumption_end_uses: ``[meters] consumption``: the end uses (keys of
+            :data:`buildenv.catalogue.END_USE_OUTPUTS`) the consumption series sums; default heating + lighting +
+            plug loads.
+        controllable: ``[bms] controllable``: the settings (names of :data:`buildenv.catalogue.SETTING_NAMES`,
+            catalogue order) the building's BMS can change; BuildingWeek-v0 and the optimisers act on these
+            only, the others stay at the site's historical values. Default all 12.
+        setting_limits: ``[bms] limits``: ``{controllable setting: (min, max)}`` in catalogue units, the range
+            operators may use, inside the catalogue's; a setting without one has the catalogue's range.
         calibration: parsed ``calibration.json`` or None.
         truth: parsed ``truth.json`` (true parameters of a synthetic site) or None.
     """
@@ -102,6 +117,9 @@ class Site:
     source: dict = field(default_factory=dict)
     known: dict[str, float] = field(default_factory=dict)
     effects: tuple[str, ...] = ()
+    consumption_end_uses: tuple[str, ...] = cat.DEFAULT_END_USES
+    controllable: tuple[str, ...] = cat.SETTING_NAMES
+    setting_limits: dict[str, tuple[float, float]] = field(default_factory=dict)
     calibration: dict | None = None
     truth: dict | None = None
 
@@ -117,16 +135,30 @@ class Site:
 
     @property
     def consumption_mask(self) -> np.ndarray:
-        """``(weeks, 168)`` bool, True where the heat consumption was measured."""
+        """``(weeks, 168)`` bool, True where the consumption was measured."""
         return np.isfinite(self.consumption_kwh)
 
     def consumption_wh_m2(self) -> np.ndarray:
-        """Heat consumption per m2 of floor area, Wh/m2 in each hour, ``(weeks, 168)``, NaN where missing.
+        """Consumption per m2 of floor area, Wh/m2 in each hour, ``(weeks, 168)``, NaN where missing.
 
-        The unit of the catalogue outputs: compare with the sum of
-        :data:`buildenv.catalogue.HEAT_CONSUMPTION_OUTPUTS`.
+        The unit of the catalogue outputs: compare with the sum of :meth:`consumption_outputs`.
         """
         return self.consumption_kwh * 1000.0 / self.floor_area_m2
+
+    def consumption_outputs(self) -> tuple[str, ...]:
+        """Catalogue outputs the consumption series sums (those of :attr:`consumption_end_uses`), catalogue
+        order."""
+        return cat.consumption_outputs(self.consumption_end_uses)
+
+    def setting_ranges(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(lo, hi)``, each ``(12,)`` in catalogue order and units: the catalogue's range of every setting,
+        narrowed to :attr:`setting_limits` where the site gives one."""
+        lo = np.array([v.min for v in cat.SETTINGS])
+        hi = np.array([v.max for v in cat.SETTINGS])
+        for name, (low, high) in self.setting_limits.items():
+            i = cat.SETTING_NAMES.index(name)
+            lo[i], hi[i] = low, high
+        return lo, hi
 
     def week_starts(self) -> list[dt.date]:
         """The Monday of each measured week (``weeks`` dates)."""

@@ -1,10 +1,11 @@
-"""Reading a site folder with strict validation: :func:`load_site` and :func:`known_parameter`.
+"""Reading a site folder with strict validation: :func:`load_site` and the checks of single ``site.toml`` values.
 
 :func:`load_site` parses ``site.toml``, ``measurements.csv`` and ``settings.csv`` (and ``calibration.json`` and
 ``truth.json`` when present) into a :class:`buildenv.sites.model.Site`, whose module gives the format's names
-and conventions; :func:`known_parameter` checks one ``[known]`` value. Every problem raises
-:class:`~buildenv.errors.SiteError` with a one-line ``"<file>:<line>: <what is wrong>"`` message (line 1 is the
-CSV header). The format for users is ``docs/site-format.md``.
+and conventions; :func:`known_parameter` checks one ``[known]`` value, :func:`check_end_uses` the end uses of
+``[meters]``, :func:`check_controllable` and :func:`check_setting_limit` the ``[bms]`` table. Every problem
+raises :class:`~buildenv.errors.SiteError` with a one-line ``"<file>:<line>: <what is wrong>"`` message (line 1
+is the CSV header). The format for users is ``docs/site-format.md``.
 """
 
 from __future__ import annotations
@@ -28,6 +29,7 @@ from buildenv import catalogue as cat
 from buildenv.diagnosis.effects import EffectError, check_declarable
 from buildenv.errors import CatalogueError, SiteError
 from buildenv.sites.model import (
+    BMS_KEYS,
     CALIBRATION_FILE,
     DEFAULT_MEASUREMENTS,
     DEFAULT_SETTINGS,
@@ -36,6 +38,7 @@ from buildenv.sites.model import (
     KNOWN_KEYS,
     MAX_KWH_PER_M2_PER_HOUR,
     MEASUREMENT_COLUMNS,
+    METER_KEYS,
     SETTINGS_COLUMNS,
     TEMPERATURE_RANGE_C,
     TOP_LEVEL_KEYS,
@@ -122,7 +125,10 @@ def load_site(path: str | os.PathLike) -> Site:
         source=desc["source"],
         known=desc["known"],
         effects=desc["effects"],
-        calibration=_read_json(folder / CALIBRATION_FILE),
+        consumption_end_uses=desc["consumption_end_uses"],
+        controllable=desc["controllable"],
+        setting_limits=desc["setting_limits"],
+        calibration=_upgraded(_read_json(folder / CALIBRATION_FILE)),
         truth=_read_json(folder / TRUTH_FILE),
     )
 
@@ -191,7 +197,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
     for key in ("name", "weather", "measurements", "settings"):
         if key in data and (not isinstance(data[key], str) or not data[key].strip()):
             raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, got {data[key]!r}")
-    for key in ("geometry", "known", "source"):
+    for key in ("geometry", "known", "meters", "bms", "source"):
         if key in data and not isinstance(data[key], dict):
             raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a table ([{key}]), got {data[key]!r}")
 
@@ -216,9 +222,13 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         except CatalogueError as exc:
             raise SiteError(f"{loc}: {exc}") from exc
 
+    controllable, setting_limits = _read_bms(descriptor, text, data.get("bms", {}))
     return {
+        "controllable": controllable,
+        "setting_limits": setting_limits,
         "known": _read_known(descriptor, text, data.get("known", {})),
         "effects": _read_effects(descriptor, text, data.get("effects", [])),
+        "consumption_end_uses": _read_meters(descriptor, text, data.get("meters", {})),
         "name": data["name"].strip(),
         "weather": _resolve_weather(descriptor, text, data["weather"]),
         "floor_area_m2": float(area),
@@ -235,6 +245,10 @@ def known_parameter(name: str, value: Any) -> float:
     ``value`` a number in its catalogue range and unit. Raises :class:`SiteError` (no location) otherwise."""
     if name in GEOMETRY_KEYS:
         raise SiteError(f"{name!r} belongs in [geometry], not [known]")
+    renamed = {old: new for e in cat.EARLIER_CATALOGUES.values() for old, new in e.renamed.items()}
+    if name in renamed:
+        new, factor = renamed[name]
+        raise SiteError(f"{name!r} is now {new!r} ({cat.get(new).unit}, {factor:g} x the old value); rename it")
     if name not in KNOWN_KEYS:
         close = difflib.get_close_matches(name, KNOWN_KEYS, n=1)
         hint = f" (did you mean {close[0]!r}?)" if close else ""
@@ -272,6 +286,121 @@ def _read_effects(descriptor: Path, text: str, value: Any) -> tuple[str, ...]:
         return check_declarable(value)
     except EffectError as exc:
         raise SiteError(f"{where}: {exc}") from None
+
+
+def check_end_uses(value: Any) -> tuple[str, ...]:
+    """The end uses a consumption series sums: ``value`` a non-empty list of distinct keys of
+    :data:`buildenv.catalogue.END_USE_OUTPUTS`. Raises :class:`SiteError` (no location) otherwise."""
+    allowed = _allowed(tuple(cat.END_USE_OUTPUTS))
+    if not isinstance(value, (list, tuple)) or not value or not all(isinstance(v, str) for v in value):
+        raise SiteError(f"must be a non-empty list of end uses ({allowed}), got {value!r}")
+    for i, use in enumerate(value):
+        if use in value[:i]:
+            raise SiteError(f"{use!r} given twice")
+        if use == "fans":
+            raise SiteError(
+                f"'fans': the model has no fan output; leave the fans out of the series (allowed: {allowed})"
+            )
+        if use not in cat.END_USE_OUTPUTS:
+            close = difflib.get_close_matches(use, list(cat.END_USE_OUTPUTS), n=1)
+            hint = f" (did you mean {close[0]!r}?)" if close else ""
+            raise SiteError(f"unknown end use {use!r}{hint}; allowed: {allowed}")
+    return tuple(value)
+
+
+def _read_meters(descriptor: Path, text: str, table: Mapping[str, Any]) -> tuple[str, ...]:
+    """Validate ``[meters]`` (:func:`check_end_uses`), errors located at the key's line; without ``consumption``
+    the default :data:`buildenv.catalogue.DEFAULT_END_USES`."""
+    _reject_unknown_keys(descriptor, text, table, METER_KEYS, "meters")
+    if "consumption" not in table:
+        return cat.DEFAULT_END_USES
+    try:
+        return check_end_uses(table["consumption"])
+    except SiteError as exc:
+        raise SiteError(f"{_where(descriptor, text, 'consumption', 'meters')}: [meters] consumption: {exc}") from None
+
+
+def _unknown_setting(name: str) -> str:
+    close = difflib.get_close_matches(name, cat.SETTING_NAMES, n=1)
+    hint = f" (did you mean {close[0]!r}?)" if close else ""
+    return f"unknown setting {name!r}{hint}; settings: {_allowed(cat.SETTING_NAMES)}"
+
+
+def check_controllable(value: Any) -> tuple[str, ...]:
+    """The settings a BMS can change: ``value`` a non-empty list of distinct names of
+    :data:`buildenv.catalogue.SETTING_NAMES`; returned in catalogue order. Raises :class:`SiteError` (no
+    location) otherwise."""
+    if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
+        raise SiteError(f"must be a list of setting names ({_allowed(cat.SETTING_NAMES)}), got {value!r}")
+    if not value:
+        raise SiteError("empty list: name the settings the BMS can change (leave the key out for all 12)")
+    for i, name in enumerate(value):
+        if name in value[:i]:
+            raise SiteError(f"{name!r} given twice")
+        if name not in cat.SETTING_NAMES:
+            raise SiteError(_unknown_setting(name))
+    return tuple(n for n in cat.SETTING_NAMES if n in value)
+
+
+def check_setting_limit(
+    name: str, value: Any, controllable: tuple[str, ...] = cat.SETTING_NAMES
+) -> tuple[float, float]:
+    """The range operators may use for setting ``name``: ``value`` a ``[min, max]`` list of numbers in the
+    catalogue's unit, ``min <= max`` (equal: the setting is held), inside the catalogue's range; ``name`` one of
+    ``controllable``. Returns ``(min, max)``. Raises :class:`SiteError` (no location) otherwise."""
+    if name not in cat.SETTING_NAMES:
+        raise SiteError(_unknown_setting(name))
+    if name not in controllable:
+        raise SiteError(f"{name!r} is not in [bms] controllable: add it there or remove its limit")
+    variable = cat.get(name)
+    numbers = (
+        isinstance(value, (list, tuple))
+        and len(value) == 2
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+    )
+    if not numbers:
+        raise SiteError(f"{name} must be a list [min, max] of two numbers ({variable.unit}), got {value!r}")
+    low, high = float(value[0]), float(value[1])
+    if low > high:
+        raise SiteError(f"{name} limits [{low:g}, {high:g}]: min is above max")
+    if low < variable.min - 1e-9 or high > variable.max + 1e-9:
+        raise SiteError(
+            f"{name} limits [{low:g}, {high:g}] leave the catalogue range [{variable.min:g}, {variable.max:g}] "
+            f"{variable.unit}"
+        )
+    return low, high
+
+
+def _read_bms(
+    descriptor: Path, text: str, table: Mapping[str, Any]
+) -> tuple[tuple[str, ...], dict[str, tuple[float, float]]]:
+    """Validate ``[bms]`` (:func:`check_controllable`, :func:`check_setting_limit`), errors located at the key's
+    line; without ``controllable`` all settings, without ``limits`` none."""
+    _reject_unknown_keys(descriptor, text, table, BMS_KEYS, "bms")
+    controllable = cat.SETTING_NAMES
+    if "controllable" in table:
+        try:
+            controllable = check_controllable(table["controllable"])
+        except SiteError as exc:
+            where = _where(descriptor, text, "controllable", "bms")
+            raise SiteError(f"{where}: [bms] controllable: {exc}") from None
+    limits = table.get("limits", {})
+    if not isinstance(limits, dict):
+        where = _where(descriptor, text, "limits", "bms")
+        raise SiteError(f"{where}: [bms] limits must be a table {{setting = [min, max], ...}}, got {limits!r}")
+    setting_limits: dict[str, tuple[float, float]] = {}
+    for name, value in limits.items():
+        try:
+            setting_limits[name] = check_setting_limit(name, value, controllable)
+        except SiteError as exc:
+            line = (  # [bms.limits] name = ..., or limits = {...} / limits.name = ... in [bms]
+                _toml_line(text, name, "bms.limits")
+                or _toml_line(text, f"limits.{name}", "bms")
+                or _toml_line(text, "limits", "bms")
+            )
+            where = f"{descriptor}:{line}" if line else str(descriptor)
+            raise SiteError(f"{where}: [bms] limits: {exc}") from None
+    return controllable, setting_limits
 
 
 def _resolve_weather(descriptor: Path, text: str, weather: str) -> str:
@@ -573,6 +702,13 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
             f"expected {days} rows (one per day), found {count}"
         )
     return values.reshape(weeks, 7, len(cat.SETTINGS))
+
+
+def _upgraded(calibration: dict | None) -> dict | None:
+    """A calibration with its theta in this catalogue's names (:func:`buildenv.catalogue.upgrade_theta`)."""
+    if calibration and isinstance(calibration.get("theta"), dict):
+        calibration["theta"] = cat.upgrade_theta(calibration["theta"])
+    return calibration
 
 
 def _read_json(path: Path) -> dict | None:

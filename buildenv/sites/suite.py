@@ -4,7 +4,8 @@ Each case is one shipped reference office (:data:`buildenv.energyplus.reference.
 shipped climate over one season (8 weeks by default) under a BMS history whose settings change from week to week
 (:func:`bms_history`), read as sensors into a site folder (:func:`buildenv.energyplus.reference.make_reference_site`).
 The climates run from hot (Miami) to cold (Denver); the seasons are a heating season from mid-January and a
-cooling season from July.
+cooling season from July. A site's consumption meter sums the end uses of its season (:data:`SEASON_END_USES`):
+heating + lighting + plug loads, and cooling too in the cooling season.
 
 **Held out.** The climates of :data:`HELD_OUT_CLIMATES` (both seasons, every building) are set aside before any
 tuning: figures meant to judge a model are reported on them apart from the development part. Newark is one of
@@ -50,6 +51,11 @@ SUITE_CLIMATES: dict[str, str] = {
 HELD_OUT_CLIMATES: tuple[str, ...] = ("usa_az_phoenix", "usa_nj_newark")
 #: Season -> (month, day) on or after which its first Monday falls.
 SEASONS: dict[str, tuple[int, int]] = {"heating": (1, 14), "cooling": (7, 1)}
+#: Season -> the end uses its sites' consumption meter sums (``site.toml`` ``[meters] consumption``).
+SEASON_END_USES: dict[str, tuple[str, ...]] = {
+    "heating": cat.DEFAULT_END_USES,
+    "cooling": ("heating", "cooling", "lighting", "plug_loads"),
+}
 SUITE_YEAR = 2019
 SUITE_WEEKS = 8
 MANIFEST = "suite.json"
@@ -73,6 +79,11 @@ class SuiteCase:
     def part(self) -> str:
         """``held_out`` or ``development`` (see :data:`HELD_OUT_CLIMATES`)."""
         return "held_out" if self.climate in HELD_OUT_CLIMATES else "development"
+
+    @property
+    def end_uses(self) -> tuple[str, ...]:
+        """End uses the case's consumption meter sums (:data:`SEASON_END_USES`)."""
+        return SEASON_END_USES[self.season]
 
     def start(self, year: int = SUITE_YEAR) -> dt.date:
         """The first Monday of the season in ``year``."""
@@ -125,8 +136,9 @@ def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) ->
     Starts from the typical settings (:func:`buildenv.defaults.default_week`) with ``ventilation_ach`` (1/h), then,
     from the second week on, each week may move the heating or cooling comfort setpoint by one step, a setback by
     1 K, or the occupied schedule (heating, cooling and ventilation together) by an hour; one week in the middle
-    changes the ventilation by one step. Each change holds until the next; every value stays on its catalogue
-    step and range. Weeks >= 3 always hold at least one setpoint, one schedule and one ventilation change.
+    lowers the ventilation by one step (raises it where it is at the catalogue's minimum). Each change holds until
+    the next; every value stays on its catalogue step and range. Weeks >= 3 always hold at least one setpoint,
+    one schedule and one ventilation change.
     """
     settings = default_week(weeks)[0].copy()
     vent = cat.get("ventilation_ach")
@@ -155,38 +167,54 @@ def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) ->
             if not var.min <= settings[w, 0, j] + sign * size <= var.max:  # a move that would hit the bound turns
                 sign = -sign
             _step(settings[w:], names, sign * size)
-        if w == vent_week:
+        if w == vent_week:  # down, as a building can act on it (outdoor air above its design it cannot deliver)
             j = cat.SETTING_NAMES.index("ventilation_ach")
-            up = settings[w, 0, j] + vent.step <= vent.max + 1e-9
-            _step(settings[w:], ("ventilation_ach",), vent.step if up else -vent.step)
+            down = settings[w, 0, j] - vent.step >= vent.min - 1e-9
+            _step(settings[w:], ("ventilation_ach",), -vent.step if down else vent.step)
     cat.check_values("settings", settings, "bms_history")
     return settings
 
 
 def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_seed: int = 0) -> dict:
-    """Make one case's site folder ``<out>/<case.name>`` (or reuse it when it already loads).
+    """Make one case's site folder ``<out>/<case.name>`` (or reuse it when it already loads with the case's
+    weeks, start and end uses).
 
     Returns:
-        the case's record: its fields, ``part``, ``start``, ``site`` (folder), ``status`` (``made``, ``reused``,
-        ``refused``: the stand-in or the site format cannot take the case, ``reason`` says why in one line),
-        ``seconds``.
+        the case's record: its fields, ``part``, ``start``, ``meters`` (end uses), ``site`` (folder), ``status``
+        (``made``, ``reused``, ``refused``: the stand-in or the site format cannot take the case, ``reason`` says
+        why in one line), ``seconds``.
     """
-    from buildenv.energyplus.reference import historical_ventilation_ach, make_reference_site
+    from buildenv.energyplus.reference import historical_ventilation_ach, make_reference_site, reference_bms
     from buildenv.sites.reader import load_site
 
     folder = Path(out) / case.name
-    record = {**asdict(case), "part": case.part, "start": case.start().isoformat(), "weeks": weeks, "site": str(folder)}
+    record = {
+        **asdict(case),
+        "part": case.part,
+        "start": case.start().isoformat(),
+        "weeks": weeks,
+        "meters": list(case.end_uses),
+        "site": str(folder),
+    }
     started = time.perf_counter()
     existed = folder.exists()
     try:
         if (folder / "site.toml").is_file():
             site = load_site(folder)
-            if site.weeks == weeks and site.start == case.start():
+            same = (site.weeks, site.start, site.consumption_end_uses) == (weeks, case.start(), case.end_uses)
+            if same and (site.controllable, site.setting_limits) == reference_bms(case.building):
                 return {**record, "status": "reused", "seconds": 0.0}
         rng = np.random.default_rng(case.seed(suite_seed))
         settings = bms_history(weeks, historical_ventilation_ach(case.building), rng)
         make_reference_site(
-            folder, case.building, case.climate, case.start(), weeks, settings=settings, seed=case.seed(suite_seed)
+            folder,
+            case.building,
+            case.climate,
+            case.start(),
+            weeks,
+            settings=settings,
+            seed=case.seed(suite_seed),
+            end_uses=case.end_uses,
         )
         status = {"status": "made"}
     except BuildenvError as error:

@@ -50,7 +50,7 @@ class SiteModel:
 
     Attributes:
         surrogate: the metamodel (:class:`buildenv.metamodel.surrogate.Surrogate`).
-        theta: calibrated theta_build, catalogue order, ``(19,)``.
+        theta: calibrated theta_build, catalogue order, ``(21,)``.
         occupancy: calibrated weekday occupancy ``(5, 2)`` (arrival, departure hour).
         historical: the site's historical settings ``(7, 12)``.
         week_starts: the Monday of every week of the year.

@@ -105,6 +105,9 @@ def write_site(
     truth: Mapping[str, Any] | None = None,
     known: Mapping[str, float] | None = None,
     effects: tuple[str, ...] = (),
+    consumption_end_uses: tuple[str, ...] = cat.DEFAULT_END_USES,
+    controllable: tuple[str, ...] = cat.SETTING_NAMES,
+    setting_limits: Mapping[str, tuple[float, float]] | None = None,
 ) -> Path:
     """Write a site folder that :func:`buildenv.sites.load_site` reads back, then validate it by loading it.
 
@@ -122,10 +125,16 @@ def write_site(
         number_of_floors: storeys, within the catalogue range.
         settings: ``(weeks, 7, 12)`` BMS settings, catalogue order, in catalogue units.
         temperature_c: ``(weeks, 168)`` hourly indoor temperature, degC, NaN where missing.
-        consumption_kwh: ``(weeks, 168)`` hourly heat consumption, kWh, NaN where missing.
+        consumption_kwh: ``(weeks, 168)`` hourly consumption of ``consumption_end_uses``, kWh, NaN where missing.
         source: free ``[source]`` table (strings, numbers, booleans, lists, nested tables).
         known: ``[known]`` table, ``{theta_build name: value}`` in catalogue units (:attr:`buildenv.sites.Site.known`).
         effects: effects the building is known to have (:attr:`buildenv.sites.Site.effects`).
+        consumption_end_uses: end uses the consumption sums (:attr:`buildenv.sites.Site.consumption_end_uses`);
+            written as ``[meters]`` unless they are the default.
+        controllable: settings the BMS can change (:attr:`buildenv.sites.Site.controllable`); written as ``[bms]
+            controllable`` unless all 12.
+        setting_limits: ``{controllable setting: (min, max)}``, catalogue units
+            (:attr:`buildenv.sites.Site.setting_limits`); written as ``[bms.limits]`` when given.
         truth: true parameters of a synthetic site, written as ``truth.json``.
 
     Returns:
@@ -159,6 +168,15 @@ def write_site(
     descriptor["geometry"] = {"floor_area_m2": _toml_number(floor_area_m2), "number_of_floors": int(number_of_floors)}
     if known:
         descriptor["known"] = {k: float(v) for k, v in known.items()}
+    if list(consumption_end_uses) != list(cat.DEFAULT_END_USES):
+        descriptor["meters"] = {"consumption": [str(u) for u in consumption_end_uses]}
+    bms: dict[str, Any] = {}
+    if set(controllable) != set(cat.SETTING_NAMES) or len(controllable) != len(cat.SETTING_NAMES):
+        bms["controllable"] = [str(n) for n in controllable]
+    if setting_limits:
+        bms["limits"] = {str(k): [_toml_number(v) for v in lim] for k, lim in setting_limits.items()}
+    if bms:
+        descriptor["bms"] = bms
     if source:
         descriptor["source"] = _toml_plain(dict(source), "source")
     (folder / DESCRIPTOR).write_text(tomli_w.dumps(descriptor), encoding="utf-8")

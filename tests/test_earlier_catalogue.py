@@ -73,3 +73,28 @@ def test_fine_tuning_onto_this_catalogue_starts_from_the_same_predictions(shippe
     moved.metadata = {**ck.metadata, **sg.metadata(shipped.context_hours, True, True)}
     assert moved.inputs == len(wanted)
     np.testing.assert_allclose(sg.Surrogate(moved).predict_encoded(x), shipped.predict_encoded(x), atol=1e-4)
+
+
+class _Limited:
+    """A site whose outdoor air is limited below what the shipped metamodel learnt (0.7-1.7 1/h)."""
+
+    controllable = cat.SETTING_NAMES
+
+    def setting_ranges(self):
+        lo, hi = cat.bounds("settings")
+        j = cat.SETTING_NAMES.index("ventilation_ach")
+        lo[j], hi[j] = 0.1, 0.4
+        k = cat.SETTING_NAMES.index("heating_comfort_c")
+        lo[k] = 22.2  # off the 0.5 K grid
+        return lo, hi
+
+
+def test_a_limit_outside_the_metamodels_range_is_no_action_and_snapping_stays_inside(shipped):
+    historical = np.tile(cat.bounds("settings")[0], (7, 1))
+    historical[:, cat.SETTING_NAMES.index("ventilation_ach")] = 0.4
+    actions = act.ActionMap.for_site(_Limited(), shipped.domain, historical)
+    assert actions.size == 77 and not any(n.startswith("ventilation_ach") for n in actions.names())
+    settings, _ = actions.decode(-np.ones(actions.size))
+    assert set(settings[:, cat.SETTING_NAMES.index("ventilation_ach")]) == {0.4}  # held at its history
+    assert set(settings[:, cat.SETTING_NAMES.index("heating_comfort_c")]) == {22.5}  # the grid point inside
+    assert np.abs(actions.encode(historical)).max() <= 1.0

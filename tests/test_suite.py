@@ -68,12 +68,15 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
     assert not (tmp_path / "large_office_2019-usa_ok_oklahoma-heating").exists()
 
 
-def test_a_small_office_site_builds_and_calibrates(tmp_path):
+def test_a_small_office_site_builds_and_calibrates(tmp_path, caplog):
     record = make_case(SuiteCase("small_office", "usa_fl_miami", "heating"), tmp_path, weeks=3)
     assert record["status"] == "made", record.get("reason")
     site = load_site(record["site"])
     assert 300 <= site.floor_area_m2 < 1000  # the DOE small office, 511 m2
-    result = calibrate_site(site, load_metamodel(), weeks=[0, 1], max_evaluations=300)
+    surrogate = load_metamodel()
+    result = calibrate_site(site, surrogate, weeks=[0, 1], max_evaluations=300)
+    if surrogate.domain["floor_area_m2"][0] > site.floor_area_m2:  # a metamodel that never saw so small an office
+        assert "floor_area_m2" in caplog.text and "extrapolated" in caplog.text
     assert np.isfinite(result["heldout"]["cv_rmse_q_percent"]) and result["heldout"]["r2_t"] > 0.0
 
 

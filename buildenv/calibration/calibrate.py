@@ -6,6 +6,7 @@ declared effects in a second stage, scores fit and held-out weeks and writes ``c
 
 from __future__ import annotations
 
+import logging
 import time
 
 import numpy as np
@@ -32,6 +33,36 @@ from buildenv.diagnosis.effects import get_effect
 from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.threads import one_blas_thread
 from buildenv.metrics import GUIDELINE14_P
+
+log = logging.getLogger(__name__)
+
+
+def _warn_outside_domain(site, surrogate: sg.Surrogate) -> None:
+    """Log a warning for each value the site fixes (geometry, ``[known]``) outside the range the metamodel was
+    trained on, or different from what it learnt for a variable it does not read: its predictions there are
+    extrapolated, or ignore the value."""
+    domain, implied = surrogate.domain, surrogate.implied
+    for name, value in site.theta_known().items():
+        lo, hi = domain.get(name, (-np.inf, np.inf))
+        if name in implied and not np.isclose(value, implied[name]):
+            log.warning(
+                "%s: %s=%g is not read by metamodel %s (it learnt %g)",
+                site.path,
+                name,
+                value,
+                surrogate.path,
+                implied[name],
+            )
+        elif not lo - 1e-9 <= value <= hi + 1e-9:
+            log.warning(
+                "%s: %s=%g is outside the range metamodel %s was trained on [%g, %g]; its predictions are extrapolated",
+                site.path,
+                name,
+                value,
+                surrogate.path,
+                lo,
+                hi,
+            )
 
 
 @one_blas_thread()  # buildenv.metamodel.threads: numpy's BLAS threads would fight the metamodel's
@@ -79,6 +110,7 @@ def calibrate_site(
         CalibrationError: an unknown ``method``, a declared effect that is not declarable, or bad ``weeks``.
     """
     effects = check_declared_effects(site.effects if effects is None else effects)
+    _warn_outside_domain(site, surrogate)
     started = time.perf_counter()
     fit_weeks, heldout = (
         default_weeks(site.weeks)

@@ -615,7 +615,10 @@ def load_calibration(site_path: str | Path) -> dict:
     path = Path(site_path) / "calibration.json"
     if not path.is_file():
         raise CalibrationError(f"{site_path} is not calibrated yet: run `buildenv calibrate --site {site_path}`")
-    return json.loads(path.read_text())
+    calibration = json.loads(path.read_text())
+    if isinstance(calibration.get("theta"), dict):
+        calibration["theta"] = cat.upgrade_theta(calibration["theta"])
+    return calibration
 
 
 def _metamodel_name(surrogate: sg.Surrogate) -> str | None:

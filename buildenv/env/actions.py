@@ -63,11 +63,13 @@ class ActionMap:
     @classmethod
     def for_site(cls, site, domain: dict[str, tuple[float, float]], historical: np.ndarray) -> ActionMap:
         """The actions of a :class:`buildenv.sites.Site`: its controllable settings within its limits and the
-        metamodel's ``domain`` (:func:`bounds`), the others at ``historical`` ``(7, 12)``."""
+        metamodel's ``domain`` (:func:`bounds`; one whose limits lie outside the domain is not an action), the others
+        at ``historical`` ``(7, 12)``."""
         lo, hi = bounds(domain)
         site_lo, site_hi = site.setting_ranges()
         lo, hi = np.maximum(lo, site_lo), np.minimum(hi, site_hi)
-        controllable = tuple(cat.SETTING_NAMES.index(n) for n in site.controllable)
+        # a setting whose limits lie outside what the metamodel learnt cannot be acted on with it: held historical
+        controllable = tuple(j for j in map(cat.SETTING_NAMES.index, site.controllable) if lo[j] <= hi[j])
         return cls(controllable, lo, np.maximum(lo, hi), np.asarray(historical, float).reshape(len(cat.DAYS), -1))
 
     @property
@@ -103,13 +105,18 @@ class ActionMap:
         values = self.lo[c] + (a + 1.0) / 2.0 * (self.hi[c] - self.lo[c])
         settings = np.array(np.broadcast_to(self.base, (*a.shape[:-2], *self.base.shape)))
         for k, j in enumerate(c):
-            settings[..., j] = cat.SETTINGS[j].snap(values[..., k])
+            var = cat.SETTINGS[j]
+            snapped = var.snap(values[..., k])
+            if var.step is not None:  # the grid point nearest inside the range (limits need not be on the grid)
+                snapped = np.where(snapped < self.lo[j] - 1e-9, snapped + var.step, snapped)
+                snapped = np.where(snapped > self.hi[j] + 1e-9, snapped - var.step, snapped)
+            settings[..., j] = snapped
         return settings, clipped
 
     def encode(self, settings: np.ndarray) -> np.ndarray:
         """Actions ``(..., size)`` of physical settings ``(..., 7, 12)`` (validated against the catalogue; the
-        settings not controllable are ignored). ``decode(encode(s))`` gives back ``s`` for controllable settings
-        on the catalogue grid within the ranges."""
+        settings not controllable are ignored; a value outside its range gets the nearest end, -1 or 1).
+        ``decode(encode(s))`` gives back ``s`` for controllable settings on the catalogue grid within the ranges."""
         settings = np.asarray(settings, dtype=float)
         if settings.shape[-2:] != (len(cat.DAYS), len(cat.SETTINGS)):
             raise BuildingEnvError(f"settings have shape (..., 7, 12) (day, setting), got {settings.shape}")
@@ -117,7 +124,7 @@ class ActionMap:
         c = list(self.controllable)
         span = self.hi[c] - self.lo[c]
         a = np.where(span > 0, 2.0 * (settings[..., c] - self.lo[c]) / np.where(span > 0, span, 1.0) - 1.0, 0.0)
-        return a.reshape(*settings.shape[:-2], self.size).astype(np.float32)
+        return np.clip(a, -1.0, 1.0).reshape(*settings.shape[:-2], self.size).astype(np.float32)
 
 
 def decode(action: np.ndarray, ranges: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:

@@ -344,7 +344,8 @@ class BuildingWeekEnv(gym.Env):
 
     @property
     def historical_action(self) -> np.ndarray:
-        """The action of the site's historical settings ``(7 x k,)``."""
+        """The action nearest the site's historical settings ``(7 x k,)`` (a historical value outside its action
+        range gets the nearest end; the energy term is measured against the historical settings themselves)."""
         return self._b.actions.encode(self._b.model.historical)
 
     @property
@@ -440,5 +441,6 @@ class BuildingWeekVectorEnv(VectorEnv):
 
     @property
     def historical_action(self) -> np.ndarray:
-        """The action of the site's historical settings ``(7 x k,)``."""
+        """The action nearest the site's historical settings ``(7 x k,)`` (a historical value outside its action
+        range gets the nearest end; the energy term is measured against the historical settings themselves)."""
         return self._b.actions.encode(self._b.model.historical)

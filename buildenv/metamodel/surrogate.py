@@ -288,6 +288,7 @@ class Surrogate:
     _pool: MetamodelWorkers | None = field(default=None, repr=False, compare=False)
     _gather: tuple | None = field(default=None, repr=False, compare=False)
     _warned: bool = field(default=False, repr=False, compare=False)
+    _earlier: tuple | None = field(default=None, repr=False, compare=False)
 
     @property
     def zoning(self) -> str:
@@ -457,8 +458,12 @@ class Surrogate:
     def earlier(self) -> cat.EarlierCatalogue | None:
         """The earlier catalogue this checkpoint was made with (:data:`buildenv.catalogue.EARLIER_CATALOGUES`),
         ``None`` for this one."""
-        found = self.checkpoint.metadata.get("catalogue_hash")
-        return None if found == cat.catalogue_hash() else cat.EARLIER_CATALOGUES[found]
+        if self._earlier is None:
+            found = self.checkpoint.metadata.get("catalogue_hash")
+            if found != cat.catalogue_hash() and found not in cat.EARLIER_CATALOGUES:
+                raise CheckpointError(f"{self.path}: made for catalogue {found}, neither this one nor an earlier one")
+            self._earlier = (cat.EARLIER_CATALOGUES.get(found),)
+        return self._earlier[0]
 
     @property
     def domain(self) -> dict[str, tuple[float, float]]:

@@ -826,29 +826,23 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         air_inlet_node_name=f"{zone} AHU cooled air",
         air_outlet_node_name=f"{zone} AHU heated air",
     )
+    _add_fan(add, f"{zone} AHU supply fan", oa_flow, f"{zone} AHU heated air", f"{zone} AHU supply")
+    _add_fan(add, f"{zone} AHU exhaust fan", oa_flow, f"{zone} AHU exhaust", f"{zone} AHU relief")
+
+
+def _add_fan(add, name: str, flow_m3_s: float, inlet: str, outlet: str) -> None:
+    """One constant-volume fan of the air handling unit (``AHU_FAN_PRESSURE_PA``), on while ``ventilation_on``."""
     add(
         "Fan:ConstantVolume",
-        f"{zone} AHU supply fan",
+        name,
         availability_schedule_name="ventilation_on",
         fan_total_efficiency=0.6,
         pressure_rise=AHU_FAN_PRESSURE_PA,
-        maximum_flow_rate=round(oa_flow, 5),
+        maximum_flow_rate=round(flow_m3_s, 5),
         motor_efficiency=0.9,
         motor_in_airstream_fraction=1.0,
-        air_inlet_node_name=f"{zone} AHU heated air",
-        air_outlet_node_name=f"{zone} AHU supply",
-    )
-    add(
-        "Fan:ConstantVolume",
-        f"{zone} AHU exhaust fan",
-        availability_schedule_name="ventilation_on",
-        fan_total_efficiency=0.6,
-        pressure_rise=AHU_FAN_PRESSURE_PA,
-        maximum_flow_rate=round(oa_flow, 5),
-        motor_efficiency=0.9,
-        motor_in_airstream_fraction=1.0,
-        air_inlet_node_name=f"{zone} AHU exhaust",
-        air_outlet_node_name=f"{zone} AHU relief",
+        air_inlet_node_name=inlet,
+        air_outlet_node_name=outlet,
     )
 
 

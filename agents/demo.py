@@ -49,7 +49,7 @@ def _diagnose(site_dir: Path, out: Path, seed: int, progress: bool) -> dict:
 
     result = diagnose(
         load_site(site_dir),
-        load_metamodel(),
+        load_metamodel("diagnosis"),
         DiagnosisSettings(seed=seed),
         progress=progress,
         plot=out / "diagnosis.png",

@@ -102,7 +102,7 @@ def main() -> None:
         "--base-restarts", type=int, default=1, help="CMA-ES runs of each base calibration, the lowest fit cost kept"
     )
     parser.add_argument(
-        "--checkpoint", default="default", help="metamodel checkpoint the diagnosis uses (default: the shipped one)"
+        "--checkpoint", default="diagnosis", help="metamodel checkpoint the diagnosis uses (default: 'diagnosis')"
     )
     parser.add_argument(
         "--split",
@@ -143,7 +143,7 @@ def main() -> None:
     base: str | list[str] = args.base_effects
     if base != "auto":
         base = [] if base == "none" else [e.strip() for e in base.split(",")]
-    surrogate = load_metamodel(None if args.checkpoint == "default" else args.checkpoint)
+    surrogate = load_metamodel(args.checkpoint)
     result = run_check(
         args.out,
         args.cases,
@@ -178,7 +178,7 @@ def main() -> None:
         )
         + "".join(f" --known {k}={v:g}" for k, v in known.items())
         + (f" --effects {','.join(effects)}" if effects else "")
-        + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "default" else "")
+        + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "diagnosis" else "")
         + (f" --weeks {args.weeks}" if args.weeks != WEEKS else "")
         + (f" --split {args.split}" if args.split != DiagnosisSettings.split else "")
     )

@@ -52,7 +52,10 @@ def main() -> None:
     shutil.copytree(DEFAULT_SITE, out)
     load = os.getloadavg()[0]
     result = diagnose(
-        load_site(out), load_metamodel(), DiagnosisSettings(refit_step=args.refit_step), plot=RESULTS / f"{stem}.png"
+        load_site(out),
+        load_metamodel("diagnosis"),
+        DiagnosisSettings(refit_step=args.refit_step),
+        plot=RESULTS / f"{stem}.png",
     )
     save_extended_model(load_site(out), result)
     result.pop("_fit")

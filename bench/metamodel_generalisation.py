@@ -36,9 +36,17 @@ COLUMNS = [
     ("R2_T per week", "r2_t", 1.0, 4),
     ("R2_T pooled", "r2_t_pooled", 1.0, 4),
     ("R2_Q per week", "r2_q", 1.0, 4),
+    ("R2_Q pooled", "r2_q_pooled", 1.0, 4),
     ("RMSE_T degC", "rmse_t_celsius", 1.0, 3),
     ("CV(RMSE)_Q %", "cv_rmse_q_percent", 1.0, 2),
+    ("RMSE_T day 1 / days 2-7", "day1_ratio", 1.0, 2),
 ]
+
+
+def with_day1_ratio(scores: dict) -> dict:
+    """``scores`` with ``day1_ratio``: the first day's RMSE_T over the mean of the other six days'."""
+    by_day = np.asarray(scores["rmse_t_celsius_by_day"], float)
+    return scores | {"day1_ratio": float(by_day[0] / by_day[1:].mean())}
 
 
 def fresh_scores(checkpoint: str, fresh: Path) -> dict[str, dict]:
@@ -106,7 +114,7 @@ def main() -> None:
             if own["subset"] == "test":
                 row["own test"] = own
         row.update(fresh_scores(checkpoint, fresh))
-        results[label] = {"checkpoint": checkpoint, "scores": row}
+        results[label] = {"checkpoint": checkpoint, "scores": {k: with_day1_ratio(v) for k, v in row.items()}}
     date = time.strftime("%Y-%m-%d")
     header = "| model | test set | weeks | " + " | ".join(c[0] for c in COLUMNS) + " |"
     lines = [

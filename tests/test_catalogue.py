@@ -349,10 +349,13 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     assert vector[cat.THETA_NAMES.index("plug_load_w_m2")] == pytest.approx(150 * mid["pc_density_per_m2"])
 
 
-def test_shipped_checkpoint_is_read_through_the_earlier_catalogue_and_keeps_its_bounds():
+def test_shipped_checkpoints_the_default_of_this_catalogue_the_diagnosis_through_the_earlier_one():
     from buildenv.metamodel.surrogate import load_metamodel
 
-    surrogate = load_metamodel()
+    default = load_metamodel()
+    assert default.checkpoint.metadata["catalogue_hash"] == cat.catalogue_hash() and default.earlier is None
+    assert default.implied == {} and default.domain["ventilation_ach"] == (0.1, 1.7)
+    surrogate = load_metamodel("diagnosis")
     assert surrogate.checkpoint.metadata["catalogue_hash"] in cat.EARLIER_CATALOGUES
     assert surrogate.earlier is cat.EARLIER_CATALOGUES[surrogate.checkpoint.metadata["catalogue_hash"]]
     assert surrogate.domain["ventilation_ach"] == (0.7, 1.7)

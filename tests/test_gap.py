@@ -40,18 +40,23 @@ from buildenv.metamodel.surrogate import load_metamodel
 from buildenv.sites import load_site, write_site
 from buildenv.sites.week_simulator import SiteModel
 
+FIXTURES = Path(__file__).parent / "fixtures"
+
 MODEL_EFFECTS = [e for e in EFFECTS if e != "holidays"]
 
 
 @pytest.fixture(scope="module")
 def surrogate():
-    return load_metamodel()
+    return load_metamodel("diagnosis")
 
 
 @pytest.fixture(scope="module")
-def calibrated():
-    """The default site, its calibrated parameters and its 6 weeks."""
-    site = load_site(DEFAULT_SITE)
+def calibrated(tmp_path_factory):
+    """The default site with its calibration by the diagnosis' metamodel, and its calibrated parameters."""
+    folder = tmp_path_factory.mktemp("default") / "site"
+    shutil.copytree(DEFAULT_SITE, folder, ignore=shutil.ignore_patterns("calibration.*"))
+    shutil.copy(FIXTURES / "default_site_calibration_diagnosis.json", folder / "calibration.json")
+    site = load_site(folder)
     return site, cal.calibrated_parameters(site.calibration)
 
 
@@ -1174,3 +1179,13 @@ def test_blinds_are_judged_by_a_ceiling_that_grows_with_the_sunshine_of_the_fit_
     weather = np.zeros((4, 168, len(WEATHER_NAMES)))
     weather[:, :, WEATHER_NAMES.index("IGLOB_H")] = np.array([100.0, 500.0, 60.0, 500.0])[:, None]
     assert fit_irradiance_w_m2(weather, [0, 2]) == pytest.approx(80.0)
+
+
+def test_the_diagnosis_warns_when_its_metamodel_is_not_the_one_its_ceilings_were_measured_with(surrogate, caplog):
+    from buildenv.diagnosis.gap import _warn_not_measured_with
+
+    with caplog.at_level("WARNING"):
+        _warn_not_measured_with(surrogate)
+        assert not caplog.text
+        _warn_not_measured_with(load_metamodel())
+    assert "not with default" in caplog.text and "--checkpoint diagnosis" in caplog.text

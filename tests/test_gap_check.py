@@ -90,7 +90,11 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     # the bias case's clean twin, diagnosed blind as one more clean site: a record judged like a clean case's
     case = {k: bias[k] for k in ("case", "true", "magnitude", "start", "noise_seed", "effect_seed")}
     twin = diagnose_twin(
-        tmp_path, case, load_metamodel(), dataclasses.replace(settings, base_effects=("night_plug_loads",)), StandIn()
+        tmp_path,
+        case,
+        load_metamodel("diagnosis"),
+        dataclasses.replace(settings, base_effects=("night_plug_loads",)),
+        StandIn(),
     )
     assert twin["true"] == NONE and twin["twin_of"] == "temperature_sensor_bias" and twin["start"] == bias["start"]
     assert twin["named"] == NONE and twin["correct"]

@@ -15,7 +15,6 @@ from buildenv import catalogue as cat
 from buildenv.calibration.gradient import calibrate_adam
 from buildenv.calibration.problem import (
     CalibrationError,
-    _metamodel_name,
     _scale,
     _split,
     build_problem,
@@ -23,6 +22,7 @@ from buildenv.calibration.problem import (
     check_declared_effects,
     default_weeks,
     fit_declared_effects,
+    metamodel_record,
     parameters_at_bounds,
     predict,
     score_series,
@@ -165,7 +165,7 @@ def calibrate_site(
         "not_read": sorted(surrogate.implied),
         "occupancy": np.round(occ[0], 3).tolist(),
         "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known, surrogate),
-        "metamodel": _metamodel_name(surrogate),
+        **metamodel_record(surrogate),
         "catalogue_hash": cat.catalogue_hash(),
         **declared,
     }

@@ -621,8 +621,27 @@ def load_calibration(site_path: str | Path) -> dict:
     return calibration
 
 
-def _metamodel_name(surrogate: sg.Surrogate) -> str | None:
-    """How a calibration records its metamodel: ``"default"`` for the shipped one, else its path."""
-    if surrogate.path is None:
+def metamodel_record(surrogate: sg.Surrogate) -> dict:
+    """How a calibration records its metamodel: ``metamodel`` (a shipped checkpoint's name or a path) and
+    ``metamodel_id`` (:func:`buildenv.metamodel.surrogate.checkpoint_identity`)."""
+    return {"metamodel": surrogate.name, "metamodel_id": surrogate.identity}
+
+
+def metamodel_mismatch(calibration: dict, surrogate: sg.Surrogate) -> str | None:
+    """One line saying that ``calibration`` was made with another metamodel than ``surrogate`` (its parameters
+    are that model's, not this one's), or ``None`` when it was made with this one or the record cannot tell.
+    A calibration recorded as ``"default"`` without an identity was made with the earlier default, shipped
+    as ``"diagnosis"``."""
+    made = calibration.get("metamodel_id")
+    name = calibration.get("metamodel")
+    if made is None and name is not None:
+        path = sg.SHIPPED_CHECKPOINTS.get("diagnosis" if name == "default" else name, Path(name))
+        made = sg.checkpoint_identity(path) if path.is_file() else None
+    if made is None or surrogate.identity is None or made == surrogate.identity:
         return None
-    return "default" if Path(surrogate.path).resolve() == sg.DEFAULT_CHECKPOINT else str(surrogate.path)
+    earlier_default = name == "default" and "metamodel_id" not in calibration
+    label = "the earlier default metamodel ('diagnosis')" if earlier_default else name
+    return (
+        f"calibration made with {label}, used with {surrogate.name}: its parameters belong to that model; "
+        f"recalibrate the site with this metamodel (buildenv calibrate --checkpoint) or use the one it was made with"
+    )

@@ -99,7 +99,11 @@ def _common(p: argparse.ArgumentParser) -> None:
     """The options ``diagnose`` and ``diagnose-check`` share. The split, base runs and most effects default to the
     blind checks' settings (``CHECKED_DIAGNOSIS``), under which the clean-site ceilings were measured, so that the
     check checks what the diagnosis does."""
-    p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
+    p.add_argument(
+        "--checkpoint",
+        default="diagnosis",
+        help="metamodel checkpoint, 'default' or 'diagnosis' (the one its ceilings were measured with)",
+    )
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
     p.add_argument(

@@ -452,7 +452,7 @@ def run_check(
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    surrogate = surrogate or load_metamodel()
+    surrogate = surrogate or load_metamodel("diagnosis")
     settings = settings or DiagnosisSettings()
     stand_in = StandIn(building, epw, dict(known_parameters or {}), weeks, settings.split)
     known = (

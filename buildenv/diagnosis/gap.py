@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import logging
 import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
@@ -55,6 +56,8 @@ from buildenv.diagnosis.effects import (
 )
 from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.threads import one_blas_thread
+
+log = logging.getLogger(__name__)
 
 # Share of a day's standardised squared error that modelling it absent must remove (:func:`detect_absent_days`).
 ABSENCE_THRESHOLD = 0.15
@@ -451,6 +454,7 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
         and calib.get("fit_weeks") == ctx.fit_weeks
         and set(calib.get("effects") or ()) == set(declared)
         and calib.get("catalogue_hash") in (cat.catalogue_hash(), *cat.EARLIER_CATALOGUES)  # read upgraded
+        and cal.metamodel_mismatch(calib, ctx.surrogate) is None
     ):
         fit = ModelFit(declared, cal.calibrated_parameters(calib, declared), none, float(calib.get("cost", np.nan)), 0)
     else:
@@ -828,6 +832,16 @@ def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSetti
     return base_model_gap(site, surrogate, settings)["heldout"]
 
 
+def _warn_not_measured_with(surrogate: sg.Surrogate) -> None:
+    """Warn when ``surrogate`` is not the checkpoint the diagnosis' ceilings were measured with."""
+    if surrogate.identity != sg.checkpoint_identity(sg.DIAGNOSIS_CHECKPOINT):
+        log.warning(
+            "the gap diagnosis' ceilings were measured with the shipped 'diagnosis' metamodel, not with %s: "
+            "its verdicts may not hold (use --checkpoint diagnosis)",
+            surrogate.name,
+        )
+
+
 @one_blas_thread()  # buildenv.metamodel.threads: numpy's BLAS threads would fight the metamodel's
 def diagnose(
     site,
@@ -870,6 +884,7 @@ def diagnose(
     started = time.perf_counter()
     if site.weeks < 2:
         raise cal.CalibrationError(f"{site.path}: the diagnosis needs at least 2 weeks (fit + held-out)")
+    _warn_not_measured_with(surrogate)
     ctx = _context(site, surrogate, settings)
     fit_weeks, heldout = ctx.fit_weeks, ctx.heldout
     current = base_fit(ctx, progress)
@@ -940,6 +955,7 @@ def diagnose(
         )
     result = {
         "site": str(site.path),
+        **cal.metamodel_record(surrogate),
         "fit_weeks": fit_weeks,
         "heldout_weeks": heldout,
         "fit_irradiance_w_m2": ctx.irradiance,
@@ -1282,6 +1298,8 @@ def save_extended_model(site, result: dict) -> Path | None:
         "heldout_weeks": result["heldout_weeks"],
         "diagnosis": {"selected": result["selected"], "verdict": result["verdict"]},
         "catalogue_hash": cat.catalogue_hash(),
+        "metamodel": result.get("metamodel"),
+        "metamodel_id": result.get("metamodel_id"),
         "without_effects": previous,
     }
     if "heldout_after" in result:

@@ -25,6 +25,7 @@ checkpoint. Loading a checkpoint made for another catalogue raises :class:`Check
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import warnings
 from dataclasses import dataclass, field
@@ -64,6 +65,10 @@ _T_OUT = TEMPERATURE_CHANNELS[0]  # the output a site's temperature sensor reads
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
 log = logging.getLogger(__name__)
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[1] / "data" / "metamodel_default.pt"
+#: the earlier default, kept beside it for the gap diagnosis, whose ceilings were measured with it
+DIAGNOSIS_CHECKPOINT = DEFAULT_CHECKPOINT.with_name("metamodel_diagnosis.pt")
+#: the checkpoints shipped in the package, by the name :func:`load_metamodel` takes
+SHIPPED_CHECKPOINTS: dict[str, Path] = {"default": DEFAULT_CHECKPOINT, "diagnosis": DIAGNOSIS_CHECKPOINT}
 #: weeks per model call (any number of weeks is accepted); the fastest measured on a 2-core CPU with the calls
 #: spread over two workers (:class:`buildenv.metamodel.threads.MetamodelWorkers`)
 INFERENCE_BATCH = 64
@@ -289,6 +294,16 @@ class Surrogate:
     _gather: tuple | None = field(default=None, repr=False, compare=False)
     _warned: bool = field(default=False, repr=False, compare=False)
     _earlier: tuple | None = field(default=None, repr=False, compare=False)
+    #: the first 16 hex digits of the checkpoint file's SHA-256 (``None`` for one not read from a file)
+    identity: str | None = field(default=None, compare=False)
+
+    @property
+    def name(self) -> str | None:
+        """How calibrations record it: a shipped checkpoint's name (``"default"``, ``"diagnosis"``), else its path."""
+        if self.path is None:
+            return None
+        resolved = Path(self.path).resolve()
+        return next((n for n, p in SHIPPED_CHECKPOINTS.items() if p == resolved), str(self.path))
 
     @property
     def zoning(self) -> str:
@@ -528,15 +543,21 @@ class Surrogate:
                 return
 
 
+def checkpoint_identity(path: str | Path) -> str:
+    """The first 16 hex digits of the SHA-256 of a checkpoint file (what calibrations record)."""
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()[:16]
+
+
 def load_metamodel(path: str | Path | None = None) -> Surrogate:
-    """Load a metamodel checkpoint (``None`` or ``"default"``: the one shipped in the package).
+    """Load a metamodel checkpoint: a path, or the name of one shipped in the package (:data:`SHIPPED_CHECKPOINTS`;
+    ``None`` or ``"default"``: the default, ``"diagnosis"``: the one the gap diagnosis was measured with).
 
     Raises:
         CheckpointError: missing file, or a checkpoint made for another catalogue or input encoding.
     """
     from metamodels.checkpoint import load_checkpoint
 
-    path = DEFAULT_CHECKPOINT if path in (None, "default") else Path(path)
+    path = SHIPPED_CHECKPOINTS.get("default" if path is None else str(path), None) or Path(path)
     if not path.is_file():
         raise CheckpointError(f"metamodel checkpoint not found: {path}")
     ck = load_checkpoint(path)
@@ -547,7 +568,7 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
         unknown = [c for c in channels if earlier.renamed.get(c, (c, 1.0))[0] not in ALL_CHANNELS]
         if unknown or ck.metadata.get("output_channels") != list(cat.OUTPUT_NAMES):
             raise CheckpointError(f"{path}: its channels {unknown or 'outputs'} are not this buildenv's; retrain it")
-        return Surrogate(ck, path)
+        return Surrogate(ck, path, identity=checkpoint_identity(path))
     try:
         expected = metadata(
             ck.metadata.get("context_hours", CONTEXT_HOURS),
@@ -564,4 +585,4 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
                     "retrain it on a dataset simulated with this catalogue"
                 )
             raise CheckpointError(f"{path}: its {key} differs from this buildenv's; retrain it")
-    return Surrogate(ck, path)
+    return Surrogate(ck, path, identity=checkpoint_identity(path))

@@ -20,6 +20,7 @@ week before (consecutive weeks of an episode).
 from __future__ import annotations
 
 import datetime as dt
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,8 @@ from buildenv.errors import BuildingEnvError
 from buildenv.metamodel.surrogate import INFERENCE_BATCH, encode_weeks, weather_ground_c
 from buildenv.schedules import hourly_schedules
 from buildenv.weather.epw import epw_day_of_year
+
+log = logging.getLogger(__name__)
 
 
 def year_weeks(year: int) -> list[dt.date]:
@@ -78,7 +81,8 @@ class SiteModel:
 
     @classmethod
     def from_site(cls, site, surrogate) -> SiteModel:
-        """The calibrated model of a :class:`buildenv.sites.Site` (which must carry a calibration).
+        """The calibrated model of a :class:`buildenv.sites.Site` (which must carry a calibration); warns when the
+        calibration was made with another metamodel than ``surrogate``.
 
         Raises:
             BuildingEnvError: the site has not been calibrated.
@@ -88,6 +92,11 @@ class SiteModel:
         calib = site.calibration
         if not calib:
             raise BuildingEnvError(f"site {site.path} is not calibrated: run `buildenv calibrate --site {site.path}`")
+        from buildenv.calibration.problem import metamodel_mismatch
+
+        mismatch = metamodel_mismatch(calib, surrogate)
+        if mismatch:
+            log.warning("site %s: %s", site.path, mismatch)
         theta = np.array([calib["theta"][n] for n in cat.THETA_NAMES], dtype=float)
         occupancy = np.asarray(calib["occupancy"], dtype=float).reshape(len(cat.WEEKDAYS), 2)
         starts = year_weeks(site.start.year)

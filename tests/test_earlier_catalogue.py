@@ -79,6 +79,7 @@ class _Limited:
     """A site whose outdoor air is limited below what the shipped metamodel learnt (0.7-1.7 1/h)."""
 
     controllable = cat.SETTING_NAMES
+    setting_limits = {"ventilation_ach": (0.1, 0.4), "heating_comfort_c": (22.2, 24.0)}
 
     def setting_ranges(self):
         lo, hi = cat.bounds("settings")

@@ -164,3 +164,20 @@ def test_only_the_settings_the_building_can_act_on_are_actions():
     env.reset(seed=0)
     _, _, _, _, info = env.step(env.action_space.sample())
     assert info["settings"][:, supply].tolist() == site.settings[0][:, supply].tolist()
+
+
+def test_outdoor_air_keeps_to_the_code_minimum_unless_the_site_declares_its_limits():
+    env = gym.make("BuildingWeek-v0").unwrapped
+    occupants = env._b.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")]
+    minimum = act.code_minimum_ventilation_ach(occupants)
+    assert minimum == pytest.approx((2.5 * occupants + 0.3) * 3.6 / 3.5)  # ASHRAE 62.1, office, 3.5 m storeys
+    j = cat.SETTING_NAMES.index("ventilation_ach")
+    lowest = env.decode(-np.ones(env.action_space.shape))[:, j]
+    assert (lowest >= minimum).all() and (lowest < minimum + cat.SETTINGS[j].step).all()  # the first step above
+    declared = type("Site", (), {"setting_limits": {"ventilation_ach": (0.1, 1.0)}, "controllable": cat.SETTING_NAMES})
+    declared.setting_ranges = lambda self: (
+        np.array([v.min for v in cat.SETTINGS]),
+        np.array([v.max for v in cat.SETTINGS]),
+    )
+    own = act.ActionMap.for_site(declared(), {}, env._b.model.historical, occupants)
+    assert own.lo[j] == cat.SETTINGS[j].min  # the operator's limits stand

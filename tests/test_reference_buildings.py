@@ -84,3 +84,36 @@ def test_a_stand_in_is_sized_with_the_design_days_of_its_own_climate():
         ("WinterDesignDay", miami["heating"]["dry_bulb_c"]),
         ("SummerDesignDay", miami["cooling"]["dry_bulb_c"]),
     ]
+
+
+def test_run_period_rows_put_a_run_across_a_new_year_in_order():
+    # EnergyPlus's CSV keys rows by MM/DD stamp: the January days of a December-January run come first
+    december = [f" 12/31  {h:02d}:00:00" for h in range(1, 25)]
+    january = [f" 01/01  {h:02d}:00:00" for h in range(1, 25)]
+    frame = pd.DataFrame({"Date/Time": january + december, "x": np.arange(48)})
+    rows = _run_period_rows(frame, dt.date(2019, 12, 31), 48, "eplusout.csv")
+    assert list(rows["Date/Time"]) == december + january and list(rows["x"]) == [*range(24, 48), *range(24)]
+
+
+def test_a_site_measured_across_a_new_year_is_made_calibrated_and_run_again(tmp_path):
+    from buildenv.calibration.calibrate import calibrate_site
+    from buildenv.cli.main import main
+    from buildenv.env.energyplus_backend import run_weeks
+    from buildenv.metamodel.surrogate import load_metamodel
+    from buildenv.sites import load_site
+    from buildenv.sites.week_simulator import SiteModel, model_weeks, year_weeks
+
+    assert model_weeks(dt.date(2019, 11, 4), 6) == year_weeks(2019)  # inside the year: its weeks
+    weeks = model_weeks(dt.date(2019, 12, 16), 4)  # 16 December 2019 to 12 January 2020
+    assert weeks[-2:] == [dt.date(2019, 12, 30), dt.date(2020, 1, 6)] and len(weeks) == len(year_weeks(2019)) + 2
+    site_dir = tmp_path / "site"
+    args = ["site", "reference", "--building", "small_office", "--start", "2019-12-16", "--weeks", "4"]
+    assert main([*args, "--out", str(site_dir)]) == 0
+    site = load_site(site_dir)
+    calibrate_site(site, load_metamodel(), max_evaluations=300)
+    model = SiteModel.from_site(load_site(site_dir), load_metamodel())
+    last = model.week_of(dt.date(2020, 1, 6))
+    assert model.simulate(model.historical[None], np.array([last])).shape == (1, cat.HOURS_PER_WEEK, 8)
+    # the week across the new year, run again from the week before: the measured temperatures, up to the noise
+    temperature, _ = run_weeks(site, [dt.date(2019, 12, 30)], site.settings[2][None], workers=1)
+    assert np.nanmean(np.abs(temperature[0] - site.temperature_c[2])) < 0.15

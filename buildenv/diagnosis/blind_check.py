@@ -96,8 +96,8 @@ def draw_magnitude(name: str, rng: np.random.Generator) -> float:
 
 
 def latest_first_monday(weeks: int) -> dt.date:
-    """The last first Monday from which ``weeks`` weeks end within :data:`FIRST_MONDAYS`' year (the stand-in does
-    not run across a new year): 2 December 2019 for 4 weeks, 4 November for 8."""
+    """The last first Monday from which ``weeks`` weeks end within :data:`FIRST_MONDAYS`' year (the window the
+    checks' ceilings were measured in): 2 December 2019 for 4 weeks, 4 November for 8."""
     latest = dt.date(FIRST_MONDAYS[1].year, 12, 31) - dt.timedelta(days=7 * weeks - 1)
     return min(FIRST_MONDAYS[1], latest - dt.timedelta(days=latest.weekday()))
 

@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import math
 import re
 import tempfile
 from collections.abc import Sequence
@@ -49,7 +50,7 @@ from buildenv.energyplus.injections import (
     sensor_effect_series,
     sizing_objects,
 )
-from buildenv.energyplus.runner import clean_outputs, run_energyplus
+from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, clean_outputs, run_energyplus
 from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
 from buildenv.errors import ReferenceBuildingError, SimulationError
 from buildenv.schedules import hourly_schedules
@@ -217,19 +218,18 @@ def prepare_model(
             f"{source}: no schedule found for {', '.join(missing)}; name them with --map ROLE=SCHEDULE"
         )
     last_day = first_day + dt.timedelta(days=7 * len(settings) - 1)
-    if last_day.year != first_day.year:
-        raise ReferenceBuildingError(
-            f"the run {first_day}..{last_day} crosses a new year; start it earlier or shorten it"
-        )
-    # the Schedule:File: a year of hourly values, the run's hours filled from the settings
+    if 7 * len(settings) > 364:
+        raise ReferenceBuildingError(f"the run {first_day}..{last_day} is longer than a year; split it")
+    # the Schedule:File: a year of hourly values, the run's hours filled from the settings from the run's first
+    # day on; a run across a new year continues at the start of the table, where EnergyPlus reads January
     columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
     start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
+    rows = (start + np.arange(7 * len(settings) * cat.HOURS_PER_DAY)) % HOURS_PER_YEAR
     table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
     for j, role in enumerate(SCHEDULE_ROLES):
         values = columns[role]
         table[:, j] = values[: cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
-        stop = min(start + len(values), HOURS_PER_YEAR)
-        table[start:stop, j] = values[: stop - start]
+        table[rows, j] = values
     csv = (workdir / "buildenv_schedules.csv").resolve()
     workdir.mkdir(parents=True, exist_ok=True)
     np.savetxt(csv, table, fmt="%.4f", delimiter=",", header=",".join(SCHEDULE_ROLES), comments="")
@@ -399,13 +399,14 @@ def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
     day0 = dt.datetime(first_day.year, first_day.month, first_day.day)
     expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00" for h in range(hours)]
     stamps = frame["Date/Time"].astype(str).str.strip()
-    rows = frame[stamps.isin(set(expected)).to_numpy()]
-    if list(stamps[rows.index]) != expected:
+    row_of = {stamp: i for i, stamp in enumerate(stamps)}  # a run across a new year is listed January first
+    found = [row_of[e] for e in expected if e in row_of]
+    if len(found) != hours or len(set(expected)) != hours:
         raise ReferenceBuildingError(
-            f"{csv}: {len(rows)} hourly rows stamped {first_day} and after ({len(frame)} "
+            f"{csv}: {len(found)} hourly rows stamped {first_day} and after ({len(frame)} "
             f"in all), expected {hours} consecutive hours"
         )
-    return rows.reset_index(drop=True)
+    return frame.iloc[found].reset_index(drop=True)
 
 
 def read_sensors(
@@ -507,7 +508,9 @@ def run_reference(
         idf, _ = prepare_model(source, full, first_day, work, schedule_map, effects=planned, epw=weather)
         occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
         try:
-            run_energyplus(idf, weather, work, label=source.stem)
+            # a simulated warm-up week sets the measured weeks' starting state, whatever EnergyPlus's warm-up days left
+            limit = math.inf if warmup_weeks else WARMUP_TEMPERATURE_LIMIT_K
+            run_energyplus(idf, weather, work, label=source.stem, warmup_limit_k=limit)
         except SimulationError as error:
             if "FindRootSimpleController" in str(error) and "DATACENTER" in str(error).upper():
                 raise ReferenceBuildingError(_DATA_CENTRE_COIL_ERROR.format(source.stem)) from error

@@ -3,7 +3,9 @@
 The components are the settings of :data:`buildenv.catalogue.SETTINGS` the site's BMS can change
 (:class:`ActionMap`; all 12, 84 components, unless its ``[bms]`` says otherwise) for each day Monday..Sunday,
 day-major (names: :meth:`ActionMap.names`; all 12: :func:`action_names`); the others stay at the site's
-historical values. Component ``a`` maps linearly onto the setting's range,
+historical values. Outdoor air stays at or above what ASHRAE 62.1 requires for the site's occupants
+(:func:`code_minimum_ventilation_ach`) unless the site's ``[bms]`` limits say otherwise. Component ``a`` maps
+linearly onto the setting's range,
 ``min + (a + 1) / 2 * (max - min)`` (the catalogue's, within what the metamodel was trained on: :func:`bounds`),
 then onto the catalogue step (hours are whole hours, setpoints go by
 0.5 K, ventilation by 0.3 air changes per hour), as a BMS accepts them. Components outside [-1, 1] are
@@ -17,9 +19,20 @@ from dataclasses import dataclass
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
 from buildenv.errors import BuildingEnvError
 
 ACTION_SIZE = len(cat.DAYS) * len(cat.SETTINGS)
+#: ASHRAE 62.1 ventilation rate procedure, office space: outdoor air per person (L/s) and per floor area (L/s m2)
+OFFICE_OUTDOOR_AIR_L_S = (2.5, 0.3)
+
+
+def code_minimum_ventilation_ach(occupants_per_m2: float) -> float:
+    """Outdoor air (air changes per hour of a storey :data:`~buildenv.energyplus.shoebox.FLOOR_HEIGHT_M` high, the
+    unit of ``ventilation_ach``) that ASHRAE 62.1 requires in an office with ``occupants_per_m2`` people per m2:
+    ``(2.5 L/s x occupants_per_m2 + 0.3 L/s per m2) x 3.6 / height``."""
+    per_person, per_area = OFFICE_OUTDOOR_AIR_L_S
+    return (per_person * float(occupants_per_m2) + per_area) * 3.6 / FLOOR_HEIGHT_M
 
 
 def action_names() -> tuple[str, ...]:
@@ -61,12 +74,18 @@ class ActionMap:
         return cls(tuple(range(len(cat.SETTINGS))), np.asarray(lo, float), np.asarray(hi, float), base)
 
     @classmethod
-    def for_site(cls, site, domain: dict[str, tuple[float, float]], historical: np.ndarray) -> ActionMap:
+    def for_site(
+        cls, site, domain: dict[str, tuple[float, float]], historical: np.ndarray, occupants_per_m2: float = 0.0
+    ) -> ActionMap:
         """The actions of a :class:`buildenv.sites.Site`: its controllable settings within its limits and the
         metamodel's ``domain`` (:func:`bounds`; one whose limits lie outside the domain is not an action), the others
-        at ``historical`` ``(7, 12)``."""
+        at ``historical`` ``(7, 12)``. Where the site gives no ``ventilation_ach`` limits, outdoor air keeps to the
+        code minimum for ``occupants_per_m2`` (:func:`code_minimum_ventilation_ach`)."""
         lo, hi = bounds(domain)
         site_lo, site_hi = site.setting_ranges()
+        if "ventilation_ach" not in site.setting_limits:
+            j = cat.SETTING_NAMES.index("ventilation_ach")
+            site_lo[j] = max(site_lo[j], code_minimum_ventilation_ach(occupants_per_m2))
         lo, hi = np.maximum(lo, site_lo), np.minimum(hi, site_hi)
         # a setting whose limits lie outside what the metamodel learnt cannot be acted on with it: held historical
         controllable = tuple(j for j in map(cat.SETTING_NAMES.index, site.controllable) if lo[j] <= hi[j])

@@ -86,7 +86,8 @@ class _Building:
 
         self.surrogate = load_metamodel(args["metamodel"])
         self.model = SiteModel.from_site(self.site, self.surrogate)
-        self.actions = act.ActionMap.for_site(self.site, self.surrogate.domain, self.model.historical)
+        occupants = float(self.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")])
+        self.actions = act.ActionMap.for_site(self.site, self.surrogate.domain, self.model.historical, occupants)
         self.occupied = self.model.occupied_hours()
         self.pool = split_weeks(self.model.weeks, args["weeks"])
         pool = set(self.pool)

@@ -3,8 +3,8 @@
 A site made by ``buildenv site reference`` records the reference building it stands in for (``truth.json``);
 its weeks can then be run under any settings, so optimised settings are checked on the building itself,
 not on the metamodel that chose them. Each week runs with the previous week's settings as one warm-up week
-(the historical settings unless given), as the metamodel's context; the year's first week, whose previous
-week lies in another year, warms up on EnergyPlus's own warm-up days only. Weeks run in parallel processes.
+(the historical settings unless given), as the metamodel's context, across a new year where the week before
+lies in the previous one. Weeks run in parallel processes.
 
 The HVAC energy is the reference's heating + cooling coil energy (:mod:`buildenv.energyplus.reference`), the
 temperature its occupied-zone mean, both without sensor noise.
@@ -38,13 +38,8 @@ def _run_one(
 ) -> tuple[np.ndarray, np.ndarray, float]:
     from buildenv.energyplus.reference import run_reference
 
-    if (monday - dt.timedelta(days=7)).year == monday.year:
-        run = run_reference(
-            building, epw, monday - dt.timedelta(days=7), np.stack([previous, settings]), warmup_weeks=1
-        )
-        return run.temperature_c[1], run.hvac_kwh[1], run.floor_area_m2
-    run = run_reference(building, epw, monday, settings[None], warmup_weeks=0)
-    return run.temperature_c[0], run.hvac_kwh[0], run.floor_area_m2
+    run = run_reference(building, epw, monday - dt.timedelta(days=7), np.stack([previous, settings]), warmup_weeks=1)
+    return run.temperature_c[1], run.hvac_kwh[1], run.floor_area_m2
 
 
 def run_weeks(

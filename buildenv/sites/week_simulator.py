@@ -4,10 +4,10 @@
 :mod:`buildenv.calibration.problem`), the weather W_k from the site's weather file, and turns settings I_k into
 hourly outputs with the metamodel.
 
-**Calendar.** Week ``k`` starts on the ``k``-th Monday of the site's measurement year (0-based); every week
-lies wholly inside the year (51 or 52 weeks, :func:`year_weeks`). Each day takes the weather of the same
-calendar day of the EPW year (:func:`buildenv.weather.epw.epw_day_of_year`), so the site's measured weeks are
-among them.
+**Calendar.** Week ``k`` starts on the ``k``-th Monday of the year the site's measurements start in (0-based):
+the weeks wholly inside that year (51 or 52, :func:`year_weeks`), then, for a site measured across a new year, the
+weeks after them up to its last measured one (:func:`model_weeks`). Each day takes the weather of the same calendar
+day of the EPW year (:func:`buildenv.weather.epw.epw_day_of_year`), so the site's measured weeks are among them.
 
 **Context.** The metamodel reads its context hours before each week
 (:attr:`buildenv.metamodel.surrogate.Surrogate.context_hours`): their weather is the EPW's, their settings
@@ -44,6 +44,16 @@ def year_weeks(year: int) -> list[dt.date]:
     while (monday + dt.timedelta(days=6)).year == year:
         starts.append(monday)
         monday += dt.timedelta(days=7)
+    return starts
+
+
+def model_weeks(first_measured: dt.date, measured_weeks: int) -> list[dt.date]:
+    """Mondays of a site model's weeks: :func:`year_weeks` of ``first_measured``'s year, continued week by week to
+    the last of ``measured_weeks`` measured weeks from ``first_measured`` (a Monday) where they run past it."""
+    starts = year_weeks(first_measured.year)
+    last = first_measured + dt.timedelta(weeks=measured_weeks - 1)
+    while starts[-1] < last:
+        starts.append(starts[-1] + dt.timedelta(weeks=1))
     return starts
 
 
@@ -99,7 +109,7 @@ class SiteModel:
             log.warning("site %s: %s", site.path, mismatch)
         theta = np.array([calib["theta"][n] for n in cat.THETA_NAMES], dtype=float)
         occupancy = np.asarray(calib["occupancy"], dtype=float).reshape(len(cat.WEEKDAYS), 2)
-        starts = year_weeks(site.start.year)
+        starts = model_weeks(site.start, site.weeks)
         day0 = starts[0] - dt.timedelta(days=7)
         days = [day0 + dt.timedelta(days=d) for d in range((starts[-1] - day0).days + 7)]
         hourly = np.asarray(load_weather(site.weather).hourly)
@@ -125,13 +135,14 @@ class SiteModel:
 
     @property
     def weeks(self) -> int:
-        """Number of weeks in the year."""
+        """Number of weeks of the model (:func:`model_weeks`)."""
         return len(self.week_starts)
 
     def week_of(self, monday: dt.date) -> int:
         """Index of the week starting on ``monday``."""
         if monday not in self.week_starts:
-            raise BuildingEnvError(f"{monday} is not the Monday of a week of {self.week_starts[0].year}")
+            first, last = self.week_starts[0], self.week_starts[-1]
+            raise BuildingEnvError(f"{monday} is not the Monday of a week of the site's model ({first}..{last})")
         return self.week_starts.index(monday)
 
     def _days(self, weeks: np.ndarray) -> np.ndarray:

@@ -470,11 +470,12 @@ SETTINGS: tuple[Variable, ...] = (
         "supply_air_c",
         "settings",
         "degC",
-        18,
+        12,
         26,
         0.5,
         D,
-        "Air handling unit supply air temperature (outdoor air heated or cooled to it).",
+        "Air handling unit supply air temperature (outdoor air heated or cooled to it); VAV systems with terminal "
+        "reheat supply about 13 degC all year.",
         "t_ventilation_day",
     ),
     _v(
@@ -791,9 +792,17 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             "roof_insulation_m": (0.05, 0.15, 0.05),
             **{f"window_to_wall_{w}_percent": (20.0, 60.0, 5.0) for w in _WALLS},
             "ventilation_ach": (0.7, 1.7, 0.3),
+            "supply_air_c": (18.0, 26.0, 0.5),
         },
         renamed={"pc_density_per_m2": ("plug_load_w_m2", 150.0)},  # workstations of 150 W
         implied={"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0},
+    ),
+    # supply air from 18 degC
+    "11c21d55c2939cd8": EarlierCatalogue(
+        theta_names=tuple(v.name for v in THETA_BUILD),
+        ranges={"supply_air_c": (18.0, 26.0, 0.5)},
+        renamed={},
+        implied={},
     ),
 }
 

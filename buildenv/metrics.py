@@ -151,6 +151,10 @@ def week_summary(outputs: np.ndarray, occupancy_fraction: np.ndarray, floor_area
 GUIDELINE14_P = 1  # parameters counted in ASHRAE Guideline 14's n - p degrees of freedom
 #: ASHRAE Guideline 14's limits for a calibrated model on hourly data: CV(RMSE) and |NMBE|, percent
 GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT = 30.0, 10.0
+#: ... and on monthly data
+GUIDELINE14_MONTHLY_CV_PERCENT, GUIDELINE14_MONTHLY_NMBE_PERCENT = 15.0, 5.0
+#: months a monthly CV(RMSE) needs; with fewer, only the bias of the monthly totals is judged
+MONTHLY_CV_MIN_MONTHS = 3
 
 
 def r2_masked(y: np.ndarray, p: np.ndarray, mask: np.ndarray) -> np.ndarray:
@@ -171,6 +175,23 @@ def guideline14(measured: np.ndarray, predicted: np.ndarray, p: int = GUIDELINE1
         float(100.0 * np.sqrt(((y - yhat) ** 2).sum() / dof) / mean),
         float(100.0 * (y - yhat).sum() / (dof * mean)),
     )
+
+
+def guideline14_monthly(measured: np.ndarray, predicted: np.ndarray, months: np.ndarray) -> dict[str, float | None]:
+    """Guideline 14 on monthly totals of the measured hours: ``nmbe_q_monthly_percent`` (the bias of the totals,
+    100 sum(y - yhat) / sum(y)), ``cv_rmse_q_monthly_percent`` (``None`` for fewer than
+    :data:`MONTHLY_CV_MIN_MONTHS` months) and ``months``. ``months``: a label of each hour's calendar month
+    (e.g. 12 x year + month), the shape of ``measured``."""
+    ok = np.isfinite(measured)
+    labels = np.unique(months[ok])
+    y = np.array([measured[ok & (months == m)].sum() for m in labels])
+    yhat = np.array([predicted[ok & (months == m)].sum() for m in labels])
+    cv = None
+    if len(y) >= MONTHLY_CV_MIN_MONTHS:
+        dof = len(y) - GUIDELINE14_P
+        cv = float(100.0 * np.sqrt(((y - yhat) ** 2).sum() / dof) / y.mean())
+    nmbe = float(100.0 * (y - yhat).sum() / y.sum()) if len(y) else float("nan")
+    return {"cv_rmse_q_monthly_percent": cv, "nmbe_q_monthly_percent": nmbe, "months": len(y)}
 
 
 def site_metrics(

@@ -51,6 +51,8 @@ def test_reference_site_reads_like_sensors(tmp_path):
     # [bms]: what the stand-in maps; its ventilation up to the design outdoor air (0.7 1/h on the grid)
     assert "supply_air_c" not in site.controllable and len(site.controllable) == len(cat.SETTING_NAMES) - 1
     assert site.setting_limits == {"ventilation_ach": (cat.get("ventilation_ach").min, 0.7)}
+    # its history records the supply air its VAV loops delivered (12.8 degC), as a BMS trend would
+    assert set(site.settings[..., cat.SETTING_NAMES.index("supply_air_c")].ravel()) == {13.0}
 
 
 def _synthetic_site(
@@ -180,12 +182,15 @@ def test_calibrate_command_prints_its_parameters_at_a_bound(tmp_path, surrogate,
     _synthetic_site(tmp_path, surrogate, _truth(), weeks=1)
     assert main(["calibrate", "--site", str(tmp_path), "--evaluations", "200", "--quiet", "--json"]) == 0
     out, err = capsys.readouterr()
-    result = json.loads(out)
+    result = json.loads(out)  # standard JSON: no NaN
     assert {e["name"] for e in result["at_bounds"]} <= set(cal.free_theta())
+    lines = err.strip().splitlines()
+    assert lines[-1] == result["verdict"]["line"] and lines[-1].startswith("Guideline 14: ")  # the last line
     if result["at_bounds"]:
-        assert err.strip().splitlines()[-1] == cal.at_bounds_note(result)
+        assert lines[-2] == cal.at_bounds_note(result)
     else:
         assert "note:" not in err
+    assert json.loads((tmp_path / "calibration.json").read_text())["verdict"] == result["verdict"]
 
 
 def test_declared_known_parameters_stay_fixed_and_leave_the_search(tmp_path, surrogate):
@@ -482,3 +487,43 @@ def test_a_calibration_records_its_metamodel_and_using_it_with_another_is_warned
         assert "recalibrate" not in caplog.text
         SiteModel.from_site(site, diagnosis)
     assert f"site {site.path}: calibration made with default, used with diagnosis" in caplog.text
+
+
+def test_guideline14_monthly_judges_the_monthly_totals():
+    from buildenv.metrics import guideline14_monthly
+
+    months = np.repeat([1, 2, 3], 100)
+    measured = np.ones(300)
+    predicted = np.r_[np.full(100, 0.9), np.full(100, 1.0), np.full(100, 1.1)]
+    out = guideline14_monthly(measured, predicted, months)
+    assert out["months"] == 3 and out["nmbe_q_monthly_percent"] == pytest.approx(0.0, abs=1e-9)
+    assert out["cv_rmse_q_monthly_percent"] == pytest.approx(100 * np.sqrt(2 * 10.0**2 / 2) / 100)  # n - p = 2
+    one = guideline14_monthly(measured[:100], predicted[:100], months[:100])
+    assert one["cv_rmse_q_monthly_percent"] is None and one["nmbe_q_monthly_percent"] == pytest.approx(10.0)
+    measured[:50] = np.nan  # unmeasured hours leave the totals
+    assert guideline14_monthly(measured, predicted, months)["nmbe_q_monthly_percent"] == pytest.approx(
+        100 * (250 - (45 + 100 + 110)) / 250
+    )
+
+
+def test_the_verdict_passes_or_fails_a_calibration_and_the_site_is_warned_about_once(caplog):
+    from buildenv.calibration.verdict import CalibrationFailed, calibration_verdict, check_calibration
+
+    good = {"cv_rmse_q_percent": 12.0, "nmbe_q_percent": 2.0, "nmbe_q_monthly_percent": 2.0, "months": 1}
+    result = {"fit": good, "heldout": good, "at_bounds": [{"name": "x"}]}
+    verdict = calibration_verdict(result)
+    assert verdict["passed"] and verdict["judged_on"] == "heldout" and verdict["at_bounds"] == 1
+    assert verdict["line"].startswith("Guideline 14: PASSES (held-out weeks: hourly pass (CV(RMSE) 12.0 %")
+    biased = {**good, "nmbe_q_monthly_percent": 7.0}  # within the hourly limits, not the monthly bias
+    assert not calibration_verdict({**result, "heldout": biased})["passed"]
+    older = {"cv_rmse_q_percent": 58.6, "nmbe_q_percent": -20.0}  # saved before monthly figures: hourly only
+    failed = calibration_verdict({"fit": good, "heldout": older})
+    assert not failed["passed"] and failed["heldout"]["monthly"] is None and "FAILS" in failed["line"]
+    assert calibration_verdict({"fit": good})["judged_on"] == "fit"
+    with caplog.at_level("WARNING"):
+        check_calibration({"fit": good, "heldout": older}, "/sites/a")
+        check_calibration({"fit": good, "heldout": older}, "/sites/a")
+        check_calibration(result, "/sites/b")
+    assert caplog.text.count("site /sites/a: calibration Guideline 14: FAILS") == 1 and "/sites/b" not in caplog.text
+    with pytest.raises(CalibrationFailed, match="recalibrate it or check its data"):
+        check_calibration({"fit": good, "heldout": older}, "/sites/a", strict=True)

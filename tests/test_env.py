@@ -96,7 +96,7 @@ def test_evaluate_batch_equals_steps(env):
 
 
 def test_native_vector_env_matches_single_env(env):
-    venv = gym.make_vec("BuildingWeek-v0", num_envs=4)
+    venv = gym.make_vec("BuildingWeek-v0", num_envs=4, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
     assert isinstance(venv.unwrapped if hasattr(venv, "unwrapped") else venv, BuildingWeekVectorEnv)
     obs, info = venv.reset(seed=7)
     assert obs.shape == (4, 75)

@@ -117,3 +117,22 @@ def test_a_site_measured_across_a_new_year_is_made_calibrated_and_run_again(tmp_
     # the week across the new year, run again from the week before: the measured temperatures, up to the noise
     temperature, _ = run_weeks(site, [dt.date(2019, 12, 30)], site.settings[2][None], workers=1)
     assert np.nanmean(np.abs(temperature[0] - site.temperature_c[2])) < 0.15
+
+
+def test_central_supply_air_is_read_where_a_loop_holds_its_own_temperature():
+    from buildenv.energyplus.reference import central_supply_nodes, recorded_supply_air
+
+    nodes = {b: central_supply_nodes(read_idf(reference_idf(b))) for b in ("medium_office", "small_office")}
+    assert nodes["medium_office"] == [f"VAV_{k} Supply Equipment Outlet Node" for k in (1, 2, 3)]  # scheduled 12.8
+    assert nodes["small_office"] == []  # single-zone units: their supply follows the zone's load
+    large = central_supply_nodes(read_idf(reference_idf("large_office_2019")))  # outdoor-air reset VAV loops only
+    assert len(large) == 3 and all("WITH REHEAT" in n for n in large)
+    settings = historical_settings(1)
+    j = cat.SETTING_NAMES.index("supply_air_c")
+    hours = np.arange(cat.HOURS_PER_WEEK) % 24
+    supply = np.where((hours >= 7) & (hours < 19), 12.8, 30.0)[None]  # the loop off outside its hours
+    recorded = recorded_supply_air(settings, supply)
+    assert set(recorded[..., j].ravel()) == {13.0}  # the ventilation hours' mean, on the 0.5 K grid
+    assert set(recorded_supply_air(settings, supply + 30.0)[..., j].ravel()) == {cat.get("supply_air_c").max}
+    others = [k for k in range(len(cat.SETTING_NAMES)) if k != j]
+    np.testing.assert_array_equal(recorded[..., others], settings[..., others])

@@ -28,6 +28,7 @@ from buildenv.calibration.problem import (
     score_series,
     score_weeks,
 )
+from buildenv.calibration.verdict import calibration_verdict
 from buildenv.diagnosis import model_effects as em
 from buildenv.diagnosis.effects import get_effect
 from buildenv.metamodel import surrogate as sg
@@ -176,6 +177,7 @@ def calibrate_site(
             result[key]["seconds"], result[key]["evaluations"] = result["seconds"], result["evaluations"]
     if method == "cmaes" and restarts > 1 and heldout:
         result["runs"] = _score_runs(site, surrogate, heldout, info["run_costs"], run_parameters, scale, seed)
+    result["verdict"] = calibration_verdict(result)
     if save:
         from buildenv.sites import save_calibration
 

@@ -25,6 +25,7 @@ CV(RMSE) and NMBE, all in :mod:`buildenv.metrics`). A site's whole calibration, 
 from __future__ import annotations
 
 import dataclasses
+import datetime as dt
 import json
 from dataclasses import dataclass
 from pathlib import Path
@@ -36,7 +37,7 @@ from buildenv.diagnosis import model_effects as em
 from buildenv.diagnosis.effects import EffectError, check_declarable, get_effect
 from buildenv.errors import BuildenvError
 from buildenv.metamodel import surrogate as sg
-from buildenv.metrics import r2_masked, site_metrics
+from buildenv.metrics import guideline14_monthly, r2_masked, site_metrics
 from buildenv.schedules import hourly_schedules
 
 WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
@@ -570,7 +571,19 @@ def score_weeks(
     problem = build_problem(
         site, weeks, effects, absent, surrogate.context_hours, surrogate.uses_temperature_before, surrogate
     )
-    return score_series(problem, *predict(problem, surrogate, params), params, scale)
+    t, q = predict(problem, surrogate, params)
+    return {
+        **score_series(problem, t, q, params, scale),
+        **guideline14_monthly(problem.consumption_wh_m2, q, hour_months(site, weeks)),
+    }
+
+
+def hour_months(site, weeks: list[int]) -> np.ndarray:
+    """``(len(weeks), 168)`` calendar-month label (12 x year + month) of every hour of the site's ``weeks``."""
+    starts = site.week_starts()
+    days = [[starts[w] + dt.timedelta(days=d) for d in range(7)] for w in weeks]
+    labels = np.array([[12 * day.year + day.month for day in week] for week in days], dtype=int)
+    return np.repeat(labels, cat.HOURS_PER_DAY, axis=1)
 
 
 def score_outputs(

@@ -177,7 +177,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         )
     )
     print(json.dumps(result, indent=None if args.json else 2))
-    for note in (at_bounds_note(result), runs_note(result)):
+    for note in (at_bounds_note(result), runs_note(result), result["verdict"]["line"]):
         if note:
             print(note, file=sys.stderr)
     return 0

@@ -885,6 +885,10 @@ def diagnose(
     if site.weeks < 2:
         raise cal.CalibrationError(f"{site.path}: the diagnosis needs at least 2 weeks (fit + held-out)")
     _warn_not_measured_with(surrogate)
+    if site.calibration:
+        from buildenv.calibration.verdict import check_calibration
+
+        check_calibration(site.calibration, str(site.path))
     ctx = _context(site, surrogate, settings)
     fit_weeks, heldout = ctx.fit_weeks, ctx.heldout
     current = base_fit(ctx, progress)

@@ -111,6 +111,9 @@ class ReferenceRun:
     zones: list[str]  # zones averaged into the temperature
     hvac_kwh: np.ndarray | None = None  # (weeks, 168) heat delivered by heating coils + cooling coils per hour
     warmup_temperature_c: np.ndarray | None = None  # (warmup_weeks*168,) true temperature of the warm-up hours
+    supply_air_c: np.ndarray | None = (
+        None  # (weeks, 168) central air loops' mean supply temperature (None: no such loop)
+    )
     effects: list[dict[str, Any]] = field(default_factory=list)  # injected effects, truth.json entries
 
 
@@ -288,6 +291,7 @@ def prepare_model(
     )
     edited += [
         ["Output:Variable", "*", "Zone Mean Air Temperature", "Hourly"],
+        *(["Output:Variable", node, "System Node Temperature", "Hourly"] for node in central_supply_nodes(objects)),
         *(["Output:Meter", meter, "Hourly"] for meter, _ in END_USE_METERS.values()),
         ["OutputControl:Files", "Yes", "No", "No", "Yes"] + ["No"] * 29,
     ]
@@ -388,6 +392,33 @@ def zone_areas(eio: Path) -> dict[str, float]:
     return areas
 
 
+#: set-point managers that hold a central air loop's supply air at a temperature of their own (not a zone's load)
+CENTRAL_SUPPLY_MANAGERS = (
+    "setpointmanager:scheduled",
+    "setpointmanager:outdoorairreset",
+    "setpointmanager:followoutdoorairtemperature",
+    "setpointmanager:warmest",
+    "setpointmanager:warmesttemperatureflow",
+)
+
+
+def central_supply_nodes(objects: list[IdfObject]) -> list[str]:
+    """Supply outlet nodes of the air loops whose supply air temperature a central set-point manager sets
+    (:data:`CENTRAL_SUPPLY_MANAGERS`; VAV systems with terminal reheat), 24/7 spaces' loops left out; single-zone
+    units, whose supply follows their zone's load, have none."""
+    lists = {o[1].strip().lower(): [f.strip().lower() for f in o[2:]] for o in of_type(objects, "NodeList")}
+    managed = set()
+    for o in objects:
+        if o[0].lower() in CENTRAL_SUPPLY_MANAGERS:
+            for f in o[1:]:
+                managed.update(lists.get(f.strip().lower(), [f.strip().lower()]))
+    return [
+        o[10]
+        for o in of_type(objects, "AirLoopHVAC")
+        if len(o) > 10 and o[10].strip().lower() in managed and not serves_24h_space(o)
+    ]
+
+
 def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
     """The rows of ``frame`` (an ``eplusout.csv``) stamped with the run period's ``hours`` hours from ``first_day``.
 
@@ -451,6 +482,7 @@ def read_sensors(
         raise ReferenceBuildingError(f"{out}/eplusout.csv: {len(frame)} hourly rows, expected {hours}")
     skip = warmup_weeks * cat.HOURS_PER_WEEK
     shape = (weeks, cat.HOURS_PER_WEEK)
+    supply = [c for c in frame.columns if ":SYSTEM NODE TEMPERATURE [" in c.upper()]
     return ReferenceRun(
         temperature[skip:].reshape(shape),
         consumption[skip:].reshape(shape),
@@ -458,7 +490,22 @@ def read_sensors(
         zones,
         hvac[skip:].reshape(shape),
         warmup_temperature_c=temperature[:skip].copy(),
+        supply_air_c=frame[supply].to_numpy(float).mean(axis=1)[skip:].reshape(shape) if supply else None,
     )
+
+
+def recorded_supply_air(settings: np.ndarray, supply_air_c: np.ndarray) -> np.ndarray:
+    """``settings`` ``(weeks, 7, 12)`` with ``supply_air_c`` replaced by what the building supplied: the mean of
+    ``supply_air_c`` ``(weeks, 168)`` over each day's ventilation hours, on the catalogue's grid and range (a BMS
+    trend of the supply air temperature, read as the day's setting)."""
+    out = np.array(settings, float)
+    var, j = cat.get("supply_air_c"), cat.SETTING_NAMES.index("supply_air_c")
+    occupancy = np.zeros((len(out), len(cat.WEEKDAYS), len(cat.GROUPS["occupancy"])))
+    on = hourly_schedules(out, occupancy)["ventilation_on"].reshape(len(out), 7, cat.HOURS_PER_DAY) > 0
+    daily = np.asarray(supply_air_c, float).reshape(len(out), 7, cat.HOURS_PER_DAY)
+    mean = np.where(on.any(-1), (daily * on).sum(-1) / np.maximum(on.sum(-1), 1), out[..., j])
+    out[..., j] = var.snap(np.clip(mean, var.min, var.max))
+    return out
 
 
 def run_reference(
@@ -555,6 +602,7 @@ def make_reference_site(
     effect_seed: int = 0,
     known: dict[str, float] | None = None,
     end_uses: Sequence[str] = cat.DEFAULT_END_USES,
+    record_supply_air: bool = True,
 ) -> Path:
     """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.sites`).
 
@@ -577,6 +625,8 @@ def make_reference_site(
             what the building's documents say, which calibration then keeps fixed.
         end_uses: end uses the consumption meter sums (keys of :data:`END_USE_METERS`), written as ``site.toml``'s
             ``[meters] consumption``.
+        record_supply_air: write the supply air its central air loops delivered into the history
+            (:func:`recorded_supply_air`); ``False`` keeps ``settings``' values.
 
     The site's ``[bms]`` declares what the stand-in maps (:func:`reference_bms`).
 
@@ -607,6 +657,8 @@ def make_reference_site(
         end_uses=end_uses,
     )
     temperature, consumption = add_sensor_noise(run, seed)
+    if record_supply_air and run.supply_air_c is not None:  # what its BMS logs: its own, not mapped
+        settings = recorded_supply_air(settings, run.supply_air_c)
     controllable, setting_limits = reference_bms(building)
     source = {
         "kind": "reference building stand-in",

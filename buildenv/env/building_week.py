@@ -2,23 +2,32 @@
 
 ``import buildenv`` registers it; then ``gymnasium.make("BuildingWeek-v0")`` runs the shipped metamodel on
 the shipped, calibrated default site and ``gymnasium.make_vec("BuildingWeek-v0", num_envs=N)`` gives the
-native batched version (one metamodel call for all N environments).
+native batched version (one metamodel call for all N environments), with gymnasium's three autoreset modes.
+Both render the last week (``render_mode="rgb_array"`` or ``"ansi"``, :mod:`buildenv.env.render`), pickle and
+deep-copy at any time (the traced metamodel is left out and traced again on first use) and raise
+:class:`ResetNeededError` (a ``gymnasium.error.ResetNeeded``) when stepped before ``reset`` or after the end.
 """
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import datetime as dt
+import math
+import numbers
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.utils import seeding
 from gymnasium.vector import AutoresetMode, VectorEnv
 
 from buildenv import catalogue as cat
 from buildenv.env import actions as act
 from buildenv.env import objectives as obj
+from buildenv.env import render as rnd
 from buildenv.env.observations import BOUND, OBSERVATION_KINDS, observation_size, observe
 from buildenv.env.registration import ENV_ID
 from buildenv.errors import BuildingEnvError
@@ -40,6 +49,54 @@ ARGUMENTS: dict[str, Any] = {
     "backend": "metamodel",
     "render_mode": None,
 }
+RENDER_MODES = ("rgb_array", "ansi")
+VECTOR_ARGUMENTS = ("num_envs", "autoreset_mode", "max_episode_steps")
+
+
+class ResetNeededError(BuildingEnvError, gym.error.ResetNeeded):
+    """``step()`` or ``render()`` before ``reset()``, or ``step()`` after the episode ended: gymnasium's
+    ``ResetNeeded`` (what its ``OrderEnforcing`` wrapper raises) and a :class:`BuildingEnvError`."""
+
+
+def _whole(name: str, value: Any, minimum: int = 1) -> int:
+    """``value`` as an int of at least ``minimum`` (an int, or a float with no fraction); else one clear error."""
+    whole = isinstance(value, numbers.Integral) or (isinstance(value, float) and value.is_integer())
+    if isinstance(value, bool) or not whole or int(value) < minimum:
+        raise BuildingEnvError(f"{ENV_ID}: {name}={value!r}; give a whole number, {minimum} or more")
+    return int(value)
+
+
+def _finite(name: str, value: Any, minimum: float | None = None) -> float:
+    """``value`` as a finite float (of at least ``minimum``); else one clear error."""
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        x = math.nan
+    if isinstance(value, bool) or not math.isfinite(x) or (minimum is not None and x < minimum):
+        at_least = "" if minimum is None else f" >= {minimum:g}"
+        raise BuildingEnvError(f"{ENV_ID}: {name}={value!r}; give a finite number{at_least}")
+    return x
+
+
+def _autoreset_mode(value: Any) -> AutoresetMode:
+    """An :class:`gymnasium.vector.AutoresetMode` from itself, its value (``"NextStep"``) or its name."""
+    if isinstance(value, AutoresetMode):
+        return value
+    for mode in AutoresetMode:
+        if isinstance(value, str) and value.lower().replace("_", "") in (
+            mode.value.lower(),
+            mode.name.lower().replace("_", ""),
+        ):
+            return mode
+    choices = ", ".join(f"AutoresetMode.{m.name}" for m in AutoresetMode)
+    raise BuildingEnvError(f"{ENV_ID}: autoreset_mode={value!r}; choose one of {choices}")
+
+
+def _with_length(spec, length: int):
+    """``spec`` with ``max_episode_steps`` filled in with the episode length where gymnasium left it None."""
+    if spec is not None and spec.max_episode_steps is None:
+        spec = dataclasses.replace(spec, max_episode_steps=int(length))
+    return spec
 
 
 def split_weeks(n_weeks: int, split: str | list[int]) -> list[int]:
@@ -60,27 +117,27 @@ def split_weeks(n_weeks: int, split: str | list[int]) -> list[int]:
 class _Building:
     """What the single and the vector environment share: arguments, the calibrated site model, scoring."""
 
-    def __init__(self, **kwargs: Any) -> None:
+    def __init__(self, extra: tuple[str, ...] = (), **kwargs: Any) -> None:
         unknown = sorted(set(kwargs) - set(ARGUMENTS))
         if unknown:
             raise BuildingEnvError(
-                f"{ENV_ID}: unknown argument(s) {', '.join(unknown)}; allowed: {', '.join(ARGUMENTS)}"
+                f"{ENV_ID}: unknown argument(s) {', '.join(unknown)}; allowed: {', '.join((*ARGUMENTS, *extra))}"
             )
         args = {**ARGUMENTS, **kwargs}
         self.args = args
         for key, allowed in (("comfort", obj.COMFORT_KINDS), ("observation", OBSERVATION_KINDS), ("backend", BACKENDS)):
             if args[key] not in allowed:
                 raise BuildingEnvError(f"{ENV_ID}: {key}={args[key]!r}; choose one of {', '.join(allowed)}")
-        if args["render_mode"] is not None:
+        if args["render_mode"] is not None and args["render_mode"] not in RENDER_MODES:
             raise BuildingEnvError(
-                f"{ENV_ID}: render_mode={args['render_mode']!r}; it has no rendering "
-                "(plot the info's settings and series instead)"
+                f"{ENV_ID}: render_mode={args['render_mode']!r}; choose None or one of {', '.join(RENDER_MODES)} "
+                "(gymnasium.make turns 'human' into 'rgb_array' shown in a window)"
             )
-        self.episode_weeks = int(args["episode_weeks"])
-        if self.episode_weeks < 1:
-            raise BuildingEnvError(f"{ENV_ID}: episode_weeks={args['episode_weeks']}; give 1 or more")
-        self.comfort_weight = float(args["comfort_weight"])
-        self.target_c = float(args["target_temperature_c"])
+        self.render_mode: str | None = args["render_mode"]
+        self.episode_weeks = _whole("episode_weeks", args["episode_weeks"])
+        self.comfort_weight = _finite("comfort_weight", args["comfort_weight"], 0.0)
+        self.target_c = _finite("target_temperature_c", args["target_temperature_c"])
+        self.band_k = _finite("comfort_band_k", args["comfort_band_k"], 0.0)
         self.site = _load_site(args["site"])
         from buildenv.metamodel.surrogate import load_metamodel
 
@@ -102,6 +159,18 @@ class _Building:
         n_obs = observation_size(args["observation"])
         self.observation_space = spaces.Box(-BOUND, BOUND, (n_obs,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.actions.size,), np.float32)
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickle without the metamodel's traced module and worker threads (neither pickles); the copy traces
+        the metamodel again on its first call (same outputs)."""
+        state = self.__dict__.copy()
+        surrogate = copy.copy(self.surrogate)
+        surrogate._runner = None
+        surrogate._pool = None
+        model = copy.copy(self.model)
+        model.surrogate = surrogate
+        state["surrogate"], state["model"] = surrogate, model
+        return state
 
     # ------------------------------------------------------------------ simulation and scoring
     def outputs(self, settings: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
@@ -172,7 +241,7 @@ class _Building:
         weeks = np.asarray(weeks, dtype=int)
         return observe(
             self.model.weather(weeks), weeks, self.model.occupancy, self.model.theta, self.args["observation"]
-        )
+        ).astype(np.float32, copy=False)
 
     def pick_week(self, rng: np.random.Generator, options: dict | None) -> int:
         """The first week of a new episode: ``options["week"]`` if given (it must be a valid start), else drawn."""
@@ -189,6 +258,58 @@ class _Building:
     def week_info(self, week: int) -> dict[str, Any]:
         """``{"week", "week_start"}`` of a week."""
         return {"week": int(week), "week_start": self.model.week_starts[int(week)].isoformat()}
+
+    def check_action(self, action: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
+        """``action`` as an array of ``shape``; else one clear error."""
+        a = np.asarray(action)
+        if a.shape != shape or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+            raise BuildingEnvError(
+                f"{ENV_ID}: {what} takes an action of shape {shape} ({self.actions.size} = 7 days x "
+                f"{len(self.actions.controllable)} settings), got {a.dtype} {a.shape}"
+                + ("; evaluate() scores several" if what == "step()" else "")
+            )
+        return a
+
+    def frame(self, week: int, step: int, scores: dict[str, np.ndarray] | None = None, row: int = 0) -> rnd.WeekFrame:
+        """What ``render()`` shows of ``week``: the week ahead (``scores`` None) or row ``row`` of its scores."""
+        outdoor = self.model.weather(np.array([week]))[0][:, cat.WEATHER_NAMES.index("TAMB")]
+        common = {
+            "week": int(week),
+            "monday": self.model.week_starts[int(week)],
+            "step": int(step),
+            "episode_weeks": self.episode_weeks,
+            "occupied": self.occupied,
+            "target_c": self.target_c,
+            "band_k": self.band_k if self.args["comfort"] == "band" else 0.0,
+            "outdoor_c": np.asarray(outdoor, float),
+            "comfort": self.args["comfort"],
+        }
+        if scores is None:
+            return rnd.WeekFrame(**common)
+        from buildenv.schedules import hourly_schedules
+
+        hourly = hourly_schedules(scores["settings"][row], self.model.occupancy)
+        keys = ("reward", "energy_term", "comfort_k", "energy_kwh", "energy_historical_kwh", "comfort_historical_k")
+        return rnd.WeekFrame(
+            **common,
+            temperature_c=np.asarray(scores["temperature_c"][row], float),
+            hvac_wh_m2=np.asarray(scores["hvac_wh_m2"][row], float),
+            heating_setpoint_c=hourly["heating_setpoint_c"][0],
+            cooling_setpoint_c=hourly["cooling_setpoint_c"][0],
+            scores={k: float(scores[k][row]) for k in (*keys, "savings_percent", "mean_temperature_occupied_c")},
+        )
+
+    def render(self, frame: rnd.WeekFrame | None) -> np.ndarray | str | None:
+        """``frame`` drawn in the render mode (a warning and None without one, as gymnasium's environments)."""
+        if self.render_mode is None:
+            gym.logger.warn(
+                f"{ENV_ID}: render() without a render mode; make the environment with "
+                f"render_mode= one of {', '.join(RENDER_MODES)}"
+            )
+            return None
+        if frame is None:
+            raise ResetNeededError(f"{ENV_ID}: call reset() before render()")
+        return rnd.rgb(frame) if self.render_mode == "rgb_array" else rnd.ansi(frame)
 
 
 def _load_site(site):
@@ -248,30 +369,55 @@ class BuildingWeekEnv(gym.Env):
     Deterministic given the seed.
 
     ## Episode End
-    Terminates after ``episode_weeks`` consecutive weeks (default 1: one step); never truncated.
+    Terminates after ``episode_weeks`` consecutive weeks (default 1: one step); never truncated (unless
+    ``gymnasium.make(..., max_episode_steps=m)`` adds a shorter time limit). ``env.spec.max_episode_steps`` is
+    ``episode_weeks``. ``step`` before ``reset`` or after the end raises :class:`ResetNeededError` (a
+    ``gymnasium.error.ResetNeeded``); an action of another shape than the action space's, a
+    :class:`BuildingEnvError`.
+
+    ## Rendering
+    ``render_mode="rgb_array"``: the last simulated week as an ``(540, 960, 3)`` ``uint8`` picture (indoor and
+    outdoor temperature against the comfort target and the setpoints, HVAC energy, occupied hours shaded, the
+    days' dates); ``"ansi"``: a few lines (week, energy against the historical settings, comfort, reward). Just
+    after ``reset`` it shows the week ahead (the outdoor forecast, nothing simulated yet); before ``reset`` it
+    raises :class:`ResetNeededError` (as gymnasium's ``OrderEnforcing`` does).
 
     ## Arguments
     ``site`` ("default", a site folder or a calibrated :class:`buildenv.sites.Site`), ``metamodel``
     ("default" or a checkpoint path), ``comfort_weight`` (1.0 per K), ``target_temperature_c`` (22.5 degC),
     ``comfort`` ("rms", "band", "mean_abs"), ``comfort_band_k`` (1.0 K), ``observation`` ("compact"),
     ``episode_weeks`` (1), ``weeks`` ("train"; "test" is weeks 12-15, 28-31 and 44-47; "all"; or a list),
-    ``backend`` ("metamodel", or "energyplus": the site's reference building, for verification). Unknown
-    arguments are rejected. ``env.unwrapped.evaluate(actions)`` scores ``(N, 7 x k)`` actions in one call.
+    ``backend`` ("metamodel", or "energyplus": the site's reference building, for verification), ``render_mode``
+    (None, "rgb_array", "ansi"). Unknown arguments and bad values (``comfort_weight=nan``,
+    ``episode_weeks=2.7``, ...) are rejected with one line each. ``env.unwrapped.evaluate(actions)`` scores
+    ``(N, 7 x k)`` actions in one call.
 
     ## Version History
     * v0: first version.
     """
 
-    metadata = {"render_modes": []}
+    metadata = {"render_modes": list(RENDER_MODES), "render_fps": 2}
 
     def __init__(self, **kwargs: Any) -> None:
         self._b = _Building(**kwargs)
         self.observation_space = self._b.observation_space
         self.action_space = self._b.action_space
-        self.render_mode = None
+        self.render_mode = self._b.render_mode
         self._week: int | None = None
         self._step_in_episode = 0
         self._previous: np.ndarray | None = None
+        self._done = False
+        self._last: tuple[int, int, dict[str, np.ndarray] | None] | None = None  # what render() shows
+
+    @property
+    def spec(self):
+        """The gymnasium ``EnvSpec`` it was made with; ``max_episode_steps`` is ``episode_weeks`` unless a time
+        limit says otherwise."""
+        return self.__dict__.get("_spec")
+
+    @spec.setter
+    def spec(self, spec) -> None:
+        self._spec = _with_length(spec, self._b.episode_weeks)
 
     # ------------------------------------------------------------------ gymnasium API
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
@@ -280,21 +426,45 @@ class BuildingWeekEnv(gym.Env):
         self._week = self._b.pick_week(self.np_random, options)
         self._step_in_episode = 0
         self._previous = None
+        self._done = False
+        self._last = (self._week, 0, None)
         return self._b.observe([self._week])[0], self._b.week_info(self._week)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
-        """Apply one week of settings; returns the next week's observation and this week's reward."""
+        """Apply one week of settings; returns the next week's observation and this week's reward.
+
+        Raises:
+            ResetNeededError: before ``reset()`` or after the episode terminated.
+            BuildingEnvError: an action not of the action space's shape, or with a NaN or infinite component.
+        """
         if self._week is None:
-            raise BuildingEnvError(f"{ENV_ID}: call reset() before step()")
+            raise ResetNeededError(f"{ENV_ID}: call reset() before step()")
+        if self._done:
+            raise ResetNeededError(
+                f"{ENV_ID}: the episode terminated after {self._b.episode_weeks} week(s); call reset() before step()"
+            )
+        action = self._b.check_action(action, self.action_space.shape, "step()")
         prev = None if self._previous is None else self._previous[None]
-        scores = self._b.score(np.asarray(action)[None], np.array([self._week]), prev)
+        scores = self._b.score(action[None], np.array([self._week]), prev)
         info = {**_single(scores, 0), **self._b.week_info(self._week)}
         self._previous = scores["settings"][0]
         self._step_in_episode += 1
+        self._last = (self._week, self._step_in_episode, scores)
         terminated = self._step_in_episode >= self._b.episode_weeks
+        self._done = terminated
         if not terminated:
             self._week += 1
         return self._b.observe([self._week])[0], float(scores["reward"][0]), terminated, False, info
+
+    def render(self) -> np.ndarray | str | None:
+        """The last simulated week (the week ahead just after ``reset``) as an ``(540, 960, 3)`` ``uint8``
+        picture (``render_mode="rgb_array"``) or text (``"ansi"``); see Rendering in the class docstring.
+
+        Raises:
+            ResetNeededError: before ``reset()``.
+        """
+        frame = None if self._last is None else self._b.frame(*self._last)
+        return self._b.render(frame)
 
     # ------------------------------------------------------------------ helpers for people and optimisers
     def evaluate(self, actions: np.ndarray, week: int | None = None) -> dict[str, np.ndarray]:
@@ -374,68 +544,267 @@ class BuildingWeekEnv(gym.Env):
         return self._b.model.week_starts[int(week)]
 
 
+def _vector_info(values: dict[str, np.ndarray], rows: np.ndarray, n: int) -> dict[str, np.ndarray]:
+    """A gymnasium vector info (``{key: (n, ...) array, "_key": (n,) mask}``, as ``VectorEnv._add_info`` lays
+    it out) of per-row ``values`` (``{key: (len(rows), ...)}``) for sub-environments ``rows``."""
+    info: dict[str, np.ndarray] = {}
+    for key, value in values.items():
+        value = np.asarray(value)
+        if value.dtype == object:
+            array = np.full(n, None, dtype=object)
+        else:
+            array = np.zeros((n, *value.shape[1:]), dtype=value.dtype)
+        array[rows] = value
+        mask = np.zeros(n, dtype=bool)
+        mask[rows] = True
+        info[key], info[f"_{key}"] = array, mask
+    return info
+
+
+def _masked(info: dict[str, Any], keep: np.ndarray) -> dict[str, Any]:
+    """The entries of vector info ``info`` of the sub-environments ``keep`` (a boolean mask); keys none of them
+    has are dropped, as gymnasium's vector envs never add them."""
+    out: dict[str, Any] = {}
+    for key, value in info.items():
+        if key.startswith("_"):
+            continue
+        mask = info[f"_{key}"] & keep
+        if not mask.any():
+            continue
+        array = np.array(value, copy=True)
+        array[~mask] = None if array.dtype == object else 0
+        out[key], out[f"_{key}"] = array, mask
+    return out
+
+
+def _merged(first: dict[str, Any], second: dict[str, Any]) -> dict[str, Any]:
+    """Vector info of two infos of different sub-environments (the second's entries win where both have one)."""
+    out = dict(first)
+    for key, value in second.items():
+        if key.startswith("_"):
+            continue
+        mask = second[f"_{key}"]
+        if key in out:
+            array = np.array(out[key], copy=True)
+            array[mask] = value[mask]
+            out[key], out[f"_{key}"] = array, out[f"_{key}"] | mask
+        else:
+            out[key], out[f"_{key}"] = value, mask
+    return out
+
+
 class BuildingWeekVectorEnv(VectorEnv):
     """N copies of :class:`BuildingWeekEnv` stepped in one metamodel call (``gymnasium.make_vec``).
 
-    Sub-environments that finish an episode reset in the same step (``AutoresetMode.SAME_STEP``): the
-    returned observation is the new episode's, the finished one's is in ``info["final_obs"]`` and its info
-    in ``info["final_info"]``. Accepts the arguments of :class:`BuildingWeekEnv` plus ``num_envs``.
+    Each sub-environment draws its weeks with its own generator, seeded as ``SyncVectorEnv`` seeds its copies
+    (``reset(seed=s)``: sub-environment i gets ``s + i``; ``reset(seed=[s0, s1, ...])``: one each, None keeps
+    the generator), so it draws the same weeks as ``gymnasium.make_vec(..., vectorization_mode="sync")``.
+    ``options["week"]`` puts every reset sub-environment on that week; ``options["reset_mask"]`` resets only
+    those marked.
+
+    Finished episodes reset as ``autoreset_mode`` says (https://farama.org/Vector-Autoreset-Mode):
+
+    * ``AutoresetMode.NEXT_STEP`` (default, what ``gymnasium.wrappers.vector`` observation wrappers need): the
+      step that finishes an episode returns its last observation; the next ``step`` resets that
+      sub-environment (its action is ignored, reward 0) and returns the new episode's first observation and
+      reset info.
+    * ``AutoresetMode.SAME_STEP`` (what stable-baselines3 expects): the returned observation and info are the
+      new episode's; the finished episode's last observation is in ``info["final_obs"]`` (an object array,
+      None for sub-environments that did not finish) and its step info in ``info["final_info"]``.
+    * ``AutoresetMode.DISABLED``: finished sub-environments must be reset with
+      ``reset(options={"reset_mask": mask})`` before the next ``step``.
+
+    Infos follow gymnasium's vector convention: ``{key: array over sub-environments, "_key": mask}``, with the
+    keys, values and dtypes a ``SyncVectorEnv`` of the single environment gives. ``metadata["autoreset_mode"]``
+    says the mode. Accepts the arguments of :class:`BuildingWeekEnv` plus ``num_envs``, ``autoreset_mode``
+    and ``max_episode_steps`` (a time limit: an episode not terminated by then is truncated; gymnasium passes
+    it from the spec). ``render()`` returns one frame per sub-environment. Stepping before ``reset`` raises
+    :class:`ResetNeededError`, as does stepping a finished sub-environment in ``DISABLED`` mode.
     """
 
-    metadata = {"autoreset_mode": AutoresetMode.SAME_STEP, "render_modes": []}
+    metadata = {"autoreset_mode": AutoresetMode.NEXT_STEP, "render_modes": list(RENDER_MODES), "render_fps": 2}
 
-    def __init__(self, num_envs: int = 1, **kwargs: Any) -> None:
-        self._b = _Building(**kwargs)
-        self.num_envs = int(num_envs)
+    def __init__(
+        self,
+        num_envs: int = 1,
+        autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
+        max_episode_steps: int | None = None,
+        **kwargs: Any,
+    ) -> None:
+        self.num_envs = _whole("num_envs", num_envs)
+        self.autoreset_mode = _autoreset_mode(autoreset_mode)
+        self.max_episode_steps = None if max_episode_steps is None else _whole("max_episode_steps", max_episode_steps)
+        self._b = _Building(extra=VECTOR_ARGUMENTS, **kwargs)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
+        self.render_mode = self._b.render_mode
+        n = self.num_envs
         self.single_observation_space = self._b.observation_space
         self.single_action_space = self._b.action_space
-        self.observation_space = spaces.Box(
-            -BOUND, BOUND, (self.num_envs, *self._b.observation_space.shape), np.float32
-        )
-        self.action_space = spaces.Box(-1.0, 1.0, (self.num_envs, self._b.actions.size), np.float32)
-        self.render_mode = None
-        self._weeks = np.zeros(self.num_envs, dtype=int)
-        self._steps = np.zeros(self.num_envs, dtype=int)
-        self._previous: np.ndarray | None = None
+        self.observation_space = spaces.Box(-BOUND, BOUND, (n, *self._b.observation_space.shape), np.float32)
+        self.action_space = spaces.Box(-1.0, 1.0, (n, self._b.actions.size), np.float32)
+        self._rngs: list[np.random.Generator | None] = [None] * n
+        self._seeds: list[int | None] = [None] * n
+        self._started = False
+        self._weeks = np.zeros(n, dtype=int)
+        self._steps = np.zeros(n, dtype=int)
+        self._previous = np.array(np.broadcast_to(self._b.model.historical, (n, *self._b.model.historical.shape)))
+        self._done = np.zeros(n, dtype=bool)  # finished, not reset yet (NEXT_STEP, DISABLED)
+        self._obs = np.zeros(self.observation_space.shape, np.float32)
+        self._last: list[tuple[int, int, dict[str, np.ndarray] | None, int]] = [(0, 0, None, 0)] * n
 
-    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
-        """Reset every sub-environment (``options["week"]`` puts them all on that week)."""
-        super().reset(seed=seed if not isinstance(seed, list) else seed[0])
-        self._weeks = np.array([self._b.pick_week(self.np_random, options) for _ in range(self.num_envs)])
-        self._steps[:] = 0
-        self._previous = None
-        return self._b.observe(self._weeks), {"week": self._weeks.copy(), "_week": np.ones(self.num_envs, bool)}
+    @property
+    def spec(self):
+        """The gymnasium ``EnvSpec`` it was made with; ``max_episode_steps`` is the episode length."""
+        return self.__dict__.get("_spec")
+
+    @spec.setter
+    def spec(self, spec) -> None:
+        limit = self._b.episode_weeks if self.max_episode_steps is None else self.max_episode_steps
+        self._spec = _with_length(spec, min(self._b.episode_weeks, limit))
+
+    @property
+    def np_random(self) -> tuple[np.random.Generator, ...]:
+        """The sub-environments' generators (as ``SyncVectorEnv.np_random``)."""
+        return tuple(self._rng(i) for i in range(self.num_envs))
+
+    @property
+    def np_random_seed(self) -> tuple[int | None, ...]:
+        """The seeds the sub-environments' generators were made with (-1 where drawn from the OS)."""
+        return tuple(self._seeds)
+
+    def _rng(self, i: int) -> np.random.Generator:
+        if self._rngs[i] is None:
+            self._rngs[i], self._seeds[i] = seeding.np_random()
+        return self._rngs[i]
+
+    # ------------------------------------------------------------------ gymnasium API
+    def reset(
+        self, *, seed: int | list[int | None] | None = None, options: dict | None = None
+    ) -> tuple[np.ndarray, dict]:
+        """Reset the sub-environments (those in ``options["reset_mask"]`` if given; see the class docstring)."""
+        n = self.num_envs
+        if seed is None:
+            seeds = [None] * n
+        elif isinstance(seed, numbers.Integral):
+            seeds = [int(seed) + i for i in range(n)]
+        else:
+            seeds = list(seed)
+            if len(seeds) != n:
+                raise BuildingEnvError(f"{ENV_ID}: reset(seed=...) got {len(seeds)} seeds for num_envs={n}")
+        options = dict(options or {})
+        mask = options.pop("reset_mask", None)
+        if mask is None:
+            mask = np.ones(n, dtype=bool)
+        elif not isinstance(mask, np.ndarray) or mask.dtype != bool or mask.shape != (n,) or not mask.any():
+            raise BuildingEnvError(
+                f"{ENV_ID}: options['reset_mask'] must be a numpy bool array of shape ({n},) with a True value"
+            )
+        elif not self._started and not mask.all():
+            raise ResetNeededError(f"{ENV_ID}: the first reset() resets every sub-environment (no reset_mask)")
+        for i in np.flatnonzero(mask):
+            if seeds[i] is not None:
+                self._rngs[i], self._seeds[i] = seeding.np_random(seeds[i])
+        rows = np.flatnonzero(mask)
+        info = self._reset_rows(rows, options)
+        self._started = True
+        return self._obs.copy(), info
+
+    def _reset_rows(self, rows: np.ndarray, options: dict | None) -> dict[str, np.ndarray]:
+        """Start new episodes in sub-environments ``rows``; their observations go into ``self._obs``; returns
+        their reset info (vector layout)."""
+        weeks = np.array([self._b.pick_week(self._rng(i), options) for i in rows], dtype=int)
+        self._weeks[rows] = weeks
+        self._steps[rows] = 0
+        self._previous[rows] = self._b.model.historical
+        self._done[rows] = False
+        if len(rows):
+            self._obs[rows] = self._b.observe(weeks)
+        if self.render_mode is not None:
+            for i, week in zip(rows, weeks):
+                self._last[i] = (int(week), 0, None, 0)
+        infos = [self._b.week_info(w) for w in weeks]
+        values = {
+            "week": weeks.astype(int),
+            "week_start": np.array([d["week_start"] for d in infos] or [], dtype=object),
+        }
+        return _vector_info(values, rows, self.num_envs)
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
-        """Apply a week of settings in every sub-environment, one batched call."""
-        actions = np.asarray(actions)
-        scores = self._b.score(actions, self._weeks, self._previous)
-        self._previous = scores["settings"].copy()
-        self._steps += 1
-        terminated = self._steps >= self._b.episode_weeks
-        info: dict[str, Any] = {k: np.asarray(v) for k, v in scores.items() if k not in _SERIES}
-        info["reward_vector"] = np.stack([-scores["energy_term"], -scores["comfort_k"]], axis=-1).astype(np.float32)
-        info["week"] = self._weeks.copy()
-        for key in list(info):
-            info[f"_{key}"] = np.ones(self.num_envs, bool)
-        self._weeks = np.where(terminated, self._weeks, self._weeks + 1)
-        obs = self._b.observe(self._weeks)
-        if terminated.any():
-            info["final_obs"] = np.where(terminated[:, None], obs, 0.0).astype(np.float32)
-            info["_final_obs"] = terminated.copy()
-            for i in np.flatnonzero(terminated):
-                self._weeks[i] = self._b.pick_week(self.np_random, None)
-                self._steps[i] = 0
-                self._previous[i] = self._b.model.historical
-            obs = np.where(terminated[:, None], self._b.observe(self._weeks), obs)
-        return (
-            obs.astype(np.float32),
-            scores["reward"].astype(np.float32),
-            terminated,
-            np.zeros(self.num_envs, bool),
-            info,
-        )
+        """Apply a week of settings in every sub-environment, one batched call (see the class docstring for
+        what finished episodes do).
 
+        Raises:
+            ResetNeededError: before ``reset()``, or a finished sub-environment not reset (``DISABLED``).
+            BuildingEnvError: actions not of shape ``(num_envs, 7 x k)``, or with NaN or infinite components.
+        """
+        if not self._started:
+            raise ResetNeededError(f"{ENV_ID}: call reset() before step()")
+        actions = self._b.check_action(actions, self.action_space.shape, "the vector env's step()")
+        n, mode = self.num_envs, self.autoreset_mode
+        if mode == AutoresetMode.DISABLED and self._done.any():
+            raise ResetNeededError(
+                f"{ENV_ID}: sub-environment(s) {np.flatnonzero(self._done).tolist()} finished (autoreset_mode="
+                f"DISABLED); reset them with reset(options={{'reset_mask': mask}}) before step()"
+            )
+        resetting = self._done.copy() if mode == AutoresetMode.NEXT_STEP else np.zeros(n, dtype=bool)
+        rows = np.flatnonzero(~resetting)
+        rewards = np.zeros(n, dtype=np.float64)
+        terminated = np.zeros(n, dtype=bool)
+        truncated = np.zeros(n, dtype=bool)
+        info: dict[str, Any] = {}
+        if len(rows):
+            weeks = self._weeks[rows].copy()
+            scores = self._b.score(actions[rows], weeks, self._previous[rows])
+            self._previous[rows] = scores["settings"]
+            self._steps[rows] += 1
+            term = self._steps[rows] >= self._b.episode_weeks
+            trunc = (
+                np.zeros_like(term) if self.max_episode_steps is None else self._steps[rows] >= self.max_episode_steps
+            )
+            rewards[rows], terminated[rows], truncated[rows] = scores["reward"], term, trunc
+            info = _vector_info(self._step_values(scores, weeks), rows, n)
+            if self.render_mode is not None:
+                for j, i in enumerate(rows):
+                    self._last[i] = (int(weeks[j]), int(self._steps[i]), scores, j)
+            self._weeks[rows[~term]] += 1
+            self._obs[rows] = self._b.observe(self._weeks[rows])
+        done = terminated | truncated
+        if mode == AutoresetMode.NEXT_STEP:
+            if resetting.any():
+                info = _merged(info, self._reset_rows(np.flatnonzero(resetting), None))
+            self._done = done
+        elif mode == AutoresetMode.SAME_STEP:
+            if done.any():
+                final_obs = np.full(n, None, dtype=object)
+                for i in np.flatnonzero(done):
+                    final_obs[i] = self._obs[i].copy()
+                finished = _masked(info, done)
+                info = _merged(_masked(info, ~done), self._reset_rows(np.flatnonzero(done), None))
+                info["final_obs"], info["_final_obs"] = final_obs, done.copy()
+                info["final_info"], info["_final_info"] = finished, done.copy()
+        else:
+            self._done = done
+        return self._obs.copy(), rewards, terminated, truncated, info
+
+    def _step_values(self, scores: dict[str, np.ndarray], weeks: np.ndarray) -> dict[str, np.ndarray]:
+        """Per-row step info values, with the dtypes a ``SyncVectorEnv`` of :class:`BuildingWeekEnv` gives."""
+        values = {k: np.asarray(v, dtype=np.float64) for k, v in scores.items() if k not in _SERIES}
+        values["settings"] = np.asarray(scores["settings"])
+        values["clipped_components"] = np.asarray(scores["clipped_components"]).astype(int)
+        values["reward_vector"] = np.stack([-scores["energy_term"], -scores["comfort_k"]], axis=-1).astype(np.float32)
+        values["week"] = np.asarray(weeks).astype(int)
+        values["week_start"] = np.array([self._b.model.week_starts[int(w)].isoformat() for w in weeks], dtype=object)
+        return values
+
+    def render(self) -> tuple[np.ndarray | str, ...] | None:
+        """One frame per sub-environment (as ``SyncVectorEnv.render``); see :meth:`BuildingWeekEnv.render`."""
+        if self.render_mode is not None and not self._started:
+            raise ResetNeededError(f"{ENV_ID}: call reset() before render()")
+        if self.render_mode is None:
+            return self._b.render(None)
+        return tuple(self._b.render(self._b.frame(w, k, s, j)) for w, k, s, j in self._last)
+
+    # ------------------------------------------------------------------ helpers
     def evaluate(self, actions: np.ndarray, week: int) -> dict[str, np.ndarray]:
         """Score actions ``(N, 7 x k)`` on one week (as :meth:`BuildingWeekEnv.evaluate`)."""
         return self._b.score(np.atleast_2d(actions), np.full(len(np.atleast_2d(actions)), int(week)))

@@ -10,7 +10,13 @@ def register_envs() -> None:
 
     Called by ``import buildenv``; also declared as the ``gymnasium.envs`` entry point for gymnasium versions
     that load environment plugins (gymnasium 1.x no longer does: there, ``import buildenv`` or
-    ``gymnasium.make("buildenv:BuildingWeek-v0")`` registers it).
+    ``gymnasium.make("buildenv:BuildingWeek-v0")`` registers it; use that id where environments are made in
+    fresh processes, as ``SubprocVecEnv`` and ``AsyncVectorEnv`` with ``spawn``/``forkserver`` do).
+
+    The registered spec leaves ``max_episode_steps`` None on purpose: an episode lasts ``episode_weeks`` weeks,
+    an argument, and a registered time limit would cut longer episodes short. The environments fill it into
+    the spec they are made with instead (``gymnasium.make("BuildingWeek-v0", episode_weeks=3).spec
+    .max_episode_steps == 3``), which is what ``TimeAwareObservation`` and similar wrappers read.
     """
     import gymnasium
 

@@ -90,12 +90,14 @@ class SiteModel:
     _day0: dt.date = field(default=dt.date(2000, 1, 1), repr=False)
 
     @classmethod
-    def from_site(cls, site, surrogate) -> SiteModel:
+    def from_site(cls, site, surrogate, strict_calibration: bool = False) -> SiteModel:
         """The calibrated model of a :class:`buildenv.sites.Site` (which must carry a calibration); warns when the
-        calibration was made with another metamodel than ``surrogate``.
+        calibration was made with another metamodel than ``surrogate``, and once when it fails ASHRAE Guideline 14
+        (:func:`buildenv.calibration.verdict.check_calibration`; an error with ``strict_calibration``).
 
         Raises:
             BuildingEnvError: the site has not been calibrated.
+            buildenv.calibration.verdict.CalibrationFailed: it fails Guideline 14 and ``strict_calibration``.
         """
         from buildenv.weather.epw import load_weather
 
@@ -103,7 +105,9 @@ class SiteModel:
         if not calib:
             raise BuildingEnvError(f"site {site.path} is not calibrated: run `buildenv calibrate --site {site.path}`")
         from buildenv.calibration.problem import metamodel_mismatch
+        from buildenv.calibration.verdict import check_calibration
 
+        check_calibration(calib, str(site.path), strict_calibration)
         mismatch = metamodel_mismatch(calib, surrogate)
         if mismatch:
             log.warning("site %s: %s", site.path, mismatch)

@@ -81,7 +81,9 @@ class BuildingVecEnv(VecEnv):
         if env is None:
             if num_envs < 1:
                 raise BuildingEnvError(f"num_envs={num_envs}: give 1 or more environments")
-            env = gym.make_vec(ENV_ID, num_envs=int(num_envs), **env_kwargs)
+            env = gym.make_vec(
+                ENV_ID, num_envs=int(num_envs), autoreset_mode=gym.vector.AutoresetMode.SAME_STEP, **env_kwargs
+            )
         elif env_kwargs:
             raise BuildingEnvError(
                 f"BuildingVecEnv: give either env or environment arguments, not both ({', '.join(env_kwargs)})"
@@ -90,6 +92,11 @@ class BuildingVecEnv(VecEnv):
             raise BuildingEnvError(
                 "BuildingVecEnv wraps the native BuildingWeek-v0 vector env: "
                 "gymnasium.make_vec('BuildingWeek-v0', num_envs=N)"
+            )
+        if env.metadata.get("autoreset_mode") != gym.vector.AutoresetMode.SAME_STEP:
+            raise BuildingEnvError(
+                "BuildingVecEnv needs same-step autoreset, as SB3 expects: "
+                "gymnasium.make_vec('BuildingWeek-v0', num_envs=N, autoreset_mode=AutoresetMode.SAME_STEP)"
             )
         self.venv = env
         self._actions: np.ndarray | None = None
@@ -118,11 +125,14 @@ class BuildingVecEnv(VecEnv):
         self._actions = None
         dones = np.logical_or(terminated, truncated)
         infos = self._split_info(info)
-        final_obs = info.get("final_obs")
+        if dones.any():  # gymnasium puts the finished episodes' step info in final_info, SB3 in infos
+            finished = self._split_info(info["final_info"])
+            for i in np.flatnonzero(dones):
+                self.reset_infos[i] = infos[i]
+                infos[i] = finished[i]
+                infos[i]["terminal_observation"] = np.asarray(info["final_obs"][i], dtype=np.float32)
         for i in range(self.num_envs):
             infos[i]["TimeLimit.truncated"] = bool(truncated[i] and not terminated[i])
-            if dones[i]:
-                infos[i]["terminal_observation"] = np.asarray(final_obs[i], dtype=np.float32)
         return np.asarray(obs, dtype=np.float32), np.asarray(rewards, dtype=np.float32), dones, infos
 
     def _split_info(self, info: dict) -> list[dict[str, Any]]:

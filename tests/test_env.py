@@ -181,3 +181,253 @@ def test_outdoor_air_keeps_to_the_code_minimum_unless_the_site_declares_its_limi
     )
     own = act.ActionMap.for_site(declared(), {}, env._b.model.historical, occupants)
     assert own.lo[j] == cat.SETTINGS[j].min  # the operator's limits stand
+
+
+# ---------------------------------------------------------------------------------------------------------------
+# gymnasium and SB3 idioms: rendering, vector autoreset modes and seeds, pickling, spec, errors (issue 85 items 1-4)
+
+AutoresetMode = gym.vector.AutoresetMode
+
+
+def _same_info(native: dict, sync: dict) -> None:
+    """Vector infos with the same keys, dtypes and values (floats to float32 rounding, batches differ)."""
+    assert sorted(native) == sorted(sync)
+    for key, expected in sync.items():
+        got = native[key]
+        if isinstance(expected, dict):
+            _same_info(got, expected)
+        elif key == "final_obs":
+            for a, b in zip(got, expected):
+                assert (a is None and b is None) or np.allclose(a, b, atol=1e-6)
+        else:
+            assert got.dtype == expected.dtype and got.shape == expected.shape, key
+            if np.issubdtype(expected.dtype, np.floating):
+                np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-6, err_msg=key)
+            else:
+                np.testing.assert_array_equal(got, expected, err_msg=key)
+
+
+@pytest.fixture(scope="module")
+def native_and_sync():
+    """The native vector env and gymnasium's SyncVectorEnv of the single env, 3 environments, 2-week episodes."""
+    kwargs = {"num_envs": 3, "episode_weeks": 2, "weeks": "all"}
+    return (
+        gym.make_vec("BuildingWeek-v0", **kwargs),
+        gym.make_vec("BuildingWeek-v0", vectorization_mode="sync", **kwargs),
+    )
+
+
+def test_sb3_make_vec_env_with_defaults_trains_ppo():
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.env_util import make_vec_env
+
+    venv = make_vec_env("BuildingWeek-v0", n_envs=2, seed=0)  # SB3 passes render_mode="rgb_array"
+    model = PPO("MlpPolicy", venv, n_steps=4, batch_size=8, n_epochs=1, seed=0, device="cpu")
+    model.learn(8)
+    assert model.num_timesteps == 8
+    images = venv.get_images()
+    assert len(images) == 2 and images[0].shape == (540, 960, 3) and images[0].dtype == np.uint8
+
+
+def test_render_the_last_week_as_a_picture_and_as_text():
+    from gymnasium.utils.env_checker import check_env
+
+    assert BuildingWeekEnv.metadata["render_modes"] == ["rgb_array", "ansi"]
+    env = gym.make("BuildingWeek-v0", render_mode="rgb_array")
+    with pytest.raises(gym.error.ResetNeeded):
+        env.render()  # gymnasium's order enforcing; the bare env raises ResetNeededError the same way
+    env.reset(seed=0, options={"week": 43})
+    ahead = env.render()  # the week ahead: the forecast, nothing simulated yet
+    assert ahead.shape == (540, 960, 3) and ahead.dtype == np.uint8
+    env.step(env.unwrapped.historical_action)
+    week = env.render()
+    assert week.shape == ahead.shape and not np.array_equal(week, ahead) and week.std() > 10
+    check_env(env.unwrapped)  # gymnasium's checker, rendering included (both modes, through the spec)
+
+    text = gym.make("BuildingWeek-v0", render_mode="ansi")
+    text.reset(options={"week": 43})
+    assert "week 43, 2019-11-04 to 2019-11-10" in text.render() and "no settings applied yet" in text.render()
+    _, _, _, _, info = text.step(text.unwrapped.historical_action)
+    summary = text.render()
+    assert f"{info['energy_kwh']:.1f} kWh vs {info['energy_historical_kwh']:.1f} kWh historical" in summary
+    assert f"comfort {info['comfort_k']:.2f} K rms" in summary and "0.0 % less than historical" in summary
+    with pytest.raises(BuildingEnvError, match="render_mode='video'; choose None or one of rgb_array, ansi"):
+        BuildingWeekEnv(render_mode="video")
+
+
+def test_native_vector_env_offers_next_step_autoreset_seeded_as_sync(native_and_sync):
+    native, sync = native_and_sync
+    assert native.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
+    for seed in ([1, 2, 3], 11):  # an int seeds environment i with seed + i, as SyncVectorEnv does
+        obs, info = native.reset(seed=seed)
+        expected_obs, expected = sync.reset(seed=seed)
+        _same_info(info, expected)
+        np.testing.assert_array_equal(obs, expected_obs)
+    assert len(set(native.reset(seed=[1, 9, 9])[1]["week"][1:])) == 1  # per-environment seeds are honoured
+    native.reset(seed=11)
+    rng = np.random.default_rng(0)
+    for _ in range(5):  # 2-week episodes: step, step (terminates), the reset step, ...
+        actions = rng.uniform(-1, 1, native.action_space.shape).astype(np.float32)
+        got, expected = native.step(actions), sync.step(actions)
+        np.testing.assert_allclose(got[0], expected[0], atol=1e-6)
+        np.testing.assert_allclose(got[1], expected[1], rtol=1e-5)
+        np.testing.assert_array_equal(got[2], expected[2])
+        np.testing.assert_array_equal(got[3], expected[3])
+        _same_info(got[4], expected[4])
+
+
+def test_same_step_autoreset_reports_final_obs_and_final_info():
+    kwargs = {"num_envs": 2, "weeks": [3, 4, 5], "autoreset_mode": AutoresetMode.SAME_STEP}
+    native = gym.make_vec("BuildingWeek-v0", **kwargs)
+    assert native.metadata["autoreset_mode"] == AutoresetMode.SAME_STEP
+    sync = gym.make_vec(
+        "BuildingWeek-v0",
+        num_envs=2,
+        weeks=[3, 4, 5],
+        vectorization_mode="sync",
+        vector_kwargs={"autoreset_mode": "SameStep"},
+    )
+    obs, reset_info = native.reset(seed=3)
+    sync.reset(seed=3)
+    actions = np.tile(native.unwrapped.historical_action, (2, 1))
+    got, expected = native.step(actions), sync.step(actions)
+    info = got[4]
+    assert got[2].all() and info["_final_obs"].all() and info["_final_info"].all()
+    np.testing.assert_array_equal(np.stack(info["final_obs"]), obs)  # the finished episodes' last observations
+    np.testing.assert_array_equal(info["final_info"]["week"], reset_info["week"])  # their step info
+    np.testing.assert_allclose(info["final_info"]["energy_term"], 1.0)
+    assert "reward" not in info  # the top-level info is the new episodes' reset info, as gymnasium lays it out
+    _same_info(info, expected[4])
+    np.testing.assert_allclose(got[0], expected[0], atol=1e-6)
+
+
+def test_disabled_autoreset_needs_a_masked_reset():
+    venv = gym.make_vec("BuildingWeek-v0", num_envs=2, autoreset_mode="Disabled")
+    with pytest.raises(gym.error.ResetNeeded, match="call reset"):
+        venv.step(np.zeros((2, 84)))
+    venv.reset(seed=0)
+    assert venv.step(np.zeros((2, 84)))[2].all()
+    with pytest.raises(gym.error.ResetNeeded, match=r"sub-environment\(s\) \[0, 1\] finished"):
+        venv.step(np.zeros((2, 84)))
+    _, info = venv.reset(options={"reset_mask": np.array([True, False])})
+    assert info["_week"].tolist() == [True, False]
+    with pytest.raises(gym.error.ResetNeeded, match=r"\[1\] finished"):
+        venv.step(np.zeros((2, 84)))
+
+
+@pytest.mark.parametrize(
+    "name", ["NormalizeObservation", "FlattenObservation", "NormalizeReward", "RecordEpisodeStatistics"]
+)
+def test_gymnasium_vector_wrappers_accept_the_native_env(native_and_sync, name):
+    from gymnasium.wrappers import vector as wrappers
+
+    wrapped = getattr(wrappers, name)(native_and_sync[0])
+    obs, _ = wrapped.reset(seed=0)
+    for _ in range(3):
+        obs, reward, *_ = wrapped.step(wrapped.action_space.sample())
+    assert obs.shape == (3, 75) and np.isfinite(reward).all()
+
+
+def test_pickle_and_deepcopy_after_a_step_predict_the_same():
+    import copy
+    import pickle
+
+    env = gym.make("BuildingWeek-v0", episode_weeks=2, weeks="all")
+    env.reset(seed=4)
+    env.step(env.unwrapped.historical_action)
+    actions = np.random.default_rng(1).uniform(-1, 1, (3, 84)).astype(np.float32)
+    expected = env.unwrapped.evaluate(actions)["reward"]
+    for twin in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
+        np.testing.assert_array_equal(twin.unwrapped.evaluate(actions)["reward"], expected)
+        assert twin.unwrapped.week == env.unwrapped.week
+        _, reward, terminated, _, _ = twin.step(actions[0])  # the episode goes on where it was
+        assert terminated and reward == pytest.approx(expected[0], rel=1e-6)
+
+
+def test_native_vector_env_pickles_after_a_step(native_and_sync):
+    import pickle
+
+    native = native_and_sync[0]
+    native.reset(seed=5)
+    native.step(np.zeros((3, 84)))
+    twin = pickle.loads(pickle.dumps(native))
+    actions = np.random.default_rng(2).uniform(-1, 1, (3, 84))
+    got, expected = twin.step(actions), native.step(actions)
+    np.testing.assert_array_equal(got[0], expected[0])
+    np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_async_vector_env_steps():
+    venv = gym.vector.AsyncVectorEnv([lambda: gym.make("BuildingWeek-v0")] * 2)
+    try:
+        _, info = venv.reset(seed=0)
+        assert info["week"].tolist() == [BuildingWeekEnv().reset(seed=s)[1]["week"] for s in (0, 1)]
+        for _ in range(2):
+            _, rewards, terminated, *_ = venv.step(np.zeros((2, 84), np.float32))
+        assert np.isfinite(rewards).all() and terminated.dtype == bool
+    finally:
+        venv.close()
+
+
+def test_spec_carries_the_episode_length():
+    env = gym.make("BuildingWeek-v0")
+    assert env.spec.max_episode_steps == 1
+    longer = gym.make("BuildingWeek-v0", episode_weeks=3, weeks="all")
+    assert longer.spec.max_episode_steps == 3
+    timed = gym.wrappers.TimeAwareObservation(longer)  # refused an env without max_episode_steps
+    assert timed.reset(seed=0)[0].shape == (76,)
+    _, _, terminated, truncated, _ = longer.step(longer.unwrapped.historical_action)
+    assert not terminated and not truncated  # no registered time limit cuts a longer episode short
+    venv = gym.make_vec("BuildingWeek-v0", num_envs=2, episode_weeks=3, weeks="all", max_episode_steps=2)
+    assert venv.spec.max_episode_steps == 2
+    venv.reset(seed=0)
+    venv.step(np.zeros((2, 84)))
+    _, _, terminated, truncated, _ = venv.step(np.zeros((2, 84)))
+    assert truncated.all() and not terminated.any()  # max_episode_steps is a time limit, as gymnasium passes it
+
+
+def test_step_before_reset_and_after_the_end_raise_reset_needed():
+    from buildenv.env.building_week import ResetNeededError
+
+    env = BuildingWeekEnv()
+    with pytest.raises(ResetNeededError, match="call reset\\(\\) before step\\(\\)") as caught:
+        env.step(env.historical_action)
+    assert isinstance(caught.value, gym.error.ResetNeeded) and isinstance(caught.value, BuildingEnvError)
+    env.reset(seed=0)
+    assert env.step(env.historical_action)[2]
+    with pytest.raises(gym.error.ResetNeeded, match="episode terminated after 1 week"):
+        env.step(env.historical_action)
+    with pytest.raises(gym.error.ResetNeeded, match="before render"):
+        BuildingWeekEnv(render_mode="ansi").render()
+    env.reset(seed=0)
+    with pytest.raises(BuildingEnvError, match=r"takes an action of shape \(84,\).*got float64 \(1, 84\)"):
+        env.step(np.zeros((1, 84)))
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"num_envs": 0}, "num_envs=0; give a whole number, 1 or more"),
+        ({"comfort_weight": float("nan")}, "comfort_weight=nan; give a finite number >= 0"),
+        ({"episode_weeks": 2.7}, "episode_weeks=2.7; give a whole number, 1 or more"),
+        ({"target_temperature_c": "warm"}, "target_temperature_c='warm'; give a finite number"),
+        ({"max_episode_steps": 0}, "max_episode_steps=0; give a whole number, 1 or more"),
+        ({"autoreset_mode": "sometimes"}, "autoreset_mode='sometimes'; choose one of AutoresetMode.NEXT_STEP"),
+        ({"wheeks": "all"}, "unknown argument.*allowed: .*num_envs, autoreset_mode, max_episode_steps"),
+    ],
+)
+def test_bad_arguments_get_one_clear_line(kwargs, message):
+    with pytest.raises(BuildingEnvError, match=message) as caught:
+        gym.make_vec("BuildingWeek-v0", **{"num_envs": 2, **kwargs})
+    assert "\n" not in str(caught.value)
+    single = {k: v for k, v in kwargs.items() if k not in ("num_envs", "max_episode_steps", "autoreset_mode")}
+    if single and "wheeks" not in single:
+        with pytest.raises(BuildingEnvError, match=message):
+            gym.make("BuildingWeek-v0", **single)
+
+
+def test_vector_actions_of_another_shape_are_refused(native_and_sync):
+    native = native_and_sync[0]
+    native.reset(seed=0)
+    with pytest.raises(BuildingEnvError, match=r"takes an action of shape \(3, 84\).*got float64 \(84,\)"):
+        native.step(np.zeros(84))

@@ -14,6 +14,7 @@ small, so products side by side use the cores better than threads inside each pr
 from __future__ import annotations
 
 import os
+import sys
 import threading
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
@@ -24,6 +25,19 @@ from contextlib import contextmanager
 MIN_WEEKS_PER_CALL = 8
 #: torch's intra-op thread count belongs to the process: one split call at a time sets it to 1 and back
 _TORCH_THREADS = threading.Lock()
+
+
+def _one_torch_thread_in_forked_child() -> None:
+    """Torch on one intra-op thread in a process forked from this one (``AsyncVectorEnv``, ``SubprocVecEnv``
+    with ``fork``): torch's OpenMP threads do not survive a fork, and the child's first parallel torch call
+    would wait for them forever once the parent has made one (the parent makes an environment before
+    forking). One thread per worker process is what process-parallel environments want anyway."""
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.set_num_threads(1)
+
+
+os.register_at_fork(after_in_child=_one_torch_thread_in_forked_child)
 
 
 @contextmanager

@@ -132,7 +132,8 @@ def surrogate():
 def test_calibration_recovers_known_parameters(tmp_path, surrogate):
     truth = _truth()
     site = _synthetic_site(tmp_path, surrogate, truth)
-    result = calibrate_site(site, surrogate, weeks=[0], method="cmaes", seed=0, max_evaluations=6000)
+    # two independent CMA-ES runs, the best kept (`--restarts`): one run can settle in a local optimum
+    result = calibrate_site(site, surrogate, weeks=[0], method="cmaes", seed=0, max_evaluations=6000, restarts=2)
     assert result["fit"]["r2_t"] > 0.97 and result["fit"]["r2_q"] > 0.97
     assert result["heldout"]["cv_rmse_q_percent"] < 10.0
     # the parameters that drive the two series: occupied hours (a period covers the whole hours h with

@@ -202,7 +202,8 @@ def _same_info(native: dict, sync: dict) -> None:
         else:
             assert got.dtype == expected.dtype and got.shape == expected.shape, key
             if np.issubdtype(expected.dtype, np.floating):
-                np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-6, err_msg=key)
+                # float32 rounding of energies, up to 1e-5 once a ratio is in percent
+                np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-4, err_msg=key)
             else:
                 np.testing.assert_array_equal(got, expected, err_msg=key)
 

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from diagnosis_site import DEFAULT_SITE
 
 from buildenv.calibration import problem as cal
 from buildenv.calibration.calibrate import calibrate_site
@@ -35,12 +36,9 @@ from buildenv.diagnosis.gap import (
     with_declared_effects,
     without_new_effect,
 )
-from buildenv.env.building_week import DEFAULT_SITE
 from buildenv.metamodel.surrogate import load_metamodel
 from buildenv.sites import load_site, write_site
 from buildenv.sites.week_simulator import SiteModel
-
-FIXTURES = Path(__file__).parent / "fixtures"
 
 MODEL_EFFECTS = [e for e in EFFECTS if e != "holidays"]
 
@@ -51,12 +49,9 @@ def surrogate():
 
 
 @pytest.fixture(scope="module")
-def calibrated(tmp_path_factory):
-    """The default site with its calibration by the diagnosis' metamodel, and its calibrated parameters."""
-    folder = tmp_path_factory.mktemp("default") / "site"
-    shutil.copytree(DEFAULT_SITE, folder, ignore=shutil.ignore_patterns("calibration.*"))
-    shutil.copy(FIXTURES / "default_site_calibration_diagnosis.json", folder / "calibration.json")
-    site = load_site(folder)
+def calibrated():
+    """The default site as the diagnosis measured it, and its calibrated parameters."""
+    site = load_site(DEFAULT_SITE)
     return site, cal.calibrated_parameters(site.calibration)
 
 

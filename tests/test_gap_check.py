@@ -10,6 +10,7 @@ import shutil
 
 import numpy as np
 import pytest
+from diagnosis_site import DEFAULT_SITE
 
 from buildenv.cli.main import main
 from buildenv.diagnosis.blind_check import (
@@ -28,7 +29,6 @@ from buildenv.diagnosis.blind_check import (
 from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS
 from buildenv.diagnosis.gap import DiagnosisSettings, split_weeks
 from buildenv.energyplus.injections import choose_holidays
-from buildenv.env.building_week import DEFAULT_SITE
 from buildenv.metamodel.surrogate import load_metamodel
 
 

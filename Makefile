@@ -12,7 +12,7 @@ $(STAMP): pyproject.toml constraints.txt
 	# torch pinned first so that nothing pulls a CUDA build
 	$(PY) -m pip install --quiet torch==2.13.0
 	# the versions CI last passed with (constraints.txt; other Python versions get pyproject's ranges)
-	$(PY) -m pip install --quiet -c constraints.txt -e ".[dev]"
+	$(PY) -m pip install --quiet -c constraints.txt -e ".[dev,mo]"
 	touch $(STAMP)
 
 install: $(STAMP)

@@ -4,11 +4,12 @@ command (declared under the ``buildenv.commands`` entry point, so :mod:`buildenv
 from __future__ import annotations
 
 import argparse
-import json
 import time
 from pathlib import Path
 
 import numpy as np
+
+from buildenv.jsonio import dumps
 
 METHODS = ("nsga2", "cmaes", "ppo", "rules")
 
@@ -141,8 +142,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         out.update(verify(env, week, result["action"]).summary)
     if args.out:
         Path(args.out).mkdir(parents=True, exist_ok=True)
-        (Path(args.out) / f"optimize_{args.method}_week{week}.json").write_text(json.dumps(out, indent=2))
-    print(json.dumps(out, indent=None if args.json else 2))
+        text = dumps(out, where="the optimisation", nonfinite="null", indent=2)
+        (Path(args.out) / f"optimize_{args.method}_week{week}.json").write_text(text)
+    print(dumps(out, where="the optimisation", nonfinite="null", indent=None if args.json else 2))
     return 0
 
 
@@ -153,7 +155,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     week = default_week(env) if args.week is None else args.week
     check = response_check(env, week, n=args.random, seed=args.seed)
     if args.json:
-        print(json.dumps(check.summary))
+        print(dumps(check.summary, where="the response check", nonfinite="null"))
         return 0
     s = check.summary
     print(

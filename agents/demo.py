@@ -17,6 +17,7 @@ import time
 from pathlib import Path
 
 from agents.report import markdown_table, plot_before_after, plot_pareto
+from buildenv.jsonio import dumps
 
 COLUMNS = [
     ("settings", "label", ""),
@@ -136,7 +137,9 @@ def run_demo(out: Path, seed: int = 0, progress: bool = False) -> Path:
     diagnosis = _diagnose(site_dir, out, seed, progress)
     summary["diagnosis"] = {k: diagnosis[k] for k in ("verdict", "selected", "effects", "seconds")}
     summary["seconds_total"] = round(time.perf_counter() - started, 1)
-    (out / "report.json").write_text(json.dumps(summary, indent=2, default=float))
+    (out / "report.json").write_text(
+        dumps(summary, where=str(out / "report.json"), nonfinite="null", indent=2, default=float)
+    )
     held = calib["heldout"]
     text = f"""# buildenv demo: calibrate, optimise, verify
 

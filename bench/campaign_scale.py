@@ -22,6 +22,8 @@ from pathlib import Path
 
 import harness
 
+from buildenv.jsonio import dumps
+
 
 def main() -> None:
     """Run the campaign and write the results files."""
@@ -85,7 +87,7 @@ worker start-up, every EnergyPlus run (one building-year of 52 weeks per run) an
 """,
         result,
     )
-    print(json.dumps(result, indent=2))
+    print(dumps(result, where="the result", nonfinite="null", indent=2))
     if not args.keep:
         shutil.rmtree(out)
 

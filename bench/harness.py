@@ -22,6 +22,8 @@ import time
 from collections.abc import Mapping
 from pathlib import Path
 
+from buildenv.jsonio import dumps
+
 ROOT = Path(__file__).resolve().parent.parent
 RESULTS = ROOT / "bench" / "results"
 _LOAD_AT_START = os.getloadavg()
@@ -106,7 +108,8 @@ def write_results(
         (out / f"{name}.json").write_text(data if data.endswith("\n") else data + "\n")
     else:
         record = {"provenance": p, **{k: v for k, v in data.items() if k != "provenance"}}
-        (out / f"{name}.json").write_text(json.dumps(record, indent=1, default=_jsonable) + "\n")
+        body = dumps(record, where=str(out / f"{name}.json"), nonfinite="null", indent=1, default=_jsonable)
+        (out / f"{name}.json").write_text(body + "\n")
     if echo:
         print(text)
     return path

@@ -26,6 +26,8 @@ import numpy as np
 import torch
 from harness import energyplus_weeks_per_second, shipped_transformer, speed_lines, surrogate_weeks_per_second, trained
 
+from buildenv.jsonio import dumps
+
 METRICS = ("loss", "r2_t_pooled", "r2_t", "rmse_t_celsius", "cv_rmse_q_percent")
 
 
@@ -74,7 +76,7 @@ def main() -> None:
                     "rmse_t_by_day": [round(v, 4) for v in test["rmse_t_celsius_by_day"]],
                 }
             )
-            print(json.dumps(rows[-1]))
+            print(dumps(rows[-1], where="a row", nonfinite="null"))
     eplus = energyplus_weeks_per_second(args.eplus_weeks, "core_perimeter")
     speed = {
         ctx: surrogate_weeks_per_second(args.weeks, 128, 3, str(runs / f"ctx{ctx}_seed{seeds[0]}_e{args.epochs}.pt"))

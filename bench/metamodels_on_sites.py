@@ -16,7 +16,6 @@ otherwise. Writes ``bench/results/metamodels_on_sites.{md,json}`` (``--name`` ch
 from __future__ import annotations
 
 import datetime as dt
-import json
 import os
 import shlex
 import subprocess
@@ -28,6 +27,7 @@ import harness
 from harness import machine
 
 from buildenv.calibration.calibrate import calibrate_site
+from buildenv.jsonio import dumps
 from buildenv.metamodel import surrogate as sg
 from buildenv.sites import load_site
 
@@ -106,7 +106,7 @@ def main() -> None:
                         **{k: result["heldout"][k] for k in METRICS},
                     }
                 )
-                print(json.dumps(rows[-1]), flush=True)
+                print(dumps(rows[-1], where="a row", nonfinite="null"), flush=True)
     command = "python bench/metamodels_on_sites.py " + " ".join(shlex.quote(a) for a in sys.argv[1:])
     record = {
         "date": dt.date.today().isoformat(),

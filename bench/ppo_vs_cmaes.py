@@ -38,6 +38,7 @@ from stable_baselines3.common.callbacks import BaseCallback
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from agents.cmaes import optimise_week
 from agents.ppo import PPO_DEFAULTS, evaluate_policy_weeks, load_policy, policy_actions, train_ppo
+from buildenv.jsonio import dumps
 
 ROOT = Path(__file__).resolve().parent.parent
 TERMS = ("reward", "energy_term", "comfort_k")
@@ -312,7 +313,7 @@ def main() -> None:
         "weeks": rows,
         "tuning": {"validation_weeks": VALIDATION_WEEKS, "runs": TUNING, "in_sample": TUNING_IN_SAMPLE},
     }
-    print(json.dumps({k: v for k, v in summary.items()}, indent=1), flush=True)
+    print(dumps(dict(summary), where="the summary", nonfinite="null", indent=1), flush=True)
     if not args.validation:
         harness.write_results("ppo_vs_cmaes", markdown(result), result)
 

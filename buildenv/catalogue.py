@@ -165,6 +165,19 @@ THETA_BUILD: tuple[Variable, ...] = (
         "(heat recovery)",
     ),
     _v(
+        "minimum_supply_air_ach",
+        "theta_build",
+        "1/h",
+        0,
+        4,
+        0.25,
+        S,
+        "Smallest air flow the air handling unit supplies while it runs, in air changes per hour of the zone "
+        "volume: the minimum of VAV boxes, supplied at the supply temperature and reheated by the zones; above "
+        "the outdoor air it is return air (0: a 100 % outdoor air unit; DOE reference VAV offices about 1.5-2).",
+        "(VAV minimum flow)",
+    ),
+    _v(
         "capacitance_kj_per_k_m3",
         "theta_build",
         "kJ/(K m3)",
@@ -762,6 +775,7 @@ class EarlierCatalogue:
 
 
 _WALLS = ("north", "east", "south", "west")
+_THETA_BEFORE_MINIMUM_SUPPLY = tuple(v.name for v in THETA_BUILD if v.name != "minimum_supply_air_ach")
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
 EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     "bf68f6178dc1d1b3": EarlierCatalogue(
@@ -795,24 +809,33 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             "supply_air_c": (18.0, 26.0, 0.5),
         },
         renamed={"pc_density_per_m2": ("plug_load_w_m2", 150.0)},  # workstations of 150 W
-        implied={"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0},
+        implied={"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0, "minimum_supply_air_ach": 0.0},
     ),
     # supply air from 18 degC
     "11c21d55c2939cd8": EarlierCatalogue(
-        theta_names=tuple(v.name for v in THETA_BUILD),
+        theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={"supply_air_c": (18.0, 26.0, 0.5)},
         renamed={},
-        implied={},
+        implied={"minimum_supply_air_ach": 0.0},
+    ),
+    # no minimum supply air flow: 100 % outdoor air units only
+    "6f2f25c1acea3f20": EarlierCatalogue(
+        theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
+        ranges={},
+        renamed={},
+        implied={"minimum_supply_air_ach": 0.0},
     ),
 }
 
 
 def upgrade_theta(values: Mapping[str, float]) -> dict[str, float]:
     """theta_build ``{name: value}`` written under an earlier catalogue, in this one's names and units: renamed
-    variables converted, variables it lacked at the value its building model had (others pass unchanged)."""
+    variables converted, variables it lacked at the value its building model had (others pass unchanged). A
+    dict is taken as written under an earlier catalogue when it holds a renamed name or all of its names."""
     out = {k: float(v) for k, v in values.items()}
     for earlier in EARLIER_CATALOGUES.values():
-        if not any(k in out for k in earlier.renamed):
+        written = any(k in out for k in earlier.renamed) or set(earlier.theta_names) <= set(out)
+        if not written:
             continue
         for old, (new, factor) in earlier.renamed.items():
             if old in out and new not in out:

@@ -34,6 +34,10 @@ class DatasetError(BuildenvError):
     """A dataset directory is missing, incomplete or made for another catalogue."""
 
 
+class NonFiniteError(BuildenvError, ValueError):
+    """A result holds NaN or an infinity where a number is due (the message names which value)."""
+
+
 class SiteError(BuildenvError):
     """A site folder (site.toml, measurements.csv, settings.csv, ...) is missing or invalid."""
 

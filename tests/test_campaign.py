@@ -53,7 +53,11 @@ def test_dataset_contents(small_dataset):
         assert len(ds) == 4
         assert ds.outputs.shape == (4, 168, len(cat.OUTPUT_NAMES))
         assert ds.weather.shape == (4, 168, len(cat.WEATHER_NAMES))
-        assert ds.settings.shape == (4, 7, 12) and ds.occupancy.shape == (4, 5, 2) and ds.theta.shape == (4, 21)
+        assert (
+            ds.settings.shape == (4, 7, 12)
+            and ds.occupancy.shape == (4, 5, 2)
+            and ds.theta.shape == (4, len(cat.THETA_BUILD))
+        )
         assert json.loads(ds._h5["outputs"].attrs["names"]) == list(cat.OUTPUT_NAMES)
         assert json.loads(ds._h5["theta"].attrs["names"]) == list(cat.THETA_NAMES)
         assert ds.manifest["catalogue_hash"] == cat.catalogue_hash()

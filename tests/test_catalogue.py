@@ -19,15 +19,16 @@ STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
 
 # --------------------------------------------------------------------------- group sizes
 def test_group_sizes_match_the_paper():
-    # theta_build: the paper's 17 (nb_PCs as plug-load power) + floor area, floors, lighting power, heat recovery
-    assert len(cat.THETA_BUILD) == 21
+    # theta_build: the paper's 17 (nb_PCs as plug-load power) + floor area, floors, lighting power, heat recovery,
+    # minimum supply air
+    assert len(cat.THETA_BUILD) == 22
     assert {"lighting_power_w_m2", "heat_recovery_effectiveness", "plug_load_w_m2"} <= set(cat.THETA_NAMES)
     assert "pc_density_per_m2" not in cat.THETA_NAMES
     assert len(cat.SETTINGS) == 12
     assert len(cat.OCCUPANCY) == 2
     assert len(cat.WEATHER) == 9
     assert len(cat.OUTPUTS) == 8
-    assert len(cat.ALL_VARIABLES) == 21 + 12 + 2 + 9 + 8
+    assert len(cat.ALL_VARIABLES) == 22 + 12 + 2 + 9 + 8
     assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
 
 
@@ -244,7 +245,7 @@ def _theta_mapping(**overrides):
 def test_from_mapping_builds_vector_in_catalogue_order():
     mapping = _theta_mapping()
     vector = cat.from_mapping("theta_build", dict(reversed(list(mapping.items()))))
-    assert vector.shape == (21,)
+    assert vector.shape == (len(cat.THETA_BUILD),)
     np.testing.assert_array_equal(vector, [mapping[n] for n in cat.THETA_NAMES])
 
 
@@ -319,7 +320,11 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
     # its names, renamed, plus what it lacked, are exactly this catalogue's theta_build
     renamed = {earlier.renamed.get(n, (n, 1.0))[0] for n in earlier.theta_names}
     assert renamed | set(earlier.implied) == set(cat.THETA_NAMES) and not renamed & set(earlier.implied)
-    assert earlier.implied == {"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0}
+    assert earlier.implied == {
+        "lighting_power_w_m2": 10.0,
+        "heat_recovery_effectiveness": 0.0,
+        "minimum_supply_air_ach": 0.0,
+    }
     for name, value in earlier.implied.items():
         cat.get(name).check(value)
     # the catalogue widened: each earlier range lies inside this one's
@@ -340,6 +345,10 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     # written under this catalogue: nothing is converted or filled in
     current = {"plug_load_w_m2": 12.0, "infiltration_ach": 0.3}
     assert cat.upgrade_theta(current) == current
+    # a full theta of the catalogue before the minimum supply flow: its 100 % outdoor air units
+    before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["6f2f25c1acea3f20"].theta_names}
+    assert "minimum_supply_air_ach" not in before
+    assert cat.upgrade_theta(before) == {**before, "minimum_supply_air_ach": 0.0}
     # an earlier full theta becomes a vector of this catalogue
     earlier = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"]
     mid = {n: float(np.mean(earlier.ranges.get(n, (cat.get(n).min, cat.get(n).max))[:2])) for n in cat.THETA_NAMES}
@@ -361,7 +370,7 @@ def test_shipped_checkpoints_the_default_of_this_catalogue_the_diagnosis_through
     assert surrogate.domain["ventilation_ach"] == (0.7, 1.7)
     assert surrogate.domain["floor_area_m2"] == (1000.0, 50000.0)
     assert set(surrogate.domain) == set(cat.THETA_NAMES) | set(cat.SETTING_NAMES)
-    assert surrogate.implied == {"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0}
+    assert surrogate.implied == cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"].implied
 
 
 # --------------------------------------------------------------------------- hash / describe

@@ -256,3 +256,22 @@ def test_campaign_run_whose_thermostat_alternates_in_warmup_still_simulates():
         task.theta, task.settings[:1], task.occupancy[:1], task.epw, task.start_week, zoning=task.zoning
     ).outputs
     assert np.isfinite(out).all() and 18.0 < out[..., OUT["T_INT_OFFICE"]].mean() < 30.0
+
+
+@pytest.mark.parametrize("zoning", ZONINGS)
+def test_a_minimum_supply_flow_mixes_return_air_that_the_zones_reheat(zoning):
+    # outdoor air 1.0 ach at 13 degC supply; a VAV minimum of 2.5 ach makes up the rest with return air
+    vav = {"minimum_supply_air_ach": 2.5}
+    for week in (JANUARY, JULY):
+        doas = _week("usa_il_chicago", week, zoning=zoning, supply_air_c=13)[0]
+        mixed = _week("usa_il_chicago", week, vav, zoning=zoning, supply_air_c=13)[0]
+        assert np.isfinite(mixed).all() and 15.0 < mixed[:, OUT["T_INT_OFFICE"]].mean() < 30.0
+        # the zones reheat the larger flow of 13 degC air
+        assert mixed[:, OUT["Q_HEAT_OFFICE"]].sum() > doas[:, OUT["Q_HEAT_OFFICE"]].sum() + 50.0
+        if week == JANUARY:  # mixing with return air lifts the outdoor air: the coil heats less
+            assert mixed[:, OUT["Q_AHU_H"]].sum() < 0.6 * doas[:, OUT["Q_AHU_H"]].sum()
+        else:  # the coil cools the whole minimum flow to 13 degC
+            assert mixed[:, OUT["Q_AHU_C"]].sum() > 1.2 * doas[:, OUT["Q_AHU_C"]].sum()
+    # a minimum below the outdoor air changes nothing
+    below = _week("usa_il_chicago", JANUARY, {"minimum_supply_air_ach": 0.5}, zoning=zoning)[0]
+    np.testing.assert_allclose(below, _week("usa_il_chicago", JANUARY, zoning=zoning)[0], rtol=1e-6, atol=1e-6)

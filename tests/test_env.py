@@ -10,7 +10,11 @@ import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from buildenv import catalogue as cat
 from buildenv.env import actions as act
 from buildenv.env.building_week import BuildingWeekEnv, BuildingWeekVectorEnv, split_weeks
+from buildenv.env.observations import observation_size
 from buildenv.errors import BuildingEnvError
+
+# the default site's BMS changes 11 of the 12 settings (not the supply air), each day of the week
+N_ACTION = 7 * 11
 
 
 @pytest.fixture(scope="module")
@@ -23,8 +27,8 @@ def test_make_without_arguments_passes_both_checkers(env):
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
 
     assert isinstance(env.unwrapped, BuildingWeekEnv)
-    # compact observation: daily forecast 42 + occupancy 10 + calendar 2 + theta_build 21
-    assert env.action_space.shape == (84,) and env.observation_space.shape == (75,)
+    # compact observation: daily forecast 42 + occupancy 10 + calendar 2 + theta_build 22
+    assert env.action_space.shape == (N_ACTION,) and env.observation_space.shape == (observation_size("compact"),)
     check_env(env.unwrapped, skip_render_check=True)
     sb3_check_env(env.unwrapped, warn=True)
 
@@ -35,7 +39,7 @@ def test_reset_is_deterministic_under_a_seed(env):
     assert info1 == info2 and np.array_equal(obs1, obs2)
     r1 = env.step(env.action_space.sample())[1]
     env.reset(seed=123)
-    assert env.unwrapped.evaluate(np.zeros((1, 84)))["reward"].shape == (1,)
+    assert env.unwrapped.evaluate(np.zeros((1, N_ACTION)))["reward"].shape == (1,)
     assert np.isfinite(r1)
 
 
@@ -66,8 +70,8 @@ def test_actions_are_snapped_clipped_and_nan_is_an_error():
 
 def test_out_of_range_actions_are_reported(env):
     env.reset(seed=1)
-    info = env.step(np.full(84, 2.0, dtype=np.float32))[4]
-    assert info["clipped_components"] == 84
+    info = env.step(np.full(N_ACTION, 2.0, dtype=np.float32))[4]
+    assert info["clipped_components"] == N_ACTION
 
 
 def test_unknown_and_bad_arguments_are_rejected():
@@ -86,7 +90,7 @@ def test_week_splits_are_disjoint():
 def test_evaluate_batch_equals_steps(env):
     base = env.unwrapped
     rng = np.random.default_rng(0)
-    actions = rng.uniform(-1, 1, (3, 84)).astype(np.float32)
+    actions = rng.uniform(-1, 1, (3, N_ACTION)).astype(np.float32)
     env.reset(options={"week": 5})
     batch = base.evaluate(actions)
     for i in range(3):
@@ -99,7 +103,7 @@ def test_native_vector_env_matches_single_env(env):
     venv = gym.make_vec("BuildingWeek-v0", num_envs=4, autoreset_mode=gym.vector.AutoresetMode.SAME_STEP)
     assert isinstance(venv.unwrapped if hasattr(venv, "unwrapped") else venv, BuildingWeekVectorEnv)
     obs, info = venv.reset(seed=7)
-    assert obs.shape == (4, 75)
+    assert obs.shape == (4, observation_size("compact"))
     actions = np.tile(env.unwrapped.historical_action, (4, 1))
     weeks = info["week"].copy()
     _, rewards, terminated, _, step_info = venv.step(actions)
@@ -112,7 +116,7 @@ def test_native_vector_env_matches_single_env(env):
 def test_several_weeks_per_episode_and_forecast_observation():
     env = gym.make("BuildingWeek-v0", episode_weeks=2, observation="forecast", weeks="all")
     obs, info = env.reset(seed=0)
-    assert obs.shape == (75 + 168 * 8,)
+    assert obs.shape == (observation_size("compact") + 168 * 8,)
     action = env.unwrapped.historical_action
     _, _, terminated, _, first = env.step(action)
     assert not terminated
@@ -166,21 +170,30 @@ def test_only_the_settings_the_building_can_act_on_are_actions():
     assert info["settings"][:, supply].tolist() == site.settings[0][:, supply].tolist()
 
 
+def _site_declaring(limits: dict) -> object:
+    site = type("Site", (), {"setting_limits": limits, "controllable": cat.SETTING_NAMES})
+    site.setting_ranges = lambda self: (
+        np.array([v.min for v in cat.SETTINGS]),
+        np.array([v.max for v in cat.SETTINGS]),
+    )
+    return site()
+
+
 def test_outdoor_air_keeps_to_the_code_minimum_unless_the_site_declares_its_limits():
     env = gym.make("BuildingWeek-v0").unwrapped
     occupants = env._b.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")]
     minimum = act.code_minimum_ventilation_ach(occupants)
     assert minimum == pytest.approx((2.5 * occupants + 0.3) * 3.6 / 3.5)  # ASHRAE 62.1, office, 3.5 m storeys
     j = cat.SETTING_NAMES.index("ventilation_ach")
-    lowest = env.decode(-np.ones(env.action_space.shape))[:, j]
+    free = act.ActionMap.for_site(_site_declaring({}), {}, env._b.model.historical, occupants)
+    lowest = free.decode(-np.ones(free.size))[0][:, j]
     assert (lowest >= minimum).all() and (lowest < minimum + cat.SETTINGS[j].step).all()  # the first step above
-    declared = type("Site", (), {"setting_limits": {"ventilation_ach": (0.1, 1.0)}, "controllable": cat.SETTING_NAMES})
-    declared.setting_ranges = lambda self: (
-        np.array([v.min for v in cat.SETTINGS]),
-        np.array([v.max for v in cat.SETTINGS]),
+    own = act.ActionMap.for_site(
+        _site_declaring({"ventilation_ach": (0.1, 1.0)}), {}, env._b.model.historical, occupants
     )
-    own = act.ActionMap.for_site(declared(), {}, env._b.model.historical, occupants)
     assert own.lo[j] == cat.SETTINGS[j].min  # the operator's limits stand
+    # the default site, a stand-in, declares the code minimum for its design occupants up to its design
+    assert env.decode(-np.ones(env.action_space.shape))[:, j].min() >= 0.45
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -305,15 +318,15 @@ def test_same_step_autoreset_reports_final_obs_and_final_info():
 def test_disabled_autoreset_needs_a_masked_reset():
     venv = gym.make_vec("BuildingWeek-v0", num_envs=2, autoreset_mode="Disabled")
     with pytest.raises(gym.error.ResetNeeded, match="call reset"):
-        venv.step(np.zeros((2, 84)))
+        venv.step(np.zeros((2, N_ACTION)))
     venv.reset(seed=0)
-    assert venv.step(np.zeros((2, 84)))[2].all()
+    assert venv.step(np.zeros((2, N_ACTION)))[2].all()
     with pytest.raises(gym.error.ResetNeeded, match=r"sub-environment\(s\) \[0, 1\] finished"):
-        venv.step(np.zeros((2, 84)))
+        venv.step(np.zeros((2, N_ACTION)))
     _, info = venv.reset(options={"reset_mask": np.array([True, False])})
     assert info["_week"].tolist() == [True, False]
     with pytest.raises(gym.error.ResetNeeded, match=r"\[1\] finished"):
-        venv.step(np.zeros((2, 84)))
+        venv.step(np.zeros((2, N_ACTION)))
 
 
 @pytest.mark.parametrize(
@@ -326,7 +339,7 @@ def test_gymnasium_vector_wrappers_accept_the_native_env(native_and_sync, name):
     obs, _ = wrapped.reset(seed=0)
     for _ in range(3):
         obs, reward, *_ = wrapped.step(wrapped.action_space.sample())
-    assert obs.shape == (3, 75) and np.isfinite(reward).all()
+    assert obs.shape == (3, observation_size("compact")) and np.isfinite(reward).all()
 
 
 def test_pickle_and_deepcopy_after_a_step_predict_the_same():
@@ -336,7 +349,7 @@ def test_pickle_and_deepcopy_after_a_step_predict_the_same():
     env = gym.make("BuildingWeek-v0", episode_weeks=2, weeks="all")
     env.reset(seed=4)
     env.step(env.unwrapped.historical_action)
-    actions = np.random.default_rng(1).uniform(-1, 1, (3, 84)).astype(np.float32)
+    actions = np.random.default_rng(1).uniform(-1, 1, (3, N_ACTION)).astype(np.float32)
     expected = env.unwrapped.evaluate(actions)["reward"]
     for twin in (pickle.loads(pickle.dumps(env)), copy.deepcopy(env)):
         np.testing.assert_array_equal(twin.unwrapped.evaluate(actions)["reward"], expected)
@@ -350,9 +363,9 @@ def test_native_vector_env_pickles_after_a_step(native_and_sync):
 
     native = native_and_sync[0]
     native.reset(seed=5)
-    native.step(np.zeros((3, 84)))
+    native.step(np.zeros((3, N_ACTION)))
     twin = pickle.loads(pickle.dumps(native))
-    actions = np.random.default_rng(2).uniform(-1, 1, (3, 84))
+    actions = np.random.default_rng(2).uniform(-1, 1, (3, N_ACTION))
     got, expected = twin.step(actions), native.step(actions)
     np.testing.assert_array_equal(got[0], expected[0])
     np.testing.assert_array_equal(got[1], expected[1])
@@ -364,7 +377,7 @@ def test_async_vector_env_steps():
         _, info = venv.reset(seed=0)
         assert info["week"].tolist() == [BuildingWeekEnv().reset(seed=s)[1]["week"] for s in (0, 1)]
         for _ in range(2):
-            _, rewards, terminated, *_ = venv.step(np.zeros((2, 84), np.float32))
+            _, rewards, terminated, *_ = venv.step(np.zeros((2, N_ACTION), np.float32))
         assert np.isfinite(rewards).all() and terminated.dtype == bool
     finally:
         venv.close()
@@ -376,14 +389,14 @@ def test_spec_carries_the_episode_length():
     longer = gym.make("BuildingWeek-v0", episode_weeks=3, weeks="all")
     assert longer.spec.max_episode_steps == 3
     timed = gym.wrappers.TimeAwareObservation(longer)  # refused an env without max_episode_steps
-    assert timed.reset(seed=0)[0].shape == (76,)
+    assert timed.reset(seed=0)[0].shape == (observation_size("compact") + 1,)
     _, _, terminated, truncated, _ = longer.step(longer.unwrapped.historical_action)
     assert not terminated and not truncated  # no registered time limit cuts a longer episode short
     venv = gym.make_vec("BuildingWeek-v0", num_envs=2, episode_weeks=3, weeks="all", max_episode_steps=2)
     assert venv.spec.max_episode_steps == 2
     venv.reset(seed=0)
-    venv.step(np.zeros((2, 84)))
-    _, _, terminated, truncated, _ = venv.step(np.zeros((2, 84)))
+    venv.step(np.zeros((2, N_ACTION)))
+    _, _, terminated, truncated, _ = venv.step(np.zeros((2, N_ACTION)))
     assert truncated.all() and not terminated.any()  # max_episode_steps is a time limit, as gymnasium passes it
 
 
@@ -401,8 +414,10 @@ def test_step_before_reset_and_after_the_end_raise_reset_needed():
     with pytest.raises(gym.error.ResetNeeded, match="before render"):
         BuildingWeekEnv(render_mode="ansi").render()
     env.reset(seed=0)
-    with pytest.raises(BuildingEnvError, match=r"takes an action of shape \(84,\).*got float64 \(1, 84\)"):
-        env.step(np.zeros((1, 84)))
+    with pytest.raises(
+        BuildingEnvError, match=rf"takes an action of shape \({N_ACTION},\).*got float64 \(1, {N_ACTION}\)"
+    ):
+        env.step(np.zeros((1, N_ACTION)))
 
 
 @pytest.mark.parametrize(
@@ -430,5 +445,7 @@ def test_bad_arguments_get_one_clear_line(kwargs, message):
 def test_vector_actions_of_another_shape_are_refused(native_and_sync):
     native = native_and_sync[0]
     native.reset(seed=0)
-    with pytest.raises(BuildingEnvError, match=r"takes an action of shape \(3, 84\).*got float64 \(84,\)"):
-        native.step(np.zeros(84))
+    with pytest.raises(
+        BuildingEnvError, match=rf"takes an action of shape \(3, {N_ACTION}\).*got float64 \({N_ACTION},\)"
+    ):
+        native.step(np.zeros(N_ACTION))

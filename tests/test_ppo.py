@@ -9,7 +9,11 @@ from stable_baselines3.common.vec_env import VecCheckNan
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from agents.ppo import BuildingVecEnv, evaluate_policy_weeks, load_policy, policy_actions, save_policy, train_ppo
+from buildenv.env.observations import observation_size
 from buildenv.errors import BuildingEnvError
+
+# the default site's BMS changes 11 of the 12 settings (not the supply air), each day of the week
+N_ACTION = 7 * 11
 
 N_ENVS = 8
 
@@ -44,12 +48,16 @@ def test_adapter_steps_with_same_step_autoreset_and_terminal_observation(vec):
     checked = VecCheckNan(vec, raise_exception=True)  # SB3's VecEnv sanity wrapper: no NaN/inf in or out
     vec.seed(7)
     obs = checked.reset()
-    assert obs.shape == (N_ENVS, 75) and obs.dtype == np.float32 and vec.observation_space.contains(obs[0])
+    assert (
+        obs.shape == (N_ENVS, observation_size("compact"))
+        and obs.dtype == np.float32
+        and vec.observation_space.contains(obs[0])
+    )
     weeks = np.array([info["week"] for info in vec.reset_infos])
     assert set(weeks) <= {12, 13}
     vec.seed(7)
     assert np.array_equal(checked.reset(), obs)  # seeded resets are reproducible
-    actions = np.random.default_rng(0).uniform(-1, 1, (N_ENVS, 84)).astype(np.float32)
+    actions = np.random.default_rng(0).uniform(-1, 1, (N_ENVS, N_ACTION)).astype(np.float32)
     new_obs, rewards, dones, infos = checked.step(actions)
     assert rewards.shape == (N_ENVS,) and rewards.dtype == np.float32 and dones.all()  # one-week episodes
     assert isinstance(infos, list) and len(infos) == N_ENVS
@@ -80,7 +88,7 @@ def test_tiny_ppo_trains_and_is_scored_on_a_held_out_week(tiny_model, env):
     model, _ = tiny_model
     assert model.num_timesteps == 2 * N_ENVS * 16
     [result] = evaluate_policy_weeks(model, weeks=[12], env=env)
-    assert result.week == 12 and result.action.shape == (84,) and np.all(np.abs(result.action) <= 1.0)
+    assert result.week == 12 and result.action.shape == (N_ACTION,) and np.all(np.abs(result.action) <= 1.0)
     assert np.isfinite(result.scores["reward"]) and result.scores["energy_term"] > 0
     assert 0.0 < result.seconds < 1.0
     # started at the historical settings, a barely trained policy stays close to them

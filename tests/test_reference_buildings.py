@@ -12,12 +12,14 @@ from buildenv import catalogue as cat
 from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.energyplus.reference import (
     _run_period_rows,
+    design_occupants_per_m2,
     detect_schedule_map,
     historical_settings,
     reference_idf,
     run_reference,
     serves_24h_space,
 )
+from buildenv.energyplus.ventilation_code import code_minimum_ventilation_ach
 
 START = dt.date(2019, 11, 4)  # a Monday; Chicago in November: mild enough for the ASHRAE large office
 
@@ -136,3 +138,13 @@ def test_central_supply_air_is_read_where_a_loop_holds_its_own_temperature():
     assert set(recorded_supply_air(settings, supply + 30.0)[..., j].ravel()) == {cat.get("supply_air_c").max}
     others = [k for k in range(len(cat.SETTING_NAMES)) if k != j]
     np.testing.assert_array_equal(recorded[..., others], settings[..., others])
+
+
+def test_design_occupants_come_from_the_models_people_per_floor_area():
+    # the DOE 2004 offices: 18.58 m2 per person (200 ft2), the large office's basement half as dense
+    for building in ("medium_office", "large_office"):
+        density = design_occupants_per_m2(read_idf(reference_idf(building)))
+        assert density == pytest.approx(1 / 18.58)
+        # ASHRAE 62.1 at that density, in the model's air changes: the lower ventilation limit of its stand-in
+        assert code_minimum_ventilation_ach(density) == pytest.approx((2.5 / 18.58 + 0.3) * 3.6 / 3.5)
+    assert design_occupants_per_m2([("People", "p", "zone", "sched", "People", "12")]) is None  # a head count

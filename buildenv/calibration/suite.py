@@ -9,7 +9,6 @@ left at a catalogue bound. :func:`summarise` gives the shares that meet Guidelin
 
 from __future__ import annotations
 
-import json
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -17,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv.errors import BuildenvError
+from buildenv.jsonio import dumps
 from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT
 from buildenv.sites.suite import CASE_FIELDS, read_manifest
 
@@ -74,7 +74,8 @@ def calibrate_suite(
     for record in tqdm(records, desc="calibrate", unit="site", disable=not progress):
         rows.append(calibrate_case(record, surrogate, seed, max_evaluations))
     path = Path(suite) / RESULTS
-    path.write_text(json.dumps({"rows": rows, "summary": summarise(rows)}, indent=1) + "\n", encoding="utf-8")
+    text = dumps({"rows": rows, "summary": summarise(rows)}, where=str(path), nonfinite="null", indent=1)
+    path.write_text(text + "\n", encoding="utf-8")
     return rows
 
 

@@ -16,11 +16,20 @@ week_in_run     (weeks,)                   0 for a run's first week; week i-1 of
 week_of_year    (weeks,)                   0-51 (weeks start on Mondays)
 weather_index   (weeks,)                   index into ``weather_names`` (the climate)
 ==============  =========================  ==========================================================
+
+The manifest records, under ``files``, each data file's size, modification time and SHA-256
+(:func:`data_file_record`), and under ``command`` the ``buildenv simulate`` command that made it.
+:func:`open_dataset` hashes ``dataset.h5`` again when its size or modification time differs from the
+manifest's (a copy, an edit; hashing a 40000-week, 476 MB file takes about 0.5 s with the file in the page
+cache) and refuses a file whose bytes changed, or that HDF5 cannot read, with one line naming the file and the
+command to regenerate it. A manifest written before checksums were recorded loads without the check.
 """
 
 from __future__ import annotations
 
+import hashlib
 import json
+import shlex
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -29,6 +38,8 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.errors import DatasetError
 
+DATA_FILE = "dataset.h5"
+MANIFEST_FILE = "manifest.json"
 SPLITS = ("random", "weather_weeks", "buildings", "climate")
 ARRAYS = (
     "theta",
@@ -158,17 +169,89 @@ class Dataset:
         return {name: np.flatnonzero(np.isin(groups, part)) for name, part in zip(("train", "val", "test"), parts)}
 
 
+def data_file_record(path: str | Path) -> dict:
+    """What a manifest records of a data file: ``{"bytes": size, "mtime_ns": modification time (ns),
+    "sha256": hex digest}``."""
+    stat = Path(path).stat()
+    return {"bytes": stat.st_size, "mtime_ns": stat.st_mtime_ns, "sha256": _sha256(path)}
+
+
+def _sha256(path: str | Path) -> str:
+    digest = hashlib.sha256()
+    with open(path, "rb") as handle:
+        while block := handle.read(1 << 20):
+            digest.update(block)
+    return digest.hexdigest()
+
+
+def simulate_command(directory: str | Path, config: dict) -> str:
+    """The ``buildenv simulate`` command (shell-quoted) that makes the dataset of a manifest's ``config`` in
+    ``directory``."""
+    flags = {"weeks": "--weeks", "seed": "--seed", "weeks_per_run": "--weeks-per-run", "sampling": "--sampling"}
+    words = ["buildenv", "simulate"]
+    for key, flag in flags.items():
+        if key in config:
+            words += [flag, str(config[key])]
+    if config.get("epw"):
+        words += ["--epw", *map(str, config["epw"])]
+    words += ["--zoning", str(config.get("zoning", "single")), "--out", str(directory)]
+    return shlex.join(words)
+
+
+def _regenerate(directory: Path, manifest: dict) -> str:
+    """How to make a damaged dataset again (the end of its error messages): the command of the manifest's
+    config, writing into ``directory`` where the dataset is now (it may have been moved since)."""
+    config = manifest.get("config")
+    command = simulate_command(directory, config) if isinstance(config, dict) else manifest.get("command")
+    if not command:
+        return f"regenerate it: remove {directory} and rerun the `buildenv simulate` command that made it"
+    return f"regenerate it: rm -r {shlex.quote(str(directory))} && {command}"
+
+
+def verify_data_file(path: str | Path, record: dict | None, regenerate: str = "", always: bool = False) -> None:
+    """Check a data file against its manifest ``record`` (:func:`data_file_record`; ``None``: nothing recorded,
+    nothing checked): the size, then the SHA-256 where the modification time differs (``always``: in any case).
+
+    Raises:
+        DatasetError: the file is missing, or its size or checksum differs from the record; one line naming the
+            file, ending with ``regenerate`` (how to make it again).
+    """
+    path = Path(path)
+    tail = f"; {regenerate}" if regenerate else ""
+    if record is None:
+        return
+    try:
+        stat = path.stat()
+    except OSError as exc:
+        raise DatasetError(f"{path}: cannot read it ({exc.strerror}){tail}") from None
+    if stat.st_size != record.get("bytes"):
+        raise DatasetError(
+            f"{path}: {stat.st_size} bytes, the manifest recorded {record.get('bytes')} (truncated or changed){tail}"
+        )
+    if not always and stat.st_mtime_ns == record.get("mtime_ns"):
+        return
+    digest = _sha256(path)
+    if digest != record.get("sha256"):
+        raise DatasetError(
+            f"{path}: SHA-256 {digest[:16]}... differs from the manifest's {str(record.get('sha256'))[:16]}... "
+            f"(bytes changed since it was written){tail}"
+        )
+
+
 def open_dataset(directory: str | Path) -> Dataset:
     """Open a finished campaign directory.
 
     Raises:
         DatasetError: the directory is missing, unfinished (no manifest: rerun the same ``buildenv simulate``
-            command to resume it) or was made with another variable catalogue.
+            command to resume it) or was made with another variable catalogue; its manifest is not JSON; its
+            ``dataset.h5`` is missing, differs from the checksum in the manifest (:func:`verify_data_file`), is
+            not a readable HDF5 file or lacks an array. Each in one line naming the file and, for the data file,
+            the command that makes it again.
     """
     import h5py
 
     directory = Path(directory)
-    manifest_path = directory / "manifest.json"
+    manifest_path = directory / MANIFEST_FILE
     if not directory.is_dir():
         raise DatasetError(f"dataset directory not found: {directory}")
     if not manifest_path.is_file():
@@ -176,11 +259,46 @@ def open_dataset(directory: str | Path) -> Dataset:
             f"{directory} is not a finished dataset (no manifest.json); rerun the same "
             "`buildenv simulate` command to resume it"
         )
-    manifest = json.loads(manifest_path.read_text())
+    try:
+        manifest = json.loads(manifest_path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DatasetError(
+            f"{manifest_path}: not readable JSON ({exc}); regenerate the dataset: remove {directory} and rerun the "
+            "`buildenv simulate` command that made it (campaign.json holds its config)"
+        ) from None
+    if not isinstance(manifest, dict):
+        raise DatasetError(f"{manifest_path}: not a dataset manifest (a JSON {type(manifest).__name__})")
     if manifest.get("catalogue_hash") != cat.catalogue_hash():
         raise DatasetError(
             f"{directory} was made with catalogue {manifest.get('catalogue_hash')}, this buildenv "
             f"has {cat.catalogue_hash()}: re-simulate it"
         )
-    h5 = h5py.File(directory / "dataset.h5", "r")
-    return Dataset(directory, manifest, json.loads(h5.attrs["weather_names"]), h5)
+    data, regenerate = directory / DATA_FILE, _regenerate(directory, manifest)
+    if not data.is_file():
+        raise DatasetError(f"{data}: missing; {regenerate}")
+    files = manifest.get("files")
+    verify_data_file(data, files.get(DATA_FILE) if isinstance(files, dict) else None, regenerate)
+    try:
+        h5 = h5py.File(data, "r")
+    except OSError as exc:
+        raise DatasetError(f"{data}: not a readable HDF5 file ({_first_line(exc)}); {regenerate}") from None
+    try:
+        weather_names = json.loads(h5.attrs["weather_names"])
+        missing = [name for name in ARRAYS if name not in h5]
+        if missing:
+            raise DatasetError(f"{data}: no array {missing[0]!r}; {regenerate}")
+        lengths = {name: h5[name].shape[0] for name in ARRAYS}
+        if len(set(lengths.values())) > 1:
+            raise DatasetError(f"{data}: arrays of different lengths {lengths}; {regenerate}")
+    except (OSError, KeyError, ValueError, TypeError) as exc:
+        h5.close()
+        raise DatasetError(f"{data}: damaged HDF5 structure ({_first_line(exc)}); {regenerate}") from None
+    except DatasetError:
+        h5.close()
+        raise
+    return Dataset(directory, manifest, weather_names, h5)
+
+
+def _first_line(exc: BaseException) -> str:
+    lines = str(exc).strip().splitlines()
+    return lines[0] if lines else type(exc).__name__

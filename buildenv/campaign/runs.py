@@ -13,7 +13,10 @@ are consolidated into ``dataset.h5``; ``manifest.json`` is written last, so a di
 never mistaken for a complete dataset.
 
 Runs execute in worker processes (EnergyPlus states are not thread-safe; workers are recycled because each
-run leaves a few MB behind) or, with ``scheduler``, on a Dask cluster.
+run leaves a few MB behind) or, with ``scheduler``, on a Dask cluster. Local runs work in one temporary folder
+per campaign, named after its process (``buildenv-campaign-<pid>-*`` in the system's temporary folder) and
+removed when the campaign ends or fails; one left by a killed campaign is removed when the next starts
+(:func:`remove_stale_run_folders`).
 """
 
 from __future__ import annotations
@@ -22,6 +25,7 @@ import json
 import logging
 import math
 import os
+import re
 import shutil
 import tempfile
 import time
@@ -34,6 +38,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.campaign.dataset import DATA_FILE, data_file_record, simulate_command
 from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError, DatasetError, SimulationError
@@ -46,6 +51,9 @@ log = logging.getLogger(__name__)
 MAX_FAILED_SHARE = 0.01
 TASKS_PER_WORKER = 50  # recycle worker processes after this many EnergyPlus runs (each leaves ~3 MB behind)
 DEFAULT_CLIMATES: tuple[str, ...] = tuple(shipped_weather())
+#: a campaign's temporary folder: ``tempfile.mkdtemp(prefix=f"{CAMPAIGN_TMP_PREFIX}{pid}-")``, its runs' inside
+CAMPAIGN_TMP_PREFIX = "buildenv-campaign-"
+_CAMPAIGN_TMP = re.compile(re.escape(CAMPAIGN_TMP_PREFIX) + r"(\d+)-[a-z0-9_]{8}")  # mkdtemp: 8 random characters
 
 
 @dataclass
@@ -132,13 +140,14 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     return tasks
 
 
-def run_task(task: RunTask) -> tuple[int, np.ndarray | None, str]:
+def run_task(task: RunTask, tmp_root: str | None = None) -> tuple[int, np.ndarray | None, str]:
     """Simulate one run (in a worker process); returns ``(run_id, outputs (weeks, 168, 8), "")``, or
-    ``(run_id, None, message)`` when EnergyPlus refused the building (a :class:`SimulationError`)."""
+    ``(run_id, None, message)`` when EnergyPlus refused the building (a :class:`SimulationError`). EnergyPlus
+    runs in a temporary folder inside ``tmp_root`` (default: the system's temporary folder), removed after."""
     from buildenv.energyplus.simulate import simulate_weeks
 
     try:
-        with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-") as tmp:
+        with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-", dir=tmp_root) as tmp:
             result = simulate_weeks(
                 task.theta,
                 task.settings,
@@ -166,7 +175,7 @@ def _record_failure(out: Path, task: RunTask, message: str) -> dict:
         "weeks": task.n_weeks,
         "error": message,
     }
-    (out / "shards" / f"run_{task.run_id:06d}.failed.json").write_text(json.dumps(record, indent=2))
+    (out / "shards" / f"run_{task.run_id:06d}.failed.json").write_text(json.dumps(record, indent=2, allow_nan=False))
     return record
 
 
@@ -208,19 +217,62 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
     else:
         out.mkdir(parents=True, exist_ok=True)
         tmp = campaign_file.with_suffix(".tmp")
-        tmp.write_text(json.dumps(record, indent=2))
+        tmp.write_text(json.dumps(record, indent=2, allow_nan=False))
         os.replace(tmp, campaign_file)
     (out / "shards").mkdir(exist_ok=True)
 
 
-def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np.ndarray | None, str]]:
+def _process_alive(pid: int) -> bool:
+    """Whether process ``pid`` exists (POSIX; another user's counts)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:
+        return True
+    return True
+
+
+def remove_stale_run_folders(root: str | Path | None = None) -> list[Path]:
+    """Remove the temporary folders that campaigns killed before cleaning up left in ``root`` (default: the
+    system's temporary folder): only this project's (``buildenv-campaign-<pid>-*``), only this user's, and only
+    those whose process is gone, so that a campaign running beside this one keeps its own. Does nothing where
+    processes cannot be looked up (not POSIX). Returns the folders removed."""
+    if os.name != "posix":
+        return []
+    root = Path(tempfile.gettempdir() if root is None else root)
+    try:
+        entries = list(os.scandir(root))
+    except OSError:
+        return []
+    removed = []
+    for entry in entries:
+        match = _CAMPAIGN_TMP.fullmatch(entry.name)
+        try:
+            if not match or not entry.is_dir(follow_symlinks=False):
+                continue
+            if entry.stat(follow_symlinks=False).st_uid != os.getuid():
+                continue
+            pid = int(match.group(1))
+            if pid == os.getpid() or _process_alive(pid):
+                continue
+        except (OSError, OverflowError):
+            continue
+        shutil.rmtree(entry.path, ignore_errors=True)
+        removed.append(Path(entry.path))
+    return removed
+
+
+def _execute_local(
+    tasks: list[RunTask], workers: int, tmp_root: str | None = None
+) -> Iterator[tuple[int, np.ndarray | None, str]]:
     if workers <= 1:
         for task in tasks:
-            yield run_task(task)
+            yield run_task(task, tmp_root)
         return
     ctx = get_context("spawn")
     with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, max_tasks_per_child=TASKS_PER_WORKER) as pool:
-        pending = {pool.submit(run_task, t) for t in tasks[: 2 * workers]}
+        pending = {pool.submit(run_task, t, tmp_root) for t in tasks[: 2 * workers]}
         queue = iter(tasks[2 * workers :])
         try:
             while pending:
@@ -229,7 +281,7 @@ def _execute_local(tasks: list[RunTask], workers: int) -> Iterator[tuple[int, np
                     yield fut.result()
                     nxt = next(queue, None)
                     if nxt is not None:
-                        pending.add(pool.submit(run_task, nxt))
+                        pending.add(pool.submit(run_task, nxt, tmp_root))
         finally:
             for fut in pending:
                 fut.cancel()
@@ -265,6 +317,10 @@ def run_campaign(
         progress: show a progress bar (weeks done / total).
         max_failed_share: share of the planned runs EnergyPlus may refuse (a building whose warm-up never
             settles, say): those are left out of the dataset and listed in the manifest's ``failed_runs``.
+
+    Local runs work in a temporary folder of this campaign's, removed when it ends or fails; folders left by
+    killed campaigns are removed first (:func:`remove_stale_run_folders`).
+
     Raises:
         DatasetError: ``out`` holds a different campaign.
         SimulationError: more runs failed than ``max_failed_share`` allows (the message quotes the first);
@@ -275,6 +331,8 @@ def run_campaign(
     out = Path(out)
     tasks = plan_campaign(config)
     _prepare_directory(out, config)
+    for stale in remove_stale_run_folders():
+        log.info("removed %s, left by a killed campaign", stale)
     if (out / "manifest.json").exists():
         log.info("%s is already complete", out)
         return out / "dataset.h5"
@@ -283,21 +341,27 @@ def run_campaign(
     by_id = {t.run_id: t for t in tasks}
     started = time.perf_counter()
     workers = workers or os.cpu_count() or 1
-    results = _execute_dask(todo, scheduler) if scheduler else _execute_local(todo, workers)
+    tmp_root = None if scheduler else tempfile.mkdtemp(prefix=f"{CAMPAIGN_TMP_PREFIX}{os.getpid()}-")
+    results = _execute_dask(todo, scheduler) if scheduler else _execute_local(todo, workers, tmp_root)
     failed: dict[int, dict] = {}
-    with tqdm(total=config.weeks, initial=done_weeks, unit="week", desc="simulate", disable=not progress) as bar:
-        for run_id, outputs, error in results:
-            if outputs is None:
-                failed[run_id] = _record_failure(out, by_id[run_id], error)
-                log.warning("run %d left out of the campaign: %s", run_id, error)
-                if len(failed) > max_failed_share * len(tasks):
-                    raise SimulationError(
-                        f"{out}: {len(failed)} of {len(tasks)} EnergyPlus runs failed (more than "
-                        f"{max_failed_share:.0%}); first: {next(iter(failed.values()))['error']}"
-                    )
-            else:
-                _write_shard(out, by_id[run_id], outputs)
-            bar.update(by_id[run_id].n_weeks)
+    try:
+        with tqdm(total=config.weeks, initial=done_weeks, unit="week", desc="simulate", disable=not progress) as bar:
+            for run_id, outputs, error in results:
+                if outputs is None:
+                    failed[run_id] = _record_failure(out, by_id[run_id], error)
+                    log.warning("run %d left out of the campaign: %s", run_id, error)
+                    if len(failed) > max_failed_share * len(tasks):
+                        raise SimulationError(
+                            f"{out}: {len(failed)} of {len(tasks)} EnergyPlus runs failed (more than "
+                            f"{max_failed_share:.0%}); first: {next(iter(failed.values()))['error']}"
+                        )
+                else:
+                    _write_shard(out, by_id[run_id], outputs)
+                bar.update(by_id[run_id].n_weeks)
+    finally:
+        results.close()  # the workers stopped (their runs finished) before their folder goes
+        if tmp_root is not None:
+            shutil.rmtree(tmp_root, ignore_errors=True)
     elapsed = time.perf_counter() - started
     kept = [t for t in tasks if t.run_id not in failed]
     path = _consolidate(out, config, kept)
@@ -316,9 +380,11 @@ def run_campaign(
         "workers": None if scheduler else workers,
         "scheduler": scheduler,
         "created": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "command": simulate_command(out.resolve(), asdict(config)),
+        "files": {DATA_FILE: data_file_record(path)},  # checked by buildenv.campaign.dataset.open_dataset
     }
     tmp = out / "manifest.json.tmp"
-    tmp.write_text(json.dumps(manifest, indent=2))
+    tmp.write_text(json.dumps(manifest, indent=2, allow_nan=False))
     os.replace(tmp, out / "manifest.json")
     shutil.rmtree(out / "shards", ignore_errors=True)
     return path
@@ -367,7 +433,7 @@ def _consolidate(out: Path, config: CampaignConfig, tasks: list[RunTask]) -> Pat
             d["weather_index"][sl] = task.weather_index
             offset += k
         h5.attrs["catalogue_hash"] = cat.catalogue_hash()
-        h5.attrs["weather_names"] = json.dumps(list(config.epw))
+        h5.attrs["weather_names"] = json.dumps(list(config.epw), allow_nan=False)
         for group, names in (
             ("theta", cat.THETA_NAMES),
             ("settings", cat.SETTING_NAMES),
@@ -375,8 +441,8 @@ def _consolidate(out: Path, config: CampaignConfig, tasks: list[RunTask]) -> Pat
             ("weather", cat.WEATHER_NAMES),
             ("outputs", cat.OUTPUT_NAMES),
         ):
-            h5[group].attrs["names"] = json.dumps(list(names))
+            h5[group].attrs["names"] = json.dumps(list(names), allow_nan=False)
         units = {v.name: v.unit for v in cat.ALL_VARIABLES}
-        h5.attrs["units"] = json.dumps(units)
+        h5.attrs["units"] = json.dumps(units, allow_nan=False)
     os.replace(tmp, final)
     return final

@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import argparse
-import json
+import sys
 from pathlib import Path
 
 from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, JUDGES, MIN_GAIN
+from buildenv.jsonio import dumps
 
 
 def _settings(args: argparse.Namespace):
@@ -53,22 +54,36 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     from buildenv.sites import load_site
 
     site = load_site(args.site)
-    plot = Path(args.plot) if args.plot else Path(args.site) / "diagnosis.png"
+    # nothing goes into the site folder unless asked: the plot's default place is there only with --save
+    plot = Path(args.plot) if args.plot else (Path(args.site) / "diagnosis.png" if args.save else None)
     settings = _settings(args)
     joint = tuple(args.joint_test)
     check_joint_candidates(joint, with_declared_effects(site, settings))  # names checked before the long diagnosis
     surrogate = load_metamodel(args.checkpoint)
     result = diagnose(site, surrogate, settings, progress=not args.quiet, plot=plot)
-    saved = None if args.no_save else save_extended_model(site, result)
+    saved = save_extended_model(site, result) if args.save else None
     result.pop("_fit")
     if joint:
         result["joint_tests"] = joint_calibration_tests(site, surrogate, joint, settings)
     result["saved"] = str(saved) if saved else None
-    text = json.dumps(result, indent=None if args.json else 2, default=float)
+    text = dumps(result, where="the diagnosis", nonfinite="null", indent=None if args.json else 2, default=float)
     if args.out:
         Path(args.out).write_text(text + "\n")
-    print(text)
+    print(text, flush=True)
+    print(_save_note(args, result, saved), file=sys.stderr)
     return 0
+
+
+def _save_note(args: argparse.Namespace, result: dict, saved: Path | None) -> str:
+    """The last line of ``buildenv diagnose``: what it wrote into the site folder, or how to make it do so."""
+    if saved:
+        return f"saved: {saved} holds the extended model (the previous calibration under 'without_effects')"
+    if not result["selected"]:
+        return f"nothing saved: no effect selected, {args.site} left as it was"
+    return (
+        f"not saved: {args.site} left as it was; rerun with --save to make the extended model "
+        f"({', '.join(result['selected'])}) the site's model (calibration.json) and plot diagnosis.png there"
+    )
 
 
 def _cmd_diagnose_check(args: argparse.Namespace) -> int:
@@ -90,8 +105,11 @@ def _cmd_diagnose_check(args: argparse.Namespace) -> int:
         known_parameters=parse_known(args.known),
         weeks=WEEKS if args.weeks is None else args.weeks,
     )
-    (Path(args.out) / "check.json").write_text(json.dumps(result, indent=1, default=float) + "\n")
-    print(json.dumps(result if args.json else result["summary"], indent=None if args.json else 2, default=float))
+    (Path(args.out) / "check.json").write_text(
+        dumps(result, where="the blind check", nonfinite="null", indent=1, default=float) + "\n"
+    )
+    shown = result if args.json else result["summary"]
+    print(dumps(shown, where="the blind check", nonfinite="null", indent=None if args.json else 2, default=float))
     return 0
 
 
@@ -216,11 +234,15 @@ def register(sub) -> None:
         metavar="NAME",
         help="an effect the building is known to have (modelled from the start); repeatable",
     )
-    p.add_argument("--plot", default=None, help="localisation PNG (default: SITE/diagnosis.png)")
+    p.add_argument("--plot", default=None, help="localisation PNG (default: SITE/diagnosis.png with --save, else none)")
     p.add_argument("--out", default=None, help="also write the JSON here")
     p.add_argument(
-        "--no-save", action="store_true", help="do not make the extended model the site's model (calibration.json)"
+        "--save",
+        action="store_true",
+        help="make the extended model the site's model (SITE/calibration.json) and plot SITE/diagnosis.png; "
+        "without it nothing is written into the site folder",
     )
+    p.add_argument("--no-save", dest="save", action="store_false", help="the default: the site folder left as it is")
     p.add_argument(
         "--joint-test",
         action="append",

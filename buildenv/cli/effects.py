@@ -7,8 +7,9 @@ reference-building stand-in, :mod:`buildenv.energyplus.injections`) are defined 
 from __future__ import annotations
 
 import argparse
-import json
 from typing import Any
+
+from buildenv.jsonio import dumps
 
 
 def catalogue_rows() -> list[dict[str, Any]]:
@@ -87,7 +88,7 @@ def named_first_text(name: str) -> str | None:
 def _cmd_effects(args: argparse.Namespace) -> int:
     rows = catalogue_rows()
     if args.json:
-        print(json.dumps(rows))
+        print(dumps(rows, where="the effects catalogue"))
         return 0
     for r in rows:
         lo, hi = r["magnitude_range"]

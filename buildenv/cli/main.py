@@ -34,6 +34,7 @@ from buildenv.campaign.dataset import SPLITS
 from buildenv.campaign.runs import MAX_FAILED_SHARE
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
+from buildenv.jsonio import dumps
 from buildenv.metamodel.surrogate import CONTEXT_HOURS
 from buildenv.metamodel.threads import one_blas_thread
 
@@ -54,7 +55,7 @@ def _parse_assignments(items: list[str]) -> dict[str, float]:
 def _cmd_catalogue(args: argparse.Namespace) -> int:
     rows = cat.describe([args.group] if args.group else None)
     if args.json:
-        print(json.dumps({"catalogue_hash": cat.catalogue_hash(), "variables": rows}, indent=2))
+        print(dumps({"catalogue_hash": cat.catalogue_hash(), "variables": rows}, where="the catalogue", indent=2))
         return 0
     print(f"catalogue {cat.catalogue_hash()}")
     fmt = "{:<14} {:<32} {:>10} {:>9} {:>9} {:>7} {:<12} {}"
@@ -95,7 +96,7 @@ def _cmd_weather(args: argparse.Namespace) -> int:
         "tamb_max_c": float(tamb.max()),
         "ghi_annual_kwh_m2": round(float(w.channel("IGLOB_H").sum()) / 1000, 1),
     }
-    print(json.dumps(info, indent=2))
+    print(dumps(info, where=f"the summary of {w.path}", indent=2))
     return 0
 
 
@@ -116,7 +117,7 @@ def _cmd_morph_weather(args: argparse.Namespace) -> int:
             "give --out FILE (one morph, the values given) or --out-dir DIR (a random morph per "
             "--epw, values not given drawn with --seed)"
         )
-    print(json.dumps(records, indent=2))
+    print(dumps(records, where="the morphs", indent=2))
     return 0
 
 
@@ -174,9 +175,10 @@ def _simulate_one_week(epw: str, week: int, overrides: dict[str, float], out: Pa
         "occupancy_every_weekday": dict(zip(cat.OCCUPANCY_NAMES, occupancy[0, 0].tolist())),
         "theta_build": dict(zip(cat.THETA_NAMES, theta.tolist())),
     }
-    (out / "week.json").write_text(json.dumps(record, indent=2))
+    text = dumps(record, where="the simulated week", hint="EnergyPlus gave non-finite outputs", indent=2)
+    (out / "week.json").write_text(text)
     if as_json:
-        print(json.dumps(record, indent=2))
+        print(text)
     else:
         print(f"One simulated week: {epw}, week {week} of the year, {area:.0f} m2 office (EnergyPlus shoebox)")
         for key, value in summary.items():
@@ -216,14 +218,15 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
             f"buildenv simulate: run {run['run_id']} ({run['weeks']} weeks) left out: {run['error']}", file=sys.stderr
         )
     print(
-        json.dumps(
+        dumps(
             {
                 "dataset": str(path),
                 "weeks": manifest["weeks"],
                 "runs": manifest["runs"],
                 "failed_runs": len(failed),
                 "seconds_last_session": manifest["seconds_last_session"],
-            }
+            },
+            where="the campaign summary",
         )
     )
     return 0
@@ -243,7 +246,14 @@ def _positive_minutes(text: str) -> float:
 def _cmd_train(args: argparse.Namespace) -> int:
     from buildenv.metamodel.training import train_metamodel
 
-    config = json.loads(args.model_config) if args.model_config else None
+    try:
+        config = json.loads(args.model_config) if args.model_config else None
+    except json.JSONDecodeError:
+        config = args.model_config  # not JSON: refused as not an object
+    if config is not None and not isinstance(config, dict):
+        raise BuildenvError(f"--model-config {args.model_config!r}: expected a JSON object, e.g. '{{\"layers\": 2}}'")
+    if not Path(args.out).name:
+        raise BuildenvError(f"--out {args.out!r}: expected the checkpoint's file path, e.g. out/model.pt")
     result = train_metamodel(
         args.data,
         args.model,
@@ -266,7 +276,8 @@ def _cmd_train(args: argparse.Namespace) -> int:
         device=args.device,
         minutes=args.minutes,
     )
-    print(json.dumps(result, indent=None if args.json else 2))
+    hint = f"the training diverged or the dataset holds non-finite values ({args.out} is saved)"
+    print(dumps(result, where="the training result", hint=hint, indent=None if args.json else 2))
     return 0
 
 
@@ -274,7 +285,8 @@ def _cmd_evaluate(args: argparse.Namespace) -> int:
     from buildenv.metamodel.training import evaluate_metamodel
 
     result = evaluate_metamodel(args.checkpoint, args.data, subset=args.subset)
-    print(json.dumps(result, indent=None if args.json else 2))
+    hint = f"the metamodel's predictions or the outputs in {args.data} hold non-finite values"
+    print(dumps(result, where="the evaluation result", hint=hint, indent=None if args.json else 2))
     return 0
 
 
@@ -451,6 +463,13 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
+def _one_line_errors() -> tuple[type[Exception], ...]:
+    """The errors a command reports in one line: buildenv's, and a checkpoint that metamodels cannot read (looked
+    up only once metamodels has been imported: importing it here would import torch for every command)."""
+    checkpoint = sys.modules.get("metamodels.checkpoint")
+    return (BuildenvError,) if checkpoint is None else (BuildenvError, checkpoint.CheckpointFormatError)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``buildenv`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
@@ -458,7 +477,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with one_blas_thread():  # numpy's BLAS threads would fight the metamodel's (buildenv.metamodel.threads)
             return args.func(args)
-    except BuildenvError as exc:
+    except _one_line_errors() as exc:  # evaluated when an exception is raised, after the command's imports
         print(f"buildenv {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and the like

@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import argparse
 import datetime as dt
-import json
 import sys
 from pathlib import Path
 
 from buildenv.errors import BuildenvError
+from buildenv.jsonio import dumps
 
 
 def parse_start(text: str, year: int) -> dt.date:
@@ -120,7 +120,7 @@ def _cmd_site_reference(args: argparse.Namespace) -> int:
     info["meters"] = list(end_uses)
     if effects:
         info["effects"] = [{"name": n, "magnitude": m} for n, m in effects]
-    print(json.dumps(info))
+    print(dumps(info, where="the site", nonfinite="null"))
     return 0
 
 
@@ -147,7 +147,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
         "consumption_kwh_per_week": np.round(np.nansum(site.consumption_kwh, axis=1), 1).tolist(),
         "calibrated": site.calibration is not None,
     }
-    print(json.dumps(info, indent=2))
+    print(dumps(info, where="the site summary", nonfinite="null", indent=2))
     return 0
 
 
@@ -159,7 +159,12 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
     from buildenv.sites import load_site
 
     site = load_site(args.site)
-    weeks = [int(w) for w in args.weeks.split(",")] if args.weeks else None
+    try:
+        weeks = [int(w) for w in args.weeks.split(",")] if args.weeks else None
+    except ValueError:
+        raise BuildenvError(
+            f"--weeks {args.weeks!r}: give week indices of the site separated by commas, e.g. 0,1"
+        ) from None
     result = calibrate_site(
         site,
         load_metamodel(args.checkpoint),
@@ -176,7 +181,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
             load_site(args.site), load_metamodel(args.checkpoint), result, Path(args.site) / "calibration.png"
         )
     )
-    print(json.dumps(result, indent=None if args.json else 2))
+    print(dumps(result, where="the calibration", nonfinite="null", indent=None if args.json else 2))
     for note in (at_bounds_note(result), runs_note(result), result["verdict"]["line"]):
         if note:
             print(note, file=sys.stderr)

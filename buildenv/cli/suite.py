@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import argparse
-import json
 import sys
+
+from buildenv.jsonio import dumps
 
 
 def _split(text: str | None) -> list[str] | None:
@@ -22,7 +23,8 @@ def _cmd_suite_list(args: argparse.Namespace) -> int:
 
     cases = _cases(args)
     if args.json:
-        print(json.dumps([{"name": c.name, "part": c.part, "start": c.start().isoformat()} for c in cases]))
+        cases_json = [{"name": c.name, "part": c.part, "start": c.start().isoformat()} for c in cases]
+        print(dumps(cases_json, where="the suite cases"))
         return 0
     print(f"{'case':<52} {'zone':<5} {'part':<12} start")
     for c in cases:
@@ -42,7 +44,8 @@ def _cmd_suite_make(args: argparse.Namespace) -> int:
     for r in records:
         if r["status"] == "refused":
             print(f"refused {r['building']}-{r['climate']}-{r['season']}: {r['reason']}", file=sys.stderr)
-    print(json.dumps({"suite": args.out, "cases": len(records), "sites": made, "refused": len(records) - made}))
+    made_json = {"suite": args.out, "cases": len(records), "sites": made, "refused": len(records) - made}
+    print(dumps(made_json, where="the suite"))
     return 0
 
 
@@ -54,7 +57,7 @@ def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
         args.suite, parts, args.checkpoint, seed=args.seed, max_evaluations=args.evaluations, progress=not args.quiet
     )
     if args.json:
-        print(json.dumps({"rows": rows, "summary": summarise(rows)}))
+        print(dumps({"rows": rows, "summary": summarise(rows)}, where="the suite calibration", nonfinite="null"))
         return 0
     print(f"{'site':<52} {'part':<12} {'CV_Q %':>7} {'NMBE_Q %':>8} {'R2_T':>6} {'G14':>4} {'bounds':>6}")
     for r in rows:
@@ -80,7 +83,7 @@ def _cmd_suite_verify(args: argparse.Namespace) -> int:
         args.suite, parts, n=args.random, seed=args.seed, metamodel=args.metamodel, progress=not args.quiet
     )
     if args.json:
-        print(json.dumps({"rows": rows}))
+        print(dumps({"rows": rows}, where="the response check", nonfinite="null"))
         return 0
     print(f"{'site':<52} {'part':<12} {'error p90':>9} {'bias':>6} {'Spearman':>8} {'comfort K':>9}")
     for r in rows:

@@ -52,6 +52,7 @@ from buildenv.energyplus.injections import (
 )
 from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, clean_outputs, run_energyplus
 from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
+from buildenv.energyplus.ventilation_code import code_minimum_ventilation_ach
 from buildenv.errors import ReferenceBuildingError, SimulationError
 from buildenv.schedules import hourly_schedules
 from buildenv.weather.epw import epw_day_of_year, resolve_epw
@@ -334,13 +335,35 @@ def historical_ventilation_ach(building: str | Path) -> float:
     return float(var.snap(np.clip(design, var.min, var.max)))
 
 
+def design_occupants_per_m2(objects: list[IdfObject]) -> float | None:
+    """The design occupant density of a model (people per m2): the median over its ``People`` objects given per
+    floor area (``People/Area`` or ``Area/Person``); ``None`` when none is."""
+    densities = []
+    for o in of_type(objects, "People"):
+        method = o[4].strip().lower() if len(o) > 4 else ""
+        try:
+            if method == "people/area":
+                densities.append(float(o[6]))
+            elif method == "area/person" and float(o[7]) > 0.0:
+                densities.append(1.0 / float(o[7]))
+        except (IndexError, ValueError):
+            continue
+    return float(np.median(densities)) if densities else None
+
+
 def reference_bms(building: str | Path) -> tuple[tuple[str, ...], dict[str, tuple[float, float]]]:
     """What a reference building's site declares in ``[bms]``: ``(controllable, setting_limits)``, the settings
     its schedules map (all but :data:`UNMAPPED_SETTINGS`, catalogue order) and ``ventilation_ach`` limited to
-    ``[catalogue min, historical_ventilation_ach(building)]`` (1/h): above its design the model delivers no more
-    outdoor air."""
+    ``[ASHRAE 62.1 minimum for its design occupants, historical_ventilation_ach(building)]`` (1/h, the minimum
+    at least the catalogue's): above its design the model delivers no more outdoor air, below the code minimum
+    no BMS may go."""
     controllable = tuple(n for n in cat.SETTING_NAMES if n not in UNMAPPED_SETTINGS)
-    return controllable, {"ventilation_ach": (cat.get("ventilation_ach").min, historical_ventilation_ach(building))}
+    design = historical_ventilation_ach(building)
+    occupants = design_occupants_per_m2(read_idf(reference_idf(building)))
+    lowest = cat.get("ventilation_ach").min
+    if occupants is not None:
+        lowest = min(max(lowest, round(code_minimum_ventilation_ach(occupants), 2)), design)
+    return controllable, {"ventilation_ach": (lowest, design)}
 
 
 def zone_outdoor_air_m3_s(eio: Path) -> dict[str, float]:

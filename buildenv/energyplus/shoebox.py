@@ -17,12 +17,17 @@ Modelling choices (each a constant below, so that a reader can find and change i
   outside it.
 - Fan coils: ``ZoneHVAC:IdealLoadsAirSystem`` on a dual-setpoint thermostat, limited to theta's heating and
   cooling power, sensible only (Q_HEAT_OFFICE / Q_AC_OFFICE), setpoints from :mod:`buildenv.schedules`.
-- Air handling unit: ``ZoneHVAC:OutdoorAirUnit``, 100 % outdoor air (``ventilation_ach`` x volume while on)
+- Air handling unit: ``ZoneHVAC:OutdoorAirUnit`` supplying outdoor air (``ventilation_ach`` x volume while on)
   heated by an electric coil (Q_AHU_H) or cooled by a DX coil (Q_AHU_C) to the day's supply temperature
   (``TemperatureControl``), supply fan heat included, balanced by an exhaust fan. With a heat recovery
   effectiveness above 0, a sensible plate exchanger (``HeatExchanger:AirToAir:SensibleAndLatent``, no latent
   transfer) first passes the exhaust stream's heat (leaving the exhaust fan) to the outdoor air, bypassed where
   it would carry that air past, or away from, the supply temperature; at 0 there is no exchanger.
+- Mixed air: with ``minimum_supply_air_ach`` above the outdoor air the unit supplies that minimum, the rest
+  return air, as VAV systems at their boxes' minimum flow do (the zones reheat it). The exchanger then has
+  effectiveness 1 on an exhaust stream of the return air plus the heat-recovered share of the outdoor air, so
+  its outlet is the mixed air (computed on the smaller stream; EnergyPlus's 2:1 imbalance report is expected),
+  and its bypass is the economiser that brings in more outdoor air where that is nearer the supply temperature.
 - Schedules: every hourly schedule is a column of one Schedule:File, so every week may differ.
 - Outputs: hourly, the zones' floor-area weighted mean air temperature and the seven energies summed over
   the zones, in Wh per m2 of floor area.
@@ -95,7 +100,8 @@ SCHEDULE_COLUMNS: tuple[str, ...] = (
     "lighting_fraction",
     "equipment_fraction",
     "ventilation_on",
-    "ventilation_fraction",
+    "supply_fraction",
+    "exhaust_fraction",
     "supply_air_c",
 )
 
@@ -161,7 +167,7 @@ def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
 
 
 def zone_hvac_names(zone: str) -> dict[str, str]:
-    """Names of a zone's fan coils (ideal loads), air handling unit, its heat recovery and its coils."""
+    """Names of a zone's fan coils (ideal loads), air handling unit, its heat exchanger and its coils."""
     return {
         "fan_coils": f"{zone} {FAN_COILS}",
         "ahu": f"{zone} AHU",
@@ -279,7 +285,6 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
     """
     weeks = settings.shape[0]
     series = hourly_schedules(settings, occupancy)
-    max_ach = cat.get("ventilation_ach").max
     columns = {
         "heating_setpoint_c": series["heating_setpoint_c"],
         "cooling_setpoint_c": series["cooling_setpoint_c"],
@@ -287,7 +292,7 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
         "lighting_fraction": usage_fraction(series["occupancy_fraction"], theta["light_night_percent"]),
         "equipment_fraction": usage_fraction(series["occupancy_fraction"], theta["pc_night_percent"]),
         "ventilation_on": series["ventilation_on"],
-        "ventilation_fraction": series["ventilation_ach"] / max_ach,
+        **dict(zip(("supply_fraction", "exhaust_fraction"), air_unit_flows(theta, series["ventilation_ach"])[1:])),
         "supply_air_c": series["supply_air_c"],
     }
     block = np.stack([columns[c].reshape(-1) for c in SCHEDULE_COLUMNS], axis=1)  # (weeks*168, n)
@@ -295,6 +300,28 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
     lo = start_week * cat.HOURS_PER_WEEK
     table[lo : lo + weeks * cat.HOURS_PER_WEEK] = block
     return table
+
+
+def air_unit_flows(theta: dict[str, float], ventilation_ach: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
+    """The air handling unit's flows for hourly outdoor air ``ventilation_ach`` (air changes per hour).
+
+    Without a minimum supply flow the unit supplies and exhausts the outdoor air. With one, it supplies at least
+    ``minimum_supply_air_ach`` and exhausts, through an exchanger of effectiveness 1, the return air it mixes in
+    plus the heat-recovered share of the outdoor air, so that the exchanger's outlet is the mixed air.
+
+    Returns:
+        The unit's largest flow (air changes per hour), then its supply and its exhaust flow as fractions of
+        it (each shaped as ``ventilation_ach``).
+    """
+    most = cat.get("ventilation_ach").max
+    minimum = theta["minimum_supply_air_ach"]
+    if minimum <= 0.0:
+        fraction = ventilation_ach / most
+        return most, fraction, fraction
+    largest = max(minimum, most)
+    supply = np.where(ventilation_ach > 0.0, np.maximum(ventilation_ach, minimum), 0.0)
+    exhaust = supply - (1.0 - theta["heat_recovery_effectiveness"]) * ventilation_ach
+    return largest, supply / largest, exhaust / largest
 
 
 def write_schedule_file(
@@ -749,42 +776,65 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         humidification_control_type="None",
     )
 
-    # Air handling unit: outdoor air -> [heat recovery ->] DX cooling coil -> electric heating coil -> supply fan
-    # -> zone; zone -> exhaust fan [-> heat recovery] -> outdoors.
-    oa_flow = cat.get("ventilation_ach").max * share * g.volume_m3 / 3600.0
-    recovery = t["heat_recovery_effectiveness"] > 0.0
-    cooling_inlet = f"{zone} AHU recovered air" if recovery else f"{zone} AHU outdoor air"
+    # Air handling unit: outdoor air -> [heat exchanger ->] DX cooling coil -> electric heating coil -> supply
+    # fan -> zone; zone -> exhaust fan [-> heat exchanger] -> outdoors. With a minimum supply flow the exchanger
+    # passes the exhaust whole (effectiveness 1) and its outlet is the mix of outdoor and return air.
+    largest_ach = air_unit_flows(t, np.zeros(1))[0]
+    flow = largest_ach * share * g.volume_m3 / 3600.0
+    if t["minimum_supply_air_ach"] > 0.0:
+        sensible, latent = 1.0, 1.0
+    else:
+        sensible, latent = t["heat_recovery_effectiveness"], 0.0
+    _add_air_unit(add, zone, names, flow, sensible, latent)
+
+
+def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effectiveness: float, latent: float) -> None:
+    """A zone's air handling unit (``ZoneHVAC:OutdoorAirUnit``) bringing air to the day's supply temperature,
+    on while ``ventilation_on``, its supply and exhaust flows following ``supply_fraction`` and
+    ``exhaust_fraction``.
+
+    Args:
+        add: the epJSON builder's ``add(kind, name, **fields)``.
+        zone: the zone it serves.
+        names: the zone's :func:`zone_hvac_names`.
+        flow_m3_s: its largest supply (and exhaust) air flow (m3/s).
+        effectiveness: sensible effectiveness of the heat exchanger between exhaust and outdoor air (0: none).
+        latent: its latent effectiveness (0-1).
+    """
+    unit = names["ahu"]
+    recovery = effectiveness > 0.0
+    cooling_inlet = f"{unit} recovered air" if recovery else f"{unit} outdoor air"
     add(
         "ZoneHVAC:OutdoorAirUnit",
-        names["ahu"],
+        unit,
         availability_schedule_name="ventilation_on",
         zone_name=zone,
-        outdoor_air_flow_rate=round(oa_flow, 5),
-        outdoor_air_schedule_name="ventilation_fraction",
-        supply_fan_name=f"{zone} AHU supply fan",
+        outdoor_air_flow_rate=round(flow_m3_s, 5),
+        outdoor_air_schedule_name="supply_fraction",
+        supply_fan_name=f"{unit} supply fan",
         supply_fan_placement="DrawThrough",
-        exhaust_fan_name=f"{zone} AHU exhaust fan",
-        exhaust_air_flow_rate=round(oa_flow, 5),
-        exhaust_air_schedule_name="ventilation_fraction",
+        exhaust_fan_name=f"{unit} exhaust fan",
+        exhaust_air_flow_rate=round(flow_m3_s, 5),
+        exhaust_air_schedule_name="exhaust_fraction",
         unit_control_type="TemperatureControl",
         high_air_control_temperature_schedule_name="supply_air_c",
         low_air_control_temperature_schedule_name="supply_air_c",
-        outdoor_air_node_name=f"{zone} AHU outdoor air",
-        airoutlet_node_name=f"{zone} AHU supply",
-        airinlet_node_name=f"{zone} AHU exhaust",
-        supply_fanoutlet_node_name=f"{zone} AHU supply",
-        outdoor_air_unit_list_name=f"{zone} AHU components",
+        outdoor_air_node_name=f"{unit} outdoor air",
+        airoutlet_node_name=f"{unit} supply",
+        airinlet_node_name=f"{unit} exhaust",
+        supply_fanoutlet_node_name=f"{unit} supply",
+        outdoor_air_unit_list_name=f"{unit} components",
     )
     components = [
-        ("CoilSystem:Cooling:DX", f"{zone} AHU cooling system"),
+        ("CoilSystem:Cooling:DX", f"{unit} cooling system"),
         ("Coil:Heating:Electric", names["heating_coil"]),
     ]
     if recovery:
         components.insert(0, ("HeatExchanger:AirToAir:SensibleAndLatent", names["heat_recovery"]))
-        _add_heat_recovery(add, zone, names["heat_recovery"], t["heat_recovery_effectiveness"], oa_flow)
+        _add_heat_recovery(add, unit, names["heat_recovery"], effectiveness, latent, flow_m3_s)
     add(
         "ZoneHVAC:OutdoorAirUnit:EquipmentList",
-        f"{zone} AHU components",
+        f"{unit} components",
         **{
             field: value
             for i, (kind, name) in enumerate(components, 1)
@@ -793,11 +843,11 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
     )
     add(
         "CoilSystem:Cooling:DX",
-        f"{zone} AHU cooling system",
+        f"{unit} cooling system",
         availability_schedule_name="ventilation_on",
         dx_cooling_coil_system_inlet_node_name=cooling_inlet,
-        dx_cooling_coil_system_outlet_node_name=f"{zone} AHU cooled air",
-        dx_cooling_coil_system_sensor_node_name=f"{zone} AHU cooled air",
+        dx_cooling_coil_system_outlet_node_name=f"{unit} cooled air",
+        dx_cooling_coil_system_sensor_node_name=f"{unit} cooled air",
         cooling_coil_object_type="Coil:Cooling:DX:SingleSpeed",
         cooling_coil_name=names["cooling_coil"],
     )
@@ -805,12 +855,12 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         "Coil:Cooling:DX:SingleSpeed",
         names["cooling_coil"],
         availability_schedule_name="ventilation_on",
-        gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * oa_flow / DX_FLOW_PER_CAPACITY, 2),
+        gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * flow_m3_s / DX_FLOW_PER_CAPACITY, 2),
         gross_rated_sensible_heat_ratio=0.75,
         gross_rated_cooling_cop=3.0,
-        rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * oa_flow, 5),
+        rated_air_flow_rate=round(DX_RATED_FLOW_FACTOR * flow_m3_s, 5),
         air_inlet_node_name=cooling_inlet,
-        air_outlet_node_name=f"{zone} AHU cooled air",
+        air_outlet_node_name=f"{unit} cooled air",
         total_cooling_capacity_function_of_temperature_curve_name="Constant biquadratic",
         total_cooling_capacity_function_of_flow_fraction_curve_name="Constant quadratic",
         energy_input_ratio_function_of_temperature_curve_name="Constant biquadratic",
@@ -822,12 +872,12 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         names["heating_coil"],
         availability_schedule_name="ventilation_on",
         efficiency=1.0,
-        nominal_capacity=round(oa_flow * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
-        air_inlet_node_name=f"{zone} AHU cooled air",
-        air_outlet_node_name=f"{zone} AHU heated air",
+        nominal_capacity=round(flow_m3_s * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
+        air_inlet_node_name=f"{unit} cooled air",
+        air_outlet_node_name=f"{unit} heated air",
     )
-    _add_fan(add, f"{zone} AHU supply fan", oa_flow, f"{zone} AHU heated air", f"{zone} AHU supply")
-    _add_fan(add, f"{zone} AHU exhaust fan", oa_flow, f"{zone} AHU exhaust", f"{zone} AHU relief")
+    _add_fan(add, f"{unit} supply fan", flow_m3_s, f"{unit} heated air", f"{unit} supply")
+    _add_fan(add, f"{unit} exhaust fan", flow_m3_s, f"{unit} exhaust", f"{unit} relief")
 
 
 def _add_fan(add, name: str, flow_m3_s: float, inlet: str, outlet: str) -> None:
@@ -846,32 +896,33 @@ def _add_fan(add, name: str, flow_m3_s: float, inlet: str, outlet: str) -> None:
     )
 
 
-def _add_heat_recovery(add, zone: str, name: str, effectiveness: float, oa_flow_m3_s: float) -> None:
-    """A sensible plate heat exchanger of one zone's air handling unit: outdoor air (supply side) against the
-    exhaust fan's outlet (exhaust side), at ``effectiveness`` whatever the flow (no effectiveness curves), no
-    latent transfer, available while ``ventilation_on``. A setpoint manager puts the day's supply temperature on
-    its supply outlet, so it bypasses outdoor air rather than heat or cool it past that temperature, or away from it.
+def _add_heat_recovery(add, unit: str, name: str, effectiveness: float, latent: float, flow_m3_s: float) -> None:
+    """A plate heat exchanger of an air handling unit: outdoor air (supply side) against the exhaust fan's
+    outlet (exhaust side), at ``effectiveness`` whatever the flow (no effectiveness curves), available while
+    ``ventilation_on``. A setpoint manager puts the day's supply temperature on its supply outlet, so it bypasses
+    outdoor air rather than heat or cool it past that temperature, or away from it.
 
     Args:
         add: the epJSON builder's ``add(kind, name, **fields)``.
-        zone: zone name (node names follow the air handling unit's).
+        unit: the unit's name (node names follow it).
         name: the exchanger's name.
         effectiveness: sensible effectiveness, heating and cooling (0-1).
-        oa_flow_m3_s: the unit's maximum outdoor air flow, the exchanger's nominal flow (m3/s).
+        latent: latent effectiveness, heating and cooling (0-1).
+        flow_m3_s: the unit's maximum air flow, the exchanger's nominal flow (m3/s).
     """
     add(
         "HeatExchanger:AirToAir:SensibleAndLatent",
         name,
         availability_schedule_name="ventilation_on",
-        nominal_supply_air_flow_rate=round(oa_flow_m3_s, 5),
+        nominal_supply_air_flow_rate=round(flow_m3_s, 5),
         sensible_effectiveness_at_100_heating_air_flow=effectiveness,
-        latent_effectiveness_at_100_heating_air_flow=0.0,
+        latent_effectiveness_at_100_heating_air_flow=latent,
         sensible_effectiveness_at_100_cooling_air_flow=effectiveness,
-        latent_effectiveness_at_100_cooling_air_flow=0.0,
-        supply_air_inlet_node_name=f"{zone} AHU outdoor air",
-        supply_air_outlet_node_name=f"{zone} AHU recovered air",
-        exhaust_air_inlet_node_name=f"{zone} AHU relief",
-        exhaust_air_outlet_node_name=f"{zone} AHU exhaust outlet",
+        latent_effectiveness_at_100_cooling_air_flow=latent,
+        supply_air_inlet_node_name=f"{unit} outdoor air",
+        supply_air_outlet_node_name=f"{unit} recovered air",
+        exhaust_air_inlet_node_name=f"{unit} relief",
+        exhaust_air_outlet_node_name=f"{unit} exhaust outlet",
         nominal_electric_power=0.0,
         supply_air_outlet_temperature_control="Yes",
         heat_exchanger_type="Plate",
@@ -883,5 +934,5 @@ def _add_heat_recovery(add, zone: str, name: str, effectiveness: float, oa_flow_
         f"{name} setpoint",
         control_variable="Temperature",
         schedule_name="supply_air_c",
-        setpoint_node_or_nodelist_name=f"{zone} AHU recovered air",
+        setpoint_node_or_nodelist_name=f"{unit} recovered air",
     )

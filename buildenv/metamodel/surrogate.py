@@ -553,14 +553,19 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
     ``None`` or ``"default"``: the default, ``"diagnosis"``: the one the gap diagnosis was measured with).
 
     Raises:
-        CheckpointError: missing file, or a checkpoint made for another catalogue or input encoding.
+        CheckpointError: missing file; a file that is empty, truncated, damaged or written by another tool (the
+            message, one line, names it and what is wrong); or a checkpoint made for another catalogue or input
+            encoding.
     """
-    from metamodels.checkpoint import load_checkpoint
+    from metamodels.checkpoint import CheckpointFormatError, load_checkpoint
 
     path = SHIPPED_CHECKPOINTS.get("default" if path is None else str(path), None) or Path(path)
     if not path.is_file():
         raise CheckpointError(f"metamodel checkpoint not found: {path}")
-    ck = load_checkpoint(path)
+    try:
+        ck = load_checkpoint(path)
+    except CheckpointFormatError as exc:
+        raise CheckpointError(str(exc)) from None
     found = ck.metadata.get("catalogue_hash")
     earlier = cat.EARLIER_CATALOGUES.get(found)
     channels = ck.metadata.get("input_channels", ())

@@ -2,10 +2,12 @@
 
 Holds the file names (:data:`DESCRIPTOR`, ...), the CSV columns (:data:`MEASUREMENT_COLUMNS`,
 :data:`SETTINGS_COLUMNS`), the ``site.toml`` keys and the plausibility limits that :mod:`buildenv.sites.reader`
-checks and :mod:`buildenv.sites.writer` writes. A site folder holds (for users: ``docs/site-format.md``)::
+(with :mod:`~buildenv.sites.measurements` and :mod:`~buildenv.sites.consumption`) checks and
+:mod:`buildenv.sites.writer` writes. A site folder holds (for users: ``docs/site-format.md``)::
 
     site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional effects, [known],
-                       [meters], [bms], [source]
+                       [meters], [bms], [source], measurements (file name, or a table: file, time_zone,
+                       stamped, cumulative)
     measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
     settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
     calibration.json   optional, written by calibration (:func:`buildenv.sites.writer.save_calibration`)
@@ -14,7 +16,9 @@ checks and :mod:`buildenv.sites.writer` writes. A site folder holds (for users: 
 Conventions:
 
 - Timestamps are local *standard* time (no daylight-saving shift, like the EPW file) of the START of the
-  hour; weeks start Monday 00:00.
+  hour; weeks start Monday 00:00. ``[measurements]`` may declare otherwise: ``time_zone`` (the file keeps
+  that zone's clock, daylight saving included), ``stamped = "end"`` (a row stamps the end of its hour),
+  ``cumulative = true`` (the consumption column holds meter register readings); the reader converts.
 - ``indoor_temperature_c`` is the occupied zone's mean air temperature over the hour, degC; it is compared
   with the catalogue output ``T_INT_OFFICE``.
 - ``heat_consumption_kwh`` is the energy used during the hour, kWh, by the end uses ``[meters] consumption``
@@ -61,6 +65,11 @@ GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
 KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
 #: Keys of ``[meters]``: ``consumption``, the end uses the consumption series sums.
 METER_KEYS: tuple[str, ...] = ("consumption",)
+#: Keys of a ``[measurements]`` table (``measurements`` may instead be the file name alone): ``file``, the CSV;
+#: ``time_zone``, the IANA zone whose clock (daylight saving included) the timestamps keep; ``stamped``,
+#: ``"start"`` (default) or ``"end"`` of the hour a row covers; ``cumulative``, the consumption column holds
+#: readings of a meter register.
+MEASUREMENTS_KEYS: tuple[str, ...] = ("file", "time_zone", "stamped", "cumulative")
 #: Keys of ``[bms]``: ``controllable``, the settings the BMS can change; ``limits``, their ranges in operation.
 BMS_KEYS: tuple[str, ...] = ("controllable", "limits")
 
@@ -68,6 +77,13 @@ BMS_KEYS: tuple[str, ...] = ("controllable", "limits")
 TEMPERATURE_RANGE_C: tuple[float, float] = (-20.0, 50.0)
 #: Largest plausible consumption in one hour, kWh per m2 of floor area.
 MAX_KWH_PER_M2_PER_HOUR = 1.0
+#: Smallest plausible peak of a consumption series that includes lighting or plug loads, as a share of the
+#: catalogue's least installed power of those end uses (lighting 4, plug loads 2 W/m2 at full use): in its
+#: busiest hour a building uses at least a tenth of that (a nearly empty building with efficient lights). A
+#: file in MWh (1000 times too small) peaks below it even at the catalogue's highest powers (150 W/m2 heating +
+#: 16 lighting + 20 plug loads -> 0.19 W/m2 < 0.6 W/m2 for lighting and plug loads); one in GJ (278 times) does
+#: unless the building peaks above 167 W/m2.
+MIN_PEAK_SHARE_OF_LEAST_POWER = 0.1
 
 
 @dataclass(eq=False)

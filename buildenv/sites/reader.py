@@ -1,4 +1,4 @@
-"""Reading a site folder with strict validation: :func:`load_site` and the checks of single ``site.toml`` values.
+"""Reading a site folder with strict validation: :func:`load_site`, ``site.toml`` and ``settings.csv``.
 
 :func:`load_site` parses ``site.toml``, ``measurements.csv`` and ``settings.csv`` (and ``calibration.json`` and
 ``truth.json`` when present) into a :class:`buildenv.sites.model.Site`, whose module gives the format's names
@@ -6,12 +6,14 @@ and conventions; :func:`known_parameter` checks one ``[known]`` value, :func:`ch
 ``[meters]``, :func:`check_controllable` and :func:`check_setting_limit` the ``[bms]`` table. Every problem
 raises :class:`~buildenv.errors.SiteError` with a one-line ``"<file>:<line>: <what is wrong>"`` message (line 1
 is the CSV header). The format for users is ``docs/site-format.md``.
+
+``measurements.csv`` is read by :mod:`.measurements` (its timestamps by :mod:`.timestamps`, its consumption
+series by :mod:`.consumption`) as ``[measurements]`` (:mod:`.measurement_options`) says; the rows and cells of
+both CSV files by :mod:`.cells`.
 """
 
 from __future__ import annotations
 
-import calendar
-import csv
 import datetime as dt
 import difflib
 import json
@@ -19,7 +21,8 @@ import logging
 import math
 import os
 import re
-from collections.abc import Iterator, Mapping
+import zoneinfo
+from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
@@ -28,6 +31,9 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.diagnosis.effects import EffectError, check_declarable
 from buildenv.errors import CatalogueError, SiteError
+from buildenv.sites.cells import _check_width, _parse_value, _rows, _separator_hint
+from buildenv.sites.measurement_options import _MeasurementOptions
+from buildenv.sites.measurements import _read_measurements
 from buildenv.sites.model import (
     BMS_KEYS,
     CALIBRATION_FILE,
@@ -36,11 +42,10 @@ from buildenv.sites.model import (
     DESCRIPTOR,
     GEOMETRY_KEYS,
     KNOWN_KEYS,
-    MAX_KWH_PER_M2_PER_HOUR,
     MEASUREMENT_COLUMNS,
+    MEASUREMENTS_KEYS,
     METER_KEYS,
     SETTINGS_COLUMNS,
-    TEMPERATURE_RANGE_C,
     TOP_LEVEL_KEYS,
     TRUTH_FILE,
     Site,
@@ -53,26 +58,6 @@ except ModuleNotFoundError:  # pragma: no cover - Python 3.10
 
 log = logging.getLogger(__name__)
 
-_TEMPERATURE_UNITS = {"f": "degF", "degf": "degF", "fahrenheit": "degF", "k": "K", "kelvin": "K", "degk": "K"}
-_ENERGY_UNITS = {
-    "wh": "Wh",
-    "mwh": "MWh",
-    "gwh": "GWh",
-    "j": "J",
-    "kj": "kJ",
-    "mj": "MJ",
-    "gj": "GJ",
-    "btu": "Btu",
-    "kbtu": "kBtu",
-    "mmbtu": "MMBtu",
-    "therm": "therm",
-    "therms": "therm",
-    "w": "W",
-    "kw": "kW",
-    "mw": "MW",
-}
-_TIMESTAMP = re.compile(r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2})(?::(\d{2}))?")
-_TIMESTAMP_WITH_ZONE = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2})?(?:\.\d+)?\s*(?:Z|[+-]\d{2}:?\d{2})")
 _DATE = re.compile(r"(\d{4})-(\d{2})-(\d{2})")
 
 
@@ -107,7 +92,13 @@ def load_site(path: str | os.PathLike) -> Site:
     desc = _read_descriptor(descriptor)
     measurements_path = _data_file(descriptor, desc, "measurements", DEFAULT_MEASUREMENTS)
     settings_path = _data_file(descriptor, desc, "settings", DEFAULT_SETTINGS)
-    start, temperature, consumption = _read_measurements(measurements_path, desc["floor_area_m2"])
+    start, temperature, consumption = _read_measurements(
+        measurements_path,
+        desc["floor_area_m2"],
+        desc["measurement_options"],
+        desc["consumption_end_uses"],
+        desc["weather"],
+    )
     settings = _read_settings(settings_path, start, temperature.shape[0])
     for values, column in ((temperature, MEASUREMENT_COLUMNS[1]), (consumption, MEASUREMENT_COLUMNS[2])):
         if not np.isfinite(values).any():
@@ -173,6 +164,14 @@ def _reject_unknown_keys(
             )
 
 
+def _as_float(value: int | float) -> float:
+    """``float(value)``, or an infinity for an integer too large for a float (TOML integers have no bound)."""
+    try:
+        return float(value)
+    except OverflowError:
+        return math.inf if value > 0 else -math.inf
+
+
 def _read_descriptor(descriptor: Path) -> dict[str, Any]:
     """Parse and validate ``site.toml`` into plain values (weather resolved)."""
     try:
@@ -183,7 +182,8 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         m = re.search(r"at line (\d+)", str(exc))
-        raise SiteError(f"{descriptor}:{m.group(1) if m else '?'}: invalid TOML: {exc}") from exc
+        line = m.group(1) if m else max(len(text.splitlines()), 1)  # "at end of document": the last line
+        raise SiteError(f"{descriptor}:{line}: invalid TOML: {exc}") from exc
 
     _reject_unknown_keys(descriptor, text, data, TOP_LEVEL_KEYS)
     for key in ("name", "weather", "geometry"):
@@ -195,6 +195,8 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
             }[key]
             raise SiteError(f"{descriptor}: missing {key!r} ({what})")
     for key in ("name", "weather", "measurements", "settings"):
+        if key == "measurements" and isinstance(data.get(key), dict):
+            continue  # a [measurements] table: _read_measurement_options
         if key in data and (not isinstance(data[key], str) or not data[key].strip()):
             raise SiteError(f"{_where(descriptor, text, key)}: {key!r} must be a non-empty string, got {data[key]!r}")
     for key in ("geometry", "known", "meters", "bms", "source"):
@@ -208,7 +210,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
             raise SiteError(f"{descriptor}: [geometry] is missing {key!r} ({cat.get(key).description})")
     area = geometry["floor_area_m2"]
     where = _where(descriptor, text, "floor_area_m2", "geometry")
-    if isinstance(area, bool) or not isinstance(area, (int, float)) or not math.isfinite(area):
+    if isinstance(area, bool) or not isinstance(area, (int, float)) or not math.isfinite(_as_float(area)):
         raise SiteError(f"{where}: floor_area_m2 must be a number (m2), got {area!r}")
     floors = geometry["number_of_floors"]
     where_floors = _where(descriptor, text, "number_of_floors", "geometry")
@@ -218,12 +220,14 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         raise SiteError(f"{where_floors}: number_of_floors must be a whole number, got {floors!r}")
     for key, value, loc in (("floor_area_m2", float(area), where), ("number_of_floors", floors, where_floors)):
         try:
-            cat.get(key).check(value)  # the catalogue range, not its sampling step
+            cat.get(key).check(_as_float(value))  # the catalogue range, not its sampling step
         except CatalogueError as exc:
             raise SiteError(f"{loc}: {exc}") from exc
 
     controllable, setting_limits = _read_bms(descriptor, text, data.get("bms", {}))
+    options = _read_measurement_options(descriptor, text, data.get("measurements", DEFAULT_MEASUREMENTS))
     return {
+        "measurement_options": options,
         "controllable": controllable,
         "setting_limits": setting_limits,
         "known": _read_known(descriptor, text, data.get("known", {})),
@@ -233,11 +237,60 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         "weather": _resolve_weather(descriptor, text, data["weather"]),
         "floor_area_m2": float(area),
         "number_of_floors": int(floors),
-        "measurements": data.get("measurements", DEFAULT_MEASUREMENTS),
+        "measurements": options.file,
         "settings": data.get("settings", DEFAULT_SETTINGS),
         "source": dict(data.get("source", {})),
         "text": text,
     }
+
+
+def _read_measurement_options(descriptor: Path, text: str, value: Any) -> _MeasurementOptions:
+    """``measurements``: the file name, or a ``[measurements]`` table (:data:`MEASUREMENTS_KEYS`)."""
+    if isinstance(value, str):
+        return _MeasurementOptions(file=value)
+    _reject_unknown_keys(descriptor, text, value, MEASUREMENTS_KEYS, "measurements")
+    file = value.get("file", DEFAULT_MEASUREMENTS)
+    if not isinstance(file, str) or not file.strip():
+        where = _where(descriptor, text, "file", "measurements")
+        raise SiteError(f"{where}: [measurements] file must be a non-empty string, got {file!r}")
+    zone = None
+    if "time_zone" in value:
+        zone = _zone(value["time_zone"], _where(descriptor, text, "time_zone", "measurements"))
+    stamped = value.get("stamped", "start")
+    if stamped not in ("start", "end"):
+        raise SiteError(
+            f'{_where(descriptor, text, "stamped", "measurements")}: [measurements] stamped must be "start" '
+            f'(a row stamps the start of its hour, the default) or "end" (01:00 for 00:00-01:00), got {stamped!r}'
+        )
+    cumulative = value.get("cumulative", False)
+    if not isinstance(cumulative, bool):
+        raise SiteError(
+            f"{_where(descriptor, text, 'cumulative', 'measurements')}: [measurements] cumulative must be true "
+            f"(heat_consumption_kwh holds meter register readings) or false, got {cumulative!r}"
+        )
+    return _MeasurementOptions(
+        file=file,
+        time_zone=zone,
+        stamped_end=stamped == "end",
+        cumulative=cumulative,
+        where=_where(descriptor, text, "measurements"),
+    )
+
+
+def _zone(name: Any, where: str) -> zoneinfo.ZoneInfo:
+    """The IANA time zone ``name``, or a SiteError at ``where``."""
+    what = "the IANA name of the zone whose clock the BMS keeps, such as 'America/Chicago' or 'Europe/Paris'"
+    if not isinstance(name, str) or not name.strip():
+        raise SiteError(f"{where}: [measurements] time_zone must be {what}, got {name!r}")
+    try:
+        return zoneinfo.ZoneInfo(name)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError, OSError):
+        close = difflib.get_close_matches(name, sorted(zoneinfo.available_timezones()), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise SiteError(
+            f"{where}: unknown time zone {name!r}{hint}: give {what} (a clock without daylight saving keeps "
+            "standard time: leave time_zone out)"
+        ) from None
 
 
 def known_parameter(name: str, value: Any) -> float:
@@ -254,7 +307,7 @@ def known_parameter(name: str, value: Any) -> float:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise SiteError(f"unknown key {name!r} in [known]{hint}; allowed: {_allowed(KNOWN_KEYS)}")
     variable = cat.get(name)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_as_float(value)):
         raise SiteError(f"{name} must be a number ({variable.unit}), got {value!r}")
     try:
         variable.check(float(value))
@@ -356,7 +409,7 @@ def check_setting_limit(
     numbers = (
         isinstance(value, (list, tuple))
         and len(value) == 2
-        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v) for v in value)
+        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(_as_float(v)) for v in value)
     )
     if not numbers:
         raise SiteError(f"{name} must be a list [min, max] of two numbers ({variable.unit}), got {value!r}")
@@ -433,207 +486,6 @@ def _data_file(descriptor: Path, desc: dict[str, Any], key: str, default: str) -
     if not path.is_file():
         raise SiteError(f"{_where(descriptor, desc['text'], key)}: {key} file not found: {path}")
     return path
-
-
-def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
-    """``(line number, cells)`` of a CSV file, header included, blank lines skipped; cells stripped."""
-    try:
-        with path.open(encoding="utf-8-sig", newline="") as handle:
-            reader = csv.reader(handle)
-            try:
-                for cells in reader:
-                    if not cells or (len(cells) == 1 and not cells[0].strip()):
-                        continue  # blank line
-                    yield reader.line_num, [c.strip() for c in cells]
-            except csv.Error as exc:
-                raise SiteError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from exc
-    except UnicodeDecodeError as exc:
-        raise SiteError(
-            f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); save the export as UTF-8 CSV"
-        ) from exc
-    except OSError as exc:
-        raise SiteError(f"{path}: cannot read: {exc}") from exc
-
-
-def _check_width(path: Path, line: int, cells: list[str], columns: tuple[str, ...]) -> None:
-    if len(cells) != len(columns):
-        many = "too many" if len(cells) > len(columns) else "too few"
-        raise SiteError(f"{path}:{line}: {many} columns: {len(cells)} instead of {len(columns)} ({','.join(columns)})")
-
-
-def _separator_hint(header: list[str]) -> str:
-    if len(header) == 1 and ";" in header[0]:
-        return " (columns must be separated by commas, this file uses ';')"
-    if len(header) == 1 and "\t" in header[0]:
-        return " (columns must be separated by commas, this file uses tabs)"
-    return ""
-
-
-def _check_measurement_header(path: Path, header: list[str]) -> None:
-    if tuple(header) == MEASUREMENT_COLUMNS:
-        return
-    for column in header:
-        low = column.lower()
-        for prefix, units, expected in (
-            ("indoor_temperature_", _TEMPERATURE_UNITS, "indoor_temperature_c (degC)"),
-            ("heat_consumption_", _ENERGY_UNITS, "heat_consumption_kwh (kWh)"),
-        ):
-            if low.startswith(prefix) and low != expected.split()[0]:
-                unit = low[len(prefix) :]
-                label = f" is in {units[unit]}" if unit in units else f" has unit {unit!r}"
-                raise SiteError(
-                    f"{path}:1: wrong unit: column {column!r}{label}; expected {expected}: "
-                    "convert the values and rename the column"
-                )
-    if header and _TIMESTAMP.fullmatch(header[0]):
-        raise SiteError(f"{path}:1: missing header: the first line must be {','.join(MEASUREMENT_COLUMNS)}")
-    raise SiteError(
-        f"{path}:1: header is {','.join(header)!r}, expected the columns "
-        f"{','.join(MEASUREMENT_COLUMNS)!r}{_separator_hint(header)}"
-    )
-
-
-def _parse_timestamp(path: Path, line: int, text: str) -> dt.datetime:
-    m = _TIMESTAMP.fullmatch(text)
-    if m is None:
-        if _TIMESTAMP_WITH_ZONE.fullmatch(text):
-            raise SiteError(
-                f"{path}:{line}: timestamp {text!r} has a UTC offset: give local standard time "
-                "without an offset, as 'YYYY-MM-DD HH:MM'"
-            )
-        raise SiteError(
-            f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM' "
-            "(or with a 'T'), local standard time of the start of the hour"
-        )
-    year, month, day, hour, minute, second = (int(g) if g else 0 for g in m.groups())
-    try:
-        stamp = dt.datetime(year, month, day, hour, minute, second)
-    except ValueError as exc:
-        raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: {exc}") from exc
-    if minute or second:
-        raise SiteError(
-            f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "
-            "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)"
-        )
-    return stamp
-
-
-def _parse_value(path: Path, line: int, column: str, text: str, *, missing_ok: bool = True) -> float:
-    """A cell as float; empty or NaN -> NaN (when ``missing_ok``)."""
-    if text == "" or text.lower() == "nan":
-        if missing_ok:
-            return math.nan
-        raise SiteError(f"{path}:{line}: {column} is missing: every day needs the value in force")
-    try:
-        value = float(text)
-    except ValueError:
-        blank = ", leave the cell empty for a missing value" if missing_ok else ""
-        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a number (use '.' as decimal mark{blank})") from None
-    if not math.isfinite(value):
-        raise SiteError(f"{path}:{line}: {column}: {text!r} is not a finite number")
-    return value
-
-
-def _check_temperature(path: Path, line: int, value: float) -> None:
-    lo, hi = TEMPERATURE_RANGE_C
-    if lo <= value <= hi:
-        return
-    hint = ""
-    if 50 < value < 130:
-        hint = f"; looks like degF ({value:g} degF = {(value - 32) / 1.8:.1f} degC)"
-    elif 240 < value < 340:
-        hint = f"; looks like K ({value:g} K = {value - 273.15:.1f} degC)"
-    raise SiteError(
-        f"{path}:{line}: indoor_temperature_c={value:g} is outside [{lo:g}, {hi:g}] degC{hint}; "
-        "fix the unit or leave the cell empty if the sensor failed"
-    )
-
-
-def _check_consumption(path: Path, line: int, value: float, floor_area_m2: float) -> None:
-    if value < 0:
-        raise SiteError(
-            f"{path}:{line}: heat_consumption_kwh={value:g} is negative: give the energy used "
-            "during the hour (not a meter difference across a reset); leave it empty if unknown"
-        )
-    limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
-    if value > limit:
-        hint = "; looks like Wh (divide by 1000)" if value / 1000.0 <= limit else ""
-        raise SiteError(
-            f"{path}:{line}: heat_consumption_kwh={value:g} is above "
-            f"{MAX_KWH_PER_M2_PER_HOUR:g} kWh/m2 in one hour ({limit:g} kWh for "
-            f"{floor_area_m2:g} m2){hint}"
-        )
-
-
-def _fmt(stamp: dt.datetime) -> str:
-    return stamp.strftime("%Y-%m-%d %H:%M")
-
-
-def _read_measurements(path: Path, floor_area_m2: float) -> tuple[dt.date, np.ndarray, np.ndarray]:
-    """Parse ``measurements.csv`` into ``(start Monday, temperature (weeks, 168), consumption (weeks, 168))``."""
-    rows = _rows(path)
-    first = next(rows, None)
-    if first is None:
-        raise SiteError(f"{path}:1: empty file: expected the header {','.join(MEASUREMENT_COLUMNS)}")
-    _check_measurement_header(path, first[1])
-
-    start: dt.datetime | None = None
-    previous: tuple[int, dt.datetime] | None = None
-    hours: list[int] = []
-    temperature: list[float] = []
-    consumption: list[float] = []
-    for line, cells in rows:
-        _check_width(path, line, cells, MEASUREMENT_COLUMNS)
-        stamp = _parse_timestamp(path, line, cells[0])
-        if start is None:
-            if stamp.weekday() != 0 or stamp.hour != 0:
-                raise SiteError(
-                    f"{path}:{line}: the first timestamp {_fmt(stamp)} is a "
-                    f"{calendar.day_name[stamp.weekday()]} at {stamp:%H:%M}: data must start on a "
-                    "Monday at 00:00 (drop the rows before the next Monday, or add empty rows "
-                    "from the previous Monday 00:00)"
-                )
-            start = stamp
-        elif previous is not None:
-            if stamp == previous[1]:
-                raise SiteError(
-                    f"{path}:{line}: duplicate timestamp {_fmt(stamp)} (also on line {previous[0]}); "
-                    "if the BMS exports daylight-saving time, export in local standard time"
-                )
-            if stamp < previous[1]:
-                raise SiteError(
-                    f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
-                    f"{_fmt(previous[1])} (line {previous[0]}): sort the rows by time"
-                )
-        t = _parse_value(path, line, MEASUREMENT_COLUMNS[1], cells[1])
-        q = _parse_value(path, line, MEASUREMENT_COLUMNS[2], cells[2])
-        if not math.isnan(t):
-            _check_temperature(path, line, t)
-        if not math.isnan(q):
-            _check_consumption(path, line, q, floor_area_m2)
-        hours.append(int((stamp - start).total_seconds()) // 3600)
-        temperature.append(t)
-        consumption.append(q)
-        previous = (line, stamp)
-
-    if start is None or previous is None:
-        raise SiteError(f"{path}:2: no data rows after the header")
-    last_line, last = previous
-    if hours[-1] % cat.HOURS_PER_WEEK != cat.HOURS_PER_WEEK - 1:
-        week_end = start + dt.timedelta(hours=(hours[-1] // cat.HOURS_PER_WEEK + 1) * cat.HOURS_PER_WEEK - 1)
-        raise SiteError(
-            f"{path}:{last_line}: the data end at {calendar.day_name[last.weekday()]} {_fmt(last)}: "
-            f"they must cover whole weeks, ending on a Sunday at 23:00; add rows up to "
-            f"{_fmt(week_end)} with empty cells for the hours not measured"
-        )
-    weeks = hours[-1] // cat.HOURS_PER_WEEK + 1
-    t_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
-    q_out = np.full(weeks * cat.HOURS_PER_WEEK, np.nan)
-    index = np.asarray(hours)
-    t_out[index] = temperature
-    q_out[index] = consumption
-    shape = (weeks, cat.HOURS_PER_WEEK)
-    return start.date(), t_out.reshape(shape), q_out.reshape(shape)
 
 
 def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:

@@ -34,6 +34,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.defaults import default_week
 from buildenv.errors import BuildenvError
+from buildenv.jsonio import dumps
 
 log = logging.getLogger(__name__)
 
@@ -288,7 +289,8 @@ def write_manifest(out: Path, records: Sequence[dict]) -> Path:
     path = out / MANIFEST
     merged = {r["site"]: r for r in (read_manifest(out) if path.is_file() else [])}
     merged.update({r["site"]: r for r in records})
-    text = json.dumps({"held_out_climates": list(HELD_OUT_CLIMATES), "cases": list(merged.values())}, indent=1)
+    manifest = {"held_out_climates": list(HELD_OUT_CLIMATES), "cases": list(merged.values())}
+    text = dumps(manifest, where=str(path), indent=1)
     tmp = path.with_suffix(".json.tmp")
     tmp.write_text(text + "\n", encoding="utf-8")
     tmp.replace(path)

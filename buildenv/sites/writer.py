@@ -11,6 +11,7 @@ import datetime as dt
 import json
 import math
 import os
+import shutil
 import tempfile
 from collections.abc import Mapping
 from pathlib import Path
@@ -21,6 +22,7 @@ import tomli_w
 
 from buildenv import catalogue as cat
 from buildenv.errors import SiteError
+from buildenv.jsonio import dumps
 from buildenv.sites.model import (
     CALIBRATION_FILE,
     DEFAULT_MEASUREMENTS,
@@ -30,7 +32,8 @@ from buildenv.sites.model import (
     SETTINGS_COLUMNS,
     TRUTH_FILE,
 )
-from buildenv.sites.reader import _fmt, load_site
+from buildenv.sites.reader import load_site
+from buildenv.sites.timestamps import _fmt
 
 
 def _toml_plain(value: Any, where: str) -> Any:
@@ -114,7 +117,9 @@ def write_site(
     Writes ``site.toml``, ``measurements.csv`` (NaN -> empty cell; temperature with 3 decimals, kWh with 4;
     every hour of every week gets a row), ``settings.csv`` (6 decimals at most) and ``truth.json`` when
     ``truth`` is given. A ``calibration.json`` or ``truth.json`` left from an earlier site in the folder is
-    removed (it described other data).
+    removed (it described other data). The files are written into a temporary folder beside ``path`` and moved
+    into place; on any error nothing is left behind (a folder this call made is removed, an existing one keeps
+    its earlier files).
 
     Args:
         path: the site folder (created if needed).
@@ -161,7 +166,8 @@ def write_site(
             f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
         )
 
-    folder.mkdir(parents=True, exist_ok=True)
+    if folder.exists() and not folder.is_dir():
+        raise SiteError(f"write_site: {folder} exists and is not a folder")
     descriptor: dict[str, Any] = {"name": str(name), "weather": str(weather)}
     if effects:
         descriptor["effects"] = [str(e) for e in effects]
@@ -179,7 +185,7 @@ def write_site(
         descriptor["bms"] = bms
     if source:
         descriptor["source"] = _toml_plain(dict(source), "source")
-    (folder / DESCRIPTOR).write_text(tomli_w.dumps(descriptor), encoding="utf-8")
+    files = {DESCRIPTOR: tomli_w.dumps(descriptor)}
 
     out = [",".join(MEASUREMENT_COLUMNS)]
     t_flat, q_flat = temperature.ravel(), consumption.ravel()
@@ -187,19 +193,86 @@ def write_site(
     for h in range(weeks * cat.HOURS_PER_WEEK):
         stamp = first + dt.timedelta(hours=h)
         out.append(f"{_fmt(stamp)},{_cell(t_flat[h], 3)},{_cell(q_flat[h], 4)}")
-    (folder / DEFAULT_MEASUREMENTS).write_text("\n".join(out) + "\n", encoding="utf-8")
+    files[DEFAULT_MEASUREMENTS] = "\n".join(out) + "\n"
 
     out = [",".join(SETTINGS_COLUMNS)]
     for d, row in enumerate(setting_values.reshape(weeks * 7, -1)):
         out.append(",".join([(start + dt.timedelta(days=d)).isoformat(), *(_setting_cell(v) for v in row)]))
-    (folder / DEFAULT_SETTINGS).write_text("\n".join(out) + "\n", encoding="utf-8")
+    files[DEFAULT_SETTINGS] = "\n".join(out) + "\n"
 
-    (folder / CALIBRATION_FILE).unlink(missing_ok=True)
-    (folder / TRUTH_FILE).unlink(missing_ok=True)
     if truth is not None:
-        _atomic_write(folder / TRUTH_FILE, json.dumps(dict(truth), indent=2, default=_json_default) + "\n")
-    load_site(folder)  # what is written must load: raises SiteError with file:line otherwise
+        files[TRUTH_FILE] = dumps(dict(truth), where=str(folder / TRUTH_FILE), indent=2, default=_json_default) + "\n"
+    _place_site(folder, files)
     return folder
+
+
+#: the files a site folder written by :func:`write_site` may hold; those it does not write again are removed
+_SITE_FILES = (DESCRIPTOR, DEFAULT_MEASUREMENTS, DEFAULT_SETTINGS, TRUTH_FILE, CALIBRATION_FILE)
+
+
+def _missing_folders(folder: Path) -> list[Path]:
+    """``folder`` and those of its parents that do not exist yet, innermost first."""
+    missing = []
+    while not folder.exists() and folder != folder.parent:
+        missing.append(folder)
+        folder = folder.parent
+    return missing
+
+
+def _place_site(folder: Path, files: Mapping[str, str]) -> None:
+    """Write ``files`` (``{name: text}``) as the site folder ``folder`` and check that it loads, leaving nothing
+    behind on any error: the files are written into a hidden temporary folder beside ``folder``; a new folder is
+    that one renamed into place, an existing one gets them by ``os.replace`` (its earlier site files moved aside,
+    and back on an error). A folder, or parent folder, this call made is removed again on an error.
+
+    Raises:
+        SiteError: what is written does not load (:func:`buildenv.sites.load_site`), or a file cannot be written.
+    """
+    made = _missing_folders(folder)
+    tag = f"{os.getpid()}.{os.urandom(4).hex()}"
+    stage = folder.parent / f".{folder.name}.{tag}.writing"
+    aside = folder.parent / f".{folder.name}.{tag}.previous"
+    placed: list[str] = []
+    moved: list[str] = []
+    try:
+        folder.parent.mkdir(parents=True, exist_ok=True)
+        stage.mkdir()
+        for name, text in files.items():
+            (stage / name).write_text(text, encoding="utf-8")
+        if made:  # a new folder: the complete one appears at once
+            os.rename(stage, folder)
+            placed = list(files)
+        else:
+            aside.mkdir()
+            for name in _SITE_FILES:
+                if (folder / name).is_file():
+                    os.replace(folder / name, aside / name)
+                    moved.append(name)
+            for name in files:
+                os.replace(stage / name, folder / name)
+                placed.append(name)
+        load_site(folder)  # what is written must load: raises SiteError with file:line otherwise
+    except BaseException as error:
+        if made:
+            if placed:  # renamed into place: ours
+                shutil.rmtree(folder, ignore_errors=True)
+            for parent in made[1:]:  # innermost first; only the empty ones this call made
+                try:
+                    parent.rmdir()
+                except OSError:
+                    break
+        else:
+            for name in placed:
+                (folder / name).unlink(missing_ok=True)
+            for name in moved:
+                os.replace(aside / name, folder / name)
+        shutil.rmtree(stage, ignore_errors=True)
+        shutil.rmtree(aside, ignore_errors=True)
+        if isinstance(error, OSError):
+            raise SiteError(f"write_site: cannot write the site folder {folder}: {error}") from error
+        raise
+    shutil.rmtree(stage, ignore_errors=True)
+    shutil.rmtree(aside, ignore_errors=True)
 
 
 def save_calibration(site_path: str | os.PathLike, result: Mapping[str, Any]) -> Path:

@@ -174,7 +174,7 @@ def morph_epw(source: str | os.PathLike, out: str | os.PathLike, morph: Morph) -
         _shift_ground(line, morph.shift_k) if line.upper().startswith("GROUND TEMPERATURES") else line
         for line in header
     ]
-    note = _NOTE + path.name + " " + json.dumps(asdict(morph)).replace(",", ";")
+    note = _NOTE + path.name + " " + json.dumps(asdict(morph), allow_nan=False).replace(",", ";")
     header = [note if line.upper().startswith("COMMENTS 2") else line for line in header]
     target = Path(out)
     target.parent.mkdir(parents=True, exist_ok=True)
@@ -209,7 +209,7 @@ def morph_many(sources: list[str], out_dir: str | os.PathLike, seed: int, **fixe
         stem = Path(source).stem if Path(source).suffix.lower() == ".epw" else source
         path = morph_epw(source, Path(out_dir) / f"{stem}-morph{seed}-{i}.epw", morph)
         records.append({"file": str(path), "source": source, **{k: round(v, 4) for k, v in asdict(morph).items()}})
-    (Path(out_dir) / "morphs.json").write_text(json.dumps(records, indent=2) + "\n")
+    (Path(out_dir) / "morphs.json").write_text(json.dumps(records, indent=2, allow_nan=False) + "\n")
     return records
 
 

@@ -50,7 +50,7 @@ def test_reference_site_reads_like_sensors(tmp_path):
     assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
     # [bms]: what the stand-in maps; its ventilation up to the design outdoor air (0.7 1/h on the grid)
     assert "supply_air_c" not in site.controllable and len(site.controllable) == len(cat.SETTING_NAMES) - 1
-    assert site.setting_limits == {"ventilation_ach": (cat.get("ventilation_ach").min, 0.7)}
+    assert site.setting_limits == {"ventilation_ach": (0.45, 0.7)}  # the code minimum for its occupants, its design
     # its history records the supply air its VAV loops delivered (12.8 degC), as a BMS trend would
     assert set(site.settings[..., cat.SETTING_NAMES.index("supply_air_c")].ravel()) == {13.0}
 
@@ -108,6 +108,7 @@ def _truth() -> np.ndarray:
         "plug_load_w_m2": 9.0,  # 0.06 workstations of 150 W per m2
         "lighting_power_w_m2": 10.0,
         "heat_recovery_effectiveness": 0.0,
+        "minimum_supply_air_ach": 0.0,
         "light_night_percent": 20,
         "pc_night_percent": 25,
         "wall_insulation_north_m": 0.1,
@@ -172,7 +173,7 @@ def test_parameters_at_a_bound_of_the_catalogue_are_reported(surrogate):
     note = cal.at_bounds_note(
         {"at_bounds": found, "known": ["light_night_percent"], "not_read": sorted(surrogate.implied)}
     )
-    assert "\n" not in note and note.startswith("note: 2 of 18 estimated building parameters")
+    assert "\n" not in note and note.startswith("note: 2 of 19 estimated building parameters")
     assert "capacitance_kj_per_k_m3 at its min 20" in note and "pc_night_percent at its max 70" in note
     assert cal.at_bounds_note({"at_bounds": [], "known": []}) is None
 

@@ -782,6 +782,13 @@ def test_invalid_command_line_arguments_fail_in_one_line(seed, tmp_path, monkeyp
         ["weather", "{missing}/x.epw"],
         ["suite", "list", "--seasons", "winter"],
         ["calibrate", "--site", "{tmp}/site", "--weeks", "a,b", "--checkpoint", "{missing}/ck.pt"],
+        # refused before EnergyPlus or a campaign starts
+        ["simulate", "--weeks", "0", "--out", "{tmp}/c"],
+        ["simulate", "--weeks", "4", "--max-failed-share", "2", "--out", "{tmp}/c"],
+        ["site", "reference", "--weeks", "0", "--out", "{tmp}/s"],
+        ["site", "reference", "--floors", "-1", "--out", "{tmp}/s"],
+        ["site", "reference", "--epw", "nowhere", "--out", "{tmp}/s"],
+        ["diagnose-check", "--cases", "-1", "--out", "{tmp}/d"],
     ],
     ids=lambda argv: " ".join(argv[:2]),
 )

@@ -6,6 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from buildenv.cli.argtypes import positive_int
 from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, JUDGES, MIN_GAIN
 from buildenv.jsonio import dumps
 
@@ -261,7 +262,7 @@ def register(sub) -> None:
         help="blind check: sites with a withheld effect (or none) injected, "
         "diagnosed, scored (confusion matrix, accuracy, shrinkage)",
     )
-    p.add_argument("--cases", type=int, default=16)
+    p.add_argument("--cases", type=positive_int, default=16)
     p.add_argument("--out", default="out/diagnose-check", help="folder of the cases (a rerun resumes)")
     p.add_argument("--building", default="medium_office")
     p.add_argument("--epw", default="usa_il_chicago")

@@ -32,6 +32,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLITS
 from buildenv.campaign.runs import MAX_FAILED_SHARE
+from buildenv.cli.argtypes import share
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
@@ -358,7 +359,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--max-failed-share",
-        type=float,
+        type=share,
         default=MAX_FAILED_SHARE,
         help=f"share of runs EnergyPlus may refuse; they are left out and listed (default {MAX_FAILED_SHARE})",
     )

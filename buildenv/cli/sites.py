@@ -7,6 +7,7 @@ import datetime as dt
 import sys
 from pathlib import Path
 
+from buildenv.cli.argtypes import positive_int
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
 
@@ -98,7 +99,9 @@ def parse_meter(text: str | None) -> tuple[str, ...]:
 
 def _cmd_site_reference(args: argparse.Namespace) -> int:
     from buildenv.energyplus.reference import make_reference_site
+    from buildenv.weather.epw import resolve_epw
 
+    resolve_epw(args.epw)  # a missing weather file is refused before EnergyPlus starts
     start = parse_start(args.start, args.year)
     effects = parse_effects(args.effect)
     end_uses = parse_meter(args.meter)
@@ -222,9 +225,9 @@ def register(sub) -> None:
     p.add_argument("--epw", default="usa_il_chicago", help="weather short name or EPW path")
     p.add_argument("--start", default="11-04", help="first Monday, MM-DD (in --year) or YYYY-MM-DD")
     p.add_argument("--year", type=int, default=2019, help="calendar year of --start MM-DD (weekdays)")
-    p.add_argument("--weeks", type=int, default=4, help="measured weeks")
+    p.add_argument("--weeks", type=positive_int, default=4, help="measured weeks")
     p.add_argument("--seed", type=int, default=0, help="seed of the sensor noise")
-    p.add_argument("--floors", type=int, default=None, help="storeys (for a user IDF)")
+    p.add_argument("--floors", type=positive_int, default=None, help="storeys (for a user IDF)")
     p.add_argument(
         "--map",
         action="append",

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import re
 
 import numpy as np
 import pandas as pd
@@ -20,6 +21,7 @@ from buildenv.energyplus.reference import (
     serves_24h_space,
 )
 from buildenv.energyplus.ventilation_code import code_minimum_ventilation_ach
+from buildenv.errors import ReferenceBuildingError
 
 START = dt.date(2019, 11, 4)  # a Monday; Chicago in November: mild enough for the ASHRAE large office
 
@@ -148,3 +150,29 @@ def test_design_occupants_come_from_the_models_people_per_floor_area():
         # ASHRAE 62.1 at that density, in the model's air changes: the lower ventilation limit of its stand-in
         assert code_minimum_ventilation_ach(density) == pytest.approx((2.5 / 18.58 + 0.3) * 3.6 / 3.5)
     assert design_occupants_per_m2([("People", "p", "zone", "sched", "People", "12")]) is None  # a head count
+
+
+def test_a_users_epjson_model_is_read_as_the_idf_it_converts_to(tmp_path):
+    from pyenergyplus.api import EnergyPlusAPI
+
+    idf = tmp_path / "office.idf"
+    idf.write_text(reference_idf("small_office").read_text())
+    api = EnergyPlusAPI()
+    state = api.state_manager.new_state()
+    api.runtime.set_console_output_status(state, False)
+    assert api.runtime.run_energyplus(state, ["--convert-only", "-d", str(tmp_path), str(idf)]) == 0
+    api.state_manager.delete_state(state)
+    converted = reference_idf(tmp_path / "office.epJSON")
+    assert converted.suffix == ".idf"
+    assert detect_schedule_map(read_idf(converted)) == detect_schedule_map(read_idf(idf))
+    assert len(read_idf(converted)) == len(read_idf(idf))
+
+
+def test_an_idf_of_another_energyplus_version_is_refused_in_one_line(tmp_path):
+    old = tmp_path / "old.idf"
+    old.write_text(re.sub(r"Version,\s*[0-9.]+;", "Version,9.6;", reference_idf("small_office").read_text(), count=1))
+    with pytest.raises(
+        ReferenceBuildingError, match=r"old\.idf: written for EnergyPlus 9\.6.*IDFVersionUpdater"
+    ) as err:
+        reference_idf(old)
+    assert "\n" not in str(err.value)

@@ -50,6 +50,7 @@ from buildenv.energyplus.injections import (
     sensor_effect_series,
     sizing_objects,
 )
+from buildenv.energyplus.model_files import user_model
 from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, clean_outputs, run_energyplus
 from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
 from buildenv.energyplus.ventilation_code import code_minimum_ventilation_ach
@@ -119,7 +120,9 @@ class ReferenceRun:
 
 
 def reference_idf(building: str | Path) -> Path:
-    """Path of a shipped reference office (a name of :data:`REFERENCE_BUILDINGS`) or of a user's IDF."""
+    """Path of a shipped reference office (a name of :data:`REFERENCE_BUILDINGS`) or the IDF of a user's model
+    (an IDF of the shipped engine's version, or an epJSON, converted:
+    :func:`~buildenv.energyplus.model_files.user_model`)."""
     if str(building) in REFERENCE_BUILDINGS:
         import pyenergyplus
 
@@ -128,8 +131,10 @@ def reference_idf(building: str | Path) -> Path:
         path = Path(building)
     if not path.is_file():
         known = ", ".join(REFERENCE_BUILDINGS)
-        raise ReferenceBuildingError(f"reference building not found: {building} (shipped: {known}; or an IDF path)")
-    return path
+        raise ReferenceBuildingError(
+            f"reference building not found: {building} (shipped: {known}; or an IDF or epJSON path)"
+        )
+    return path if str(building) in REFERENCE_BUILDINGS else user_model(path)
 
 
 def _unoccupied_thermostats(objects: list[IdfObject]) -> set[str]:

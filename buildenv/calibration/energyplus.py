@@ -51,7 +51,7 @@ from buildenv.calibration.problem import (
     score_outputs,
 )
 from buildenv.campaign.runs import TASKS_PER_WORKER
-from buildenv.energyplus.shoebox import DEFAULT_ZONING
+from buildenv.energyplus.shoebox import ACCEPTED_SEVERE, DEFAULT_ZONING
 from buildenv.metrics import GUIDELINE14_P
 
 METHOD = "cmaes-energyplus"
@@ -174,7 +174,7 @@ def simulate_site_run(
         model["RunPeriod"]["weeks"].update(
             begin_month=first.month, begin_day_of_month=first.day, end_month=last.month, end_day_of_month=last.day
         )
-        run_energyplus(model, weather.path, work, label="shoebox")
+        run_energyplus(model, weather.path, work, label="shoebox", accepted_severe=ACCEPTED_SEVERE)
         outputs = read_outputs(work / "eplusout.csv", t, run.weeks, run.zoning)
     return outputs[list(run.keep)]
 

@@ -32,7 +32,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLITS
 from buildenv.campaign.runs import MAX_FAILED_SHARE
-from buildenv.cli.argtypes import share
+from buildenv.cli.argtypes import positive_minutes, share
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
@@ -233,17 +233,6 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
     return 0
 
 
-def _positive_minutes(text: str) -> float:
-    """``--minutes``: a positive number of minutes."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = float("nan")
-    if not value > 0:
-        raise argparse.ArgumentTypeError(f"expected a positive number of minutes, got {text!r}")
-    return value
-
-
 def _cmd_train(args: argparse.Namespace) -> int:
     from buildenv.metamodel.training import train_metamodel
 
@@ -423,7 +412,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--patience", type=int, default=10, help="early stopping: epochs without improvement")
     p.add_argument(
         "--minutes",
-        type=_positive_minutes,
+        type=positive_minutes,
         default=None,
         help="a training-time budget (validation included): stop when it is spent, mid-epoch if need "
         "be, with the cosine decay spread over it instead of over --epochs",
@@ -464,13 +453,6 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _one_line_errors() -> tuple[type[Exception], ...]:
-    """The errors a command reports in one line: buildenv's, and a checkpoint that metamodels cannot read (looked
-    up only once metamodels has been imported: importing it here would import torch for every command)."""
-    checkpoint = sys.modules.get("metamodels.checkpoint")
-    return (BuildenvError,) if checkpoint is None else (BuildenvError, checkpoint.CheckpointFormatError)
-
-
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``buildenv`` console script; returns the exit status."""
     args = build_parser().parse_args(argv)
@@ -478,7 +460,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         with one_blas_thread():  # numpy's BLAS threads would fight the metamodel's (buildenv.metamodel.threads)
             return args.func(args)
-    except _one_line_errors() as exc:  # evaluated when an exception is raised, after the command's imports
+    except BuildenvError as exc:
         print(f"buildenv {args.command}: error: {exc}", file=sys.stderr)
         return 2
     except BrokenPipeError:  # output piped into `head` and the like

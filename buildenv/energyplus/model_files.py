@@ -3,23 +3,26 @@ for another EnergyPlus version refused with what to do (the engine ships no vers
 
 from __future__ import annotations
 
+import functools
 import hashlib
+import os
 import re
+import shutil
 import tempfile
 from pathlib import Path
 
+from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.energyplus.runner import energyplus_version
 from buildenv.errors import ReferenceBuildingError
-
-_VERSION = re.compile(r"^\s*Version\s*,\s*([0-9]+)\.([0-9]+)", re.IGNORECASE | re.MULTILINE)
 
 
 def idf_version(path: Path) -> tuple[int, int] | None:
     """The ``major, minor`` EnergyPlus version an IDF declares in its ``Version`` object; ``None`` without one."""
-    text = Path(path).read_text(errors="replace")
-    text = re.sub(r"!.*", "", text)  # comments may mention versions
-    found = _VERSION.search(text)
-    return (int(found.group(1)), int(found.group(2))) if found else None
+    for obj in of_type(read_idf(path), "Version"):
+        found = re.match(r"\s*([0-9]+)\.([0-9]+)", obj[1]) if len(obj) > 1 else None
+        if found:
+            return int(found.group(1)), int(found.group(2))
+    return None
 
 
 def check_version(path: Path) -> None:
@@ -53,27 +56,37 @@ def epjson_as_idf(path: Path) -> Path:
     idf = folder / f"{Path(path).stem}.idf"
     if idf.is_file():
         return idf
-    folder.mkdir(parents=True, exist_ok=True)
-    source = folder / f"{Path(path).stem}.epJSON"
+    folder.parent.mkdir(parents=True, exist_ok=True)
+    work = Path(tempfile.mkdtemp(prefix=f"{folder.name}-", dir=folder.parent))  # parallel conversions do not meet
+    source = work / f"{Path(path).stem}.epJSON"
     source.write_bytes(data)
     api = EnergyPlusAPI()
     state = api.state_manager.new_state()
     try:
         api.runtime.set_console_output_status(state, False)
-        code = api.runtime.run_energyplus(state, ["--convert-only", "-d", str(folder), str(source)])
+        code = api.runtime.run_energyplus(state, ["--convert-only", "-d", str(work), str(source)])
     finally:
         api.state_manager.delete_state(state)
-    if code != 0 or not idf.is_file():
+    if code != 0 or not (work / idf.name).is_file():
         raise ReferenceBuildingError(
-            f"{path}: EnergyPlus could not convert this epJSON to IDF (see {folder / 'eplusout.err'})"
+            f"{path}: EnergyPlus could not convert this epJSON to IDF (see {work / 'eplusout.err'})"
         )
+    try:
+        os.replace(work, folder)
+    except OSError:  # another process converted it first
+        shutil.rmtree(work, ignore_errors=True)
     return idf
 
 
 def user_model(path: Path) -> Path:
     """The IDF to read for a user's model file: an epJSON converted (:func:`epjson_as_idf`), the version checked
-    (:func:`check_version`)."""
-    path = Path(path)
+    (:func:`check_version`); once per file and modification time."""
+    path = Path(path).resolve()
+    return _user_model(path, path.stat().st_mtime_ns)
+
+
+@functools.lru_cache(maxsize=32)
+def _user_model(path: Path, mtime_ns: int) -> Path:
     if path.suffix.lower() == ".epjson":
         path = epjson_as_idf(path)
     check_version(path)

@@ -23,10 +23,6 @@ _TEMP_COMPARISON = re.compile(r"Temp Comparison\s*=\s*([0-9.Ee+-]+)")
 #: day-to-day change of a zone temperature (K) up to which an unconverged warm-up is accepted (EnergyPlus's
 #: largest temperature convergence tolerance), see :func:`warmup_settled`
 WARMUP_TEMPERATURE_LIMIT_K = 0.5
-#: Severe reports of a sound run, left out of :func:`severe_lines`: a heat exchanger whose supply and exhaust
-#: flows differ by more than 2:1 is computed on the smaller stream and the simulation goes on (the shoebox's
-#: air handling unit mixes return air in through such an exchanger, see :mod:`buildenv.energyplus.shoebox`).
-ACCEPTED_SEVERE = ("unbalanced air volume flow ratio through the heat exchanger",)
 log = logging.getLogger(__name__)
 
 
@@ -40,16 +36,16 @@ def energyplus_version() -> str:
     return "unknown"
 
 
-def severe_lines(err_path: Path, limit: int = 8) -> list[str]:
-    """The severe/fatal lines of an ``eplusout.err`` and their continuation lines (at most ``limit``), but
-    for :data:`ACCEPTED_SEVERE` reports."""
+def severe_lines(err_path: Path, limit: int = 8, accepted: tuple[str, ...] = ()) -> list[str]:
+    """The severe/fatal lines of an ``eplusout.err`` and their continuation lines (at most ``limit``), but for
+    the reports whose first line holds one of ``accepted``."""
     if not err_path.is_file():
         return []
     out: list[str] = []
     keep = False
     for line in err_path.read_text(errors="replace").splitlines():
         if _SEVERE.search(line):
-            keep = not any(accepted in line for accepted in ACCEPTED_SEVERE)
+            keep = not any(text in line for text in accepted)
         elif not line.lstrip().startswith("**   ~~~   **"):
             keep = False
         if keep:
@@ -90,6 +86,7 @@ def run_energyplus(
     workdir: Path,
     label: str = "model",
     warmup_limit_k: float = WARMUP_TEMPERATURE_LIMIT_K,
+    accepted_severe: tuple[str, ...] = (),
 ) -> Path:
     """Run one EnergyPlus simulation and return the output directory.
 
@@ -99,6 +96,7 @@ def run_energyplus(
         workdir: directory for the model and EnergyPlus outputs (created).
         label: file stem of the written model, used in error messages.
         warmup_limit_k: the day-to-day temperature change a warm-up may end with (:func:`warmup_settled`).
+        accepted_severe: severe reports the model is known to raise in a sound run (:func:`severe_lines`).
     Raises:
         SimulationError: EnergyPlus returned non-zero or reported a severe error (quoting ``eplusout.err``);
             a warm-up that settled without meeting every tolerance (:func:`warmup_settled`) only logs a warning.
@@ -119,7 +117,7 @@ def run_energyplus(
     finally:
         api.state_manager.delete_state(state)
     err = workdir / "eplusout.err"
-    severe = severe_lines(err, limit=_ALL_LINES)
+    severe = severe_lines(err, limit=_ALL_LINES, accepted=accepted_severe)
     if code == 0 and warmup_settled(severe, warmup_limit_k):
         log.warning("%s: warm-up did not fully converge (accepted): %s", model_path, " | ".join(severe[:8]))
         severe = []

@@ -26,7 +26,8 @@ Modelling choices (each a constant below, so that a reader can find and change i
 - Mixed air: with ``minimum_supply_air_ach`` above the outdoor air the unit supplies that minimum, the rest
   return air, as VAV systems at their boxes' minimum flow do (the zones reheat it). The exchanger then has
   effectiveness 1 on an exhaust stream of the return air plus the heat-recovered share of the outdoor air, so
-  its outlet is the mixed air (computed on the smaller stream; EnergyPlus's 2:1 imbalance report is expected),
+  its outlet is the mixed air (computed on the smaller stream; EnergyPlus's 2:1 imbalance report is expected:
+  :data:`ACCEPTED_SEVERE`),
   and its bypass is the economiser that brings in more outdoor air where that is nearer the supply temperature.
 - Schedules: every hourly schedule is a column of one Schedule:File, so every week may differ.
 - Outputs: hourly, the zones' floor-area weighted mean air temperature and the seven energies summed over
@@ -58,6 +59,9 @@ PARTITION_AIR_GAP_M2K_W = 0.15  # thermal resistance of the air gap in the core/
 # EnergyPlus's day-to-day warm-up loads tolerance for two zones (its default 0.04 is missed by a core's few watts);
 # a warm-up whose temperatures converged is accepted anyway (runner.warmup_settled)
 CORE_WARMUP_LOADS_TOLERANCE = 0.1
+#: Severe reports of a sound shoebox run (runner.run_energyplus ``accepted_severe``): the mixed-air exchanger's
+#: supply and exhaust flows differ by more than 2:1, and EnergyPlus computes it on the smaller stream and goes on
+ACCEPTED_SEVERE = ("unbalanced air volume flow ratio through the heat exchanger",)
 WINDOW_MARGIN = 0.05  # share of the facade width left opaque at each end of the window band
 PERSON_ACTIVITY_W = 120.0
 AHU_FAN_PRESSURE_PA = 300.0
@@ -292,7 +296,7 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
         "lighting_fraction": usage_fraction(series["occupancy_fraction"], theta["light_night_percent"]),
         "equipment_fraction": usage_fraction(series["occupancy_fraction"], theta["pc_night_percent"]),
         "ventilation_on": series["ventilation_on"],
-        **dict(zip(("supply_fraction", "exhaust_fraction"), air_unit_flows(theta, series["ventilation_ach"])[1:])),
+        **dict(zip(("supply_fraction", "exhaust_fraction"), air_unit_flows(theta, series["ventilation_ach"]))),
         "supply_air_c": series["supply_air_c"],
     }
     block = np.stack([columns[c].reshape(-1) for c in SCHEDULE_COLUMNS], axis=1)  # (weeks*168, n)
@@ -302,26 +306,28 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
     return table
 
 
-def air_unit_flows(theta: dict[str, float], ventilation_ach: np.ndarray) -> tuple[float, np.ndarray, np.ndarray]:
-    """The air handling unit's flows for hourly outdoor air ``ventilation_ach`` (air changes per hour).
+def air_unit_largest_ach(theta: dict[str, float]) -> float:
+    """The air handling unit's largest flow (air changes per hour): the catalogue's most outdoor air, or the
+    minimum supply flow where that is larger."""
+    return max(theta["minimum_supply_air_ach"], cat.get("ventilation_ach").max)
+
+
+def air_unit_flows(theta: dict[str, float], ventilation_ach: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The air handling unit's supply and exhaust flows for hourly outdoor air ``ventilation_ach`` (air changes
+    per hour), as fractions of :func:`air_unit_largest_ach` (each shaped as ``ventilation_ach``).
 
     Without a minimum supply flow the unit supplies and exhausts the outdoor air. With one, it supplies at least
     ``minimum_supply_air_ach`` and exhausts, through an exchanger of effectiveness 1, the return air it mixes in
     plus the heat-recovered share of the outdoor air, so that the exchanger's outlet is the mixed air.
-
-    Returns:
-        The unit's largest flow (air changes per hour), then its supply and its exhaust flow as fractions of
-        it (each shaped as ``ventilation_ach``).
     """
-    most = cat.get("ventilation_ach").max
+    largest = air_unit_largest_ach(theta)
     minimum = theta["minimum_supply_air_ach"]
     if minimum <= 0.0:
-        fraction = ventilation_ach / most
-        return most, fraction, fraction
-    largest = max(minimum, most)
+        fraction = ventilation_ach / largest
+        return fraction, fraction
     supply = np.where(ventilation_ach > 0.0, np.maximum(ventilation_ach, minimum), 0.0)
     exhaust = supply - (1.0 - theta["heat_recovery_effectiveness"]) * ventilation_ach
-    return largest, supply / largest, exhaust / largest
+    return supply / largest, exhaust / largest
 
 
 def write_schedule_file(
@@ -779,8 +785,7 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
     # Air handling unit: outdoor air -> [heat exchanger ->] DX cooling coil -> electric heating coil -> supply
     # fan -> zone; zone -> exhaust fan [-> heat exchanger] -> outdoors. With a minimum supply flow the exchanger
     # passes the exhaust whole (effectiveness 1) and its outlet is the mix of outdoor and return air.
-    largest_ach = air_unit_flows(t, np.zeros(1))[0]
-    flow = largest_ach * share * g.volume_m3 / 3600.0
+    flow = air_unit_largest_ach(t) * share * g.volume_m3 / 3600.0
     if t["minimum_supply_air_ach"] > 0.0:
         sensible, latent = 1.0, 1.0
     else:

@@ -13,6 +13,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.energyplus.runner import read_hourly_csv, run_energyplus
 from buildenv.energyplus.shoebox import (
+    ACCEPTED_SEVERE,
     DEFAULT_ZONING,
     Geometry,
     build_epjson,
@@ -89,7 +90,7 @@ def simulate_weeks(
         model = build_epjson(t, weather, csv, start_week, n_weeks, zoning)
         if keep_files:
             (workdir / "shoebox.epJSON").write_text(json.dumps(model, indent=1))
-        run_energyplus(model, weather.path, workdir, label="shoebox")
+        run_energyplus(model, weather.path, workdir, label="shoebox", accepted_severe=ACCEPTED_SEVERE)
         outputs = read_outputs(workdir / "eplusout.csv", t, n_weeks, zoning)
     finally:
         if tmp is not None and not keep_files:

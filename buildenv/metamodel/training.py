@@ -7,6 +7,8 @@ the weeks held out of training. Normalisation statistics come from the training 
 from __future__ import annotations
 
 import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import asdict
 from pathlib import Path
 
@@ -17,6 +19,17 @@ from buildenv.campaign.dataset import open_dataset
 from buildenv.errors import BuildenvError
 from buildenv.metamodel import surrogate as sg
 from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
+
+
+@contextmanager
+def _checkpoint_errors() -> Iterator[None]:
+    """A checkpoint file metamodels cannot read, as buildenv's one-line :class:`.surrogate.CheckpointError`."""
+    from metamodels.checkpoint import CheckpointFormatError
+
+    try:
+        yield
+    except CheckpointFormatError as exc:
+        raise sg.CheckpointError(str(exc)) from None
 
 
 def standardised_tensors(x: np.ndarray, y: np.ndarray, ck):
@@ -105,7 +118,8 @@ def train_metamodel(
     if last.exists():  # a resumed run keeps the encoding it started with
         from metamodels.checkpoint import load_checkpoint
 
-        was = load_checkpoint(last).metadata
+        with _checkpoint_errors():
+            was = load_checkpoint(last).metadata
         if was.get("context_hours", sg.CONTEXT_HOURS) != ctx:
             raise BuildenvError(
                 f"{last} was trained with --context-hours {was.get('context_hours')}, not {ctx}: "
@@ -186,15 +200,16 @@ def train_metamodel(
         **train_options,
     )
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
-    history = fit(
-        ck,
-        *standardised_tensors(x_tr[..., channels], y_tr, ck),
-        *standardised_tensors(x_va[..., channels], y_va, ck),
-        hour_mask,
-        cfg,
-        Path(out),
-        progress,
-    )
+    with _checkpoint_errors():  # a resumed run reads CKPT.last and the best checkpoint back
+        history = fit(
+            ck,
+            *standardised_tensors(x_tr[..., channels], y_tr, ck),
+            *standardised_tensors(x_va[..., channels], y_va, ck),
+            hour_mask,
+            cfg,
+            Path(out),
+            progress,
+        )
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
     extra = (

@@ -78,11 +78,10 @@ TEMPERATURE_RANGE_C: tuple[float, float] = (-20.0, 50.0)
 #: Largest plausible consumption in one hour, kWh per m2 of floor area.
 MAX_KWH_PER_M2_PER_HOUR = 1.0
 #: Smallest plausible peak of a consumption series that includes lighting or plug loads, as a share of the
-#: catalogue's least installed power of those end uses (lighting 4, plug loads 2 W/m2 at full use): in its
-#: busiest hour a building uses at least a tenth of that (a nearly empty building with efficient lights). A
-#: file in MWh (1000 times too small) peaks below it even at the catalogue's highest powers (150 W/m2 heating +
-#: 16 lighting + 20 plug loads -> 0.19 W/m2 < 0.6 W/m2 for lighting and plug loads); one in GJ (278 times) does
-#: unless the building peaks above 167 W/m2.
+#: catalogue's least installed power of those end uses (the minima of ``lighting_power_w_m2`` and
+#: ``plug_load_w_m2``): in its busiest hour a building uses at least that share of it (a nearly empty building
+#: with efficient lights). A file in MWh (1000 times too small) peaks below it even at the catalogue's highest
+#: powers; one in GJ (278 times) does unless the building peaks far above them.
 MIN_PEAK_SHARE_OF_LEAST_POWER = 0.1
 
 

@@ -127,6 +127,54 @@ def _cmd_site_reference(args: argparse.Namespace) -> int:
     return 0
 
 
+def parse_units(items: list[str]) -> dict[str, str]:
+    """``--unit COLUMN=UNIT`` values -> ``{column: unit}`` (the unit checked by the importer); raises
+    :class:`~buildenv.errors.SiteError` (one line) naming the bad item."""
+    from buildenv.errors import SiteError
+
+    units: dict[str, str] = {}
+    for item in items:
+        column, sep, unit = item.rpartition("=")
+        if not sep or not column.strip() or not unit.strip():
+            raise SiteError(f"--unit {item!r}: expected COLUMN=UNIT, e.g. 'Temp (F)=degF'")
+        units[column.strip()] = unit.strip()
+    return units
+
+
+def _cmd_site_import(args: argparse.Namespace) -> int:
+    from buildenv.sites.importer import ImportOptions, import_export
+
+    options = ImportOptions(
+        time_column=args.time_column,
+        temperature_column=args.temperature_column,
+        consumption_columns=tuple(args.consumption_column),
+        units=parse_units(args.unit),
+        time_format=args.time_format,
+        time_zone=args.time_zone,
+        stamped=args.stamped,
+        cumulative=args.cumulative,
+        fill_temperature_gaps=args.fill_temperature_gaps,
+    )
+    report = import_export(
+        args.export,
+        args.out,
+        name=args.name or Path(args.export).stem,
+        weather=args.epw,
+        floor_area_m2=args.floor_area,
+        number_of_floors=args.floors,
+        options=options,
+        settings=args.settings,
+        known=parse_known(args.known),
+        end_uses=parse_meter(args.meter),
+    )
+    info = report.as_dict()
+    notes = info.pop("notes")
+    print(dumps(info, where="the import", nonfinite="null", indent=2))
+    for note in notes:
+        print(note, file=sys.stderr)
+    return 0
+
+
 def _cmd_site_show(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -254,6 +302,51 @@ def register(sub) -> None:
     )
     p.add_argument("--out", required=True, help="site folder to write")
     p.set_defaults(func=_cmd_site_reference)
+    p = site_sub.add_parser(
+        "import",
+        help="a site folder from a BMS export (sub-hourly, local time, end stamps, other units, meter registers)",
+    )
+    p.add_argument("export", help="the BMS export: a CSV file with a header (',', ';' or tab separated)")
+    p.add_argument("--out", required=True, help="site folder to write (new or empty)")
+    p.add_argument("--epw", required=True, help="weather short name or EPW path")
+    p.add_argument("--floor-area", type=float, required=True, metavar="M2", help="conditioned floor area, m2")
+    p.add_argument("--floors", type=positive_int, required=True, help="storeys")
+    p.add_argument("--name", default=None, help="free text (default: the export's file name)")
+    p.add_argument("--time-column", default=None, help="timestamp column (default: the one named *time*/*date*)")
+    p.add_argument("--temperature-column", default=None, help="indoor temperature column (default: the one *temp*)")
+    p.add_argument(
+        "--consumption-column",
+        action="append",
+        default=[],
+        metavar="COLUMN",
+        help="a consumption column, summed (repeatable; default: each column named with an energy or power unit)",
+    )
+    p.add_argument(
+        "--unit",
+        action="append",
+        default=[],
+        metavar="COLUMN=UNIT",
+        help="a column's unit where its name does not say it (repeatable): degC, degF, K; Wh, kWh, MWh, MJ, GJ "
+        "(energy in the interval); W, kW, MW (power, averaged)",
+    )
+    p.add_argument("--time-format", default=None, help="strptime format of the timestamps, e.g. '%%m/%%d/%%Y %%H:%%M'")
+    p.add_argument("--time-zone", default=None, help="IANA zone whose clock (daylight saving) the export keeps")
+    p.add_argument(
+        "--stamped", default="start", choices=["start", "end"], help="a row stamps its interval's start or end"
+    )
+    p.add_argument("--cumulative", action="store_true", help="the energy columns hold meter register readings")
+    p.add_argument(
+        "--fill-temperature-gaps", action="store_true", help="interpolate temperature gaps of up to 2 h (else gaps)"
+    )
+    p.add_argument("--settings", default=None, metavar="CSV", help="settings.csv of the weeks (default: typical ones)")
+    add_known_argument(p)
+    p.add_argument(
+        "--meter",
+        default=None,
+        metavar="USE[,USE...]",
+        help="end uses the consumption sums (default heating,lighting,plug_loads); written to site.toml's [meters]",
+    )
+    p.set_defaults(func=_cmd_site_import)
     p = site_sub.add_parser("show", help="summarise a site folder (validates it)")
     p.add_argument("site", help="site folder")
     p.set_defaults(func=_cmd_site_show)

@@ -28,7 +28,8 @@ from buildenv import catalogue as cat
 from buildenv.env import actions as act
 from buildenv.env import objectives as obj
 from buildenv.env import render as rnd
-from buildenv.env.observations import BOUND, OBSERVATION_KINDS, observation_size, observe
+from buildenv.env import tariff as tar
+from buildenv.env.observations import BOUND, OBSERVATION_KINDS, forecast, observation_size, observe
 from buildenv.env.registration import ENV_ID
 from buildenv.errors import BuildingEnvError
 from buildenv.sites.week_simulator import SiteModel
@@ -47,6 +48,8 @@ ARGUMENTS: dict[str, Any] = {
     "episode_weeks": 1,
     "weeks": "train",
     "backend": "metamodel",
+    "forecast_noise": 0.0,
+    "price": None,
     "render_mode": None,
 }
 RENDER_MODES = ("rgb_array", "ansi")
@@ -138,6 +141,8 @@ class _Building:
         self.comfort_weight = _finite("comfort_weight", args["comfort_weight"], 0.0)
         self.target_c = _finite("target_temperature_c", args["target_temperature_c"])
         self.band_k = _finite("comfort_band_k", args["comfort_band_k"], 0.0)
+        self.forecast_noise = _finite("forecast_noise", args["forecast_noise"], 0.0)
+        self.tariff = tar.tariff_from(args["price"], ENV_ID)
         self.site = _load_site(args["site"])
         from buildenv.metamodel.surrogate import load_metamodel
 
@@ -155,7 +160,7 @@ class _Building:
             from buildenv.env.energyplus_backend import reference_building
 
             reference_building(self.site)  # fail now, not at the first step
-        self._historical: dict[int, tuple[float, float]] = {}
+        self._historical: dict[int, tuple[float, float, float]] = {}
         n_obs = observation_size(args["observation"])
         self.observation_space = spaces.Box(-BOUND, BOUND, (n_obs,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.actions.size,), np.float32)
@@ -184,8 +189,9 @@ class _Building:
         )
         return as_outputs(t, q)
 
-    def historical(self, weeks: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Energy (Wh/m2 per hour) and comfort (K) of the historical settings in ``weeks``, cached."""
+    def historical(self, weeks: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Energy (Wh/m2 per hour), comfort (K) and cost (currency; NaN without a tariff) of the historical
+        settings in ``weeks``, cached."""
         missing = sorted({int(w) for w in weeks} - set(self._historical))
         if missing:
             out = self.outputs(
@@ -193,10 +199,21 @@ class _Building:
                 np.array(missing),
                 None,
             )
-            for w, e, c in zip(missing, obj.hvac_energy(out), self.comfort(out)):
-                self._historical[w] = (float(e), float(c))
-        pairs = np.array([self._historical[int(w)] for w in weeks]).reshape(len(weeks), 2)
-        return pairs[:, 0], pairs[:, 1]
+            costs = self.cost(obj.hvac_energy_hourly(out), np.array(missing))
+            for w, e, c, k in zip(missing, obj.hvac_energy(out), self.comfort(out), costs):
+                self._historical[w] = (float(e), float(c), float(k))
+        rows = np.array([self._historical[int(w)] for w in weeks]).reshape(len(weeks), 3)
+        return rows[:, 0], rows[:, 1], rows[:, 2]
+
+    def prices(self, weeks: np.ndarray) -> np.ndarray:
+        """Hourly prices ``(N, 168)`` (currency per kWh) of the tariff on the weeks' dates."""
+        return np.stack([self.tariff.hourly(self.model.week_starts[int(w)]) for w in weeks]).reshape(len(weeks), -1)
+
+    def cost(self, hvac_wh_m2: np.ndarray, weeks: np.ndarray) -> np.ndarray:
+        """HVAC energy cost (currency) of hourly energy ``(N, 168)`` in ``weeks`` ``(N,)``; NaN without a tariff."""
+        if self.tariff is None:
+            return np.full(len(weeks), np.nan)
+        return tar.weekly_cost(hvac_wh_m2, self.prices(weeks), self.model.floor_area_m2)
 
     def comfort(self, outputs: np.ndarray) -> np.ndarray:
         """Comfort term (K) of outputs ``(N, 168, 8)``."""
@@ -216,32 +233,44 @@ class _Building:
         weeks = np.asarray(weeks, dtype=int)
         out = self.outputs(settings, weeks, previous)
         energy = obj.hvac_energy(out)
+        hourly = obj.hvac_energy_hourly(out)
         comfort = self.comfort(out)
-        hist_energy, hist_comfort = self.historical(weeks)
+        hist_energy, hist_comfort, hist_cost = self.historical(weeks)
         ratio = obj.energy_ratio(energy, hist_energy)
+        term = ratio
+        priced: dict[str, np.ndarray] = {}
+        if self.tariff is not None:
+            prices = self.prices(weeks)
+            cost = tar.weekly_cost(hourly, prices, self.model.floor_area_m2)
+            floor = tar.weekly_cost(np.full_like(prices, obj.ENERGY_FLOOR_WH_M2), prices, self.model.floor_area_m2)
+            term = obj.cost_ratio(cost, hist_cost, floor)
+            priced = {"cost": cost, "cost_historical": hist_cost}
         kwh = cat.HOURS_PER_WEEK * self.model.floor_area_m2 / 1000.0
         return {
-            "reward": -(ratio + self.comfort_weight * comfort),
-            "energy_term": ratio,
+            "reward": -(term + self.comfort_weight * comfort),
+            "energy_term": term,
             "comfort_k": comfort,
             "energy_wh_m2": energy,
             "energy_kwh": energy * kwh,
             "energy_historical_kwh": hist_energy * kwh,
+            **priced,
             "comfort_historical_k": hist_comfort,
             "savings_percent": 100.0 * (1.0 - ratio),
             "mean_temperature_occupied_c": obj.indoor_temperature(out)[:, self.occupied].mean(-1),
             "clipped_components": clipped,
             "settings": settings,
             "temperature_c": obj.indoor_temperature(out),
-            "hvac_wh_m2": obj.hvac_energy_hourly(out),
+            "hvac_wh_m2": hourly,
         }
 
-    def observe(self, weeks: np.ndarray) -> np.ndarray:
-        """Observations ``(N, obs)`` of the weeks' starts."""
+    def observe(self, weeks: np.ndarray, rngs: list[np.random.Generator]) -> np.ndarray:
+        """Observations ``(N, obs)`` of the weeks' starts; with ``forecast_noise`` the weather in row i is a
+        forecast drawn from ``rngs[i]`` (:func:`buildenv.env.observations.forecast`), else nothing is drawn."""
         weeks = np.asarray(weeks, dtype=int)
-        return observe(
-            self.model.weather(weeks), weeks, self.model.occupancy, self.model.theta, self.args["observation"]
-        ).astype(np.float32, copy=False)
+        weather = forecast(self.model.weather(weeks), self.forecast_noise, rngs)
+        return observe(weather, weeks, self.model.occupancy, self.model.theta, self.args["observation"]).astype(
+            np.float32, copy=False
+        )
 
     def pick_week(self, rng: np.random.Generator, options: dict | None) -> int:
         """The first week of a new episode: ``options["week"]`` if given (it must be a valid start), else drawn."""
@@ -351,9 +380,19 @@ class BuildingWeekEnv(gym.Env):
     infinite ones raise :class:`buildenv.errors.BuildingEnvError`.
 
     ## Observation Space
-    ``Box(-10, 10, (75,), float32)`` (``observation="compact"``): the week's daily weather forecast, the
+    ``Box(-10, 10, (77,), float32)`` (``observation="compact"``): the week's daily weather forecast, the
     occupancy schedule, the week of the year (sine, cosine) and the calibrated building parameters, scaled to
-    order one; ``"forecast"`` appends the hourly forecast, ``(1419,)`` (:mod:`buildenv.env.observations`).
+    order one; ``"forecast"`` appends the hourly forecast, ``(1421,)`` (:mod:`buildenv.env.observations`).
+
+    The forecast is the true week's weather unless ``forecast_noise`` (K, default 0) is given: then both its
+    daily summary and its hourly part are a forecast drawn from the environment's ``np_random`` each time a
+    week is observed (reproducible under the seed; the vector env draws sub-environment i's from its own
+    generator, as ``SyncVectorEnv`` does): the outdoor temperature error is a random walk over the week's
+    hours whose standard deviation grows with lead time to ``forecast_noise * sqrt((d + 1) / 7)`` at the end
+    of day d (``forecast_noise`` on Sunday); irradiance and wind speed get multiplicative errors
+    (``IRRADIANCE_ERROR_PER_K``, ``WIND_ERROR_PER_K`` = 0.15 per K, clipped at 0), humidity follows the
+    temperature error at the true vapour pressure plus its own error (5 %-points per K), clipped into
+    [0, 100] (:func:`buildenv.env.observations.forecast`). The reward always uses the true weather.
 
     ## Rewards
     ``-(energy_term + comfort_weight * comfort_term)``. ``energy_term`` (the paper's Delta_Q^opt): the week's
@@ -362,6 +401,13 @@ class BuildingWeekEnv(gym.Env):
     ``comfort`` (:mod:`buildenv.env.objectives`). ``info`` adds physical values (``energy_kwh``,
     ``energy_historical_kwh``, ``savings_percent``, ``comfort_k``, ``comfort_historical_k``,
     ``mean_temperature_occupied_c``), the decoded ``settings`` and ``reward_vector = [-energy, -comfort]``.
+
+    With a time-of-use tariff, ``price=`` a preset (``"tou"``, ``"flat"``) or a dict such as ``{"peak": 0.25,
+    "offpeak": 0.10, "peak_hours": (8, 20), "peak_days": "weekdays"}`` (currency per kWh,
+    :mod:`buildenv.env.tariff`), ``energy_term`` is the week's HVAC energy cost at the hourly prices of the
+    week's dates over the same week's cost under the historical settings (1.0 = today's cost; the historical
+    cost is floored at the cost of 0.5 Wh/m2 in every hour); ``info`` adds ``cost`` and ``cost_historical``
+    (currency) and ``savings_percent`` stays the energy saved.
 
     ## Starting State
     ``reset(seed=...)`` draws the first week uniformly from the valid starts in ``weeks``;
@@ -387,8 +433,9 @@ class BuildingWeekEnv(gym.Env):
     ("default" or a checkpoint path), ``comfort_weight`` (1.0 per K), ``target_temperature_c`` (22.5 degC),
     ``comfort`` ("rms", "band", "mean_abs"), ``comfort_band_k`` (1.0 K), ``observation`` ("compact"),
     ``episode_weeks`` (1), ``weeks`` ("train"; "test" is weeks 12-15, 28-31 and 44-47; "all"; or a list),
-    ``backend`` ("metamodel", or "energyplus": the site's reference building, for verification), ``render_mode``
-    (None, "rgb_array", "ansi"). Unknown arguments and bad values (``comfort_weight=nan``,
+    ``backend`` ("metamodel", or "energyplus": the site's reference building, for verification),
+    ``forecast_noise`` (0.0 K: the true weather; see Observation Space), ``price`` (None: relative energy; see
+    Rewards), ``render_mode`` (None, "rgb_array", "ansi"). Unknown arguments and bad values (``comfort_weight=nan``,
     ``episode_weeks=2.7``, ...) are rejected with one line each. ``env.unwrapped.evaluate(actions)`` scores
     ``(N, 7 x k)`` actions in one call.
 
@@ -407,6 +454,7 @@ class BuildingWeekEnv(gym.Env):
         self._step_in_episode = 0
         self._previous: np.ndarray | None = None
         self._done = False
+        self._obs: np.ndarray | None = None
         self._last: tuple[int, int, dict[str, np.ndarray] | None] | None = None  # what render() shows
 
     @property
@@ -428,7 +476,8 @@ class BuildingWeekEnv(gym.Env):
         self._previous = None
         self._done = False
         self._last = (self._week, 0, None)
-        return self._b.observe([self._week])[0], self._b.week_info(self._week)
+        self._obs = self._b.observe([self._week], [self.np_random])[0]
+        return self._obs.copy(), self._b.week_info(self._week)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Apply one week of settings; returns the next week's observation and this week's reward.
@@ -452,9 +501,10 @@ class BuildingWeekEnv(gym.Env):
         self._last = (self._week, self._step_in_episode, scores)
         terminated = self._step_in_episode >= self._b.episode_weeks
         self._done = terminated
-        if not terminated:
+        if not terminated:  # the next week's forecast; a finished episode returns its last week's observation
             self._week += 1
-        return self._b.observe([self._week])[0], float(scores["reward"][0]), terminated, False, info
+            self._obs = self._b.observe([self._week], [self.np_random])[0]
+        return self._obs.copy(), float(scores["reward"][0]), terminated, False, info
 
     def render(self) -> np.ndarray | str | None:
         """The last simulated week (the week ahead just after ``reset``) as an ``(540, 960, 3)`` ``uint8``
@@ -478,7 +528,8 @@ class BuildingWeekEnv(gym.Env):
             ``{"reward", "energy_term", "comfort_k", "energy_kwh", "energy_historical_kwh", "savings_percent",
             "comfort_historical_k", "mean_temperature_occupied_c", "energy_wh_m2", "clipped_components"}``,
             each ``(N,)``; ``"settings"`` ``(N, 7, 12)``; the hourly ``"temperature_c"`` (degC) and
-            ``"hvac_wh_m2"`` (Wh/m2 in the hour) ``(N, 168)``.
+            ``"hvac_wh_m2"`` (Wh/m2 in the hour) ``(N, 168)``; with ``price=``, also ``"cost"`` and
+            ``"cost_historical"`` (currency) ``(N,)``, and ``"energy_term"`` is the cost ratio.
         """
         actions = np.atleast_2d(np.asarray(actions))
         prev = None
@@ -596,9 +647,10 @@ def _merged(first: dict[str, Any], second: dict[str, Any]) -> dict[str, Any]:
 class BuildingWeekVectorEnv(VectorEnv):
     """N copies of :class:`BuildingWeekEnv` stepped in one metamodel call (``gymnasium.make_vec``).
 
-    Each sub-environment draws its weeks with its own generator, seeded as ``SyncVectorEnv`` seeds its copies
-    (``reset(seed=s)``: sub-environment i gets ``s + i``; ``reset(seed=[s0, s1, ...])``: one each, None keeps
-    the generator), so it draws the same weeks as ``gymnasium.make_vec(..., vectorization_mode="sync")``.
+    Each sub-environment draws its weeks (and, with ``forecast_noise``, its forecast errors) with its own
+    generator, seeded as ``SyncVectorEnv`` seeds its copies (``reset(seed=s)``: sub-environment i gets ``s + i``;
+    ``reset(seed=[s0, s1, ...])``: one each, None keeps the generator), so it draws the same weeks and forecasts
+    as ``gymnasium.make_vec(..., vectorization_mode="sync")``.
     ``options["week"]`` puts every reset sub-environment on that week; ``options["reset_mask"]`` resets only
     those marked.
 
@@ -718,7 +770,7 @@ class BuildingWeekVectorEnv(VectorEnv):
         self._previous[rows] = self._b.model.historical
         self._done[rows] = False
         if len(rows):
-            self._obs[rows] = self._b.observe(weeks)
+            self._obs[rows] = self._b.observe(weeks, [self._rng(i) for i in rows])
         if self.render_mode is not None:
             for i, week in zip(rows, weeks):
                 self._last[i] = (int(week), 0, None, 0)
@@ -766,8 +818,10 @@ class BuildingWeekVectorEnv(VectorEnv):
             if self.render_mode is not None:
                 for j, i in enumerate(rows):
                     self._last[i] = (int(weeks[j]), int(self._steps[i]), scores, j)
-            self._weeks[rows[~term]] += 1
-            self._obs[rows] = self._b.observe(self._weeks[rows])
+            ahead = rows[~term]  # the next week's forecast; finished episodes keep their last week's observation
+            self._weeks[ahead] += 1
+            if len(ahead):
+                self._obs[ahead] = self._b.observe(self._weeks[ahead], [self._rng(i) for i in ahead])
         done = terminated | truncated
         if mode == AutoresetMode.NEXT_STEP:
             if resetting.any():

@@ -53,7 +53,9 @@ class MOBuildingWeekEnv(_VectorReward, BuildingWeekEnv):
     :func:`reward_space`, ``Box(-inf, 0, (2,), float32)``, both components "higher is better":
 
     * 0, energy: ``-energy_term``, the week's mean hourly HVAC energy over the same week's under the site's
-      historical settings (dimensionless; -1.0 = as today, -0.9 = 10 % saved);
+      historical settings (dimensionless; -1.0 = as today, -0.9 = 10 % saved); with ``price=`` (a time-of-use
+      tariff, :mod:`buildenv.env.tariff`) the week's HVAC energy cost over the historical settings' cost
+      instead (-1.0 = today's cost);
     * 1, comfort: ``-comfort_term``, the deviation from ``target_temperature_c`` over the occupied hours, K
       (by ``comfort``: ``rms``, ``band`` or ``mean_abs``).
 

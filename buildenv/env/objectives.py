@@ -3,7 +3,9 @@
 - **Energy**, the paper's Delta_Q^opt: the mean hourly HVAC energy over the week's 168 hours, Wh/m2 per
   hour (numerically W/m2), where HVAC energy is the heating and cooling delivered by the zone units and the
   air handling unit (:data:`buildenv.catalogue.HVAC_OUTPUTS`). The environment reports it relative to the
-  same week under the site's historical settings (1.0 = as today; 0.9 = 10 % saved).
+  same week under the site's historical settings (1.0 = as today; 0.9 = 10 % saved). With a time-of-use tariff
+  (``price=``, :mod:`buildenv.env.tariff`) the term is the week's HVAC energy cost relative to the same week's
+  cost under the historical settings instead (:func:`cost_ratio`).
 - **Comfort**, the paper's Delta_T^opt against ``T* = 22.5 degC`` over the occupied hours, in K:
   ``rms`` (default): the root-mean-square deviation ``sqrt(mean((T - T*)^2))`` (the paper writes the
   ``1/N_occ`` outside the square root, which makes the value depend on the week's number of occupied
@@ -61,3 +63,9 @@ def comfort_deviation(
 def energy_ratio(energy: np.ndarray, historical: np.ndarray) -> np.ndarray:
     """Energy relative to the historical settings' (dimensionless), with :data:`ENERGY_FLOOR_WH_M2`."""
     return np.asarray(energy) / np.maximum(np.asarray(historical), ENERGY_FLOOR_WH_M2)
+
+
+def cost_ratio(cost: np.ndarray, historical_cost: np.ndarray, floor_cost: np.ndarray) -> np.ndarray:
+    """Cost relative to the historical settings' (dimensionless), the historical cost floored at ``floor_cost``,
+    the cost of :data:`ENERGY_FLOOR_WH_M2` in every hour of the week at its prices (as :func:`energy_ratio`)."""
+    return np.asarray(cost) / np.maximum(np.asarray(historical_cost), np.asarray(floor_cost))

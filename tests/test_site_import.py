@@ -1,0 +1,225 @@
+"""``buildenv site import``: raw BMS exports (sub-hourly, local daylight-saving clock, end stamps, degF or K, Wh, MWh
+or GJ, meter registers) become site folders that read back as the same hourly data as a hand-made hourly site.
+
+Each export is built from known hourly values (temperature degC, consumption kWh in local standard time) with the
+standard library's zoneinfo, independently of the importer, and compared with a site written from those values by
+``write_site``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import json
+import zoneinfo
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from buildenv.cli.main import main
+from buildenv.defaults import default_week
+from buildenv.errors import SiteError
+from buildenv.sites import load_site, write_site
+from buildenv.sites.importer import ImportOptions, import_export
+
+AREA = 4982.0
+WEEKS = 2
+HOURS = WEEKS * 168
+SITE = {"name": "office", "weather": "usa_il_chicago", "floor_area_m2": AREA, "number_of_floors": 3}
+
+
+def _truth(seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
+    """Hourly ``(temperature degC, consumption kWh)`` of two weeks, rounded as a site file holds them."""
+    rng = np.random.default_rng(seed)
+    return np.round(21 + 2 * rng.standard_normal(HOURS), 3), np.round(20 + 80 * rng.random(HOURS), 4)
+
+
+def _handmade(path: Path, start: dt.date, t: np.ndarray, q: np.ndarray) -> Path:
+    """The hourly site a user would have written by hand, with the typical settings."""
+    shape = (WEEKS, 168)
+    return write_site(
+        path,
+        start=start,
+        settings=default_week(WEEKS)[0],
+        temperature_c=t.reshape(shape),
+        consumption_kwh=q.reshape(shape),
+        **SITE,
+    )
+
+
+def _export(path: Path, header: list[str], rows: list[list[str]]) -> Path:
+    path.write_text("\n".join(",".join(r) for r in [header, *rows]) + "\n", encoding="utf-8")
+    return path
+
+
+def _same(imported: Path, handmade: Path) -> None:
+    a, b = load_site(imported), load_site(handmade)
+    assert (a.start, a.weeks) == (b.start, b.weeks)
+    np.testing.assert_allclose(a.temperature_c, b.temperature_c, atol=1.5e-3)
+    np.testing.assert_allclose(a.consumption_kwh, b.consumption_kwh, atol=1.5e-3)
+    np.testing.assert_array_equal(a.settings, b.settings)
+
+
+def _dst_export(path: Path, start: dt.date, t: np.ndarray, q: np.ndarray) -> Path:
+    """A 15-minute export on Chicago's clock (daylight saving from 2024-03-10 02:00), temperature in degF (four
+    samples averaging the hour), a Wh register read at the start of each interval, and a closing reading."""
+    zone, standard_offset = zoneinfo.ZoneInfo("America/Chicago"), dt.timedelta(hours=-6)
+    share = (0.1, 0.2, 0.3, 0.4)
+    register = 1_234_567.0
+    rows = []
+    for k in range(HOURS * 4 + 1):
+        standard = dt.datetime.combine(start, dt.time()) + dt.timedelta(minutes=15 * k)
+        local = (standard - standard_offset).replace(tzinfo=dt.timezone.utc).astimezone(zone).replace(tzinfo=None)
+        h = k // 4
+        temperature = "" if h == HOURS else f"{(t[h] + (-0.3, -0.1, 0.1, 0.3)[k % 4]) * 1.8 + 32:.4f}"
+        rows.append([local.strftime("%Y-%m-%d %H:%M"), temperature, f"{register:.3f}"])
+        if h < HOURS:
+            register += 1000 * q[h] * share[k % 4]
+    return _export(path, ["Timestamp", "Zone Temp (°F)", "Main meter [Wh]"], rows)
+
+
+def test_15_minute_degf_export_on_a_dst_clock_with_a_wh_register(tmp_path):
+    start = dt.date(2024, 3, 4)  # Chicago's clocks go forward on Sunday 2024-03-10 02:00
+    t, q = _truth(0)
+    export = _dst_export(tmp_path / "bms.csv", start, t, q)
+    text = export.read_text()
+    assert "2024-03-10 01:45" in text and "2024-03-10 02:00" not in text and "2024-03-18 00:45" in text
+
+    options = ImportOptions(time_zone="America/Chicago", cumulative=True)
+    report = import_export(export, tmp_path / "site", options=options, **SITE)
+    assert (report.start, report.weeks, report.interval_minutes) == ("2024-03-04", 2, 15)
+    assert report.columns == {"Zone Temp (°F)": "degF", "Main meter [Wh]": "Wh register"}
+    assert report.missing_temperature_hours == report.missing_consumption_hours == 0 and not report.notes
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+
+def test_5_minute_end_stamped_export_in_kelvin_and_kw(tmp_path):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(1)
+    rows = []
+    for k in range(1, HOURS * 12 + 1):  # row k covers the 5 minutes to its stamp
+        stamp = dt.datetime.combine(start, dt.time()) + dt.timedelta(minutes=5 * k)
+        text = stamp.strftime("%Y-%m-%dT%H:%M:%S")
+        if stamp.time() == dt.time():  # midnight as the end of the day before
+            text = (stamp - dt.timedelta(days=1)).strftime("%Y-%m-%dT24:00:00")
+        h, i = (k - 1) // 12, (k - 1) % 12
+        wobble = (i - 5.5) / 10  # averages to 0 over the hour
+        rows.append([text, f"{t[h] + 273.15 + wobble:.4f}", f"{q[h] + wobble:.4f}"])
+    export = _export(tmp_path / "bms.csv", ["date_time", "room_temp_K", "Total power kW"], rows)
+    report = import_export(export, tmp_path / "site", options=ImportOptions(stamped="end"), **SITE)
+    assert (report.start, report.weeks, report.interval_minutes) == ("2024-01-08", 2, 5)
+    assert report.columns == {"room_temp_K": "K", "Total power kW": "kW"}
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+
+def test_hourly_export_in_mwh_and_gj_with_a_settings_file_through_the_cli(tmp_path, capsys):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(2)
+    heat, power = np.round(0.6 * q, 4), np.round(q - np.round(0.6 * q, 4), 4)
+    rows = [
+        [f"{dt.datetime.combine(start, dt.time()) + dt.timedelta(hours=h):%Y/%m/%d %H:%M}", f"{t[h]:.3f}"]
+        + [f"{heat[h] / 1000:.7f}", f"{power[h] * 0.0036:.8f}"]
+        for h in range(HOURS)
+    ]
+    export = _export(tmp_path / "bms.csv", ["Time", "Indoor temp degC", "Heating [MWh]", "Electricity [GJ]"], rows)
+    hand = _handmade(tmp_path / "hand", start, t, heat + power)
+    argv = ["site", "import", str(export), "--out", str(tmp_path / "site"), "--epw", "usa_il_chicago"]
+    argv += ["--floor-area", str(AREA), "--floors", "3", "--name", "office", "--settings", str(hand / "settings.csv")]
+    assert main(argv) == 0
+    info = json.loads(capsys.readouterr().out)
+    assert info["columns"] == {"Indoor temp degC": "degC", "Heating [MWh]": "MWh", "Electricity [GJ]": "GJ"}
+    assert info["settings"] == str(hand / "settings.csv")
+    _same(tmp_path / "site", hand)
+
+
+def test_temperature_gaps_are_reported_or_filled_when_asked(tmp_path):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(3)
+    rows = [
+        [
+            f"{dt.datetime.combine(start, dt.time()) + dt.timedelta(hours=h):%Y-%m-%d %H:%M}",
+            f"{t[h]:.3f}",
+            f"{q[h]:.4f}",
+        ]
+        for h in range(HOURS)
+    ]
+    for h in (30, 31, 100, 101, 102):  # a 2-hour gap and a 3-hour one
+        rows[h][1] = ""
+    export = _export(tmp_path / "bms.csv", ["timestamp", "temperature_c", "energy_kwh"], rows)
+    report = import_export(export, tmp_path / "gaps", **SITE)
+    assert report.missing_temperature_hours == 5 and report.filled_temperature_hours == 0
+    assert report.notes == [
+        f"{export}: 5 hour(s) without temperature, the first from 2024-01-09 06:00 standard time (after line 31); "
+        "they stay gaps, masked in comparisons"
+    ]
+    assert np.isnan(load_site(tmp_path / "gaps").temperature_c.ravel()[[30, 31, 100, 101, 102]]).all()
+
+    report = import_export(export, tmp_path / "filled", options=ImportOptions(fill_temperature_gaps=True), **SITE)
+    assert report.filled_temperature_hours == 2 and report.missing_temperature_hours == 3
+    filled = load_site(tmp_path / "filled").temperature_c.ravel()
+    np.testing.assert_allclose(filled[[30, 31]], t[29] + (t[32] - t[29]) * np.array([1, 2]) / 3, atol=1e-3)
+    assert np.isnan(filled[[100, 101, 102]]).all()
+
+
+def test_a_bad_column_name_gives_one_line_and_no_folder(tmp_path, capsys):
+    start = dt.date(2024, 3, 4)
+    export = _dst_export(tmp_path / "bms.csv", start, *_truth(0))
+    out = tmp_path / "new" / "site"
+    argv = ["site", "import", str(export), "--out", str(out), "--epw", "usa_il_chicago", "--floor-area", str(AREA)]
+    argv += ["--floors", "3", "--time-zone", "America/Chicago", "--cumulative", "--temperature-column", "Zone Tmp (F)"]
+    assert main(argv) == 2
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1
+    assert lines[0].startswith(f"buildenv site: error: {export}:1: no column 'Zone Tmp (F)'")
+    assert "did you mean 'Zone Temp (°F)'?" in lines[0] and "give --temperature-column one of" in lines[0]
+    assert not (tmp_path / "new").exists()
+
+
+@pytest.mark.parametrize(
+    "change, options, expected",
+    [
+        (
+            lambda rows: rows[500].__setitem__(2, "1000.000"),
+            {"cumulative": True, "time_zone": "America/Chicago"},
+            r"bms.csv:502: Main meter \[Wh\] reading 1000 is below the previous .* \(line 501\): a meter reset",
+        ),
+        (
+            lambda rows: None,
+            {"time_zone": "America/Chicago"},
+            r"bms.csv:2: Main meter \[Wh\] never falls, .*pass --cumulative",
+        ),
+        (
+            lambda rows: None,
+            {"cumulative": True},
+            r"bms.csv:\d+: no reading from 2024-03-10 02:00 for an hour, .*--time-zone America/",
+        ),
+        (
+            lambda rows: rows[7].__setitem__(1, "150"),
+            {"cumulative": True, "time_zone": "America/Chicago"},
+            r"bms.csv:9: Zone Temp \(°F\)=150 read in degF is 65.6 degC, outside \[-20, 50\]",
+        ),
+        (
+            lambda rows: rows[9].__setitem__(0, "2024-03-04 02:20"),
+            {"cumulative": True, "time_zone": "America/Chicago"},
+            r"bms.csv:11: the reading at 2024-03-04 02:20:00 standard time is off the export's 15-minute grid",
+        ),
+    ],
+)
+def test_what_the_importer_cannot_fix_is_one_line_at_its_line_and_leaves_nothing(tmp_path, change, options, expected):
+    export = _dst_export(tmp_path / "bms.csv", dt.date(2024, 3, 4), *_truth(0))
+    header, *rows = [line.split(",") for line in export.read_text(encoding="utf-8").splitlines()]
+    change(rows)
+    _export(export, header, rows)
+    out = tmp_path / "new" / "site"
+    with pytest.raises(SiteError, match=expected) as error:
+        import_export(export, out, options=ImportOptions(**options), **SITE)
+    assert "\n" not in str(error.value)
+    assert not (tmp_path / "new").exists()
+
+
+def test_a_site_that_does_not_load_is_not_left_half_written(tmp_path):
+    export = _dst_export(tmp_path / "bms.csv", dt.date(2024, 3, 4), *_truth(0))
+    options = ImportOptions(time_zone="America/Chicago", cumulative=True)
+    with pytest.raises(SiteError, match="pc_night_percent"):  # refused by load_site after writing
+        import_export(export, tmp_path / "new" / "site", options=options, known={"pc_night_percent": 500.0}, **SITE)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bms.csv"]

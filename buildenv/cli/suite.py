@@ -97,6 +97,14 @@ def _cmd_suite_verify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_suite_library(args: argparse.Namespace) -> int:
+    from buildenv.sites.library import write_library
+
+    summary = write_library(args.suite, args.out, n_sites=args.sites, progress=not args.quiet)
+    print(dumps(summary, where="the library"))
+    return 0
+
+
 def register(sub) -> None:
     """Add the ``suite`` subcommands to the main parser's subparsers."""
     from buildenv.sites.suite import SUITE_WEEKS
@@ -138,3 +146,11 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_suite_verify)
+    p = suite_sub.add_parser(
+        "library", help="copy calibrated sites into a library for BuildingWeek-v0 (site=DIR or 'library')"
+    )
+    p.add_argument("--suite", required=True, help="suite folder (calibrated by buildenv suite calibrate)")
+    p.add_argument("--out", required=True, help="library folder (buildenv/data/sites/library is site='library')")
+    p.add_argument("--sites", type=int, default=None, help="how many sites, both parts in proportion (default: all)")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_suite_library)

@@ -26,6 +26,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 
 from buildenv import catalogue as cat
 from buildenv.env import actions as act
+from buildenv.env import contexts as ctx
 from buildenv.env import objectives as obj
 from buildenv.env import render as rnd
 from buildenv.env import tariff as tar
@@ -47,6 +48,7 @@ ARGUMENTS: dict[str, Any] = {
     "observation": "compact",
     "episode_weeks": 1,
     "weeks": "train",
+    "sites": "all",
     "backend": "metamodel",
     "forecast_noise": 0.0,
     "price": None,
@@ -118,7 +120,8 @@ def split_weeks(n_weeks: int, split: str | list[int]) -> list[int]:
 
 
 class _Building:
-    """What the single and the vector environment share: arguments, the calibrated site model, scoring."""
+    """What the single and the vector environment share: arguments, spaces and the calibrated site, or the sites of
+    a context set (:mod:`buildenv.env.contexts`), one :class:`_Site` each, all on one loaded metamodel."""
 
     def __init__(self, extra: tuple[str, ...] = (), **kwargs: Any) -> None:
         unknown = sorted(set(kwargs) - set(ARGUMENTS))
@@ -143,39 +146,124 @@ class _Building:
         self.band_k = _finite("comfort_band_k", args["comfort_band_k"], 0.0)
         self.forecast_noise = _finite("forecast_noise", args["forecast_noise"], 0.0)
         self.tariff = tar.tariff_from(args["price"], ENV_ID)
-        self.site = _load_site(args["site"])
+        chosen, self.many = ctx.resolve(args["site"], args["sites"])
         from buildenv.metamodel.surrogate import load_metamodel
 
-        self.surrogate = load_metamodel(args["metamodel"])
-        self.model = SiteModel.from_site(self.site, self.surrogate)
-        occupants = float(self.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")])
-        self.actions = act.ActionMap.for_site(self.site, self.surrogate.domain, self.model.historical, occupants)
-        self.occupied = self.model.occupied_hours()
-        self.pool = split_weeks(self.model.weeks, args["weeks"])
-        pool = set(self.pool)
-        self.starts = [k for k in self.pool if all(k + j in pool for j in range(self.episode_weeks))]
-        if not self.starts:
-            raise BuildingEnvError(f"{ENV_ID}: no {self.episode_weeks} consecutive weeks in weeks={args['weeks']!r}")
-        if args["backend"] == "energyplus":
-            from buildenv.env.energyplus_backend import reference_building
-
-            reference_building(self.site)  # fail now, not at the first step
-        self._historical: dict[int, tuple[float, float, float]] = {}
+        self.surrogate = load_metamodel(args["metamodel"])  # loaded once, shared by every site
+        self.contexts = [_Site(self, context) for context in chosen]
+        self.names = tuple(c.name for c in self.contexts)
+        ctx.check_alike([(c.name, c.actions.controllable) for c in self.contexts])
         n_obs = observation_size(args["observation"])
         self.observation_space = spaces.Box(-BOUND, BOUND, (n_obs,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.actions.size,), np.float32)
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickle without the metamodel's traced module and worker threads (neither pickles); the copy traces
-        the metamodel again on its first call (same outputs)."""
+        """Pickle without the metamodel's traced module and worker threads (neither pickles); every site keeps
+        sharing one metamodel, which the copy traces again on its first call (same outputs)."""
         state = self.__dict__.copy()
         surrogate = copy.copy(self.surrogate)
         surrogate._runner = None
         surrogate._pool = None
-        model = copy.copy(self.model)
-        model.surrogate = surrogate
-        state["surrogate"], state["model"] = surrogate, model
+        state["surrogate"] = surrogate
+        state["contexts"] = [c.with_surrogate(surrogate) for c in self.contexts]
         return state
+
+    @property
+    def model(self) -> SiteModel:
+        """The first site's model (the only one of a single-site environment)."""
+        return self.contexts[0].model
+
+    @property
+    def actions(self) -> act.ActionMap:
+        """The first site's action map (every site's acts on the same settings; limits may differ)."""
+        return self.contexts[0].actions
+
+    def index(self, site: Any) -> int:
+        """The index of a site given by name or index; else one clear error."""
+        if isinstance(site, numbers.Integral) and not isinstance(site, bool) and 0 <= int(site) < len(self.names):
+            return int(site)
+        if isinstance(site, str) and site in self.names:
+            return self.names.index(site)
+        raise BuildingEnvError(
+            f"{ENV_ID}: site {site!r} is not one of the environment's sites ({ctx.listing(list(self.names))}); "
+            f"give a name or an index 0..{len(self.names) - 1}"
+        )
+
+    def pick(self, rng: np.random.Generator, options: dict | None) -> tuple[int, int]:
+        """The site and first week of a new episode: ``options["site"]`` and ``options["week"]`` if given, else
+        drawn from ``rng`` (a context set's site uniformly, then the week; a single site draws the week only)."""
+        if options and "site" in options:
+            site = self.index(options["site"])
+        else:
+            site = int(rng.integers(len(self.contexts))) if self.many else 0
+        return site, self.contexts[site].pick_week(rng, options)
+
+    def check_action(self, action: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
+        """``action`` as an array of ``shape``; else one clear error."""
+        a = np.asarray(action)
+        if a.shape != shape or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
+            raise BuildingEnvError(
+                f"{ENV_ID}: {what} takes an action of shape {shape} ({self.actions.size} = 7 days x "
+                f"{len(self.actions.controllable)} settings), got {a.dtype} {a.shape}"
+                + ("; evaluate() scores several" if what == "step()" else "")
+            )
+        return a
+
+    def frame(
+        self, site: int, week: int, step: int, scores: dict[str, np.ndarray] | None = None, row: int = 0
+    ) -> rnd.WeekFrame:
+        """What ``render()`` shows of ``week`` of site ``site`` (:meth:`_Site.frame`)."""
+        return self.contexts[site].frame(week, step, scores, row)
+
+    def render(self, frame: rnd.WeekFrame | None) -> np.ndarray | str | None:
+        """``frame`` drawn in the render mode (a warning and None without one, as gymnasium's environments)."""
+        if self.render_mode is None:
+            gym.logger.warn(
+                f"{ENV_ID}: render() without a render mode; make the environment with "
+                f"render_mode= one of {', '.join(RENDER_MODES)}"
+            )
+            return None
+        if frame is None:
+            raise ResetNeededError(f"{ENV_ID}: call reset() before render()")
+        return rnd.rgb(frame) if self.render_mode == "rgb_array" else rnd.ansi(frame)
+
+
+class _Site:
+    """One calibrated site of the environment: its model, actions and weeks, and scoring on it under the
+    environment's arguments."""
+
+    def __init__(self, shared: _Building, context: ctx.Context) -> None:
+        self.args, self.tariff, self.episode_weeks = shared.args, shared.tariff, shared.episode_weeks
+        self.comfort_weight, self.target_c, self.band_k = shared.comfort_weight, shared.target_c, shared.band_k
+        self.forecast_noise = shared.forecast_noise
+        args = self.args
+        self.name = context.name
+        self.label = context.name if shared.many else ""  # what info and render name: nothing for a single site
+        on = f" on site {self.name!r}" if self.label else ""
+        self.site = _load_site(context.source)
+        self.model = SiteModel.from_site(self.site, shared.surrogate)
+        occupants = float(self.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")])
+        self.actions = act.ActionMap.for_site(self.site, shared.surrogate.domain, self.model.historical, occupants)
+        self.occupied = self.model.occupied_hours()
+        self.pool = split_weeks(self.model.weeks, args["weeks"])
+        pool = set(self.pool)
+        self.starts = [k for k in self.pool if all(k + j in pool for j in range(self.episode_weeks))]
+        if not self.starts:
+            raise BuildingEnvError(
+                f"{ENV_ID}: no {self.episode_weeks} consecutive weeks in weeks={args['weeks']!r}{on}"
+            )
+        if args["backend"] == "energyplus":
+            from buildenv.env.energyplus_backend import reference_building
+
+            reference_building(self.site)  # fail now, not at the first step
+        self._historical: dict[int, tuple[float, float, float]] = {}
+
+    def with_surrogate(self, surrogate) -> _Site:
+        """A shallow copy whose model runs ``surrogate`` (for pickling)."""
+        twin = copy.copy(self)
+        twin.model = copy.copy(self.model)
+        twin.model.surrogate = surrogate
+        return twin
 
     # ------------------------------------------------------------------ simulation and scoring
     def outputs(self, settings: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None) -> np.ndarray:
@@ -279,25 +367,18 @@ class _Building:
             if week not in self.starts:
                 raise BuildingEnvError(
                     f"{ENV_ID}: week {week} cannot start an episode of weeks="
-                    f"{self.args['weeks']!r} (valid starts: {self.starts})"
+                    f"{self.args['weeks']!r}{' on site ' + repr(self.label) if self.label else ''} "
+                    f"(valid starts: {self.starts})"
                 )
             return week
         return int(self.starts[int(rng.integers(len(self.starts)))])
 
     def week_info(self, week: int) -> dict[str, Any]:
-        """``{"week", "week_start"}`` of a week."""
-        return {"week": int(week), "week_start": self.model.week_starts[int(week)].isoformat()}
-
-    def check_action(self, action: Any, shape: tuple[int, ...], what: str) -> np.ndarray:
-        """``action`` as an array of ``shape``; else one clear error."""
-        a = np.asarray(action)
-        if a.shape != shape or not (np.issubdtype(a.dtype, np.number) or a.dtype == bool):
-            raise BuildingEnvError(
-                f"{ENV_ID}: {what} takes an action of shape {shape} ({self.actions.size} = 7 days x "
-                f"{len(self.actions.controllable)} settings), got {a.dtype} {a.shape}"
-                + ("; evaluate() scores several" if what == "step()" else "")
-            )
-        return a
+        """``{"week", "week_start"}`` of a week, and ``"site"`` (its name) in a context set."""
+        info = {"week": int(week), "week_start": self.model.week_starts[int(week)].isoformat()}
+        if self.label:
+            info["site"] = self.label
+        return info
 
     def frame(self, week: int, step: int, scores: dict[str, np.ndarray] | None = None, row: int = 0) -> rnd.WeekFrame:
         """What ``render()`` shows of ``week``: the week ahead (``scores`` None) or row ``row`` of its scores."""
@@ -312,6 +393,7 @@ class _Building:
             "band_k": self.band_k if self.args["comfort"] == "band" else 0.0,
             "outdoor_c": np.asarray(outdoor, float),
             "comfort": self.args["comfort"],
+            "site": self.label,
         }
         if scores is None:
             return rnd.WeekFrame(**common)
@@ -327,18 +409,6 @@ class _Building:
             cooling_setpoint_c=hourly["cooling_setpoint_c"][0],
             scores={k: float(scores[k][row]) for k in (*keys, "savings_percent", "mean_temperature_occupied_c")},
         )
-
-    def render(self, frame: rnd.WeekFrame | None) -> np.ndarray | str | None:
-        """``frame`` drawn in the render mode (a warning and None without one, as gymnasium's environments)."""
-        if self.render_mode is None:
-            gym.logger.warn(
-                f"{ENV_ID}: render() without a render mode; make the environment with "
-                f"render_mode= one of {', '.join(RENDER_MODES)}"
-            )
-            return None
-        if frame is None:
-            raise ResetNeededError(f"{ENV_ID}: call reset() before render()")
-        return rnd.rgb(frame) if self.render_mode == "rgb_array" else rnd.ansi(frame)
 
 
 def _load_site(site):
@@ -412,7 +482,9 @@ class BuildingWeekEnv(gym.Env):
     ## Starting State
     ``reset(seed=...)`` draws the first week uniformly from the valid starts in ``weeks``;
     ``reset(options={"week": k})`` picks week ``k``. The week before runs the historical settings.
-    Deterministic given the seed.
+    With several sites (``site=`` a list or a library) it first draws the episode's site uniformly
+    (``options={"site": name}`` picks one), named in ``info["site"]`` and by ``render``. Deterministic given the
+    seed.
 
     ## Episode End
     Terminates after ``episode_weeks`` consecutive weeks (default 1: one step); never truncated (unless
@@ -429,7 +501,9 @@ class BuildingWeekEnv(gym.Env):
     raises :class:`ResetNeededError` (as gymnasium's ``OrderEnforcing`` does).
 
     ## Arguments
-    ``site`` ("default", a site folder or a calibrated :class:`buildenv.sites.Site`), ``metamodel``
+    ``site`` ("default", a site folder or a calibrated :class:`buildenv.sites.Site`; or many: a list of them,
+    "library" or a library folder, :mod:`buildenv.env.contexts`), ``sites`` ("all"; a library's "train" or
+    "test" part; or a list of site names), ``metamodel``
     ("default" or a checkpoint path), ``comfort_weight`` (1.0 per K), ``target_temperature_c`` (22.5 degC),
     ``comfort`` ("rms", "band", "mean_abs"), ``comfort_band_k`` (1.0 K), ``observation`` ("compact"),
     ``episode_weeks`` (1), ``weeks`` ("train"; "test" is weeks 12-15, 28-31 and 44-47; "all"; or a list),
@@ -450,12 +524,13 @@ class BuildingWeekEnv(gym.Env):
         self.observation_space = self._b.observation_space
         self.action_space = self._b.action_space
         self.render_mode = self._b.render_mode
+        self._site = 0  # index of the episode's site in a context set (0 before reset)
         self._week: int | None = None
         self._step_in_episode = 0
         self._previous: np.ndarray | None = None
         self._done = False
         self._obs: np.ndarray | None = None
-        self._last: tuple[int, int, dict[str, np.ndarray] | None] | None = None  # what render() shows
+        self._last: tuple[int, int, int, dict[str, np.ndarray] | None] | None = None  # what render() shows
 
     @property
     def spec(self):
@@ -471,13 +546,13 @@ class BuildingWeekEnv(gym.Env):
     def reset(self, *, seed: int | None = None, options: dict | None = None) -> tuple[np.ndarray, dict]:
         """Start an episode on a week drawn from the site's year (see the class docstring)."""
         super().reset(seed=seed)
-        self._week = self._b.pick_week(self.np_random, options)
+        self._site, self._week = self._b.pick(self.np_random, options)
         self._step_in_episode = 0
         self._previous = None
         self._done = False
-        self._last = (self._week, 0, None)
-        self._obs = self._b.observe([self._week], [self.np_random])[0]
-        return self._obs.copy(), self._b.week_info(self._week)
+        self._last = (self._site, self._week, 0, None)
+        self._obs = self._here.observe([self._week], [self.np_random])[0]
+        return self._obs.copy(), self._here.week_info(self._week)
 
     def step(self, action: np.ndarray) -> tuple[np.ndarray, float, bool, bool, dict]:
         """Apply one week of settings; returns the next week's observation and this week's reward.
@@ -494,16 +569,16 @@ class BuildingWeekEnv(gym.Env):
             )
         action = self._b.check_action(action, self.action_space.shape, "step()")
         prev = None if self._previous is None else self._previous[None]
-        scores = self._b.score(action[None], np.array([self._week]), prev)
-        info = {**_single(scores, 0), **self._b.week_info(self._week)}
+        scores = self._here.score(action[None], np.array([self._week]), prev)
+        info = {**_single(scores, 0), **self._here.week_info(self._week)}
         self._previous = scores["settings"][0]
         self._step_in_episode += 1
-        self._last = (self._week, self._step_in_episode, scores)
+        self._last = (self._site, self._week, self._step_in_episode, scores)
         terminated = self._step_in_episode >= self._b.episode_weeks
         self._done = terminated
         if not terminated:  # the next week's forecast; a finished episode returns its last week's observation
             self._week += 1
-            self._obs = self._b.observe([self._week], [self.np_random])[0]
+            self._obs = self._here.observe([self._week], [self.np_random])[0]
         return self._obs.copy(), float(scores["reward"][0]), terminated, False, info
 
     def render(self) -> np.ndarray | str | None:
@@ -517,13 +592,17 @@ class BuildingWeekEnv(gym.Env):
         return self._b.render(frame)
 
     # ------------------------------------------------------------------ helpers for people and optimisers
-    def evaluate(self, actions: np.ndarray, week: int | None = None) -> dict[str, np.ndarray]:
+    def evaluate(
+        self, actions: np.ndarray, week: int | None = None, site: str | int | None = None
+    ) -> dict[str, np.ndarray]:
         """Score many weekly settings on one week in one batched call (the environment's state is unchanged).
 
         Args:
             actions: ``(N, 7 x k)`` actions (see Action Space).
             week: week of the year, after a week under the historical settings; default the current
                 episode's week, after the settings the episode applied the week before (if any).
+            site: with several sites, the site (name or index) to score on; default the current episode's (another
+                site needs ``week``).
         Returns:
             ``{"reward", "energy_term", "comfort_k", "energy_kwh", "energy_historical_kwh", "savings_percent",
             "comfort_historical_k", "mean_temperature_occupied_c", "energy_wh_m2", "clipped_components"}``,
@@ -532,22 +611,31 @@ class BuildingWeekEnv(gym.Env):
             ``"cost_historical"`` (currency) ``(N,)``, and ``"energy_term"`` is the cost ratio.
         """
         actions = np.atleast_2d(np.asarray(actions))
+        if site is None and self._week is None and self._b.many:
+            raise BuildingEnvError(
+                f"{ENV_ID}: call reset() or pass site= to evaluate() (sites: {ctx.listing(self._b.names)})"
+            )
+        here = self._site if site is None else self._b.index(site)
         prev = None
         if week is None:
             if self._week is None:
                 raise BuildingEnvError(f"{ENV_ID}: call reset() or pass week= to evaluate()")
+            if here != self._site:
+                raise BuildingEnvError(
+                    f"{ENV_ID}: evaluate(site={site!r}) scores another site than the episode's; pass week= too"
+                )
             week = self._week
             if self._previous is not None:  # mid-episode: the week after the settings just applied
                 prev = np.broadcast_to(self._previous, (len(actions), *self._previous.shape))
-        return self._b.score(actions, np.full(len(actions), int(week)), prev)
+        return self._b.contexts[here].score(actions, np.full(len(actions), int(week)), prev)
 
     def decode(self, action: np.ndarray) -> np.ndarray:
         """Physical settings ``(..., 7, 12)`` of actions ``(..., 7 x k)`` (:meth:`.ActionMap.decode`)."""
-        return self._b.actions.decode(action)[0]
+        return self._here.actions.decode(action)[0]
 
     def encode(self, settings: np.ndarray) -> np.ndarray:
         """Actions ``(..., 7 x k)`` of physical settings ``(..., 7, 12)`` (the controllable ones)."""
-        return self._b.actions.encode(settings)
+        return self._here.actions.encode(settings)
 
     @property
     def action_names(self) -> tuple[str, ...]:
@@ -556,8 +644,18 @@ class BuildingWeekEnv(gym.Env):
 
     @property
     def site(self):
-        """The :class:`buildenv.sites.Site` the environment runs."""
-        return self._b.site
+        """The :class:`buildenv.sites.Site` the environment runs (the current episode's in a context set)."""
+        return self._here.site
+
+    @property
+    def site_name(self) -> str:
+        """The name of the current episode's site (its folder's; ``"default"`` for the shipped site)."""
+        return self._here.name
+
+    @property
+    def site_names(self) -> tuple[str, ...]:
+        """The names of the environment's sites (one, or a context set's)."""
+        return self._b.names
 
     @property
     def arguments(self) -> dict[str, Any]:
@@ -568,7 +666,7 @@ class BuildingWeekEnv(gym.Env):
     def historical_action(self) -> np.ndarray:
         """The action nearest the site's historical settings ``(7 x k,)`` (a historical value outside its action
         range gets the nearest end; the energy term is measured against the historical settings themselves)."""
-        return self._b.actions.encode(self._b.model.historical)
+        return self._here.actions.encode(self._here.model.historical)
 
     @property
     def week(self) -> int | None:
@@ -577,22 +675,27 @@ class BuildingWeekEnv(gym.Env):
 
     @property
     def weeks(self) -> list[int]:
-        """Weeks an episode can start on."""
-        return list(self._b.starts)
+        """Weeks an episode can start on (on the current episode's site)."""
+        return list(self._here.starts)
 
     @property
     def site_model(self) -> SiteModel:
-        """The calibrated site model (theta, occupancy, weather, metamodel)."""
-        return self._b.model
+        """The calibrated site model (theta, occupancy, weather, metamodel) of the current episode's site."""
+        return self._here.model
 
     @property
     def occupied_hours(self) -> np.ndarray:
         """``(168,)`` booleans: the occupied hours comfort is counted over."""
-        return self._b.occupied
+        return self._here.occupied
 
     def week_start(self, week: int) -> dt.date:
-        """Monday of a week of the year."""
-        return self._b.model.week_starts[int(week)]
+        """Monday of a week of the year (of the current episode's site)."""
+        return self._here.model.week_starts[int(week)]
+
+    @property
+    def _here(self) -> _Site:
+        """The current episode's site (the first before reset)."""
+        return self._b.contexts[self._site]
 
 
 def _vector_info(values: dict[str, np.ndarray], rows: np.ndarray, n: int) -> dict[str, np.ndarray]:
@@ -650,9 +753,10 @@ class BuildingWeekVectorEnv(VectorEnv):
     Each sub-environment draws its weeks (and, with ``forecast_noise``, its forecast errors) with its own
     generator, seeded as ``SyncVectorEnv`` seeds its copies (``reset(seed=s)``: sub-environment i gets ``s + i``;
     ``reset(seed=[s0, s1, ...])``: one each, None keeps the generator), so it draws the same weeks and forecasts
-    as ``gymnasium.make_vec(..., vectorization_mode="sync")``.
-    ``options["week"]`` puts every reset sub-environment on that week; ``options["reset_mask"]`` resets only
-    those marked.
+    as ``gymnasium.make_vec(..., vectorization_mode="sync")``; with several sites each draws its site first, as the
+    single environment does, and a step calls each site's model once, on the rows of the sub-environments on it.
+    ``options["week"]`` (``options["site"]``) puts every reset sub-environment on that week (site);
+    ``options["reset_mask"]`` resets only those marked.
 
     Finished episodes reset as ``autoreset_mode`` says (https://farama.org/Vector-Autoreset-Mode):
 
@@ -697,12 +801,13 @@ class BuildingWeekVectorEnv(VectorEnv):
         self._rngs: list[np.random.Generator | None] = [None] * n
         self._seeds: list[int | None] = [None] * n
         self._started = False
+        self._sites = np.zeros(n, dtype=int)  # each sub-environment's site (index into the context set)
         self._weeks = np.zeros(n, dtype=int)
         self._steps = np.zeros(n, dtype=int)
         self._previous = np.array(np.broadcast_to(self._b.model.historical, (n, *self._b.model.historical.shape)))
         self._done = np.zeros(n, dtype=bool)  # finished, not reset yet (NEXT_STEP, DISABLED)
         self._obs = np.zeros(self.observation_space.shape, np.float32)
-        self._last: list[tuple[int, int, dict[str, np.ndarray] | None, int]] = [(0, 0, None, 0)] * n
+        self._last: list[tuple[int, int, int, dict[str, np.ndarray] | None, int]] = [(0, 0, 0, None, 0)] * n
 
     @property
     def spec(self):
@@ -764,22 +869,41 @@ class BuildingWeekVectorEnv(VectorEnv):
     def _reset_rows(self, rows: np.ndarray, options: dict | None) -> dict[str, np.ndarray]:
         """Start new episodes in sub-environments ``rows``; their observations go into ``self._obs``; returns
         their reset info (vector layout)."""
-        weeks = np.array([self._b.pick_week(self._rng(i), options) for i in rows], dtype=int)
-        self._weeks[rows] = weeks
+        picks = [self._b.pick(self._rng(i), options) for i in rows]  # as each sub-environment's reset draws
+        sites = np.array([p[0] for p in picks], dtype=int)
+        weeks = np.array([p[1] for p in picks], dtype=int)
+        self._sites[rows], self._weeks[rows] = sites, weeks
         self._steps[rows] = 0
-        self._previous[rows] = self._b.model.historical
+        for i, site in zip(rows, sites):
+            self._previous[i] = self._b.contexts[site].model.historical
         self._done[rows] = False
-        if len(rows):
-            self._obs[rows] = self._b.observe(weeks, [self._rng(i) for i in rows])
+        self._observe(rows)
         if self.render_mode is not None:
-            for i, week in zip(rows, weeks):
-                self._last[i] = (int(week), 0, None, 0)
-        infos = [self._b.week_info(w) for w in weeks]
+            for i, site, week in zip(rows, sites, weeks):
+                self._last[i] = (int(site), int(week), 0, None, 0)
+        infos = [self._b.contexts[s].week_info(w) for s, w in zip(sites, weeks)]
         values = {
             "week": weeks.astype(int),
             "week_start": np.array([d["week_start"] for d in infos] or [], dtype=object),
         }
+        if self._b.many:
+            values["site"] = np.array([d["site"] for d in infos] or [], dtype=object)
         return _vector_info(values, rows, self.num_envs)
+
+    def _observe(self, rows: np.ndarray) -> None:
+        """The observations of sub-environments ``rows``' current weeks into ``self._obs``, one call per site."""
+        for site, at in ctx.by_site(self._sites[rows]):
+            group = rows[at]
+            self._obs[group] = self._b.contexts[site].observe(self._weeks[group], [self._rng(i) for i in group])
+
+    def _score(self, actions: np.ndarray, rows: np.ndarray) -> dict[str, np.ndarray]:
+        """Scores of ``actions`` ``(len(rows), 7 x k)`` in sub-environments ``rows``' weeks, one metamodel call
+        per site present (:func:`buildenv.env.contexts.gather` puts the rows back in order)."""
+        parts = []
+        for site, at in ctx.by_site(self._sites[rows]):
+            group = rows[at]
+            parts.append((at, self._b.contexts[site].score(actions[at], self._weeks[group], self._previous[group])))
+        return ctx.gather(parts, len(rows))
 
     def step(self, actions: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, dict]:
         """Apply a week of settings in every sub-environment, one batched call (see the class docstring for
@@ -805,8 +929,8 @@ class BuildingWeekVectorEnv(VectorEnv):
         truncated = np.zeros(n, dtype=bool)
         info: dict[str, Any] = {}
         if len(rows):
-            weeks = self._weeks[rows].copy()
-            scores = self._b.score(actions[rows], weeks, self._previous[rows])
+            weeks, sites = self._weeks[rows].copy(), self._sites[rows].copy()
+            scores = self._score(actions[rows], rows)
             self._previous[rows] = scores["settings"]
             self._steps[rows] += 1
             term = self._steps[rows] >= self._b.episode_weeks
@@ -814,14 +938,13 @@ class BuildingWeekVectorEnv(VectorEnv):
                 np.zeros_like(term) if self.max_episode_steps is None else self._steps[rows] >= self.max_episode_steps
             )
             rewards[rows], terminated[rows], truncated[rows] = scores["reward"], term, trunc
-            info = _vector_info(self._step_values(scores, weeks), rows, n)
+            info = _vector_info(self._step_values(scores, sites, weeks), rows, n)
             if self.render_mode is not None:
                 for j, i in enumerate(rows):
-                    self._last[i] = (int(weeks[j]), int(self._steps[i]), scores, j)
+                    self._last[i] = (int(sites[j]), int(weeks[j]), int(self._steps[i]), scores, j)
             ahead = rows[~term]  # the next week's forecast; finished episodes keep their last week's observation
             self._weeks[ahead] += 1
-            if len(ahead):
-                self._obs[ahead] = self._b.observe(self._weeks[ahead], [self._rng(i) for i in ahead])
+            self._observe(ahead)
         done = terminated | truncated
         if mode == AutoresetMode.NEXT_STEP:
             if resetting.any():
@@ -840,14 +963,19 @@ class BuildingWeekVectorEnv(VectorEnv):
             self._done = done
         return self._obs.copy(), rewards, terminated, truncated, info
 
-    def _step_values(self, scores: dict[str, np.ndarray], weeks: np.ndarray) -> dict[str, np.ndarray]:
+    def _step_values(
+        self, scores: dict[str, np.ndarray], sites: np.ndarray, weeks: np.ndarray
+    ) -> dict[str, np.ndarray]:
         """Per-row step info values, with the dtypes a ``SyncVectorEnv`` of :class:`BuildingWeekEnv` gives."""
         values = {k: np.asarray(v, dtype=np.float64) for k, v in scores.items() if k not in _SERIES}
         values["settings"] = np.asarray(scores["settings"])
         values["clipped_components"] = np.asarray(scores["clipped_components"]).astype(int)
         values["reward_vector"] = np.stack([-scores["energy_term"], -scores["comfort_k"]], axis=-1).astype(np.float32)
         values["week"] = np.asarray(weeks).astype(int)
-        values["week_start"] = np.array([self._b.model.week_starts[int(w)].isoformat() for w in weeks], dtype=object)
+        infos = [self._b.contexts[s].week_info(w) for s, w in zip(sites, weeks)]
+        values["week_start"] = np.array([d["week_start"] for d in infos], dtype=object)
+        if self._b.many:
+            values["site"] = np.array([d["site"] for d in infos], dtype=object)
         return values
 
     def render(self) -> tuple[np.ndarray | str, ...] | None:
@@ -856,15 +984,33 @@ class BuildingWeekVectorEnv(VectorEnv):
             raise ResetNeededError(f"{ENV_ID}: call reset() before render()")
         if self.render_mode is None:
             return self._b.render(None)
-        return tuple(self._b.render(self._b.frame(w, k, s, j)) for w, k, s, j in self._last)
+        return tuple(self._b.render(self._b.frame(*last)) for last in self._last)
 
     # ------------------------------------------------------------------ helpers
-    def evaluate(self, actions: np.ndarray, week: int) -> dict[str, np.ndarray]:
-        """Score actions ``(N, 7 x k)`` on one week (as :meth:`BuildingWeekEnv.evaluate`)."""
-        return self._b.score(np.atleast_2d(actions), np.full(len(np.atleast_2d(actions)), int(week)))
+    def evaluate(self, actions: np.ndarray, week: int, site: str | int | None = None) -> dict[str, np.ndarray]:
+        """Score actions ``(N, 7 x k)`` on one week (as :meth:`BuildingWeekEnv.evaluate`); with several sites
+        ``site`` (a name or index) says on which."""
+        if site is None and self._b.many:
+            raise BuildingEnvError(
+                f"{ENV_ID}: the vector env's evaluate() needs site= (sites: {ctx.listing(self._b.names)})"
+            )
+        actions = np.atleast_2d(actions)
+        return self._b.contexts[self._b.index(0 if site is None else site)].score(
+            actions, np.full(len(actions), int(week))
+        )
 
     @property
     def historical_action(self) -> np.ndarray:
         """The action nearest the site's historical settings ``(7 x k,)`` (a historical value outside its action
-        range gets the nearest end; the energy term is measured against the historical settings themselves)."""
+        range gets the nearest end; the energy term is measured against the historical settings themselves); with
+        several sites one row per sub-environment, of its current site, ``(num_envs, 7 x k)``."""
+        if self._b.many:
+            return np.stack(
+                [self._b.contexts[s].actions.encode(self._b.contexts[s].model.historical) for s in self._sites]
+            )
         return self._b.actions.encode(self._b.model.historical)
+
+    @property
+    def site_names(self) -> tuple[str, ...]:
+        """The names of the environment's sites (one, or a context set's)."""
+        return self._b.names

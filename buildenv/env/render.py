@@ -39,6 +39,7 @@ class WeekFrame:
             ``energy_historical_kwh``, ``comfort_historical_k``, ``savings_percent``,
             ``mean_temperature_occupied_c``), empty before.
         comfort: the comfort measure's name (``rms``, ``band``, ``mean_abs``).
+        site: the site's name where the environment runs several (a context set), else empty.
     """
 
     week: int
@@ -55,6 +56,7 @@ class WeekFrame:
     cooling_setpoint_c: np.ndarray | None = None
     scores: dict[str, float] = field(default_factory=dict)
     comfort: str = "rms"
+    site: str = ""
 
     @property
     def simulated(self) -> bool:
@@ -62,9 +64,13 @@ class WeekFrame:
         return self.temperature_c is not None
 
     def title(self) -> str:
-        """``week 45, 2019-11-04 to 2019-11-10`` (with the episode's step)."""
+        """``week 45, 2019-11-04 to 2019-11-10`` (with the episode's step; after ``site <name>, `` in a context
+        set)."""
         last = self.monday + dt.timedelta(days=6)
-        return f"week {self.week}, {self.monday:%Y-%m-%d} to {last:%Y-%m-%d} (step {self.step}/{self.episode_weeks})"
+        site = f"site {self.site}, " if self.site else ""
+        return (
+            f"{site}week {self.week}, {self.monday:%Y-%m-%d} to {last:%Y-%m-%d} (step {self.step}/{self.episode_weeks})"
+        )
 
 
 def _change(scores: dict[str, float]) -> str:

@@ -1,0 +1,208 @@
+"""A library of calibrated sites: many buildings for ``BuildingWeek-v0`` (``site="library"``).
+
+A library folder holds one site folder per site, with what a calibrated site needs (``site.toml``,
+``measurements.csv``, ``settings.csv``, ``calibration.json``, ``truth.json``; not the calibration plot), and its
+index ``library.toml``: one ``[[sites]]`` table per site with its ``name`` (its sub-folder), ``building``,
+``climate``, ``season``, ``part`` (``train`` or ``test``, the split ``BuildingWeek-v0``'s ``sites=`` chooses by) and
+``guideline14`` (whether its calibration passes ASHRAE Guideline 14).
+
+:func:`write_library` makes one from a calibrated suite (:mod:`buildenv.sites.suite`, ``buildenv suite
+calibrate``); the suite's held-out climates (:data:`buildenv.sites.suite.HELD_OUT_CLIMATES`) are the test part, its
+development part the train part, so a policy trained on the library's train part is judged on climates nobody
+tuned anything on. :func:`read_library` reads the index.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+
+from buildenv.errors import BuildenvError, SiteError
+from buildenv.sites.model import CALIBRATION_FILE, DEFAULT_MEASUREMENTS, DEFAULT_SETTINGS, DESCRIPTOR, TRUTH_FILE
+
+try:  # Python >= 3.11
+    import tomllib
+except ModuleNotFoundError:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
+
+LIBRARY_INDEX = "library.toml"
+#: the library ``BuildingWeek-v0`` runs with ``site="library"`` (built by ``buildenv suite library``)
+SHIPPED_LIBRARY = Path(__file__).resolve().parents[1] / "data" / "sites" / "library"
+#: the files copied from each suite site (the last one is optional: a measured site has no truth)
+LIBRARY_FILES: tuple[str, ...] = (DESCRIPTOR, DEFAULT_MEASUREMENTS, DEFAULT_SETTINGS, CALIBRATION_FILE, TRUTH_FILE)
+#: the suite's part -> the library's
+PARTS: dict[str, str] = {"development": "train", "held_out": "test"}
+LIBRARY_PARTS: tuple[str, ...] = ("train", "test")
+
+
+@dataclass(frozen=True)
+class LibrarySite:
+    """One site of a library: its name (sub-folder), folder, part and where it comes from."""
+
+    name: str
+    folder: Path
+    part: str
+    building: str = ""
+    climate: str = ""
+    season: str = ""
+
+
+def is_library(folder: str | os.PathLike) -> bool:
+    """Whether ``folder`` holds a library index (``library.toml``)."""
+    return (Path(folder).expanduser() / LIBRARY_INDEX).is_file()
+
+
+def read_library(folder: str | os.PathLike) -> list[LibrarySite]:
+    """The sites of a library folder, in the index's order.
+
+    Raises:
+        SiteError: no index, an index that is not TOML, a site without a name, a part other than train or test,
+            a name twice, or a site whose folder holds no ``site.toml`` (one line naming the index and the site).
+    """
+    folder = Path(folder).expanduser()
+    path = folder / LIBRARY_INDEX
+    if not path.is_file():
+        raise SiteError(
+            f"{folder}: not a site library: {LIBRARY_INDEX} is missing "
+            f"(build one with buildenv suite library --suite DIR --out {folder})"
+        )
+    try:
+        rows = tomllib.loads(path.read_text(encoding="utf-8")).get("sites")
+    except (tomllib.TOMLDecodeError, UnicodeDecodeError) as error:
+        raise SiteError(f"{path}: not valid TOML ({error})") from None
+    if not isinstance(rows, list) or not rows or not all(isinstance(r, dict) for r in rows):
+        raise SiteError(f"{path}: no [[sites]] tables; build the library again with buildenv suite library")
+    sites: list[LibrarySite] = []
+    for number, row in enumerate(rows, 1):
+        name, part = row.get("name"), row.get("part")
+        if not isinstance(name, str) or not name or Path(name).name != name:
+            raise SiteError(f"{path}: site {number} has no name (a sub-folder of {folder}): name={name!r}")
+        if part not in LIBRARY_PARTS:
+            raise SiteError(f"{path}: site {name!r}: part={part!r}; give one of {', '.join(LIBRARY_PARTS)}")
+        if any(s.name == name for s in sites):
+            raise SiteError(f"{path}: site {name!r} is listed twice")
+        if not (folder / name / DESCRIPTOR).is_file():
+            raise SiteError(f"{path}: site {name!r}: {folder / name} holds no {DESCRIPTOR}")
+        extra = {k: str(row.get(k, "")) for k in ("building", "climate", "season")}
+        sites.append(LibrarySite(name, folder / name, part, **extra))
+    return sites
+
+
+def calibrated_cases(suite: str | os.PathLike) -> list[dict]:
+    """The suite's made sites that carry a calibration (``buildenv suite calibrate``), sorted by name, each its
+    manifest record with ``name`` and ``folder`` (``<suite>/<name>``) added."""
+    from buildenv.sites.suite import read_manifest
+
+    cases = []
+    for record in read_manifest(suite):
+        if record.get("status") not in ("made", "reused"):
+            continue
+        name = f"{record['building']}-{record['climate']}-{record['season']}"
+        folder = Path(suite) / name
+        if not folder.is_dir():  # a manifest written with another working directory: the path as recorded
+            folder = Path(record["site"])
+        if (folder / CALIBRATION_FILE).is_file():
+            cases.append({**record, "name": name, "folder": folder})
+    return sorted(cases, key=lambda c: c["name"])
+
+
+def _spread(items: list[dict], k: int) -> list[dict]:
+    """``k`` of ``items`` spread evenly (the middle of ``k`` equal bins)."""
+    return [items[(2 * i + 1) * len(items) // (2 * k)] for i in range(k)] if k > 0 else []
+
+
+def choose(cases: list[dict], n: int | None) -> list[dict]:
+    """``n`` of the suite's ``cases`` (all with None), both parts in proportion (each at least one when both exist
+    and ``n >= 2``), spread evenly over the cases sorted by name (building, climate, season); sorted by name."""
+    if n is None or n >= len(cases):
+        return list(cases)
+    if n < 1:
+        raise BuildenvError(f"--sites {n}: give 1 or more")
+    test = [c for c in cases if c["part"] == "held_out"]
+    train = [c for c in cases if c["part"] != "held_out"]
+    n_test = round(n * len(test) / len(cases))
+    if n >= 2 and test and train:
+        n_test = min(max(n_test, 1), n - 1)
+    n_test = min(len(test), max(n_test, n - len(train)))
+    return sorted(_spread(train, n - n_test) + _spread(test, n_test), key=lambda c: c["name"])
+
+
+def _index(rows: list[dict]) -> str:
+    """``library.toml`` of ``rows`` (strings as JSON strings, which TOML reads as basic strings)."""
+    from buildenv.sites.suite import HELD_OUT_CLIMATES
+
+    lines = [
+        "# A library of calibrated sites for BuildingWeek-v0 (site=...; sites='train' | 'test' | 'all'),",
+        "# written by `buildenv suite library` from a calibrated suite. part: train = the suite's development part,",
+        f"# test = its held-out climates ({', '.join(HELD_OUT_CLIMATES)}).",
+    ]
+    for row in rows:
+        lines += ["", "[[sites]]"]
+        for key, value in row.items():
+            lines.append(f"{key} = {json.dumps(value)}")
+    return "\n".join(lines) + "\n"
+
+
+def write_library(
+    suite: str | os.PathLike, out: str | os.PathLike, n_sites: int | None = None, progress: bool = True
+) -> dict:
+    """Copy calibrated sites of a suite into a library folder ``out`` and write its index.
+
+    Args:
+        suite: a suite folder (``buildenv suite make``) whose sites were calibrated (``buildenv suite calibrate``).
+        out: the library folder; replaced when it holds an earlier library, refused when it holds anything else.
+        n_sites: how many sites (:func:`choose`); default every calibrated one.
+        progress: a progress bar.
+    Returns:
+        ``{"library", "sites", "train", "test"}``.
+    Raises:
+        BuildenvError: no suite manifest, no calibrated site, ``out`` not a library, ``n_sites`` below 1.
+        SiteError: a copied site that does not load (nothing is left behind).
+    """
+    from tqdm import tqdm
+
+    from buildenv.sites.reader import load_site
+
+    cases = calibrated_cases(suite)
+    if not cases:
+        raise BuildenvError(f"{suite}: no calibrated site; run buildenv suite calibrate --suite {suite} first")
+    chosen = choose(cases, n_sites)
+    out = Path(out).expanduser()
+    if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not is_library(out))):
+        raise BuildenvError(f"{out}: exists and is not a site library; give a new or empty folder")
+    partial = out.with_name(out.name + ".partial")
+    shutil.rmtree(partial, ignore_errors=True)
+    partial.mkdir(parents=True)
+    rows = []
+    try:
+        for case in tqdm(chosen, desc="library", unit="site", disable=not progress):
+            folder = partial / case["name"]
+            folder.mkdir()
+            for name in LIBRARY_FILES:
+                if (case["folder"] / name).is_file():
+                    shutil.copy2(case["folder"] / name, folder / name)
+            site = load_site(folder)  # it loads, calibrated, where it now lies
+            verdict = (site.calibration or {}).get("verdict") or {}
+            rows.append(
+                {
+                    "name": case["name"],
+                    "building": case["building"],
+                    "climate": case["climate"],
+                    "season": case["season"],
+                    "part": PARTS[case["part"]],
+                    "guideline14": bool(verdict.get("passed", False)),
+                }
+            )
+        (partial / LIBRARY_INDEX).write_text(_index(rows), encoding="utf-8")
+        read_library(partial)
+    except BaseException:
+        shutil.rmtree(partial, ignore_errors=True)
+        raise
+    if out.exists():
+        shutil.rmtree(out)
+    partial.replace(out)
+    parts = [r["part"] for r in rows]
+    return {"library": str(out), "sites": len(rows), "train": parts.count("train"), "test": parts.count("test")}

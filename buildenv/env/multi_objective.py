@@ -16,7 +16,8 @@ from typing import Any
 import numpy as np
 from gymnasium import spaces
 
-from buildenv.env.building_week import BuildingWeekEnv, BuildingWeekVectorEnv
+from buildenv.env.building_week import BuildingWeekEnv
+from buildenv.env.vector import BuildingWeekVectorEnv
 
 #: the reward vector's components, in order
 REWARD_NAMES = ("energy", "comfort")

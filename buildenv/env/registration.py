@@ -32,7 +32,7 @@ def register_envs() -> None:
         gymnasium.register(
             id=ENV_ID,
             entry_point="buildenv.env.building_week:BuildingWeekEnv",
-            vector_entry_point="buildenv.env.building_week:BuildingWeekVectorEnv",
+            vector_entry_point="buildenv.env.vector:BuildingWeekVectorEnv",
         )
     if MO_ENV_ID not in gymnasium.registry:
         gymnasium.register(

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import shutil
 
 import numpy as np
 import pytest
@@ -22,6 +23,7 @@ from buildenv.sites.suite import (
     make_case,
     read_manifest,
     suite_cases,
+    write_manifest,
 )
 
 
@@ -112,3 +114,18 @@ def test_the_response_summary_scores_agreement_and_disagreement():
     assert same["savings_error_p90_abs_points"] == 0.0 and same["savings_spearman"] == 1.0
     off = summarise([30.0, -15.0, 9.0], [10.0, -5.0, 3.0], [0.2, 0.5, 0.1], [0.1, 0.6, 0.3])
     assert off["savings_bias_points"] > 0 and off["savings_spearman"] == 1.0 and off["comfort_spearman"] < 1.0
+
+
+def test_a_copied_suite_folder_names_its_own_sites(tmp_path):
+    """A manifest names each site's folder; a copied suite reads its own copies, one record per folder."""
+    original, copy = tmp_path / "suite", tmp_path / "copy"
+    original.mkdir()
+    records = [{"site": str(original / "a-case"), "part": "held_out"}, {"site": str(original / "b-case"), "part": "x"}]
+    write_manifest(original, records)
+    shutil.copytree(original, copy)
+    write_manifest(copy, [{"site": str(copy / "a-case"), "part": "development"}])  # a record of the copy's own
+    assert read_manifest(copy) == [
+        {"site": str(copy / "a-case"), "part": "development"},
+        {"site": str(copy / "b-case"), "part": "x"},
+    ]
+    assert [r["site"] for r in read_manifest(original)] == [str(original / "a-case"), str(original / "b-case")]

@@ -274,21 +274,29 @@ def make_suite(
 
 
 def read_manifest(out: str | Path) -> list[dict]:
-    """The records of ``out/suite.json``; raises :class:`BuildenvError` when the folder has none."""
+    """The records of ``out/suite.json``, one per site folder, each ``site`` inside ``out`` (a suite folder may be
+    copied or moved: a record names its folder, which is taken from ``out``); raises :class:`BuildenvError` when
+    the folder has none."""
     path = Path(out) / MANIFEST
     if not path.is_file():
         raise BuildenvError(f"{path}: not found; make the suite first (buildenv suite make --out {out})")
     try:
-        return json.loads(path.read_text(encoding="utf-8"))["cases"]
+        cases = json.loads(path.read_text(encoding="utf-8"))["cases"]
+        return list(_by_folder(Path(out), cases).values())
     except (json.JSONDecodeError, KeyError, TypeError) as error:
         raise BuildenvError(f"{path}: not a suite manifest ({error}); make the suite again") from error
+
+
+def _by_folder(out: Path, records: Iterable[dict]) -> dict[str, dict]:
+    """``{site folder name: record}`` with each record's ``site`` in ``out`` (later records replace earlier)."""
+    return {Path(r["site"]).name: {**r, "site": str(out / Path(r["site"]).name)} for r in records}
 
 
 def write_manifest(out: Path, records: Sequence[dict]) -> Path:
     """Merge ``records`` into ``out/suite.json`` by site folder (later records replace earlier ones)."""
     path = out / MANIFEST
-    merged = {r["site"]: r for r in (read_manifest(out) if path.is_file() else [])}
-    merged.update({r["site"]: r for r in records})
+    merged = _by_folder(out, read_manifest(out) if path.is_file() else [])
+    merged.update(_by_folder(out, records))
     manifest = {"held_out_climates": list(HELD_OUT_CLIMATES), "cases": list(merged.values())}
     text = dumps(manifest, where=str(path), indent=1)
     tmp = path.with_suffix(".json.tmp")

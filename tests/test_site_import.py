@@ -8,6 +8,7 @@ standard library's zoneinfo, independently of the importer, and compared with a 
 
 from __future__ import annotations
 
+import dataclasses
 import datetime as dt
 import json
 import zoneinfo
@@ -60,19 +61,22 @@ def _same(imported: Path, handmade: Path) -> None:
     np.testing.assert_array_equal(a.settings, b.settings)
 
 
-def _dst_export(path: Path, start: dt.date, t: np.ndarray, q: np.ndarray) -> Path:
-    """A 15-minute export on Chicago's clock (daylight saving from 2024-03-10 02:00), temperature in degF (four
-    samples averaging the hour), a Wh register read at the start of each interval, and a closing reading."""
+def _dst_export(path: Path, start: dt.date, t: np.ndarray, q: np.ndarray, *, offsets: bool = False) -> Path:
+    """A 15-minute export on Chicago's clock (daylight saving from 2024-03-10 02:00 to 2024-11-03 02:00; with
+    ``offsets``, each stamp with its UTC offset), temperature in degF (four samples averaging the hour), a Wh
+    register read at the start of each interval, and a closing reading."""
     zone, standard_offset = zoneinfo.ZoneInfo("America/Chicago"), dt.timedelta(hours=-6)
     share = (0.1, 0.2, 0.3, 0.4)
     register = 1_234_567.0
     rows = []
     for k in range(HOURS * 4 + 1):
         standard = dt.datetime.combine(start, dt.time()) + dt.timedelta(minutes=15 * k)
-        local = (standard - standard_offset).replace(tzinfo=dt.timezone.utc).astimezone(zone).replace(tzinfo=None)
+        local = (standard - standard_offset).replace(tzinfo=dt.timezone.utc).astimezone(zone)
         h = k // 4
         temperature = "" if h == HOURS else f"{(t[h] + (-0.3, -0.1, 0.1, 0.3)[k % 4]) * 1.8 + 32:.4f}"
-        rows.append([local.strftime("%Y-%m-%d %H:%M"), temperature, f"{register:.3f}"])
+        rows.append(
+            [local.strftime("%Y-%m-%dT%H:%M%z" if offsets else "%Y-%m-%d %H:%M"), temperature, f"{register:.3f}"]
+        )
         if h < HOURS:
             register += 1000 * q[h] * share[k % 4]
     return _export(path, ["Timestamp", "Zone Temp (°F)", "Main meter [Wh]"], rows)
@@ -93,6 +97,107 @@ def test_15_minute_degf_export_on_a_dst_clock_with_a_wh_register(tmp_path):
     _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
 
 
+def test_15_minute_export_across_the_autumn_repeated_hour(tmp_path):
+    start = dt.date(2024, 10, 28)  # Chicago's clocks go back from 02:00 to 01:00 on Sunday 2024-11-03
+    t, q = _truth(4)
+    export = _dst_export(tmp_path / "bms.csv", start, t, q)
+    lines = export.read_text().splitlines()
+    repeated = [n for n, line in enumerate(lines, start=1) if line.startswith("2024-11-03 01:00,")]
+    assert len(repeated) == 2 and lines[repeated[1] - 2].startswith("2024-11-03 01:45,")
+
+    with pytest.raises(SiteError) as error:
+        import_export(export, tmp_path / "refused", options=ImportOptions(cumulative=True), **SITE)
+    assert str(error.value) == (
+        f"{export}:{repeated[1]}: timestamp 2024-11-03 01:00 is earlier than the previous row's 2024-11-03 01:45 "
+        f"(line {repeated[1] - 1}), on a November Sunday, the hour clocks go back (e.g. in America/Chicago): the "
+        "timestamps look like local daylight-saving time; give the export's zone, --time-zone America/Chicago (an "
+        "IANA name), which reads the repeated hour as the next hour of standard time"
+    )
+    assert not (tmp_path / "refused").exists()
+
+    options = ImportOptions(time_zone="America/Chicago", cumulative=True)
+    report = import_export(export, tmp_path / "site", options=options, **SITE)
+    assert (report.start, report.weeks, report.interval_minutes) == ("2024-10-28", 2, 15)
+    assert report.missing_temperature_hours == report.missing_consumption_hours == 0 and not report.notes
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+
+def test_timestamps_with_utc_offsets_are_read_at_their_instant(tmp_path):
+    start = dt.date(2024, 3, 4)
+    t, q = _truth(0)
+    export = _dst_export(tmp_path / "bms.csv", start, t, q, offsets=True)
+    assert "2024-03-10T01:45-0600" in export.read_text() and "2024-03-10T03:00-0500" in export.read_text()
+    options = ImportOptions(time_format="%Y-%m-%dT%H:%M%z", cumulative=True)
+    report = import_export(export, tmp_path / "site", options=options, **SITE)
+    assert (report.start, report.weeks, report.missing_consumption_hours) == ("2024-03-04", 2, 0)
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+    options = dataclasses.replace(options, time_zone="America/Chicago")
+    with pytest.raises(SiteError, match=r"bms.csv:2: the timestamps carry UTC offsets .*: leave --time-zone out$"):
+        import_export(export, tmp_path / "refused", options=options, **SITE)
+    with pytest.raises(SiteError, match=r"bms.csv:2: timestamp '2024-03-04T00:00-0600' .*--time-format, %z"):
+        import_export(export, tmp_path / "refused", options=ImportOptions(cumulative=True), **SITE)
+
+
+def _register_export(path: Path, start: dt.date, t: np.ndarray, q: np.ndarray, *, opening: bool) -> Path:
+    """A 15-minute export in standard time, each row stamped at the end of its interval: temperature degC, a kWh
+    register read at the stamp; with ``opening``, a first row (Monday 00:00) with the reading before the first
+    interval."""
+    register, rows = 5000.0, []
+    for k in range(0 if opening else 1, HOURS * 4 + 1):
+        stamp = dt.datetime.combine(start, dt.time()) + dt.timedelta(minutes=15 * k)
+        h, i = (k - 1) // 4, (k - 1) % 4
+        if k:
+            register += q[h] * (0.1, 0.2, 0.3, 0.4)[i]
+        temperature = f"{t[h] + (i - 1.5) / 10:.4f}" if k else ""
+        rows.append([f"{stamp:%Y-%m-%d %H:%M}", temperature, f"{register:.4f}"])
+    return _export(path, ["Time", "Room temp degC", "Energy meter kWh"], rows)
+
+
+def test_end_stamped_register_export(tmp_path):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(5)
+    export = _register_export(tmp_path / "bms.csv", start, t, q, opening=True)
+    options = ImportOptions(stamped="end", cumulative=True)
+    report = import_export(export, tmp_path / "site", options=options, **SITE)
+    assert (report.start, report.weeks, report.interval_minutes) == ("2024-01-08", 2, 15)
+    assert report.columns == {"Room temp degC": "degC", "Energy meter kWh": "kWh register"}
+    assert report.missing_temperature_hours == report.missing_consumption_hours == 0 and not report.notes
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+    export = _register_export(tmp_path / "bms.csv", start, t, q, opening=False)  # from 00:15 to Monday 00:00
+    with pytest.raises(SiteError) as error:
+        import_export(export, tmp_path / "refused", options=ImportOptions(cumulative=True), **SITE)
+    assert str(error.value) == (
+        f"{export}:2: the readings run from 2024-01-08 00:15 to 2024-01-22 00:00 (line {HOURS * 4 + 1}), 15 minutes "
+        "after a midnight to a midnight: stamped at the end of their interval? pass --stamped end; if at its start, "
+        "add the row 2024-01-08 00:00 with empty cells"
+    )
+    report = import_export(export, tmp_path / "no_opening", options=options, **SITE)
+    assert report.missing_consumption_hours == 1 and report.missing_temperature_hours == 0  # nothing opens hour 0
+    imported = load_site(tmp_path / "no_opening").consumption_kwh.ravel()
+    assert np.isnan(imported[0])
+    np.testing.assert_allclose(imported[1:], q[1:], atol=1.5e-3)
+
+
+def test_a_semicolon_export_with_a_bom_blank_lines_and_empty_rows(tmp_path):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(6)
+    rows = [
+        [
+            f"{dt.datetime.combine(start, dt.time()) + dt.timedelta(hours=h):%Y-%m-%d %H:%M}",
+            f"{t[h]:.3f}",
+            f"{q[h]:.4f}",
+        ]
+        for h in range(HOURS)
+    ]
+    lines = [";".join(r) for r in [["timestamp", "temperature_c", "energy_kwh"], *rows[:50], ["", "", ""], *rows[50:]]]
+    export = tmp_path / "bms.csv"
+    export.write_text("\ufeff\n" + "\n".join(lines[:30] + [""] + lines[30:]) + "\n", encoding="utf-8")
+    import_export(export, tmp_path / "site", **SITE)
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+
 def test_5_minute_end_stamped_export_in_kelvin_and_kw(tmp_path):
     start = dt.date(2024, 1, 8)
     t, q = _truth(1)
@@ -106,6 +211,10 @@ def test_5_minute_end_stamped_export_in_kelvin_and_kw(tmp_path):
         wobble = (i - 5.5) / 10  # averages to 0 over the hour
         rows.append([text, f"{t[h] + 273.15 + wobble:.4f}", f"{q[h] + wobble:.4f}"])
     export = _export(tmp_path / "bms.csv", ["date_time", "room_temp_K", "Total power kW"], rows)
+    with pytest.raises(
+        SiteError, match=r"bms.csv:\d+: timestamp '2024-01-08T24:00:00' is 24:00, .*pass --stamped end$"
+    ):
+        import_export(export, tmp_path / "site", **SITE)
     report = import_export(export, tmp_path / "site", options=ImportOptions(stamped="end"), **SITE)
     assert (report.start, report.weeks, report.interval_minutes) == ("2024-01-08", 2, 5)
     assert report.columns == {"room_temp_K": "K", "Total power kW": "kW"}
@@ -191,7 +300,25 @@ def test_a_bad_column_name_gives_one_line_and_no_folder(tmp_path, capsys):
         (
             lambda rows: None,
             {"cumulative": True},
-            r"bms.csv:\d+: no reading from 2024-03-10 02:00 for an hour, .*--time-zone America/",
+            r"bms.csv:\d+: no row for 2024-03-10 02:00, on the March Sunday clocks go forward .*--time-zone America/",
+        ),
+        (
+            lambda rows: None,
+            {"cumulative": True, "time_zone": "America/New_York"},
+            r"bms.csv: --time-zone America/New_York keeps standard time UTC-5 h, the weather file \(usa_il_chicago\) "
+            r"UTC-6 h: the site's hours would be off the weather's",
+        ),
+        (
+            lambda rows: None,
+            {"cumulative": True, "time_zone": "America/Chicgo"},
+            r"^--time-zone 'America/Chicgo': unknown time zone \(did you mean 'America/Chicago'\?\): .* needs no "
+            r"--time-zone\)$",
+        ),
+        (
+            lambda rows: None,
+            {"cumulative": True, "time_zone": "America/Chicago", "units": {"Main meter [Wh]": "kWh"}},
+            r"bms.csv:\d+: the hourly sum of 'Main meter \[Wh\]', [\d.]+ kWh, is above 1 kWh/m2 in one hour .*; looks "
+            r"like Wh: check the columns' units, --unit COLUMN=UNIT$",
         ),
         (
             lambda rows: rows[7].__setitem__(1, "150"),

@@ -329,8 +329,17 @@ def register(sub) -> None:
         help="a column's unit where its name does not say it (repeatable): degC, degF, K; Wh, kWh, MWh, MJ, GJ "
         "(energy in the interval); W, kW, MW (power, averaged)",
     )
-    p.add_argument("--time-format", default=None, help="strptime format of the timestamps, e.g. '%%m/%%d/%%Y %%H:%%M'")
-    p.add_argument("--time-zone", default=None, help="IANA zone whose clock (daylight saving) the export keeps")
+    p.add_argument(
+        "--time-format",
+        default=None,
+        help="strptime format of the timestamps, e.g. '%%m/%%d/%%Y %%H:%%M' (%%z: UTC offsets, converted to the EPW's "
+        "standard time)",
+    )
+    p.add_argument(
+        "--time-zone",
+        default=None,
+        help="IANA zone whose clock (daylight saving) the export keeps; standard time the EPW's",
+    )
     p.add_argument(
         "--stamped", default="start", choices=["start", "end"], help="a row stamps its interval's start or end"
     )

@@ -9,6 +9,7 @@ numeric cell (empty or NaN: missing). Every message is ``"<file>:<line>: <what i
 from __future__ import annotations
 
 import csv
+import itertools
 import math
 from collections.abc import Iterator
 from pathlib import Path
@@ -16,11 +17,25 @@ from pathlib import Path
 from buildenv.errors import SiteError
 
 
-def _rows(path: Path) -> Iterator[tuple[int, list[str]]]:
-    """``(line number, cells)`` of a CSV file, header included, blank lines skipped; cells stripped."""
+def _rows(path: Path, separators: str = ",") -> Iterator[tuple[int, list[str]]]:
+    """``(line number, cells)`` of a CSV file, header included, blank lines skipped; cells stripped.
+
+    ``separators``: the column separators allowed (the site's files: commas); of several, the first non-blank
+    line's most frequent one separates the columns (a BMS export: ``",;\\t"``).
+    """
     try:
         with path.open(encoding="utf-8-sig", newline="") as handle:
-            reader = csv.reader(handle)
+            lines: Iterator[str] = iter(handle)
+            separator = separators
+            if len(separators) > 1:
+                head: list[str] = []
+                for text in lines:  # blank lines, then the first that is not
+                    head.append(text)
+                    if text.strip():
+                        break
+                separator = max(separators, key=(head[-1] if head else "").count)
+                lines = itertools.chain(head, lines)
+            reader = csv.reader(lines, delimiter=separator)
             try:
                 for cells in reader:
                     if not cells or (len(cells) == 1 and not cells[0].strip()):

@@ -4,8 +4,9 @@
 meter register readings differenced where ``[measurements] cumulative = true`` (:func:`_register_differences`),
 else recognised as a register that was not declared (:func:`_check_not_a_register`); then each hour checked against
 :data:`~buildenv.sites.model.MAX_KWH_PER_M2_PER_HOUR` (too large: Wh?) and the peak against the least a building's
-metered lighting and plug loads use (too small: MWh or GJ?). Every problem raises
-:class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"``.
+metered lighting and plug loads use (too small: MWh or GJ?, :func:`_check_size`). Every problem raises
+:class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"``. ``buildenv site import`` calls the
+same checks on an export's columns, with its column names and flags in the messages.
 """
 
 from __future__ import annotations
@@ -49,12 +50,30 @@ def _consumption(
         _check_not_a_register(path, values, line_at)
         q, line_of = values, line_at
         what = "heat_consumption_kwh={:g}"
+    _check_size(path, q, line_of, floor_area_m2, end_uses, what)
+    return q
 
+
+def _check_size(
+    path: Path,
+    q: np.ndarray,
+    line_of: np.ndarray,
+    floor_area_m2: float,
+    end_uses: tuple[str, ...],
+    what: str = "heat_consumption_kwh={:g}",
+    fix_units: str | None = None,
+) -> None:
+    """A SiteError if an hour of ``q`` (kWh in each hour, NaN where missing; ``line_of``: each hour's line) is
+    above :data:`MAX_KWH_PER_M2_PER_HOUR` x ``floor_area_m2``, or the largest is below the least power of the
+    metered ``end_uses``. ``what`` names a value in the message (a format taking it); the unit it looks like is
+    named with the reader's conversion, or with ``fix_units`` (an import's flag) where given."""
     limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
     over = np.flatnonzero(q > limit)  # NaN never is
     if over.size:
         value = float(q[over[0]])
-        hint = "; looks like Wh (divide by 1000)" if value / 1000.0 <= limit else ""
+        hint = ""
+        if value / 1000.0 <= limit:
+            hint = f"; looks like Wh: {fix_units}" if fix_units else "; looks like Wh (divide by 1000)"
         raise SiteError(
             f"{path}:{line_of[over[0]]}: {what.format(value)} is above "
             f"{MAX_KWH_PER_M2_PER_HOUR:g} kWh/m2 in one hour ({limit:g} kWh for "
@@ -69,40 +88,60 @@ def _consumption(
         peak_w_m2 = peak * 1000.0 / floor_area_m2
         least_w_m2 = MIN_PEAK_SHARE_OF_LEAST_POWER * sum(cat.get(powers[use]).min for use in metered)
         if 0 < peak_w_m2 < least_w_m2:
+            small = f"MWh or GJ: {fix_units}" if fix_units else _SMALL_UNITS
             raise SiteError(
                 f"{path}:{line_of[peak_at]}: {what.format(peak)} is the largest in the file, {peak_w_m2:.3g} W/m2 "
                 f"for {floor_area_m2:g} m2: below the {least_w_m2:g} W/m2 a building whose meter includes "
                 f"{' and '.join(metered)} uses in its busiest hour (a tenth of the catalogue's least installed "
-                f"power); looks like {_SMALL_UNITS}"
+                f"power); looks like {small}"
             )
-    return q
 
 
-def _check_not_a_register(path: Path, values: np.ndarray, line_at: np.ndarray) -> None:
-    """A SiteError if the consumption never falls over a day or more while rising well beyond its largest
-    hourly step: readings of a cumulative meter register, not the energy of each hour."""
+def _check_not_a_register(
+    path: Path,
+    values: np.ndarray,
+    line_at: np.ndarray,
+    *,
+    column: str = "heat_consumption_kwh",
+    per_day: int = cat.HOURS_PER_DAY,
+    interval: str = "hour",
+    fix: str = "give the hourly differences, or declare it in site.toml: [measurements] cumulative = true",
+) -> None:
+    """A SiteError at the first reading if ``values`` (``per_day`` readings a day, NaN where missing;
+    ``line_at``: each one's line) never fall over a day or more while rising well beyond their largest step:
+    readings of a cumulative meter register, not the energy of each ``interval``. The message names ``column``
+    and ``fix`` (the site reader's by default)."""
     measured = np.flatnonzero(np.isfinite(values))
-    if measured.size < cat.HOURS_PER_DAY:
+    if measured.size < per_day:
         return
     series = values[measured]
     steps = np.diff(series)
     rise = float(series[-1] - series[0])
     if (steps >= 0).all() and rise > 0 and rise >= 5 * float(steps.max()):
         raise SiteError(
-            f"{path}:{line_at[measured[0]]}: heat_consumption_kwh never falls, from {series[0]:g} here to "
+            f"{path}:{line_at[measured[0]]}: {column} never falls, from {series[0]:g} here to "
             f"{series[-1]:g} on line {line_at[measured[-1]]}: a cumulative meter register, not the energy of "
-            "each hour; give the hourly differences, or declare it in site.toml: [measurements] cumulative = true"
+            f"each {interval}; {fix}"
         )
 
 
 def _register_differences(
-    path: Path, readings: np.ndarray, line_at: np.ndarray, options: _MeasurementOptions
+    path: Path,
+    readings: np.ndarray,
+    line_at: np.ndarray,
+    options: _MeasurementOptions,
+    *,
+    reading: str = "the register reading",
+    interval: str = "hour",
+    fix: str | None = None,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """``(kWh in each hour, the line of the later reading of each)`` from hourly meter register readings.
+    """``(energy in each interval, the line of the later reading of each)`` from meter register ``readings``, one
+    per ``interval`` (``line_at``: each one's line, 0 where none), in the readings' unit.
 
-    A reading is the register at its timestamp (the start of the hour; with ``stamped = "end"``, its end):
-    an hour's energy is the next reading less this one, missing where either is; the last hour (the first,
-    for end stamps) has no reading to close it and is missing.
+    A reading is the register at its timestamp (the start of the interval; with ``options.stamped_end``, its
+    end): an interval's energy is the next reading less this one, missing where either is; the last interval
+    (the first, for end stamps) has no reading to close it and is missing. A falling reading raises SiteError
+    at its line, naming it ``reading`` and the fix ``fix`` (by default the site reader's, at ``options.where``).
     """
     earlier, later = readings[:-1], readings[1:]
     steps = later - earlier
@@ -110,10 +149,10 @@ def _register_differences(
     if falls.size:
         k = int(falls[0])
         raise SiteError(
-            f"{path}:{line_at[k + 1]}: the register reading {later[k]:g} is below the previous hour's "
+            f"{path}:{line_at[k + 1]}: {reading} {later[k]:g} is below the previous {interval}'s "
             f"{earlier[k]:g} (line {line_at[k]}): a meter reset or replacement? leave this reading empty (the "
-            f"hours on either side become gaps), or give the hourly differences without cumulative = true "
-            f"({options.where})"
+            f"{interval}s on either side become gaps), "
+            + (fix or f"or give the hourly differences without cumulative = true ({options.where})")
         )
     q = np.full(readings.shape, np.nan)
     line_of = np.zeros(readings.shape, int)

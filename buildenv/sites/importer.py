@@ -4,7 +4,8 @@ A BMS export is a CSV file with a timestamp column, an indoor temperature column
 columns: often sub-hourly, on a local clock that keeps daylight saving, stamped at the end of each interval, in degF
 or K, in Wh, MWh or GJ (or power in kW), or as meter register readings. :func:`import_export` finds the columns
 (:func:`_columns`: named by :class:`ImportOptions` or guessed from the header when only one fits), converts each
-timestamp to local standard time (:func:`_standard_stamps`) and each value to degC, kWh or kW (:func:`_series`),
+timestamp to local standard time (:func:`_standard_stamps`, with the site reader's checks and hints of
+:mod:`buildenv.sites.timestamps`) and each value to degC, kWh or kW (:func:`_series`),
 resamples to hours (:func:`_hourly`: temperature and power the mean of the hour's readings, energy the sum of its
 intervals, missing unless every interval is there) and writes whole weeks with
 :func:`buildenv.sites.writer.write_site`, which writes atomically and loads the result back: a failed import leaves
@@ -15,12 +16,12 @@ names the first.
 
 from __future__ import annotations
 
-import csv
 import dataclasses
 import datetime as dt
 import difflib
 import os
 import re
+import zoneinfo
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,12 +30,19 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.errors import SiteError
-from buildenv.sites.cells import _parse_value
-from buildenv.sites.consumption import _consumption
+from buildenv.sites.cells import _parse_value, _rows
+from buildenv.sites.consumption import _check_not_a_register, _check_size, _register_differences
 from buildenv.sites.measurement_options import _MeasurementOptions
 from buildenv.sites.model import TEMPERATURE_RANGE_C
-from buildenv.sites.reader import _read_settings, _zone
-from buildenv.sites.timestamps import _SPRING_MONTHS, _fmt, _standard_time, _zones_changing
+from buildenv.sites.reader import _read_settings
+from buildenv.sites.timestamps import (
+    _epw_location,
+    _epw_offset_mismatch,
+    _fmt,
+    _parse_timestamp,
+    _standard_times,
+    _ZoneWording,
+)
 
 #: Longest temperature gap, hours, that ``fill_temperature_gaps`` interpolates.
 MAX_FILLED_GAP_HOURS = 2
@@ -82,8 +90,10 @@ class ImportOptions:
             power unit.
         units: ``{column: unit}`` (degC, degF, K; Wh, kWh, MWh, MJ, GJ; W, kW, MW) where the name does not say it.
         time_format: a ``strptime`` format of the timestamps; None reads ``YYYY-MM-DD HH:MM[:SS]`` (``T`` or
-            ``/`` allowed, ``24:00`` read as the next day's 00:00).
-        time_zone: the IANA zone whose clock (daylight saving included) the export keeps; None: standard time.
+            ``/`` allowed, ``24:00`` read as the next day's 00:00 where ``stamped="end"``). With ``%z`` the
+            timestamps' UTC offsets give their time, converted to the weather file's standard time.
+        time_zone: the IANA zone whose clock (daylight saving included) the export keeps, its standard time the
+            weather file's; None: standard time (or UTC offsets in the timestamps).
         stamped: ``"start"`` or ``"end"`` of the interval a row covers.
         cumulative: the energy columns hold meter register readings.
         fill_temperature_gaps: interpolate temperature gaps of at most :data:`MAX_FILLED_GAP_HOURS` hours.
@@ -188,87 +198,89 @@ def _columns(path: Path, header: list[str], options: ImportOptions) -> list[tupl
     return out
 
 
+#: How timestamp messages name the zone of the export's clock (timestamps with UTC offsets: no zone, no hints).
+_ZONE_WORDING = _ZoneWording("--time-zone", "--time-zone", "give the export's zone, --time-zone {} (an IANA name)")
+_OFFSET_WORDING = _ZoneWording("--time-zone", "--time-zone", None)
+
+
+def _time_zone(name: str) -> zoneinfo.ZoneInfo:
+    """The IANA zone ``--time-zone`` names; SiteError (naming the closest known name) otherwise."""
+    try:
+        return zoneinfo.ZoneInfo(name)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError, OSError):
+        close = difflib.get_close_matches(name, sorted(zoneinfo.available_timezones()), n=1)
+        hint = f" (did you mean {close[0]!r}?)" if close else ""
+        raise SiteError(
+            f"--time-zone {name!r}: unknown time zone{hint}: give the IANA name of the zone whose clock the export "
+            "keeps, such as 'America/Chicago' or 'Europe/Paris' (an export in standard time needs no --time-zone)"
+        ) from None
+
+
 def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     """The header and ``[(line, cells)]`` of a CSV file separated by ``,``, ``;`` or tabs (the header's most
-    frequent), blank lines skipped, cells stripped."""
-    try:
-        text = path.read_text(encoding="utf-8-sig")
-    except UnicodeDecodeError as exc:
-        raise SiteError(f"{path}: not UTF-8 text ({exc.reason} at byte {exc.start}); save the export as UTF-8") from exc
-    except OSError as exc:
-        raise SiteError(f"{path}: cannot read: {exc}") from exc
-    first = next((line for line in text.splitlines() if line.strip()), "")
-    delimiter = max(",;\t", key=first.count)
-    reader = csv.reader(text.splitlines(), delimiter=delimiter)
-    rows = []
-    try:
-        for cells in reader:
-            if any(c.strip() for c in cells):
-                rows.append((reader.line_num, [c.strip() for c in cells]))
-    except csv.Error as exc:
-        raise SiteError(f"{path}:{reader.line_num}: malformed CSV: {exc}") from exc
+    frequent; :func:`~buildenv.sites.cells._rows`), blank lines and rows of empty cells skipped, cells stripped."""
+    rows = [(line, cells) for line, cells in _rows(path, ",;\t") if any(cells)]
     if len(rows) < 3:
         raise SiteError(f"{path}: {max(len(rows) - 1, 0)} data row(s): expected a header and the readings")
     return rows[0][1], rows[1:]
 
 
-_STAMP = re.compile(r"(\d{4})[-/](\d{2})[-/](\d{2})[T ](\d{1,2}):(\d{2})(?::(\d{2}))?")
-
-
-def _parse_stamp(path: Path, line: int, text: str, time_format: str | None) -> dt.datetime:
-    """A timestamp cell as a naive datetime (``24:00`` is the next day's 00:00)."""
+def _parse_stamp(path: Path, line: int, text: str, options: ImportOptions) -> dt.datetime:
+    """A timestamp cell: by ``options.time_format`` (offset-aware where it has ``%z``), else as
+    :func:`~buildenv.sites.timestamps._parse_timestamp` reads an export's."""
+    if not options.time_format:
+        return _parse_timestamp(path, line, text, stamped_end=options.stamped == "end", export=True)
     try:
-        if time_format:
-            return dt.datetime.strptime(text, time_format)
-        m = _STAMP.fullmatch(text)
-        if m is None:
-            raise ValueError("not YYYY-MM-DD HH:MM")
-        year, month, day, hour, minute, second = (int(g or 0) for g in m.groups())
-        day_end = hour == 24 and minute == second == 0
-        stamp = dt.datetime(year, month, day, 0 if day_end else hour, minute, second)
-        return stamp + dt.timedelta(days=1) if day_end else stamp
+        return dt.datetime.strptime(text, options.time_format)
     except ValueError as exc:
-        expected = f"format {time_format!r} ({exc})" if time_format else "'YYYY-MM-DD HH:MM[:SS]'"
         raise SiteError(
-            f"{path}:{line}: cannot read timestamp {text!r}: expected {expected}; give the export's format "
-            "with --time-format, e.g. '%m/%d/%Y %H:%M'"
+            f"{path}:{line}: cannot read timestamp {text!r}: expected format {options.time_format!r} ({exc}); give "
+            "the export's format with --time-format, e.g. '%m/%d/%Y %H:%M'"
         ) from None
 
 
 def _standard_stamps(
-    path: Path, lines: list[int], stamps: list[dt.datetime], zone_name: str | None, weather: str
+    path: Path, lines: list[int], stamps: list[dt.datetime], zone: zoneinfo.ZoneInfo | None, weather: str
 ) -> list[dt.datetime]:
-    """Each row's timestamp in local standard time (from ``zone_name``'s clock; a repeated autumn reading is read
-    as the next one), checked to rise; SiteError at the row whose time does not exist, repeats or goes back, or
-    (without a zone) at the first reading after an hour missing where clocks go forward."""
-    zone = _zone(zone_name, "--time-zone") if zone_name else None
-    out: list[dt.datetime] = []
-    for i, (line, stamp) in enumerate(zip(lines, stamps)):
-        standard = stamp if zone is None else _standard_time(stamp, zone, out[-1] if out else None)
-        if standard is None:
+    """Each row's timestamp in the local standard time of the EPW ``weather``, checked to rise as the site
+    reader checks it (:func:`~buildenv.sites.timestamps._standard_times`: a repeated autumn hour is read as the
+    next one, the hints name the zone whose clock skips or repeats an hour). Naive stamps are on ``zone``'s clock
+    (None: standard time), whose standard time must be the weather file's; offset-aware ones (``%z``) are
+    converted by their offsets, without a zone. SiteError otherwise, at the row where it shows."""
+    if stamps[0].tzinfo is not None:
+        tz_h, _ = _epw_location(weather)
+        if zone is not None or tz_h is None:
+            fix = "leave --time-zone out" if zone is not None else f"the weather file {weather} names no time zone"
             raise SiteError(
-                f"{path}:{line}: {_fmt(stamp)} does not exist on the clock of {zone.key} (--time-zone), which goes "
-                "forward over it: is the zone right? an export in standard time needs no --time-zone"
+                f"{path}:{lines[0]}: the timestamps carry UTC offsets (%z in --time-format), which fix their time "
+                f"(converted to the weather file's standard time): {fix}"
             )
-        if out and standard <= out[-1]:
-            what = "repeats" if standard == out[-1] else "is earlier than"
+        epw = dt.timezone(dt.timedelta(hours=tz_h))
+        standard = [stamp.astimezone(epw).replace(tzinfo=None) for stamp in stamps]
+        return _standard_times(path, lines, standard, None, weather, _OFFSET_WORDING)
+    mismatch = _epw_offset_mismatch(zone, stamps[0].year, weather) if zone is not None else None
+    if mismatch is not None:
+        raise SiteError(
+            f"{path}: --time-zone {zone.key} keeps standard time UTC{mismatch[0]:+g} h, the weather file ({weather}) "
+            f"UTC{mismatch[1]:+g} h: the site's hours would be off the weather's; give the weather of the "
+            "building's place (--epw) or the zone of the export's clock"
+        )
+    return _standard_times(path, lines, stamps, zone, weather, _ZONE_WORDING)
+
+
+def _check_start_stamped(
+    path: Path, lines: list[int], stamps: list[dt.datetime], standard: list[dt.datetime], step: int
+) -> None:
+    """SiteError where readings stamped at the start of their interval run from one interval after a midnight to a
+    midnight, on the clock or in standard time: the site reader's end-of-hour hint, for any interval."""
+    interval = dt.timedelta(minutes=step)
+    for first, last in ((stamps[0], stamps[-1]), (standard[0], standard[-1])):
+        if first - first.replace(hour=0, minute=0, second=0) == interval and last.time() == dt.time():
             raise SiteError(
-                f"{path}:{line}: timestamp {_fmt(stamp)} {what} the previous row's (line {lines[i - 1]}): sort the "
-                "rows and remove duplicates; if the export keeps daylight saving, give --time-zone (an IANA name)"
+                f"{path}:{lines[0]}: the readings run from {_fmt(first)} to {_fmt(last)} (line {lines[-1]}), "
+                f"{step} minutes after a midnight to a midnight: stamped at the end of their interval? pass "
+                f"--stamped end; if at its start, add the row {_fmt(first - interval)} with empty cells"
             )
-        if zone is None and out and standard - out[-1] > dt.timedelta(hours=1):
-            missing = out[-1].replace(minute=0) + dt.timedelta(hours=1)
-            spring = missing.weekday() == 6 and missing.hour <= 3 and missing.month in _SPRING_MONTHS
-            if spring and standard >= missing + dt.timedelta(hours=1):
-                zones = _zones_changing(missing, "gap", weather)
-                if zones:
-                    raise SiteError(
-                        f"{path}:{line}: no reading from {_fmt(missing)} for an hour, on the Sunday clocks go forward "
-                        f"(e.g. in {zones[0]}): give the export's zone, --time-zone {zones[0]}, or if it keeps "
-                        "standard time, add the missing readings with empty cells"
-                    )
-        out.append(standard)
-    return out
 
 
 def _grid(
@@ -300,45 +312,27 @@ def _grid(
     return monday, int(step), (begins // step).astype(int)
 
 
-def _check_not_a_register(path: Path, lines: np.ndarray, raw: np.ndarray, column: str, per_day: int) -> None:
-    """SiteError if an energy column never falls over a day or more of readings while rising well beyond its
-    largest step: meter register readings, to be read with ``--cumulative``."""
-    measured = np.flatnonzero(np.isfinite(raw))
-    if measured.size < per_day:
-        return
-    rise = np.diff(raw[measured])
-    if (rise >= 0).all() and rise.sum() > 0 and rise.sum() >= 5 * rise.max():
-        raise SiteError(
-            f"{path}:{lines[measured[0]]}: {column} never falls, from {raw[measured[0]]:g} here to "
-            f"{raw[measured[-1]]:g} on line {lines[measured[-1]]}: meter register readings? pass --cumulative"
-        )
-
-
 def _series(
     path: Path, lines: np.ndarray, raw: np.ndarray, column: str, unit: _Unit, slots: np.ndarray, size: int, end: bool
 ) -> np.ndarray:
     """The interval series ``(size,)`` of one column: degC, kWh in the interval, or kW; NaN where missing.
 
     A ``unit.kind == "register"`` column holds meter readings, taken at the start of each row's interval (at its
-    end where ``end``): an interval's energy is the next reading less this one, NaN next to a missing reading.
-    SiteError at a temperature outside the plausible range (naming the unit it was read in), a negative energy or
-    power, or a falling register reading.
+    end where ``end``): an interval's energy is the next reading less this one, NaN next to a missing reading
+    (:func:`~buildenv.sites.consumption._register_differences`). SiteError at a temperature outside the plausible
+    range (naming the unit it was read in), a negative energy or power, or a falling register reading.
     """
     values = (raw + unit.offset) * unit.factor
     measured = np.flatnonzero(np.isfinite(values))
     if unit.kind == "register":
-        readings = np.full(size + 1, np.nan)
-        line_at = np.zeros(size + 1, int)
-        readings[slots + end], line_at[slots + end] = raw, lines
-        falls = np.flatnonzero(np.diff(readings) < 0)
-        if falls.size:
-            k = falls[0]
-            raise SiteError(
-                f"{path}:{line_at[k + 1]}: {column} reading {readings[k + 1]:g} is below the previous "
-                f"{readings[k]:g} (line {line_at[k]}): a meter reset or replacement? leave this reading empty (the "
-                "intervals on either side become gaps)"
-            )
-        return np.diff(readings) * unit.factor
+        readings, line_at = np.full(size, np.nan), np.zeros(size, int)
+        readings[slots], line_at[slots] = raw, lines
+        options = _MeasurementOptions(stamped_end=end, cumulative=True)
+        fix = "or give each interval's energy without --cumulative"
+        energy, _ = _register_differences(
+            path, readings, line_at, options, reading=f"{column} reading", interval="interval", fix=fix
+        )
+        return energy * unit.factor
     if unit.kind == "temperature":
         lo, hi = TEMPERATURE_RANGE_C
         bad = measured[(values[measured] < lo) | (values[measured] > hi)]
@@ -396,20 +390,23 @@ def _gap_note(path: Path, missing: np.ndarray, before: np.ndarray, first: dt.dat
 
 
 def _read_hourly(
-    path: Path, options: ImportOptions, weather: str
+    path: Path, options: ImportOptions, zone: zoneinfo.ZoneInfo | None, weather: str
 ) -> tuple[dt.datetime, int, dict[str, str], np.ndarray, np.ndarray, np.ndarray]:
     """``(Monday 00:00 of the first week, interval minutes, {column: unit read}, temperature degC, consumption kWh,
-    each hour's last export line (0: none))``, hourly in local standard time over whole weeks from that Monday."""
+    each hour's last export line (0: none))``, hourly in local standard time over whole weeks from that Monday
+    (``zone``: the export's clock, ``options.time_zone``)."""
     header, rows = _read_rows(path)
     columns = _columns(path, header, options)
     for line, cells in rows:
         if len(cells) != len(header):
             raise SiteError(f"{path}:{line}: {len(cells)} cells, the header has {len(header)}: fix the row")
     lines = np.array([line for line, _ in rows])
-    stamps = [_parse_stamp(path, line, cells[columns[0][0]], options.time_format) for line, cells in rows]
-    standard = _standard_stamps(path, list(lines), stamps, options.time_zone, weather)
+    stamps = [_parse_stamp(path, line, cells[columns[0][0]], options) for line, cells in rows]
+    standard = _standard_stamps(path, list(lines), stamps, zone, weather)
     end = options.stamped == "end"
     monday, step, slots = _grid(path, list(lines), standard, end)
+    if not end:
+        _check_start_stamped(path, list(lines), stamps, standard, step)
     per_hour = 60 // step
     hours = -(-(int(slots[-1]) // per_hour + 1) // cat.HOURS_PER_WEEK) * cat.HOURS_PER_WEEK
     if options.cumulative and all(unit.kind != "energy" for _, _, unit in columns[2:]):
@@ -422,7 +419,8 @@ def _read_hourly(
         if unit.kind == "energy" and options.cumulative:
             unit = dataclasses.replace(unit, kind="register")
         elif unit.kind == "energy":
-            _check_not_a_register(path, lines, raw, column, 24 * per_hour)
+            fix = "pass --cumulative"
+            _check_not_a_register(path, raw, lines, column=column, per_day=24 * per_hour, interval="interval", fix=fix)
         read[column] = unit.name + (" register" if unit.kind == "register" else "")
         series = _series(path, lines, raw, column, unit, slots, hours * per_hour, end)
         hourly.append(_hourly(series, per_hour, "sum" if unit.kind in ("energy", "register") else "mean"))
@@ -480,8 +478,9 @@ def import_export(
         raise SiteError(f"{folder}: exists and is not an empty folder: give a new site folder")
     if options.stamped not in ("start", "end"):
         raise SiteError(f"stamped must be 'start' or 'end', got {options.stamped!r}")
+    zone = _time_zone(options.time_zone) if options.time_zone else None
 
-    monday, step, read, temperature, consumption, hour_line = _read_hourly(path, options, weather)
+    monday, step, read, temperature, consumption, hour_line = _read_hourly(path, options, zone, weather)
     measured = np.flatnonzero(np.isfinite(temperature) | np.isfinite(consumption))
     if not measured.size:
         raise SiteError(
@@ -493,11 +492,9 @@ def import_export(
     temperature, consumption, hour_line = temperature[keep], consumption[keep], hour_line[keep]
     start = monday + dt.timedelta(weeks=first_week)
     weeks = last_week - first_week + 1
-    try:
-        _consumption(path, consumption, hour_line, floor_area_m2, _MeasurementOptions(), tuple(end_uses))
-    except SiteError as exc:
-        sums = ", ".join(repr(c) for c in list(read)[1:])
-        raise SiteError(f"{exc} (the hourly sum of {sums} in kWh: check their units, --unit COLUMN=UNIT)") from None
+    sums = ", ".join(repr(c) for c in list(read)[1:]).replace("{", "{{").replace("}", "}}")
+    what, fix = f"the hourly sum of {sums}, {{:g}} kWh,", "check the columns' units, --unit COLUMN=UNIT"
+    _check_size(path, consumption, hour_line, floor_area_m2, tuple(end_uses), what, fix)
 
     filled = 0
     if options.fill_temperature_gaps:

@@ -6,6 +6,10 @@ converts the rows' timestamps to hours since the first Monday 00:00 in local sta
 and daylight-saving gaps (:func:`_check_step`) and that the data cover whole weeks, and names the likely cause: a
 daylight-saving clock (with the IANA zones whose clocks change then, :func:`_zones_changing`), end-of-hour stamps,
 missing rows. Every problem raises :class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"``.
+
+``buildenv site import`` (:mod:`buildenv.sites.importer`) reads an export's timestamps with the same functions:
+:func:`_parse_timestamp` with ``export=True``, :func:`_standard_times` (order and daylight-saving checks, any
+interval) and :func:`_epw_offset_mismatch`, its messages naming the command's flags (:class:`_ZoneWording`).
 """
 
 from __future__ import annotations
@@ -16,6 +20,7 @@ import functools
 import logging
 import re
 import zoneinfo
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,18 +37,33 @@ _AUTUMN_MONTHS = (10, 11, 3, 4)
 #: Zone areas whose IANA names a hint may suggest (not Etc/, US/, ...), in the order it prefers them.
 _ZONE_AREAS = ("America", "Europe", "Australia", "Pacific", "Asia", "Africa", "Atlantic", "Indian")
 _TIMESTAMP = re.compile(r"(\d{4})-(\d{2})-(\d{2})[T ](\d{2}):(\d{2})(?::(\d{2}))?")
+#: An export's timestamp (``export=True``): '/' between the date's parts and a one-digit hour allowed too.
+_EXPORT_TIMESTAMP = re.compile(r"(\d{4})[-/](\d{2})[-/](\d{2})[T ](\d{1,2}):(\d{2})(?::(\d{2}))?")
 _TIMESTAMP_WITH_ZONE = re.compile(r"\d{4}-\d{2}-\d{2}[T ]\d{2}:\d{2}(?::\d{2})?(?:\.\d+)?\s*(?:Z|[+-]\d{2}:?\d{2})")
 
 
-def _parse_timestamp(path: Path, line: int, text: str, *, stamped_end: bool = False) -> dt.datetime:
-    """A cell as a naive datetime on the hour; ``24:00`` (the end of a day) only for rows stamped at the end of
-    their hour."""
-    m = _TIMESTAMP.fullmatch(text)
+def _parse_timestamp(
+    path: Path, line: int, text: str, *, stamped_end: bool = False, export: bool = False
+) -> dt.datetime:
+    """A timestamp cell ``text`` (``path``:``line``) as a naive datetime; ``24:00`` is the next day's 00:00.
+
+    ``measurements.csv`` (``export=False``): ``YYYY-MM-DD HH:MM[:SS]`` (or with a ``T``) on the hour, ``24:00``
+    only for rows stamped at the end of their hour (``stamped_end``). A BMS export (``export=True``, ``buildenv
+    site import``): also ``/`` between the date's parts, a one-digit hour and any minute and second; ``24:00``
+    only with ``--stamped end``. Raises SiteError ``"<path>:<line>: ..."`` naming the fix (an export's: its
+    flags): unreadable, with a UTC offset, ``24:00`` for rows stamped at their start, not on the hour.
+    """
+    m = (_EXPORT_TIMESTAMP if export else _TIMESTAMP).fullmatch(text)
     if m is None:
         if _TIMESTAMP_WITH_ZONE.fullmatch(text):
+            fix = "give local standard time without an offset, as 'YYYY-MM-DD HH:MM'"
+            if export:
+                fix = "give the format with --time-format, %z for the offset, e.g. '%Y-%m-%dT%H:%M%z'"
+            raise SiteError(f"{path}:{line}: timestamp {text!r} has a UTC offset: {fix}")
+        if export:
             raise SiteError(
-                f"{path}:{line}: timestamp {text!r} has a UTC offset: give local standard time "
-                "without an offset, as 'YYYY-MM-DD HH:MM'"
+                f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM[:SS]'; give the "
+                "export's format with --time-format, e.g. '%m/%d/%Y %H:%M'"
             )
         raise SiteError(
             f"{path}:{line}: cannot read timestamp {text!r}: expected 'YYYY-MM-DD HH:MM' "
@@ -52,15 +72,17 @@ def _parse_timestamp(path: Path, line: int, text: str, *, stamped_end: bool = Fa
     year, month, day, hour, minute, second = (int(g) if g else 0 for g in m.groups())
     end_of_day = hour == 24 and not minute and not second
     if end_of_day and not stamped_end:
+        fix = 'their hour (24:00 for 23:00-24:00); declare it in site.toml: [measurements] stamped = "end"'
+        if export:
+            fix = "their interval (24:00 for the one that ends the day); pass --stamped end"
         raise SiteError(
-            f"{path}:{line}: timestamp {text!r} is 24:00, the end of a day: the rows are stamped at the end of "
-            'their hour (24:00 for 23:00-24:00); declare it in site.toml: [measurements] stamped = "end"'
+            f"{path}:{line}: timestamp {text!r} is 24:00, the end of a day: the rows are stamped at the end of {fix}"
         )
     try:
         stamp = dt.datetime(year, month, day, 0 if end_of_day else hour, minute, second)
     except ValueError as exc:
         raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: {exc}") from exc
-    if minute or second:
+    if (minute or second) and not export:
         raise SiteError(
             f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "
             "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)"
@@ -75,6 +97,31 @@ def _fmt(stamp: dt.datetime) -> str:
 _HOUR = dt.timedelta(hours=1)
 
 
+@dataclass(frozen=True)
+class _ZoneWording:
+    """How timestamp messages name the option that declares the clock's zone.
+
+    Attributes:
+        option: its name (``time_zone``; ``--time-zone``).
+        named: it as a message cites it, with where it is set (``time_zone, site.toml:12``; ``--time-zone``).
+        declare: how to declare a zone, a format taking its IANA name; None where the timestamps carry their UTC
+            offsets (no daylight-saving hints).
+    """
+
+    option: str
+    named: str
+    declare: str | None
+
+
+def _site_wording(options: _MeasurementOptions) -> _ZoneWording:
+    """The site reader's :class:`_ZoneWording` (``[measurements] time_zone`` of ``site.toml``)."""
+    return _ZoneWording(
+        "time_zone",
+        f"time_zone, {options.where}",
+        'declare the zone of the BMS clock in site.toml, [measurements] time_zone = "{}" (an IANA name)',
+    )
+
+
 def _hours(
     path: Path, lines: list[int], stamps: list[dt.datetime], options: _MeasurementOptions, weather: str | None
 ) -> tuple[dt.datetime, np.ndarray, int]:
@@ -86,39 +133,30 @@ def _hours(
     -1) and ends an hour before the last Sunday's 23:00 (that hour stays missing).
     """
     zone = options.time_zone
+    wording = _site_wording(options)
     shift = _HOUR if options.stamped_end else dt.timedelta(0)
     standard = _standard_time(stamps[0], zone, None) if zone is not None else stamps[0]
     if standard is None:
-        raise _skipped_hour_error(path, lines[0], stamps[0], options)
+        raise _skipped_hour_error(path, lines[0], stamps[0], zone, wording)
     for start in (standard - shift, stamps[0] - shift):  # in standard time, on the clock
         if start.weekday() == 0 and start.hour == 0:
             break
     else:
         raise _first_row_error(path, lines, stamps, options)
-    if zone is not None and weather:
-        tz_h, _ = _epw_location(weather)
-        offset = _standard_offset(zone, start.year)
-        if tz_h is not None and offset != dt.timedelta(hours=tz_h):
-            log.warning(
-                "%s: time_zone %r keeps standard time UTC%+g h, the weather file (%s) UTC%+g h: the measurements "
-                "are converted to the zone's standard time, not the weather's",
-                options.where,
-                zone.key,
-                offset.total_seconds() / 3600,
-                weather,
-                tz_h,
-            )
+    mismatch = _epw_offset_mismatch(zone, start.year, weather) if zone is not None and weather else None
+    if mismatch is not None:
+        log.warning(
+            "%s: time_zone %r keeps standard time UTC%+g h, the weather file (%s) UTC%+g h: the measurements "
+            "are converted to the zone's standard time, not the weather's",
+            options.where,
+            zone.key,
+            mismatch[0],
+            weather,
+            mismatch[1],
+        )
 
-    hours: list[int] = []
-    previous: tuple[int, dt.datetime, dt.datetime] | None = None  # line, stamp, standard time
-    for line, stamp in zip(lines, stamps):
-        if previous is not None:  # the first row's standard time is known
-            standard = stamp if zone is None else _standard_time(stamp, zone, previous[2])
-            if standard is None:
-                raise _skipped_hour_error(path, line, stamp, options)
-            _check_step(path, line, stamp, standard, previous, zone, weather)
-        hours.append(int((standard - shift - start).total_seconds()) // 3600)
-        previous = (line, stamp, standard)
+    standards = _standard_times(path, lines, stamps, zone, weather, wording)
+    hours = [int((s - shift - start).total_seconds()) // 3600 for s in standards]
 
     week = cat.HOURS_PER_WEEK
     clock = int((stamps[-1] - shift - start).total_seconds()) // 3600
@@ -128,12 +166,51 @@ def _hours(
     raise _last_row_error(path, lines[-1], stamps[-1], start, clock, options)
 
 
-def _skipped_hour_error(path: Path, line: int, stamp: dt.datetime, options: _MeasurementOptions) -> SiteError:
-    zone = options.time_zone
+def _standard_times(
+    path: Path,
+    lines: list[int],
+    stamps: list[dt.datetime],
+    zone: zoneinfo.ZoneInfo | None,
+    weather: str | None,
+    wording: _ZoneWording,
+) -> list[dt.datetime]:
+    """Each row's timestamp (naive, on ``zone``'s clock; None: local standard time already) in local standard
+    time, in order; a repeated hour of the clock (clocks going back) is read as the next hour of standard time.
+
+    Each row is checked against the previous one (:func:`_check_step`): SiteError ``"<path>:<line>: ..."`` at the
+    first row whose time the clock skips, that repeats or goes back, or (without ``zone``) that follows an hour
+    missing where some zone's clock goes forward; the hints name the zones whose clocks change then (those of
+    the EPW ``weather`` first) and the fix in ``wording``'s terms. Rows may be any whole interval apart.
+    """
+    out: list[dt.datetime] = []
+    for i, (line, stamp) in enumerate(zip(lines, stamps)):
+        standard = stamp if zone is None else _standard_time(stamp, zone, out[-1] if out else None)
+        if standard is None:
+            raise _skipped_hour_error(path, line, stamp, zone, wording)
+        if out:
+            _check_step(path, line, stamp, standard, (lines[i - 1], stamps[i - 1], out[-1]), zone, weather, wording)
+        out.append(standard)
+    return out
+
+
+def _epw_offset_mismatch(zone: zoneinfo.ZoneInfo, year: int, weather: str) -> tuple[float, float] | None:
+    """``(zone's standard time, the EPW's)``, hours from UTC, where ``zone``'s standard time in ``year`` is not
+    that of the EPW ``weather`` (the hours of the data would be off the weather's); None where they agree or the
+    EPW's header cannot be read."""
+    tz_h, _ = _epw_location(weather)
+    offset = _standard_offset(zone, year)
+    if tz_h is None or offset == dt.timedelta(hours=tz_h):
+        return None
+    return offset.total_seconds() / 3600, tz_h
+
+
+def _skipped_hour_error(
+    path: Path, line: int, stamp: dt.datetime, zone: zoneinfo.ZoneInfo, wording: _ZoneWording
+) -> SiteError:
     return SiteError(
-        f"{path}:{line}: timestamp {_fmt(stamp)} does not exist on the clock of {zone.key} (time_zone, "
-        f"{options.where}), which goes forward over it: a file in local standard time needs no time_zone; a "
-        "file on that clock has no such row"
+        f"{path}:{line}: timestamp {_fmt(stamp)} does not exist on the clock of {zone.key} ({wording.named}), "
+        f"which goes forward over it: a file in local standard time needs no {wording.option}; a file on that "
+        "clock has no such row"
     )
 
 
@@ -202,15 +279,28 @@ def _check_step(
     previous: tuple[int, dt.datetime, dt.datetime],
     zone: zoneinfo.ZoneInfo | None,
     weather: str | None,
+    wording: _ZoneWording,
 ) -> None:
-    """A row's timestamp against the previous row's: later, and (without a time zone) no daylight-saving jump."""
+    """A row's timestamp (``stamp`` on the clock, ``standard`` in standard time) against the previous row's
+    ``(line, stamp, standard)``: later, and (without ``zone``) no daylight-saving change.
+
+    Raises SiteError ``"<path>:<line>: ..."`` at a duplicate or a time earlier than the previous; where the clock
+    went back by less than an hour (hourly rows: a duplicate; sub-hourly ones: to the repeated hour's start) on a
+    Sunday some zone's clock repeats that hour, or an hour is missing where one goes forward, it names the zone
+    to declare (``wording.declare``; no such hint where that is None or ``zone`` is given).
+    """
     previous_line, previous_stamp, previous_standard = previous
-    declare = 'declare the zone of the BMS clock in site.toml, [measurements] time_zone = "{}" (an IANA name)'
-    if standard == previous_standard:
+    declare = wording.declare
+    hints = zone is None and declare is not None
+    if standard <= previous_standard:
         message = f"{path}:{line}: duplicate timestamp {_fmt(stamp)} (also on line {previous_line})"
-        if zone is not None:
-            raise SiteError(f"{message}: the same hour of {zone.key}'s clock twice; remove one")
-        if stamp.weekday() == 6 and stamp.hour <= 3 and stamp.month in _AUTUMN_MONTHS:
+        if standard < previous_standard:
+            message = (
+                f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
+                f"{_fmt(previous_stamp)} (line {previous_line})"
+            )
+        autumn = stamp.weekday() == 6 and stamp.hour <= 3 and stamp.month in _AUTUMN_MONTHS
+        if hints and autumn and previous_stamp - stamp < _HOUR:
             zones = _zones_changing(stamp, "fold", weather)
             if zones:
                 raise SiteError(
@@ -219,18 +309,19 @@ def _check_step(
                     + declare.format(zones[0])
                     + ", which reads the repeated hour as the next hour of standard time"
                 )
+        if standard < previous_standard:
+            raise SiteError(f"{message}: sort the rows by time")
+        if zone is not None:
+            raise SiteError(f"{message}: the same hour of {zone.key}'s clock twice; remove one")
+        if declare is None:
+            raise SiteError(f"{message}: remove one")
         raise SiteError(
             f"{message}; if the BMS exports daylight-saving time, "
             + declare.format("America/Chicago")
             + " or export in local standard time"
         )
-    if standard < previous_standard:
-        raise SiteError(
-            f"{path}:{line}: timestamp {_fmt(stamp)} is earlier than the previous row's "
-            f"{_fmt(previous_stamp)} (line {previous_line}): sort the rows by time"
-        )
-    if zone is None and standard - previous_standard == 2 * _HOUR:
-        missing = previous_stamp + _HOUR
+    missing = previous_stamp.replace(minute=0, second=0, microsecond=0) + _HOUR  # the next hour on the clock
+    if hints and missing + _HOUR <= standard < missing + 2 * _HOUR:
         if missing.weekday() == 6 and missing.hour <= 3 and missing.month in _SPRING_MONTHS:
             # the hour a clock skips, or (an export that moved its rows on an hour late) the one after it
             zones = _zones_changing(missing, "gap", weather) or _zones_changing(missing - _HOUR, "gap", weather)

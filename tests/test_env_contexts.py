@@ -1,5 +1,5 @@
-"""BuildingWeek-v0 with many buildings as contexts (issue 85 item 6): site lists, a library and its split, the
-native vector env grouped by site, evaluate(site=), the library command."""
+"""BuildingWeek-v0 with many buildings as contexts: site lists, a library and its split, the native vector env
+grouped by site, evaluate(site=), the sites a context set refuses, the library command."""
 
 from __future__ import annotations
 
@@ -17,6 +17,7 @@ import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from buildenv.cli.main import main
 from buildenv.env.building_week import DEFAULT_SITE, BuildingWeekEnv
 from buildenv.errors import BuildingEnvError
+from buildenv.sites import load_site
 from buildenv.sites.library import LIBRARY_FILES, LIBRARY_INDEX, read_library
 from buildenv.sites.suite import write_manifest
 
@@ -25,9 +26,13 @@ NEWARK = "medium_office-usa_nj_newark-heating"
 TRAIN = ("medium_office-usa_co_denver-cooling", "medium_office-usa_il_chicago-heating")
 
 
-def _copy_default(folder: Path, **theta: float) -> Path:
-    """A copy of the shipped site in ``folder``, its calibrated theta_build changed by ``theta``."""
+def _copy_default(folder: Path, weather: str | None = None, **theta: float) -> Path:
+    """A copy of the shipped site in ``folder``, in another shipped ``weather`` if given, its calibrated theta_build
+    changed by ``theta``."""
     shutil.copytree(DEFAULT_SITE, folder)
+    if weather:
+        toml = (folder / "site.toml").read_text(encoding="utf-8")
+        (folder / "site.toml").write_text(toml.replace('weather = "usa_il_chicago"', f'weather = "{weather}"', 1))
     if theta:
         path = folder / "calibration.json"
         calibration = json.loads(path.read_text(encoding="utf-8"))
@@ -38,9 +43,9 @@ def _copy_default(folder: Path, **theta: float) -> Path:
 
 @pytest.fixture(scope="module")
 def two_sites(tmp_path_factory) -> list[str]:
-    """Two calibrated sites that differ (the second leaks more air and has more plug loads)."""
+    """Two calibrated sites that differ (the second has Miami's weather, leaks more air and has more plug loads)."""
     root = tmp_path_factory.mktemp("sites")
-    leaky = _copy_default(root / "leaky", plug_load_w_m2=12.0, infiltration_ach=0.5)
+    leaky = _copy_default(root / "leaky", "usa_fl_miami", plug_load_w_m2=12.0, infiltration_ach=0.5)
     return [str(_copy_default(root / "chicago")), str(leaky)]
 
 
@@ -167,10 +172,42 @@ def test_native_and_sync_vector_envs_draw_the_same_sites_and_weeks(two_sites):
         np.testing.assert_array_equal(got[2], expected[2])
         np.testing.assert_array_equal(got[3], expected[3])
         _same_info(got[4], expected[4])
-    assert native.unwrapped.historical_action.shape == (3, N_ACTION)
+    rows = native.unwrapped.historical_actions
+    assert rows.shape == (3, N_ACTION)
+    for row, site in zip(rows, native.unwrapped._sites):
+        np.testing.assert_array_equal(row, BuildingWeekEnv(site=two_sites[site]).historical_action)
+    with pytest.raises(BuildingEnvError, match="with several sites use historical_actions") as error:
+        _ = native.unwrapped.historical_action
+    assert "\n" not in str(error.value)
     with pytest.raises(BuildingEnvError, match="evaluate\\(\\) needs site="):
         native.unwrapped.evaluate(np.zeros(N_ACTION), week=3)
     assert native.unwrapped.evaluate(np.zeros((2, N_ACTION)), week=3, site="leaky")["reward"].shape == (2,)
+
+
+def test_each_site_keeps_its_own_weather_and_prices(two_sites):
+    """A context set's site observes, scores and prices as that site on its own (Miami is not Chicago)."""
+    kwargs = {"weeks": "all", "price": "tou"}
+    env = BuildingWeekEnv(site=two_sites, **kwargs)
+    actions = np.random.default_rng(4).uniform(-1, 1, (3, N_ACTION))
+    observed = {}
+    for name, path in zip(("chicago", "leaky"), two_sites):
+        alone = BuildingWeekEnv(site=path, **kwargs)
+        obs, info = env.reset(seed=0, options={"site": name, "week": 26})
+        np.testing.assert_array_equal(obs, alone.reset(seed=0, options={"week": 26})[0])
+        assert info["week_start"] == alone.week_start(26).isoformat() and env.weeks == alone.weeks
+        got, expected = env.evaluate(actions, week=26, site=name), alone.evaluate(actions, week=26)
+        for key in ("reward", "cost", "cost_historical", "energy_kwh"):
+            np.testing.assert_allclose(got[key], expected[key], rtol=1e-6, err_msg=key)
+        observed[name] = obs
+    mean_c = {name: obs[:42].reshape(7, 6)[:, 0].mean() * 20 for name, obs in observed.items()}  # daily means
+    assert mean_c["leaky"] > mean_c["chicago"] + 2  # a Miami summer week is warmer than Chicago's
+
+
+def test_single_site_vector_env_keeps_one_historical_action():
+    native = gym.make_vec("BuildingWeek-v0", num_envs=2)
+    single = native.unwrapped.historical_action
+    assert single.shape == (N_ACTION,)
+    np.testing.assert_array_equal(native.unwrapped.historical_actions, np.stack([single, single]))
 
 
 def test_same_step_autoreset_with_two_sites_matches_sync(two_sites):
@@ -204,6 +241,40 @@ def test_sites_with_different_action_spaces_are_refused_in_one_line(two_sites, t
     assert "acts on 10 settings (70 actions)" in message and "lacks ventilation_ach" in message
 
 
+def test_sites_with_different_action_ranges_are_refused_in_one_line(two_sites, tmp_path):
+    narrow = _copy_default(tmp_path / "narrow")
+    toml = (narrow / "site.toml").read_text(encoding="utf-8")
+    toml = toml.replace("limits = { ventilation_ach = [0.45, 0.7] }", "limits = { ventilation_ach = [0.45, 0.6] }")
+    (narrow / "site.toml").write_text(toml, encoding="utf-8")
+    with pytest.raises(BuildingEnvError) as error:
+        BuildingWeekEnv(site=[two_sites[0], str(narrow)])
+    message = str(error.value)
+    assert "\n" not in message and "site 'narrow' gives ventilation_ach the range [" in message
+    assert ", 0.6] where site 'chicago' gives [" in message and ", 0.7]" in message
+
+
+def test_a_site_calibrated_with_another_metamodel_is_refused_in_a_context_set(two_sites, tmp_path):
+    other = _copy_default(tmp_path / "other")
+    path = other / "calibration.json"
+    calibration = json.loads(path.read_text(encoding="utf-8"))
+    calibration["metamodel_id"] = "0123456789abcdef"
+    path.write_text(json.dumps(calibration), encoding="utf-8")
+    with pytest.raises(BuildingEnvError) as error:
+        BuildingWeekEnv(site=[two_sites[0], str(other)])
+    message = str(error.value)
+    assert "\n" not in message and "site 'other' of the context set: calibration made with" in message
+    assert BuildingWeekEnv(site=str(other)).site_name == "other"  # one site on its own: a warning only
+
+
+def test_sites_of_the_same_folder_name_are_named_by_full_path(tmp_path):
+    first, second = (_copy_default(tmp_path / part / "office") for part in ("a", "b"))
+    for sites in ([str(first), str(second)], [load_site(first), load_site(second)]):
+        env = BuildingWeekEnv(site=sites)
+        assert env.site_names == (str(first.resolve()), str(second.resolve()))
+    with pytest.raises(BuildingEnvError, match="lists .*office' twice"):
+        BuildingWeekEnv(site=[load_site(first), load_site(first)])
+
+
 def test_the_library_command_copies_calibrated_sites_and_their_split(library, suite, tmp_path, capsys):
     sites = read_library(library)
     assert [s.name for s in sites] == sorted([*TRAIN, NEWARK])  # the uncalibrated and the refused left out
@@ -215,6 +286,8 @@ def test_the_library_command_copies_calibrated_sites_and_their_split(library, su
         assert sorted(p.name for p in site.folder.iterdir()) == sorted(LIBRARY_FILES)  # no calibration.png
     index = (library / LIBRARY_INDEX).read_text(encoding="utf-8")
     assert 'climate = "usa_nj_newark"' in index and "guideline14 = " in index
+    made_with = json.loads((DEFAULT_SITE / "calibration.json").read_text(encoding="utf-8"))["metamodel_id"]
+    assert f'metamodel_id = "{made_with}"' in index and {s.metamodel_id for s in sites} == {made_with}
 
     out = tmp_path / "two"
     capsys.readouterr()
@@ -249,6 +322,8 @@ def test_a_library_split_runs_only_its_part(library):
         ({"site": ["default", "default"]}, "site= lists 'default' twice"),
         ({"site": []}, "site=\\[\\]; give at least one site"),
         ({"site": ["default"], "sites": "some"}, "sites='some'; choose one of train, test, all or a list"),
+        ({"weeks": [99]}, "^BuildingWeek-v0: weeks=\\[99\\] on site 'default': give week indices in 0\\.\\.5"),
+        ({"weeks": "summer"}, "^BuildingWeek-v0: weeks='summer' on site 'default': choose one of train, test, all"),
     ],
 )
 def test_bad_site_sets_get_one_clear_line(kwargs, message):

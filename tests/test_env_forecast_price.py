@@ -1,4 +1,5 @@
-"""BuildingWeek-v0's forecast noise (``forecast_noise=``) and time-of-use price (``price=``), issue 85 item 6."""
+"""BuildingWeek-v0's forecast noise (``forecast_noise=``) and time-of-use price (``price=``): the tariff prices the
+energy bought (cooling over a COP, heating over an efficiency) on the week's dates, daylight saving included."""
 
 from __future__ import annotations
 
@@ -8,6 +9,7 @@ import pickle
 
 import gymnasium as gym
 import numpy as np
+import pandas as pd
 import pytest
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
@@ -70,7 +72,7 @@ def test_noise_model_grows_with_lead_time_and_stays_physical(plain):
     n, sd = 4000, 2.0
     weeks = np.broadcast_to(truth, (n, *truth.shape[1:]))
     noisy = forecast(weeks, sd, [np.random.default_rng(s) for s in range(n)])
-    assert forecast(truth, 0.0, []) is not None and np.array_equal(forecast(truth, 0.0, []), truth)
+    assert np.array_equal(forecast(truth, 0.0, []), truth)
     col = cat.WEATHER_NAMES.index
     error = noisy[..., col("TAMB")] - truth[..., col("TAMB")]
     day_ends = np.arange(7) * 24 + 23
@@ -129,23 +131,90 @@ def test_historical_settings_cost_one_and_info_reports_costs(priced, plain):
     assert "cost" not in plain.unwrapped.evaluate(plain.unwrapped.historical_action[None], week=43)
 
 
-def test_cost_is_the_hourly_energy_at_the_weeks_prices(priced):
+def _delivered(base, scores: dict, week: int) -> tuple[np.ndarray, np.ndarray]:
+    """Hourly cooling and heating delivered (Wh/m2) ``(N, 168)`` each of scored settings in ``week``."""
+    out = base.site_model.simulate(scores["settings"], np.full(len(scores["settings"]), week))
+    cooling, heating = (
+        np.maximum(out[..., [cat.OUTPUT_NAMES.index(n) for n in names]], 0).sum(-1)
+        for names in (("Q_AC_OFFICE", "Q_AHU_C"), ("Q_HEAT_OFFICE", "Q_AHU_H"))
+    )
+    np.testing.assert_allclose(cooling + heating, scores["hvac_wh_m2"], rtol=1e-6, atol=1e-9)
+    return cooling, heating
+
+
+def test_cost_is_the_energy_bought_at_the_weeks_prices(priced):
+    """Cost = sum over hours of price x (cooling delivered / 3.0 + heating delivered / 1.0) x floor area."""
     base = priced.unwrapped
     actions = np.random.default_rng(1).uniform(-1, 1, (4, N_ACTION)).astype(np.float32)
-    scores = base.evaluate(actions, week=43)
+    week = 40  # 2019-10-07: heating and cooling both
+    scores = base.evaluate(actions, week=week)
+    cooling, heating = _delivered(base, scores, week)
+    assert (cooling.sum(-1) > 1).all() and (heating.sum(-1) > 1).all()
     day = np.where((np.arange(24) >= 8) & (np.arange(24) < 20), 0.25, 0.10)
     prices = np.concatenate([day] * 5 + [np.full(24, 0.10)] * 2)  # peak 08-20 Monday to Friday
     area = base.site_model.floor_area_m2
-    np.testing.assert_allclose(scores["cost"], (scores["hvac_wh_m2"] * prices).sum(-1) * area / 1000, rtol=1e-9)
+    bought = cooling / 3.0 + heating / 1.0
+    np.testing.assert_allclose(scores["cost"], (bought * prices).sum(-1) * area / 1000, rtol=1e-6)
     np.testing.assert_allclose(scores["energy_term"], scores["cost"] / scores["cost_historical"], rtol=1e-9)
+    gas = gym.make("BuildingWeek-v0", price={**tar.PRESETS["tou"], "cooling_cop": 4.0, "heating_efficiency": 0.9})
+    bought = cooling / 4.0 + heating / 0.9
+    np.testing.assert_allclose(
+        gas.unwrapped.evaluate(actions, week=week)["cost"], (bought * prices).sum(-1) * area / 1000, rtol=1e-6
+    )
     assert base.week_start(43) == dt.date(2019, 11, 4)
-    holiday = tar.tariff_from({"peak": 0.25, "offpeak": 0.10, "holidays": ["2019-11-04"]})
-    assert (holiday.hourly(dt.date(2019, 11, 4))[:24] == 0.10).all()
-    assert (holiday.hourly(dt.date(2019, 11, 4))[24 + 8 : 24 + 20] == 0.25).all()
+    for day in ("2019-11-04", dt.date(2019, 11, 4), dt.datetime(2019, 11, 4, 9), pd.Timestamp("2019-11-04")):
+        holiday = tar.tariff_from({"peak": 0.25, "offpeak": 0.10, "holidays": [day]})
+        assert holiday.holidays == (dt.date(2019, 11, 4),)
+        assert (holiday.hourly(dt.date(2019, 11, 4))[:24] == 0.10).all()
+        assert (holiday.hourly(dt.date(2019, 11, 4))[24 + 8 : 24 + 20] == 0.25).all()
 
 
-def test_a_flat_price_is_relative_energy(plain):
-    flat = gym.make("BuildingWeek-v0", observation="forecast", weeks="all", price="flat")
+def test_peak_hours_follow_the_local_clock_with_a_time_zone():
+    july, january = dt.date(2019, 7, 8), dt.date(2019, 1, 7)  # Mondays; Chicago is on daylight saving in July
+    standard = tar.tariff_from("tou")
+    local = tar.tariff_from({**tar.PRESETS["tou"], "time_zone": "America/Chicago"})
+
+    def peak(prices: np.ndarray) -> list[int]:  # Monday's peak hours
+        return np.flatnonzero(prices[:24] == 0.25).tolist()
+
+    assert peak(standard.hourly(july)) == list(range(8, 20))
+    assert peak(local.hourly(july)) == list(range(7, 19))  # 08-20 daylight time is 07-19 standard time
+    assert (local.hourly(july)[5 * 24 :] == 0.10).all()  # the weekend stays off-peak
+    np.testing.assert_array_equal(local.hourly(january), standard.hourly(january))
+    priced = gym.make("BuildingWeek-v0", weeks="all", price={**tar.PRESETS["tou"], "time_zone": "America/Chicago"})
+    base = priced.unwrapped
+    week = next(k for k in base.weeks if base.week_start(k) == july)
+    actions = np.zeros((1, N_ACTION), np.float32)
+    scores = base.evaluate(actions, week=week)
+    cooling, heating = _delivered(base, scores, week)
+    bought = cooling / 3.0 + heating
+    area = base.site_model.floor_area_m2
+    expected = (bought * local.hourly(july)).sum(-1) * area / 1000
+    np.testing.assert_allclose(scores["cost"], expected, rtol=1e-6)
+
+
+def test_a_tariff_made_directly_is_checked_and_normalised():
+    tariff = tar.Tariff(0.2, 0.1, peak_days="weekends", holidays=[pd.Timestamp("2019-12-25 00:00")])
+    assert tariff.peak_days == (5, 6) and tariff.holidays == (dt.date(2019, 12, 25),)
+    assert tar.tariff_from(tariff) is tariff
+    for kwargs, message in (
+        ({"peak": -0.2, "offpeak": 0.1}, "Tariff: peak=-0.2; give a positive price"),
+        ({"peak": 0.2, "offpeak": 0.1, "peak_hours": (20, 8)}, "0 <= start < end <= 24"),
+        ({"peak": 0.2, "offpeak": 0.1, "cooling_cop": 0}, "Tariff: cooling_cop=0; give a number > 0"),
+        ({"peak": 0.2, "offpeak": 0.1, "time_zone": "Chicago"}, "time_zone='Chicago' is no IANA time zone"),
+    ):
+        with pytest.raises(BuildingEnvError, match=message) as caught:
+            tar.Tariff(**kwargs)
+        assert "\n" not in str(caught.value)
+
+
+def test_a_flat_price_on_delivered_energy_is_relative_energy(plain):
+    flat = gym.make(
+        "BuildingWeek-v0",
+        observation="forecast",
+        weeks="all",
+        price=tar.Tariff(0.15, 0.15, peak_hours=(0, 24), peak_days="all", cooling_cop=1.0),
+    )
     actions = np.random.default_rng(2).uniform(-1, 1, (4, N_ACTION)).astype(np.float32)
     np.testing.assert_allclose(
         flat.unwrapped.evaluate(actions, week=30)["energy_term"],
@@ -154,13 +223,14 @@ def test_a_flat_price_is_relative_energy(plain):
     )
 
 
-def test_peak_heavy_settings_cost_relatively_more_than_off_peak_heavy(priced, plain):
+def test_peak_heavy_settings_cost_relatively_more_than_off_peak_heavy(priced):
     actions = np.random.default_rng(3).uniform(-1, 1, (32, N_ACTION)).astype(np.float32)
     cost = priced.unwrapped.evaluate(actions, week=43)
-    energy = plain.unwrapped.evaluate(actions, week=43)
+    cooling, heating = _delivered(priced.unwrapped, cost, 43)
+    bought = cooling / 3.0 + heating
     prices = tar.tariff_from("tou").hourly(dt.date(2019, 11, 4))
-    share = (cost["hvac_wh_m2"] * (prices == 0.25)).sum(-1) / cost["hvac_wh_m2"].sum(-1)  # energy in peak hours
-    relative = cost["energy_term"] / energy["energy_term"]  # cost ratio per energy ratio
+    share = (bought * (prices == 0.25)).sum(-1) / bought.sum(-1)  # energy bought in peak hours
+    relative = cost["cost"] / bought.sum(-1)  # cost per energy bought
     heavy, light = np.argmax(share), np.argmin(share)
     assert share[heavy] > share[light] + 0.02
     assert relative[heavy] > relative[light]
@@ -188,6 +258,9 @@ def test_mo_env_energy_objective_becomes_cost():
         ({"price": {"peak": 0.2, "offpeak": 0.1, "peek_hours": (8, 20)}}, "unknown key.*peek_hours"),
         ({"price": {"peak": 0.2, "offpeak": 0.1, "peak_days": "weekend"}}, "peak_days='weekend'; give"),
         ({"price": {"peak": 0.2, "offpeak": 0.1, "holidays": "2019-12-25"}}, "holidays='2019-12-25'; give a list"),
+        ({"price": {"peak": 0.2, "offpeak": 0.1, "cooling_cop": 0}}, "cooling_cop=0; give a number > 0"),
+        ({"price": {"peak": 0.2, "offpeak": 0.1, "heating_efficiency": -0.9}}, "heating_efficiency=-0.9; give a"),
+        ({"price": {"peak": 0.2, "offpeak": 0.1, "time_zone": "Mars/Olympus"}}, "time_zone='Mars/Olympus' is no"),
         ({"price": 0.2}, "price=0.2; give None, a preset"),
         ({"forecast_noise": -1.0}, "forecast_noise=-1.0; give a finite number >= 0"),
         ({"forecast_noise": "high"}, "forecast_noise='high'; give a finite number >= 0"),

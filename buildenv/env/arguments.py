@@ -104,16 +104,24 @@ def with_length(spec, length: int):
     return spec
 
 
-def split_weeks(n_weeks: int, split: str | list[int]) -> list[int]:
+def split_weeks(n_weeks: int, split: str | list[int], site: str = "") -> list[int]:
     """Weeks of the year in a split: ``test`` is every fourth block of four weeks (weeks 12-15, 28-31 and
-    44-47), ``train`` the others, ``all`` every week; a list of week indices is taken as given."""
+    44-47), ``train`` the others, ``all`` every week; a list of week indices is taken as given. ``site`` (its name)
+    is what an error names.
+
+    Raises:
+        BuildingEnvError: an unknown split, or an empty list or one with indices outside ``0..n_weeks - 1``.
+    """
+    on = f" on site {site!r}" if site else ""
     if not isinstance(split, str):
         weeks = sorted({int(w) for w in split})
         bad = [w for w in weeks if not 0 <= w < n_weeks]
         if bad or not weeks:
-            raise BuildingEnvError(f"weeks={list(split)}: give week indices in 0..{n_weeks - 1}")
+            raise BuildingEnvError(f"{ENV_ID}: weeks={list(split)}{on}: give week indices in 0..{n_weeks - 1}")
         return weeks
     if split not in WEEK_SPLITS:
-        raise BuildingEnvError(f"weeks={split!r}: choose one of {', '.join(WEEK_SPLITS)} or a list of week indices")
+        raise BuildingEnvError(
+            f"{ENV_ID}: weeks={split!r}{on}: choose one of {', '.join(WEEK_SPLITS)} or a list of week indices"
+        )
     test = [k for k in range(n_weeks) if (k // 4) % 4 == 3]
     return {"test": test, "train": [k for k in range(n_weeks) if k not in test], "all": list(range(n_weeks))}[split]

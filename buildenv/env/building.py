@@ -60,7 +60,7 @@ class Building:
         self.surrogate = load_metamodel(args["metamodel"])  # loaded once, shared by every site
         self.contexts = [SiteScorer(self, context) for context in chosen]
         self.names = tuple(c.name for c in self.contexts)
-        ctx.check_alike([(c.name, c.actions.controllable) for c in self.contexts])
+        ctx.check_alike([(c.name, c.actions) for c in self.contexts])
         n_obs = observation_size(args["observation"])
         self.observation_space = spaces.Box(-BOUND, BOUND, (n_obs,), np.float32)
         self.action_space = spaces.Box(-1.0, 1.0, (self.actions.size,), np.float32)
@@ -83,7 +83,7 @@ class Building:
 
     @property
     def actions(self) -> act.ActionMap:
-        """The first site's action map (every site's acts on the same settings; limits may differ)."""
+        """The first site's action map (every site's acts on the same settings over the same ranges)."""
         return self.contexts[0].actions
 
     def index(self, site: Any) -> int:
@@ -149,11 +149,17 @@ class SiteScorer:
         self.label = context.name if shared.many else ""  # what info and render name: nothing for a single site
         on = f" on site {self.name!r}" if self.label else ""
         self.site = _load_site(context.source)
+        if shared.many:  # one policy over every site: each must be calibrated with the metamodel it runs on
+            from buildenv.calibration.problem import metamodel_mismatch
+
+            mismatch = metamodel_mismatch(self.site.calibration or {}, shared.surrogate)
+            if mismatch:
+                raise BuildingEnvError(f"{ENV_ID}: site {self.name!r} of the context set: {mismatch}")
         self.model = SiteModel.from_site(self.site, shared.surrogate)
         occupants = float(self.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")])
         self.actions = act.ActionMap.for_site(self.site, shared.surrogate.domain, self.model.historical, occupants)
         self.occupied = self.model.occupied_hours()
-        self.pool = split_weeks(self.model.weeks, args["weeks"])
+        self.pool = split_weeks(self.model.weeks, args["weeks"], self.name)
         pool = set(self.pool)
         self.starts = [k for k in self.pool if all(k + j in pool for j in range(self.episode_weeks))]
         if not self.starts:
@@ -195,7 +201,7 @@ class SiteScorer:
                 np.array(missing),
                 None,
             )
-            costs = self.cost(obj.hvac_energy_hourly(out), np.array(missing))
+            costs = self.cost(out, np.array(missing))
             for w, e, c, k in zip(missing, obj.hvac_energy(out), self.comfort(out), costs):
                 self._historical[w] = (float(e), float(c), float(k))
         rows = np.array([self._historical[int(w)] for w in weeks]).reshape(len(weeks), 3)
@@ -205,11 +211,12 @@ class SiteScorer:
         """Hourly prices ``(N, 168)`` (currency per kWh) of the tariff on the weeks' dates."""
         return np.stack([self.tariff.hourly(self.model.week_starts[int(w)]) for w in weeks]).reshape(len(weeks), -1)
 
-    def cost(self, hvac_wh_m2: np.ndarray, weeks: np.ndarray) -> np.ndarray:
-        """HVAC energy cost (currency) of hourly energy ``(N, 168)`` in ``weeks`` ``(N,)``; NaN without a tariff."""
+    def cost(self, outputs: np.ndarray, weeks: np.ndarray) -> np.ndarray:
+        """HVAC energy cost (currency) of outputs ``(N, 168, 8)`` in ``weeks`` ``(N,)``: the energy bought
+        (:meth:`buildenv.env.tariff.Tariff.bought_wh_m2`) at the hours' prices; NaN without a tariff."""
         if self.tariff is None:
             return np.full(len(weeks), np.nan)
-        return tar.weekly_cost(hvac_wh_m2, self.prices(weeks), self.model.floor_area_m2)
+        return tar.weekly_cost(self.tariff.bought_wh_m2(outputs), self.prices(weeks), self.model.floor_area_m2)
 
     def comfort(self, outputs: np.ndarray) -> np.ndarray:
         """Comfort term (K) of outputs ``(N, 168, 8)``."""
@@ -237,7 +244,7 @@ class SiteScorer:
         priced: dict[str, np.ndarray] = {}
         if self.tariff is not None:
             prices = self.prices(weeks)
-            cost = tar.weekly_cost(hourly, prices, self.model.floor_area_m2)
+            cost = tar.weekly_cost(self.tariff.bought_wh_m2(out), prices, self.model.floor_area_m2)
             floor = tar.weekly_cost(np.full_like(prices, obj.ENERGY_FLOOR_WH_M2), prices, self.model.floor_area_m2)
             term = obj.cost_ratio(cost, hist_cost, floor)
             priced = {"cost": cost, "cost_historical": hist_cost}

@@ -57,9 +57,9 @@ class BuildingWeekEnv(gym.Env):
     infinite ones raise :class:`buildenv.errors.BuildingEnvError`.
 
     ## Observation Space
-    ``Box(-10, 10, (77,), float32)`` (``observation="compact"``): the week's daily weather forecast, the
-    occupancy schedule, the week of the year (sine, cosine) and the calibrated building parameters, scaled to
-    order one; ``"forecast"`` appends the hourly forecast, ``(1421,)`` (:mod:`buildenv.env.observations`).
+    ``Box(-10, 10, (77,), float32)`` (``observation="compact"``): the week's daily weather forecast (42), the
+    occupancy schedule (10), the week of the year (sine, cosine) and the 23 calibrated building parameters, scaled
+    to order one; ``"forecast"`` appends the hourly forecast (168 x 8), ``(1421,)`` (:mod:`buildenv.env.observations`).
 
     The forecast is the true week's weather unless ``forecast_noise`` (K, default 0) is given: then both its
     daily summary and its hourly part are a forecast drawn from the environment's ``np_random`` each time a
@@ -83,7 +83,9 @@ class BuildingWeekEnv(gym.Env):
     "offpeak": 0.10, "peak_hours": (8, 20), "peak_days": "weekdays"}`` (currency per kWh,
     :mod:`buildenv.env.tariff`), ``energy_term`` is the week's HVAC energy cost at the hourly prices of the
     week's dates over the same week's cost under the historical settings (1.0 = today's cost; the historical
-    cost is floored at the cost of 0.5 Wh/m2 in every hour); ``info`` adds ``cost`` and ``cost_historical``
+    cost is floored at the cost of 0.5 Wh/m2 in every hour). The cost prices the energy bought: cooling
+    delivered / ``cooling_cop`` (3.0) + heating delivered / ``heating_efficiency`` (1.0); a ``time_zone`` makes
+    the peak hours follow the local clock (daylight saving). ``info`` adds ``cost`` and ``cost_historical``
     (currency) and ``savings_percent`` stays the energy saved.
 
     ## Starting State

@@ -7,8 +7,8 @@ folder (one holding ``library.toml``, :mod:`buildenv.sites.library`). ``sites=``
 list of the sites' names. Each episode draws its site uniformly under the environment's seed, then its week.
 
 :func:`resolve` gives the chosen sites as :class:`Context` rows; :func:`check_alike` refuses a set whose sites would
-give different action spaces; :func:`by_site` and :func:`gather` split a batch by site and put it back together,
-so the vector env calls each site's model once per step.
+give different action spaces (other settings, or other ranges of them); :func:`by_site` and :func:`gather` split a
+batch by site and put it back together, so the vector env calls each site's model once per step.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import os
 from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -25,6 +25,9 @@ from buildenv import catalogue as cat
 from buildenv.env.registration import ENV_ID
 from buildenv.errors import BuildingEnvError
 from buildenv.sites.library import SHIPPED_LIBRARY, is_library, read_library
+
+if TYPE_CHECKING:
+    from buildenv.env.actions import ActionMap
 
 SITE_SPLITS = ("train", "test", "all")
 LIBRARY = "library"
@@ -67,13 +70,25 @@ def listing(names: Sequence[str], most: int = 6) -> str:
     return shown + (f", ... ({len(names)} sites)" if len(names) > most else "")
 
 
+def _path(site: Any) -> str | None:
+    """A site's folder as a full path (None for ``"default"`` and a :class:`buildenv.sites.Site` without a path)."""
+    from buildenv.sites import Site
+
+    if isinstance(site, Site):
+        return str(Path(site.path).resolve()) if site.path else None
+    if isinstance(site, (str, os.PathLike)) and not (isinstance(site, str) and site == "default"):
+        path = Path(site).expanduser()
+        return str((path.parent if path.suffix == ".toml" else path).resolve())
+    return None
+
+
 def _from_list(sites: Sequence[Any]) -> list[Context]:
-    """The contexts of a list of sites, named by folder (by the path as given where two folders share a name)."""
+    """The contexts of a list of sites, named by folder (by the full path where two folders share a name)."""
     if not sites:
         raise BuildingEnvError(f"{ENV_ID}: site=[]; give at least one site")
     names = [_name(s) for s in sites]
     clash = {n for n in names if names.count(n) > 1 and n != "default"}
-    names = [str(s) if n in clash and isinstance(s, (str, os.PathLike)) else n for n, s in zip(names, sites)]
+    names = [(_path(s) or n) if n in clash else n for n, s in zip(names, sites)]
     twice = sorted({n for n in names if names.count(n) > 1})
     if twice:
         raise BuildingEnvError(f"{ENV_ID}: site= lists {twice[0]!r} twice; give each site once")
@@ -142,16 +157,30 @@ def resolve(site: Any, sites: Any = "all") -> tuple[list[Context], bool]:
     return _select(_from_library(site), sites, split=True), True
 
 
-def check_alike(actions: Sequence[tuple[str, tuple[int, ...]]]) -> None:
-    """Refuse sites whose action spaces differ: ``actions`` is ``(name, controllable setting indices)`` per site
+def check_alike(actions: Sequence[tuple[str, ActionMap]]) -> None:
+    """Refuse sites whose action spaces differ: ``actions`` is ``(name, action map)`` per site; each must act on the
+    same settings over the same ranges (``lo``, ``hi``), so that one action means the same settings on every site
     (the observation space depends on the environment's arguments only, the same for every site).
 
     Raises:
-        BuildingEnvError: one line naming the first site that differs from the first site, and how.
+        BuildingEnvError: one line naming the first site that differs from the first site, and how (the settings
+            it lacks or adds, or the first setting whose range differs, with both ranges).
     """
-    first_name, first = actions[0]
-    for name, controllable in actions[1:]:
-        if tuple(controllable) == tuple(first):
+    first_name, first_map = actions[0]
+    first = tuple(first_map.controllable)
+    for name, action_map in actions[1:]:
+        controllable = tuple(action_map.controllable)
+        if controllable == first:
+            for j in first:
+                ranges = [(float(m.lo[j]), float(m.hi[j])) for m in (action_map, first_map)]
+                if not np.allclose(*ranges, rtol=1e-9, atol=1e-9):
+                    (lo, hi), (lo0, hi0) = ranges
+                    raise BuildingEnvError(
+                        f"{ENV_ID}: site {name!r} gives {cat.SETTING_NAMES[j]} the range [{lo:g}, {hi:g}] where site "
+                        f"{first_name!r} gives [{lo0:g}, {hi0:g}]; every site of a context set needs the same ranges "
+                        "of its controllable settings, so that an action means the same settings on each ([bms] "
+                        "limits in site.toml, within the metamodel's range)"
+                    )
             continue
         lacks = [cat.SETTING_NAMES[j] for j in first if j not in controllable]
         adds = [cat.SETTING_NAMES[j] for j in controllable if j not in first]

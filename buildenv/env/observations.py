@@ -8,10 +8,10 @@
 - occupancy schedule (10): arrival and departure hour of each weekday, scaled onto [-1, 1] by the
   catalogue range;
 - calendar (2): sine and cosine of the week's angle in the year (week of the year / 52 x 2 pi);
-- calibrated building parameters (22): theta_build scaled onto [-1, 1] by the catalogue ranges.
+- calibrated building parameters (23): theta_build scaled onto [-1, 1] by the catalogue ranges.
 
 ``forecast``: ``compact`` followed by the full hourly forecast, 168 hours x 8 channels (DNI, IBEAM_H,
-IBEAM_N, IDIFF_H, IGLOB_H / 300; RHUM / 100; TAMB / 20; WIND_SPEED / 10), hour-major: 77 + 1,344 values.
+IBEAM_N, IDIFF_H, IGLOB_H / 300; RHUM / 100; TAMB / 20; WIND_SPEED / 10), hour-major: 77 + 1,344 = 1,421 values.
 
 Every value is clipped into [-10, 10] (the observation space's bounds).
 

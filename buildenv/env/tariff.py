@@ -1,24 +1,34 @@
-"""Time-of-use electricity tariffs: what an hour of HVAC energy costs in BuildingWeek-v0 (``price=``).
+"""Time-of-use tariffs: what an hour of HVAC costs in BuildingWeek-v0 (``price=``).
 
-A :class:`Tariff` has two prices, currency per kWh: ``peak`` in the peak hours ``[start, end)`` (whole hours of
-the local clock, 0-24) of the peak days, ``offpeak`` in every other hour. The peak days are ``"weekdays"``
-(Monday to Friday, default), ``"all"`` or a list of days (names ``"monday"``..``"sunday"`` or ISO weekday
-indices 0-6, Monday 0); dates in ``holidays`` are off-peak all day. :meth:`Tariff.hourly` lays the prices on a
-week's actual dates, ``(168,)`` from Monday 00:00, in the weather file's hours (local standard time; daylight
-saving time is not applied). The currency is whatever the prices are in; only ratios reach the reward.
+A :class:`Tariff` has two prices, currency per kWh of energy bought: ``peak`` in the peak hours ``[start, end)``
+(whole hours of the local clock, 0-24) of the peak days, ``offpeak`` in every other hour. The peak days are
+``"weekdays"`` (Monday to Friday, default), ``"all"`` or a list of days (names ``"monday"``..``"sunday"`` or ISO
+weekday indices 0-6, Monday 0); dates in ``holidays`` are off-peak all day. :meth:`Tariff.hourly` lays the prices on
+a week's actual dates, ``(168,)`` from Monday 00:00 in the weather file's hours (local standard time). Without
+``time_zone`` the peak window is read in those standard-time hours; with an IANA ``time_zone`` (``"America/Chicago"``)
+it follows the local clock, so on daylight saving days it covers the standard-time hours one hour earlier.
+
+The metamodel gives the heating and cooling *delivered*; the tariff prices the energy *bought*
+(:meth:`Tariff.bought_wh_m2`): cooling delivered / ``cooling_cop`` (default 3.0, a typical chiller's seasonal
+COP) + heating delivered / ``heating_efficiency`` (default 1.0, electric resistance heating; e.g. 0.9 for a gas
+boiler when the prices are the gas prices). The currency is whatever the prices are in; only ratios reach the
+reward.
 
 :func:`tariff_from` turns the environment's ``price=`` argument into a :class:`Tariff`: None (no tariff), a
 preset name (:data:`PRESETS`: ``"tou"``, a typical two-rate commercial tariff, 0.25 peak 08-20 on weekdays, 0.10
-otherwise; ``"flat"``, 0.15 every hour), a dict of :class:`Tariff`'s fields, or a :class:`Tariff`. Bad values
-raise :class:`buildenv.errors.BuildingEnvError` with one line saying which and what to give.
+otherwise; ``"flat"``, 0.15 every hour), a dict of :class:`Tariff`'s fields, or a :class:`Tariff` (which checks its
+fields itself). Bad values raise :class:`buildenv.errors.BuildingEnvError` with one line saying which and what to
+give.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import functools
 import math
 import numbers
+import zoneinfo
 from collections.abc import Mapping
 from typing import Any
 
@@ -37,15 +47,24 @@ _DAY_SETS = {"weekdays": tuple(range(5)), "all": tuple(range(7)), "weekends": (5
 
 @dataclasses.dataclass(frozen=True)
 class Tariff:
-    """A two-rate time-of-use tariff.
+    """A two-rate time-of-use tariff on the energy bought for HVAC (see the module docstring).
 
     Attributes:
-        peak: price in the peak hours of the peak days, currency per kWh (> 0).
-        offpeak: price in every other hour, currency per kWh (> 0).
+        peak: price in the peak hours of the peak days, currency per kWh bought (> 0).
+        offpeak: price in every other hour, currency per kWh bought (> 0).
         peak_hours: ``(start, end)`` whole hours, ``0 <= start < end <= 24``; hour h of a day is peak when
-            ``start <= h < end``.
-        peak_days: ISO weekday indices (Monday 0) with peak hours.
-        holidays: dates priced off-peak all day.
+            ``start <= h < end`` (h of the local clock with ``time_zone``, else of standard time).
+        peak_days: ISO weekday indices (Monday 0) with peak hours (or ``"weekdays"``, ``"all"``, day names).
+        holidays: dates priced off-peak all day (``datetime.date``, ``datetime``/``pandas.Timestamp`` or
+            ``"YYYY-MM-DD"``; kept as dates).
+        cooling_cop: cooling delivered per energy bought (> 0; default 3.0, a typical chiller's seasonal COP).
+        heating_efficiency: heating delivered per energy bought (> 0; default 1.0, electric heating; 0.9 for a
+            gas boiler when the prices are gas prices).
+        time_zone: an IANA time zone name (``zoneinfo``) whose clock the peak hours follow, daylight saving
+            included; None (default): the weather file's standard time.
+
+    Raises:
+        BuildingEnvError: a field out of range (one line; fields are checked and normalised on construction).
     """
 
     peak: float
@@ -53,27 +72,56 @@ class Tariff:
     peak_hours: tuple[int, int] = (8, 20)
     peak_days: tuple[int, ...] = _DAY_SETS["weekdays"]
     holidays: tuple[dt.date, ...] = ()
+    cooling_cop: float = 3.0
+    heating_efficiency: float = 1.0
+    time_zone: str | None = None
+
+    def __post_init__(self) -> None:
+        values = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)}
+        for name, value in _checked(values, "Tariff").items():
+            object.__setattr__(self, name, value)
 
     def hourly(self, monday: dt.date) -> np.ndarray:
-        """Prices ``(168,)`` (currency per kWh) of the week from ``monday`` 00:00, hour by hour."""
-        start, end = self.peak_hours
-        hours = np.arange(cat.HOURS_PER_DAY)
-        peak_hour = (hours >= start) & (hours < end)
-        prices = np.full((len(cat.DAYS), cat.HOURS_PER_DAY), self.offpeak, dtype=float)
-        for d in range(len(cat.DAYS)):
-            day = monday + dt.timedelta(days=d)
-            if day.weekday() in self.peak_days and day not in self.holidays:
-                prices[d, peak_hour] = self.peak
-        return prices.reshape(-1)
+        """Prices ``(168,)`` (currency per kWh) of the week from ``monday`` 00:00 standard time, hour by hour."""
+        return _hourly(self, monday).copy()
+
+    def bought_wh_m2(self, outputs: np.ndarray) -> np.ndarray:
+        """Hourly energy bought for HVAC (Wh/m2) ``(..., 168)`` of metamodel outputs ``(..., 168, 8)``: cooling
+        delivered / ``cooling_cop`` + heating delivered / ``heating_efficiency``, each output counted from 0 (as
+        :func:`buildenv.env.objectives.hvac_energy_hourly`)."""
+        outputs = np.asarray(outputs)
+
+        def delivered(use: str) -> np.ndarray:
+            idx = [cat.OUTPUT_NAMES.index(n) for n in cat.END_USE_OUTPUTS[use]]
+            return np.maximum(outputs[..., idx], 0.0).sum(-1)
+
+        return delivered("cooling") / self.cooling_cop + delivered("heating") / self.heating_efficiency
 
 
-def _price(name: str, value: Any, where: str) -> float:
+@functools.lru_cache(maxsize=1024)
+def _hourly(tariff: Tariff, monday: dt.date) -> np.ndarray:
+    start, end = tariff.peak_hours
+    zone = None if tariff.time_zone is None else zoneinfo.ZoneInfo(tariff.time_zone)
+    prices = np.full(cat.HOURS_PER_WEEK, tariff.offpeak, dtype=float)
+    for h in range(cat.HOURS_PER_WEEK):
+        t = dt.datetime.combine(monday, dt.time()) + dt.timedelta(hours=h)  # standard time
+        if zone is not None:  # the local clock at that instant
+            here = t.replace(tzinfo=zone)
+            utc = t - (here.utcoffset() - here.dst())
+            t = utc.replace(tzinfo=dt.timezone.utc).astimezone(zone).replace(tzinfo=None)
+        if t.weekday() in tariff.peak_days and t.date() not in tariff.holidays and start <= t.hour < end:
+            prices[h] = tariff.peak
+    prices.flags.writeable = False
+    return prices
+
+
+def _positive(name: str, value: Any, where: str, what: str) -> float:
     try:
         x = float(value)
     except (TypeError, ValueError):
         x = math.nan
     if isinstance(value, bool) or not math.isfinite(x) or x <= 0:
-        raise BuildingEnvError(f"{where}: {name}={value!r}; give a positive price, currency per kWh")
+        raise BuildingEnvError(f"{where}: {name}={value!r}; give {what}")
     return x
 
 
@@ -113,23 +161,58 @@ def _days(value: Any, where: str) -> tuple[int, ...]:
     return tuple(sorted(set(days)))
 
 
+def _date(d: Any) -> dt.date:
+    """A date of a ``date``, a ``datetime`` (``pandas.Timestamp``; its calendar day) or ``"YYYY-MM-DD"``."""
+    if isinstance(d, dt.datetime):
+        return d.date()
+    return d if isinstance(d, dt.date) else dt.date.fromisoformat(d)
+
+
 def _dates(value: Any, where: str) -> tuple[dt.date, ...]:
     try:
         if isinstance(value, (str, dt.date)):
             raise TypeError
-        return tuple(d if isinstance(d, dt.date) else dt.date.fromisoformat(d) for d in value)
+        return tuple(_date(d) for d in value)
     except (TypeError, ValueError):
         raise BuildingEnvError(
             f"{where}: holidays={value!r}; give a list of dates (datetime.date or 'YYYY-MM-DD')"
         ) from None
 
 
+def _zone(value: Any, where: str) -> str | None:
+    try:
+        return None if value is None else zoneinfo.ZoneInfo(value).key
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError, TypeError):
+        raise BuildingEnvError(
+            f"{where}: time_zone={value!r} is no IANA time zone; give a name such as 'America/Chicago' or None "
+            "(the weather file's standard time)"
+        ) from None
+
+
+def _checked(values: Mapping[str, Any], where: str) -> dict[str, Any]:
+    """:class:`Tariff`'s fields from ``values`` (all of them), checked and normalised; one line on a bad one."""
+    price = "a positive price, currency per kWh"
+    return {
+        "peak": _positive("peak", values["peak"], where, price),
+        "offpeak": _positive("offpeak", values["offpeak"], where, price),
+        "peak_hours": _hours(values["peak_hours"], where),
+        "peak_days": _days(values["peak_days"], where),
+        "holidays": _dates(values["holidays"], where),
+        "cooling_cop": _positive("cooling_cop", values["cooling_cop"], where, "a number > 0 (3.0: a typical chiller)"),
+        "heating_efficiency": _positive(
+            "heating_efficiency", values["heating_efficiency"], where, "a number > 0 (1.0: electric; 0.9: gas boiler)"
+        ),
+        "time_zone": _zone(values["time_zone"], where),
+    }
+
+
 def tariff_from(price: str | Mapping[str, Any] | Tariff | None, where: str = "price") -> Tariff | None:
     """The :class:`Tariff` of a ``price=`` argument (see the module docstring); None for None.
 
     Raises:
-        BuildingEnvError: an unknown preset, an unknown key, a price not > 0, peak hours outside 0-24 or not
-            ``start < end``, unknown peak days or holidays that are not dates (one line each).
+        BuildingEnvError: an unknown preset, an unknown key, a price, COP or efficiency not > 0, peak hours outside
+            0-24 or not ``start < end``, unknown peak days, holidays that are not dates or an unknown time zone
+            (one line each).
     """
     if price is None or isinstance(price, Tariff):
         return price
@@ -145,22 +228,17 @@ def tariff_from(price: str | Mapping[str, Any] | Tariff | None, where: str = "pr
             f"{where}: price={price!r}; give None, a preset ({', '.join(PRESETS)}) or a dict of "
             f"{', '.join(f.name for f in dataclasses.fields(Tariff))}"
         )
-    fields = [f.name for f in dataclasses.fields(Tariff)]
+    fields = {f.name: f.default for f in dataclasses.fields(Tariff)}
     unknown = sorted(set(price) - set(fields))
     missing = [k for k in ("peak", "offpeak") if k not in price]
     if unknown or missing:
         what = f"unknown key(s) {', '.join(map(str, unknown))}" if unknown else f"missing {', '.join(missing)}"
-        raise BuildingEnvError(f"{where}: price has {what}; give peak and offpeak, optionally {', '.join(fields[2:])}")
-    return Tariff(
-        peak=_price("peak", price["peak"], where),
-        offpeak=_price("offpeak", price["offpeak"], where),
-        peak_hours=_hours(price.get("peak_hours", (8, 20)), where),
-        peak_days=_days(price.get("peak_days", "weekdays"), where),
-        holidays=_dates(price.get("holidays", ()), where),
-    )
+        optional = ", ".join(list(fields)[2:])
+        raise BuildingEnvError(f"{where}: price has {what}; give peak and offpeak, optionally {optional}")
+    return Tariff(**_checked({**fields, **price}, where))
 
 
-def weekly_cost(hvac_wh_m2: np.ndarray, prices: np.ndarray, floor_area_m2: float) -> np.ndarray:
-    """Cost (currency) of hourly HVAC energy ``(..., 168)`` (Wh/m2 in each hour) at hourly prices ``(..., 168)``
-    (currency per kWh) over ``floor_area_m2`` -> ``(...)``."""
-    return (np.asarray(hvac_wh_m2) * np.asarray(prices)).sum(-1) * float(floor_area_m2) / 1000.0
+def weekly_cost(bought_wh_m2: np.ndarray, prices: np.ndarray, floor_area_m2: float) -> np.ndarray:
+    """Cost (currency) of hourly energy bought ``(..., 168)`` (Wh/m2 in each hour, :meth:`Tariff.bought_wh_m2`)
+    at hourly prices ``(..., 168)`` (currency per kWh) over ``floor_area_m2`` -> ``(...)``."""
+    return (np.asarray(bought_wh_m2) * np.asarray(prices)).sum(-1) * float(floor_area_m2) / 1000.0

@@ -328,13 +328,23 @@ class BuildingWeekVectorEnv(VectorEnv):
     @property
     def historical_action(self) -> np.ndarray:
         """The action nearest the site's historical settings ``(7 x k,)`` (a historical value outside its action
-        range gets the nearest end; the energy term is measured against the historical settings themselves); with
-        several sites one row per sub-environment, of its current site, ``(num_envs, 7 x k)``."""
+        range gets the nearest end; the energy term is measured against the historical settings themselves).
+
+        Raises:
+            BuildingEnvError: with several sites (each has its own; use :attr:`historical_actions`).
+        """
         if self._b.many:
-            return np.stack(
-                [self._b.contexts[s].actions.encode(self._b.contexts[s].model.historical) for s in self._sites]
+            raise BuildingEnvError(
+                f"{ENV_ID}: historical_action is one site's; with several sites use historical_actions, one row per "
+                "sub-environment (num_envs, 7 x k)"
             )
         return self._b.actions.encode(self._b.model.historical)
+
+    @property
+    def historical_actions(self) -> np.ndarray:
+        """The historical action of each sub-environment's current site, ``(num_envs, 7 x k)`` (see
+        :attr:`historical_action`; the first site's before ``reset``)."""
+        return np.stack([self._b.contexts[s].actions.encode(self._b.contexts[s].model.historical) for s in self._sites])
 
     @property
     def site_names(self) -> tuple[str, ...]:

@@ -3,8 +3,10 @@
 A library folder holds one site folder per site, with what a calibrated site needs (``site.toml``,
 ``measurements.csv``, ``settings.csv``, ``calibration.json``, ``truth.json``; not the calibration plot), and its
 index ``library.toml``: one ``[[sites]]`` table per site with its ``name`` (its sub-folder), ``building``,
-``climate``, ``season``, ``part`` (``train`` or ``test``, the split ``BuildingWeek-v0``'s ``sites=`` chooses by) and
-``guideline14`` (whether its calibration passes ASHRAE Guideline 14).
+``climate``, ``season``, ``part`` (``train`` or ``test``, the split ``BuildingWeek-v0``'s ``sites=`` chooses by),
+``guideline14`` (whether its calibration passes ASHRAE Guideline 14) and ``metamodel_id`` (the identity of the
+metamodel it was calibrated with, :func:`buildenv.calibration.problem.metamodel_record`; left out when the
+calibration does not record it).
 
 :func:`write_library` makes one from a calibrated suite (:mod:`buildenv.sites.suite`, ``buildenv suite
 calibrate``); the suite's held-out climates (:data:`buildenv.sites.suite.HELD_OUT_CLIMATES`) are the test part, its
@@ -14,7 +16,6 @@ tuned anything on. :func:`read_library` reads the index.
 
 from __future__ import annotations
 
-import json
 import os
 import shutil
 from dataclasses import dataclass
@@ -40,7 +41,8 @@ LIBRARY_PARTS: tuple[str, ...] = ("train", "test")
 
 @dataclass(frozen=True)
 class LibrarySite:
-    """One site of a library: its name (sub-folder), folder, part and where it comes from."""
+    """One site of a library: its name (sub-folder), folder, part, where it comes from and the metamodel it was
+    calibrated with (``""`` when unknown)."""
 
     name: str
     folder: Path
@@ -48,6 +50,7 @@ class LibrarySite:
     building: str = ""
     climate: str = ""
     season: str = ""
+    metamodel_id: str = ""
 
 
 def is_library(folder: str | os.PathLike) -> bool:
@@ -86,26 +89,22 @@ def read_library(folder: str | os.PathLike) -> list[LibrarySite]:
             raise SiteError(f"{path}: site {name!r} is listed twice")
         if not (folder / name / DESCRIPTOR).is_file():
             raise SiteError(f"{path}: site {name!r}: {folder / name} holds no {DESCRIPTOR}")
-        extra = {k: str(row.get(k, "")) for k in ("building", "climate", "season")}
+        extra = {k: str(row.get(k, "")) for k in ("building", "climate", "season", "metamodel_id")}
         sites.append(LibrarySite(name, folder / name, part, **extra))
     return sites
 
 
 def calibrated_cases(suite: str | os.PathLike) -> list[dict]:
     """The suite's made sites that carry a calibration (``buildenv suite calibrate``), sorted by name, each its
-    manifest record with ``name`` and ``folder`` (``<suite>/<name>``) added."""
+    manifest record with ``name`` (its folder's) and ``folder`` (``<suite>/<name>``, as
+    :func:`buildenv.sites.suite.read_manifest` places it) added."""
     from buildenv.sites.suite import read_manifest
 
     cases = []
     for record in read_manifest(suite):
-        if record.get("status") not in ("made", "reused"):
-            continue
-        name = f"{record['building']}-{record['climate']}-{record['season']}"
-        folder = Path(suite) / name
-        if not folder.is_dir():  # a manifest written with another working directory: the path as recorded
-            folder = Path(record["site"])
-        if (folder / CALIBRATION_FILE).is_file():
-            cases.append({**record, "name": name, "folder": folder})
+        folder = Path(record["site"])
+        if record.get("status") in ("made", "reused") and (folder / CALIBRATION_FILE).is_file():
+            cases.append({**record, "name": folder.name, "folder": folder})
     return sorted(cases, key=lambda c: c["name"])
 
 
@@ -131,19 +130,18 @@ def choose(cases: list[dict], n: int | None) -> list[dict]:
 
 
 def _index(rows: list[dict]) -> str:
-    """``library.toml`` of ``rows`` (strings as JSON strings, which TOML reads as basic strings)."""
+    """``library.toml`` of ``rows``: a comment, then one ``[[sites]]`` table per row (``tomli_w``)."""
+    import tomli_w
+
     from buildenv.sites.suite import HELD_OUT_CLIMATES
+    from buildenv.sites.writer import _toml_plain
 
     lines = [
         "# A library of calibrated sites for BuildingWeek-v0 (site=...; sites='train' | 'test' | 'all'),",
         "# written by `buildenv suite library` from a calibrated suite. part: train = the suite's development part,",
         f"# test = its held-out climates ({', '.join(HELD_OUT_CLIMATES)}).",
     ]
-    for row in rows:
-        lines += ["", "[[sites]]"]
-        for key, value in row.items():
-            lines.append(f"{key} = {json.dumps(value)}")
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines) + "\n\n" + tomli_w.dumps(_toml_plain({"sites": rows}, LIBRARY_INDEX))
 
 
 def write_library(
@@ -185,7 +183,8 @@ def write_library(
                 if (case["folder"] / name).is_file():
                     shutil.copy2(case["folder"] / name, folder / name)
             site = load_site(folder)  # it loads, calibrated, where it now lies
-            verdict = (site.calibration or {}).get("verdict") or {}
+            calibration = site.calibration or {}
+            verdict = calibration.get("verdict") or {}
             rows.append(
                 {
                     "name": case["name"],
@@ -194,6 +193,7 @@ def write_library(
                     "season": case["season"],
                     "part": PARTS[case["part"]],
                     "guideline14": bool(verdict.get("passed", False)),
+                    **({"metamodel_id": str(calibration["metamodel_id"])} if calibration.get("metamodel_id") else {}),
                 }
             )
         (partial / LIBRARY_INDEX).write_text(_index(rows), encoding="utf-8")

@@ -7,10 +7,11 @@ The single source of truth for names, units, ranges, steps and granularity: samp
 Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize energy loads"):
 
 ``theta_build`` (static, one value per building)
-    21 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
-    floor area, number of floors, lighting power and heat recovery; extensive quantities are per m2 of floor
-    area, so one model covers offices of any size. Ranges are taken from practice (the ASHRAE 90.1 2004-2019
-    reference offices) and are wide enough for the six shipped reference offices.
+    23 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
+    floor area, number of floors, lighting power, heat recovery, the minimum supply air flow and the economiser;
+    extensive quantities are per m2 of floor area, so one model covers offices of any size. Ranges are taken
+    from practice (the ASHRAE 90.1 2004-2019 reference offices) and are wide enough for the six shipped
+    reference offices.
 ``settings`` (I_k, per day of the week: 12 settings x 7 days = 84 values a week)
     Heating, cooling and ventilation schedules and setpoints of the building management system (BMS).
 ``occupancy`` (O_k, per weekday Monday-Friday: 2 x 5 = 10 values a week)
@@ -176,6 +177,19 @@ THETA_BUILD: tuple[Variable, ...] = (
         "volume: the minimum of VAV boxes, supplied at the supply temperature and reheated by the zones; above "
         "the outdoor air it is return air (0: a 100 % outdoor air unit; DOE reference VAV offices about 1.5-2).",
         "(VAV minimum flow)",
+    ),
+    _v(
+        "economiser_share",
+        "theta_build",
+        "-",
+        0,
+        1,
+        0.25,
+        S,
+        "Share of the zones' cooling the fan coils can meet with outdoor air while it is cooler than the zone air "
+        "(an air-side economiser, differential dry-bulb): 0 none (mechanical cooling only), 1 all (VAV and packaged "
+        "units with economisers, as ASHRAE 90.1 requires in most climates).",
+        "(air-side economiser)",
     ),
     _v(
         "capacitance_kj_per_k_m3",
@@ -775,7 +789,8 @@ class EarlierCatalogue:
 
 
 _WALLS = ("north", "east", "south", "west")
-_THETA_BEFORE_MINIMUM_SUPPLY = tuple(v.name for v in THETA_BUILD if v.name != "minimum_supply_air_ach")
+_THETA_BEFORE_ECONOMISER = tuple(v.name for v in THETA_BUILD if v.name != "economiser_share")
+_THETA_BEFORE_MINIMUM_SUPPLY = tuple(n for n in _THETA_BEFORE_ECONOMISER if n != "minimum_supply_air_ach")
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
 EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     "bf68f6178dc1d1b3": EarlierCatalogue(
@@ -809,21 +824,33 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             "supply_air_c": (18.0, 26.0, 0.5),
         },
         renamed={"pc_density_per_m2": ("plug_load_w_m2", 150.0)},  # workstations of 150 W
-        implied={"lighting_power_w_m2": 10.0, "heat_recovery_effectiveness": 0.0, "minimum_supply_air_ach": 0.0},
+        implied={
+            "lighting_power_w_m2": 10.0,
+            "heat_recovery_effectiveness": 0.0,
+            "minimum_supply_air_ach": 0.0,
+            "economiser_share": 0.0,
+        },
     ),
     # supply air from 18 degC
     "11c21d55c2939cd8": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={"supply_air_c": (18.0, 26.0, 0.5)},
         renamed={},
-        implied={"minimum_supply_air_ach": 0.0},
+        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
     ),
     # no minimum supply air flow: 100 % outdoor air units only
     "6f2f25c1acea3f20": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={},
         renamed={},
-        implied={"minimum_supply_air_ach": 0.0},
+        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
+    ),
+    # no economiser: the fan coils cool mechanically only
+    "bda1c8ff3b9294aa": EarlierCatalogue(
+        theta_names=_THETA_BEFORE_ECONOMISER,
+        ranges={},
+        renamed={},
+        implied={"economiser_share": 0.0},
     ),
 }
 

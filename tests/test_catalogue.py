@@ -20,15 +20,15 @@ STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
 # --------------------------------------------------------------------------- group sizes
 def test_group_sizes_match_the_paper():
     # theta_build: the paper's 17 (nb_PCs as plug-load power) + floor area, floors, lighting power, heat recovery,
-    # minimum supply air
-    assert len(cat.THETA_BUILD) == 22
+    # minimum supply air, economiser share
+    assert len(cat.THETA_BUILD) == 23
     assert {"lighting_power_w_m2", "heat_recovery_effectiveness", "plug_load_w_m2"} <= set(cat.THETA_NAMES)
     assert "pc_density_per_m2" not in cat.THETA_NAMES
     assert len(cat.SETTINGS) == 12
     assert len(cat.OCCUPANCY) == 2
     assert len(cat.WEATHER) == 9
     assert len(cat.OUTPUTS) == 8
-    assert len(cat.ALL_VARIABLES) == 22 + 12 + 2 + 9 + 8
+    assert len(cat.ALL_VARIABLES) == 23 + 12 + 2 + 9 + 8
     assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
 
 
@@ -324,6 +324,7 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
         "lighting_power_w_m2": 10.0,
         "heat_recovery_effectiveness": 0.0,
         "minimum_supply_air_ach": 0.0,
+        "economiser_share": 0.0,
     }
     for name, value in earlier.implied.items():
         cat.get(name).check(value)
@@ -348,7 +349,11 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     # a full theta of the catalogue before the minimum supply flow: its 100 % outdoor air units
     before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["6f2f25c1acea3f20"].theta_names}
     assert "minimum_supply_air_ach" not in before
-    assert cat.upgrade_theta(before) == {**before, "minimum_supply_air_ach": 0.0}
+    assert cat.upgrade_theta(before) == {**before, "minimum_supply_air_ach": 0.0, "economiser_share": 0.0}
+    # a full theta of the catalogue before the economiser: mechanical cooling only
+    before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["bda1c8ff3b9294aa"].theta_names}
+    assert "economiser_share" not in before and "minimum_supply_air_ach" in before
+    assert cat.upgrade_theta(before) == {**before, "economiser_share": 0.0}
     # an earlier full theta becomes a vector of this catalogue
     earlier = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"]
     mid = {n: float(np.mean(earlier.ranges.get(n, (cat.get(n).min, cat.get(n).max))[:2])) for n in cat.THETA_NAMES}

@@ -10,8 +10,9 @@ from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.metamodel.surrogate import DEFAULT_CHECKPOINT, ground_hours, load_metamodel, weather_ground_c
 from buildenv.metrics import r2_score
 
-# Stated in README ("The default metamodel"): on fresh EnergyPlus weeks of random buildings it was trained for.
-MIN_R2_T_POOLED, MIN_R2_Q_POOLED, MAX_RMSE_T_C = 0.93, 0.97, 0.6
+# The metamodel targets (README, "Where things stand": R2_Q >= 0.95), held on two fresh EnergyPlus weeks of one random
+# building each; the temperature bounds are looser than the pooled target, one building being a small sample.
+MIN_R2_T_POOLED, MIN_R2_Q_POOLED, MAX_RMSE_T_C = 0.93, 0.95, 0.6
 
 
 def _sample_in_domain(group: str, n: int, rng: np.random.Generator, surrogate) -> np.ndarray:

@@ -16,7 +16,7 @@ from buildenv.errors import CatalogueError, SimulationError
 from buildenv.schedules import hourly_schedules
 from buildenv.weather.epw import load_weather
 
-JANUARY, JULY = 2, 28
+JANUARY, JULY, LATE_OCTOBER = 2, 28, 43
 OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
 
 
@@ -275,3 +275,22 @@ def test_a_minimum_supply_flow_mixes_return_air_that_the_zones_reheat(zoning):
     # a minimum below the outdoor air changes nothing
     below = _week("usa_il_chicago", JANUARY, {"minimum_supply_air_ach": 0.5}, zoning=zoning)[0]
     np.testing.assert_allclose(below, _week("usa_il_chicago", JANUARY, zoning=zoning)[0], rtol=1e-6, atol=1e-6)
+
+
+@pytest.mark.parametrize("zoning", ZONINGS)
+def test_an_economiser_cools_with_outdoor_air_while_it_is_cooler(zoning):
+    # a cooling comfort setpoint of 22.5 degC in a Chicago late October: the zones need cooling, outdoor air is cool
+    cold = {"cooling_power_w_m2": 100}
+    settings = {"cooling_comfort_c": 22.5, "heating_comfort_c": 22.0}
+    mechanical = _week("usa_il_chicago", LATE_OCTOBER, cold, zoning=zoning, **settings)[0]
+    half = _week("usa_il_chicago", LATE_OCTOBER, {**cold, "economiser_share": 0.5}, zoning=zoning, **settings)[0]
+    economiser = _week("usa_il_chicago", LATE_OCTOBER, {**cold, "economiser_share": 1.0}, zoning=zoning, **settings)[0]
+    cooling = [out[:, OUT["Q_AC_OFFICE"]].sum() for out in (mechanical, half, economiser)]
+    assert cooling[0] > 5.0  # Wh/m2 in the week
+    assert cooling[2] < 0.05 * cooling[0] and 0.3 * cooling[0] < cooling[1] < 0.7 * cooling[0]
+    # the same zone temperatures: outdoor air only replaces the mechanical cooling
+    for out in (half, economiser):
+        np.testing.assert_allclose(out[:, OUT["T_INT_OFFICE"]], mechanical[:, OUT["T_INT_OFFICE"]], atol=0.3)
+    # in July outdoor air is warmer than the zones in the afternoon: the economiser cannot replace most cooling
+    july = [_week("usa_il_chicago", JULY, {**cold, "economiser_share": s})[0] for s in (0.0, 1.0)]
+    assert july[1][:, OUT["Q_AC_OFFICE"]].sum() > 0.5 * july[0][:, OUT["Q_AC_OFFICE"]].sum()

@@ -17,6 +17,9 @@ Modelling choices (each a constant below, so that a reader can find and change i
   outside it.
 - Fan coils: ``ZoneHVAC:IdealLoadsAirSystem`` on a dual-setpoint thermostat, limited to theta's heating and
   cooling power, sensible only (Q_HEAT_OFFICE / Q_AC_OFFICE), setpoints from :mod:`buildenv.schedules`.
+- Economiser: theta's ``economiser_share`` of the cooling load goes first to a second set of fan coils with that
+  share of the cooling power and an air-side economiser (differential dry-bulb; outdoor air up to their cooling
+  air flow while it is cooler than the zone air); they do not heat. Both sets count in Q_AC_OFFICE.
 - Air handling unit: ``ZoneHVAC:OutdoorAirUnit`` supplying outdoor air (``ventilation_ach`` x volume while on)
   heated by an electric coil (Q_AHU_H) or cooled by a DX coil (Q_AHU_C) to the day's supply temperature
   (``TemperatureControl``), supply fan heat included, balanced by an exhaust fan. With a heat recovery
@@ -81,20 +84,24 @@ ZONINGS = ("single", "core_perimeter")
 DEFAULT_ZONING = "core_perimeter"
 # HVAC objects of each zone are named f"{zone} {part}" (see zone_hvac_names)
 FAN_COILS, AHU_HEATING_COIL, AHU_COOLING_COIL = "Fan Coils", "AHU Heating Coil", "AHU Cooling Coil"
+ECONOMISER_FAN_COILS = "Economiser Fan Coils"
 AHU_HEAT_RECOVERY = "AHU Heat Recovery"
 
-#: EnergyPlus report variable (HVAC part of the key, name) behind each catalogue output; the key is the zone
-#: name for zone variables, else ``f"{zone} {part}"``.
-OUTPUT_VARIABLES: dict[str, tuple[str, str]] = {
-    "Q_AC_OFFICE": (FAN_COILS, "Zone Ideal Loads Supply Air Total Cooling Energy"),
-    "Q_HEAT_OFFICE": (FAN_COILS, "Zone Ideal Loads Supply Air Total Heating Energy"),
-    "Q_PEOPLE": ("", "Zone People Total Heating Energy"),
-    "Q_EQP": ("", "Zone Electric Equipment Electricity Energy"),
-    "Q_LIGHT": ("", "Zone Lights Electricity Energy"),
-    "Q_AHU_C": (AHU_COOLING_COIL, "Cooling Coil Total Cooling Energy"),
-    "Q_AHU_H": (AHU_HEATING_COIL, "Heating Coil Heating Energy"),
-    "T_INT_OFFICE": ("", "Zone Mean Air Temperature"),
+#: EnergyPlus report variable (HVAC parts of the key, name) behind each catalogue output, summed over the parts;
+#: the key is the zone name for zone variables, else ``f"{zone} {part}"``.
+OUTPUT_VARIABLES: dict[str, tuple[tuple[str, ...], str]] = {
+    "Q_AC_OFFICE": ((FAN_COILS, ECONOMISER_FAN_COILS), "Zone Ideal Loads Supply Air Total Cooling Energy"),
+    "Q_HEAT_OFFICE": ((FAN_COILS, ECONOMISER_FAN_COILS), "Zone Ideal Loads Supply Air Total Heating Energy"),
+    "Q_PEOPLE": (("",), "Zone People Total Heating Energy"),
+    "Q_EQP": (("",), "Zone Electric Equipment Electricity Energy"),
+    "Q_LIGHT": (("",), "Zone Lights Electricity Energy"),
+    "Q_AHU_C": ((AHU_COOLING_COIL,), "Cooling Coil Total Cooling Energy"),
+    "Q_AHU_H": ((AHU_HEATING_COIL,), "Heating Coil Heating Energy"),
+    "T_INT_OFFICE": (("",), "Zone Mean Air Temperature"),
 }
+#: cooling air flow of the economiser fan coils per W of their cooling capacity (m3/s): air supplied 11 K below
+#: the zone at 1.2 kg/m3 and 1005 J/(kg K)
+ECONOMISER_FLOW_PER_W = 1.0 / (1.2 * 1005.0 * 11.0)
 
 #: Columns of the Schedule:File, in order.
 SCHEDULE_COLUMNS: tuple[str, ...] = (
@@ -171,9 +178,11 @@ def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
 
 
 def zone_hvac_names(zone: str) -> dict[str, str]:
-    """Names of a zone's fan coils (ideal loads), air handling unit, its heat exchanger and its coils."""
+    """Names of a zone's fan coils (ideal loads, without and with an economiser), air handling unit, its heat
+    exchanger and its coils."""
     return {
         "fan_coils": f"{zone} {FAN_COILS}",
+        "economiser_fan_coils": f"{zone} {ECONOMISER_FAN_COILS}",
         "ahu": f"{zone} AHU",
         "heat_recovery": f"{zone} {AHU_HEAT_RECOVERY}",
         "heating_coil": f"{zone} {AHU_HEATING_COIL}",
@@ -181,10 +190,10 @@ def zone_hvac_names(zone: str) -> dict[str, str]:
     }
 
 
-def output_keys(name: str, zoning: str) -> list[tuple[str, str]]:
-    """The (key, report variable) pairs, one per zone, behind catalogue output ``name``."""
-    part, variable = OUTPUT_VARIABLES[name]
-    return [(f"{zone} {part}" if part else zone, variable) for zone in zone_names(zoning)]
+def output_keys(name: str, zoning: str) -> dict[str, list[tuple[str, str]]]:
+    """``{zone: [(key, report variable), ...]}``: the pairs behind catalogue output ``name``, summed in a zone."""
+    parts, variable = OUTPUT_VARIABLES[name]
+    return {zone: [(f"{zone} {part}" if part else zone, variable) for part in parts] for zone in zone_names(zoning)}
 
 
 def zone_names(zoning: str) -> tuple[str, ...]:
@@ -194,7 +203,7 @@ def zone_names(zoning: str) -> tuple[str, ...]:
 
 def output_variables(zoning: str) -> list[tuple[str, str]]:
     """Every (key, report variable) pair the model reports hourly."""
-    return [pair for name in cat.OUTPUT_NAMES for pair in output_keys(name, zoning)]
+    return [pair for name in cat.OUTPUT_NAMES for pairs in output_keys(name, zoning).values() for pair in pairs]
 
 
 def _horizontal_outlines(g: Geometry, zoning: str) -> dict[str, tuple[str, list[tuple[float, float]]]]:
@@ -600,6 +609,15 @@ def build_epjson(
     # Schedules: constants and one Schedule:File column per hourly series.
     add("ScheduleTypeLimits", "Any Number")
     add("Schedule:Constant", "Always on", schedule_type_limits_name="Any Number", hourly_value=1.0)
+    add("Schedule:Constant", "Always off", schedule_type_limits_name="Any Number", hourly_value=0.0)
+    # the economiser fan coils' minimum outdoor air: none (EnergyPlus's economiser acts only with an outdoor air
+    # object, so it is a trace)
+    add(
+        "DesignSpecification:OutdoorAir",
+        "Economiser outdoor air",
+        outdoor_air_method="Flow/Area",
+        outdoor_air_flow_per_zone_floor_area=1e-7,
+    )
     add("Schedule:Constant", "Dual setpoint", schedule_type_limits_name="Any Number", hourly_value=4.0)
     add("Schedule:Constant", "Activity", schedule_type_limits_name="Any Number", hourly_value=PERSON_ACTIVITY_W)
     for column, name in enumerate(SCHEDULE_COLUMNS, 1):
@@ -729,12 +747,20 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
     add(
         "NodeList",
         f"{zone} inlets",
-        nodes=[{"node_name": f"{zone} fan coil supply"}, {"node_name": f"{zone} AHU supply"}],
+        nodes=[
+            {"node_name": f"{zone} fan coil supply"},
+            {"node_name": f"{zone} economiser supply"},
+            {"node_name": f"{zone} AHU supply"},
+        ],
     )
     add(
         "NodeList",
         f"{zone} exhausts",
-        nodes=[{"node_name": f"{zone} fan coil exhaust"}, {"node_name": f"{zone} AHU exhaust"}],
+        nodes=[
+            {"node_name": f"{zone} fan coil exhaust"},
+            {"node_name": f"{zone} economiser exhaust"},
+            {"node_name": f"{zone} AHU exhaust"},
+        ],
     )
     add(
         "ZoneHVAC:EquipmentConnections",
@@ -759,28 +785,31 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
             },
             {
                 "zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem",
-                "zone_equipment_name": names["fan_coils"],
+                "zone_equipment_name": names["economiser_fan_coils"],
                 "zone_equipment_cooling_sequence": 2,
                 "zone_equipment_heating_or_no_load_sequence": 2,
+                "zone_equipment_sequential_cooling_fraction_schedule_name": f"{zone} economiser share",
+                "zone_equipment_sequential_heating_fraction_schedule_name": "Always off",
+            },
+            {
+                "zone_equipment_object_type": "ZoneHVAC:IdealLoadsAirSystem",
+                "zone_equipment_name": names["fan_coils"],
+                "zone_equipment_cooling_sequence": 3,
+                "zone_equipment_heating_or_no_load_sequence": 3,
             },
         ],
     )
+    # the fan coils: the economiser's share of the cooling first (its capacity that share of theta's), the rest
+    # and all heating by the others; an economiser share of 0 leaves it off
+    economiser = t["economiser_share"]
+    cooling_w = t["cooling_power_w_m2"] * area
     add(
-        "ZoneHVAC:IdealLoadsAirSystem",
-        names["fan_coils"],
-        zone_supply_air_node_name=f"{zone} fan coil supply",
-        zone_exhaust_air_node_name=f"{zone} fan coil exhaust",
-        maximum_heating_supply_air_temperature=50.0,
-        minimum_cooling_supply_air_temperature=13.0,
-        maximum_heating_supply_air_humidity_ratio=0.0156,
-        minimum_cooling_supply_air_humidity_ratio=0.0077,
-        heating_limit="LimitCapacity",
-        maximum_sensible_heating_capacity=round(t["heating_power_w_m2"] * area, 3),
-        cooling_limit="LimitCapacity",
-        maximum_total_cooling_capacity=round(t["cooling_power_w_m2"] * area, 3),
-        dehumidification_control_type="None",
-        humidification_control_type="None",
+        "Schedule:Constant", f"{zone} economiser share", schedule_type_limits_name="Any Number", hourly_value=economiser
     )
+    _add_fan_coils(
+        add, zone, names["fan_coils"], "fan coil", t["heating_power_w_m2"] * area, (1 - economiser) * cooling_w
+    )
+    _add_economiser_fan_coils(add, zone, names["economiser_fan_coils"], economiser * cooling_w)
 
     # Air handling unit: outdoor air -> [heat exchanger ->] DX cooling coil -> electric heating coil -> supply
     # fan -> zone; zone -> exhaust fan [-> heat exchanger] -> outdoors. With a minimum supply flow the exchanger
@@ -791,6 +820,46 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
     else:
         sensible, latent = t["heat_recovery_effectiveness"], 0.0
     _add_air_unit(add, zone, names, flow, sensible, latent)
+
+
+def _add_economiser_fan_coils(add, zone: str, name: str, cooling_w: float) -> None:
+    """Ideal-loads fan coils of ``cooling_w`` (W) cooling capacity, no heating, with an air-side economiser
+    (differential dry-bulb: outdoor air up to their cooling air flow while it is cooler than the zone air); off at
+    0 W."""
+    outdoor_air = f"{zone} economiser outdoor air"
+    add("OutdoorAir:NodeList", outdoor_air, nodes=[{"node_or_nodelist_name": outdoor_air}])
+    economiser = {
+        "availability_schedule_name": "Always on" if cooling_w > 0.0 else "Always off",
+        "cooling_limit": "LimitFlowRateAndCapacity",
+        "maximum_cooling_air_flow_rate": round(max(cooling_w * ECONOMISER_FLOW_PER_W, 1e-6), 6),
+        "outdoor_air_inlet_node_name": outdoor_air,
+        "design_specification_outdoor_air_object_name": "Economiser outdoor air",
+        "outdoor_air_economizer_type": "DifferentialDryBulb",
+    }
+    _add_fan_coils(add, zone, name, "economiser", 0.0, cooling_w, economiser)
+
+
+def _add_fan_coils(
+    add, zone: str, name: str, node: str, heating_w: float, cooling_w: float, extra: dict | None = None
+) -> None:
+    """Ideal-loads fan coils of ``heating_w`` and ``cooling_w`` (W) sensible capacity, supplying node
+    ``f"{zone} {node} supply"``; ``extra`` epJSON fields replace the defaults."""
+    add(
+        "ZoneHVAC:IdealLoadsAirSystem",
+        name,
+        zone_supply_air_node_name=f"{zone} {node} supply",
+        zone_exhaust_air_node_name=f"{zone} {node} exhaust",
+        maximum_heating_supply_air_temperature=50.0,
+        minimum_cooling_supply_air_temperature=13.0,
+        maximum_heating_supply_air_humidity_ratio=0.0156,
+        minimum_cooling_supply_air_humidity_ratio=0.0077,
+        heating_limit="LimitCapacity",
+        maximum_sensible_heating_capacity=round(heating_w, 3),
+        maximum_total_cooling_capacity=round(cooling_w, 3),
+        dehumidification_control_type="None",
+        humidification_control_type="None",
+        **{"cooling_limit": "LimitCapacity", **(extra or {})},
+    )
 
 
 def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effectiveness: float, latent: float) -> None:

@@ -107,14 +107,13 @@ def read_outputs(csv_path: Path, theta: dict[str, float], n_weeks: int, zoning: 
     """
     shares = zone_shares(Geometry.from_theta(theta), zoning)
     zones = zone_names(zoning)
-    pairs = {
-        f"{name}|{zone}": pair for name in cat.OUTPUT_NAMES for zone, pair in zip(zones, output_keys(name, zoning))
-    }
+    keys = {name: output_keys(name, zoning) for name in cat.OUTPUT_NAMES}
+    pairs = {f"{name}|{zone}|{i}": pair for name in keys for zone in zones for i, pair in enumerate(keys[name][zone])}
     raw = read_hourly_csv(Path(csv_path), pairs)
     hours = n_weeks * cat.HOURS_PER_WEEK
     columns = []
     for name in cat.OUTPUT_NAMES:
-        series = [raw[f"{name}|{zone}"] for zone in zones]
+        series = [sum(raw[f"{name}|{zone}|{i}"] for i in range(len(keys[name][zone]))) for zone in zones]
         if any(len(x) != hours for x in series):
             raise SimulationError(f"{csv_path}: EnergyPlus returned {len(series[0])} hours for {n_weeks} weeks")
         if name in cat.TEMPERATURE_OUTPUTS:

@@ -63,7 +63,7 @@ class SiteModel:
 
     Attributes:
         surrogate: the metamodel (:class:`buildenv.metamodel.surrogate.Surrogate`).
-        theta: calibrated theta_build, catalogue order, ``(21,)``.
+        theta: calibrated theta_build, catalogue order, ``(23,)``.
         occupancy: calibrated weekday occupancy ``(5, 2)`` (arrival, departure hour).
         historical: the site's historical settings ``(7, 12)``.
         week_starts: the Monday of every week of the year.

@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from vector_info import same_info
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from buildenv import catalogue as cat
@@ -202,25 +203,6 @@ def test_outdoor_air_keeps_to_the_code_minimum_unless_the_site_declares_its_limi
 AutoresetMode = gym.vector.AutoresetMode
 
 
-def _same_info(native: dict, sync: dict) -> None:
-    """Vector infos with the same keys, dtypes and values (floats to float32 rounding, batches differ)."""
-    assert sorted(native) == sorted(sync)
-    for key, expected in sync.items():
-        got = native[key]
-        if isinstance(expected, dict):
-            _same_info(got, expected)
-        elif key == "final_obs":
-            for a, b in zip(got, expected):
-                assert (a is None and b is None) or np.allclose(a, b, atol=1e-6)
-        else:
-            assert got.dtype == expected.dtype and got.shape == expected.shape, key
-            if np.issubdtype(expected.dtype, np.floating):
-                # float32 rounding of energies, up to 1e-5 once a ratio is in percent
-                np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-4, err_msg=key)
-            else:
-                np.testing.assert_array_equal(got, expected, err_msg=key)
-
-
 @pytest.fixture(scope="module")
 def native_and_sync():
     """The native vector env and gymnasium's SyncVectorEnv of the single env, 3 environments, 2-week episodes."""
@@ -275,7 +257,7 @@ def test_native_vector_env_offers_next_step_autoreset_seeded_as_sync(native_and_
     for seed in ([1, 2, 3], 11):  # an int seeds environment i with seed + i, as SyncVectorEnv does
         obs, info = native.reset(seed=seed)
         expected_obs, expected = sync.reset(seed=seed)
-        _same_info(info, expected)
+        same_info(info, expected)
         np.testing.assert_array_equal(obs, expected_obs)
     assert len(set(native.reset(seed=[1, 9, 9])[1]["week"][1:])) == 1  # per-environment seeds are honoured
     native.reset(seed=11)
@@ -287,7 +269,7 @@ def test_native_vector_env_offers_next_step_autoreset_seeded_as_sync(native_and_
         np.testing.assert_allclose(got[1], expected[1], rtol=1e-5)
         np.testing.assert_array_equal(got[2], expected[2])
         np.testing.assert_array_equal(got[3], expected[3])
-        _same_info(got[4], expected[4])
+        same_info(got[4], expected[4])
 
 
 def test_same_step_autoreset_reports_final_obs_and_final_info():
@@ -311,7 +293,7 @@ def test_same_step_autoreset_reports_final_obs_and_final_info():
     np.testing.assert_array_equal(info["final_info"]["week"], reset_info["week"])  # their step info
     np.testing.assert_allclose(info["final_info"]["energy_term"], 1.0)
     assert "reward" not in info  # the top-level info is the new episodes' reset info, as gymnasium lays it out
-    _same_info(info, expected[4])
+    same_info(info, expected[4])
     np.testing.assert_allclose(got[0], expected[0], atol=1e-6)
 
 

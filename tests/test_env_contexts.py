@@ -12,6 +12,7 @@ from pathlib import Path
 import gymnasium as gym
 import numpy as np
 import pytest
+from vector_info import same_info
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from buildenv.cli.main import main
@@ -79,24 +80,6 @@ def library(suite, tmp_path_factory) -> Path:
     return out
 
 
-def _same_info(native: dict, sync: dict) -> None:
-    """Vector infos with the same keys, dtypes and values (floats to float32 rounding)."""
-    assert sorted(native) == sorted(sync)
-    for key, expected in sync.items():
-        got = native[key]
-        if isinstance(expected, dict):
-            _same_info(got, expected)
-        elif key == "final_obs":
-            for a, b in zip(got, expected):
-                assert (a is None and b is None) or np.allclose(a, b, atol=1e-6)
-        else:
-            assert got.dtype == expected.dtype and got.shape == expected.shape, key
-            if np.issubdtype(expected.dtype, np.floating):
-                np.testing.assert_allclose(got, expected, rtol=1e-5, atol=1e-4, err_msg=key)
-            else:
-                np.testing.assert_array_equal(got, expected, err_msg=key)
-
-
 def test_two_sites_are_drawn_per_episode_reproducibly_under_a_seed(two_sites):
     from gymnasium.utils.env_checker import check_env
     from stable_baselines3.common.env_checker import check_env as sb3_check_env
@@ -148,7 +131,7 @@ def test_native_and_sync_vector_envs_draw_the_same_sites_and_weeks(two_sites):
     for seed in ([1, 2, 3], 11, 5, 7):
         obs, info = native.reset(seed=seed)
         expected_obs, expected = sync.reset(seed=seed)
-        _same_info(info, expected)
+        same_info(info, expected)
         np.testing.assert_allclose(obs, expected_obs, atol=1e-6)
         drawn |= set(info["site"])
     assert drawn == {"chicago", "leaky"}
@@ -171,7 +154,7 @@ def test_native_and_sync_vector_envs_draw_the_same_sites_and_weeks(two_sites):
         np.testing.assert_allclose(got[1], expected[1], rtol=1e-5)
         np.testing.assert_array_equal(got[2], expected[2])
         np.testing.assert_array_equal(got[3], expected[3])
-        _same_info(got[4], expected[4])
+        same_info(got[4], expected[4])
     rows = native.unwrapped.historical_actions
     assert rows.shape == (3, N_ACTION)
     for row, site in zip(rows, native.unwrapped._sites):
@@ -225,7 +208,7 @@ def test_same_step_autoreset_with_two_sites_matches_sync(two_sites):
         actions = np.random.default_rng(2).uniform(-1, 1, native.action_space.shape)
         got, expected = native.step(actions), sync.step(actions)
         np.testing.assert_allclose(got[0], expected[0], atol=1e-6)
-        _same_info(got[4], expected[4])
+        same_info(got[4], expected[4])
         assert set(got[4]["final_info"]["site"]) <= {"chicago", "leaky"}
 
 

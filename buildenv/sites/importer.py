@@ -42,6 +42,7 @@ from buildenv.sites.timestamps import (
     _parse_timestamp,
     _standard_times,
     _ZoneWording,
+    named_time_zone,
 )
 
 #: Longest temperature gap, hours, that ``fill_temperature_gaps`` interpolates.
@@ -205,15 +206,13 @@ _OFFSET_WORDING = _ZoneWording("--time-zone", "--time-zone", None)
 
 def _time_zone(name: str) -> zoneinfo.ZoneInfo:
     """The IANA zone ``--time-zone`` names; SiteError (naming the closest known name) otherwise."""
-    try:
-        return zoneinfo.ZoneInfo(name)
-    except (zoneinfo.ZoneInfoNotFoundError, ValueError, OSError):
-        close = difflib.get_close_matches(name, sorted(zoneinfo.available_timezones()), n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
+    zone, hint = named_time_zone(name)
+    if zone is None:
         raise SiteError(
             f"--time-zone {name!r}: unknown time zone{hint}: give the IANA name of the zone whose clock the export "
             "keeps, such as 'America/Chicago' or 'Europe/Paris' (an export in standard time needs no --time-zone)"
-        ) from None
+        )
+    return zone
 
 
 def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:

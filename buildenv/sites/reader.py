@@ -50,6 +50,7 @@ from buildenv.sites.model import (
     TRUTH_FILE,
     Site,
 )
+from buildenv.sites.timestamps import named_time_zone
 
 try:  # Python >= 3.11
     import tomllib
@@ -282,15 +283,13 @@ def _zone(name: Any, where: str) -> zoneinfo.ZoneInfo:
     what = "the IANA name of the zone whose clock the BMS keeps, such as 'America/Chicago' or 'Europe/Paris'"
     if not isinstance(name, str) or not name.strip():
         raise SiteError(f"{where}: [measurements] time_zone must be {what}, got {name!r}")
-    try:
-        return zoneinfo.ZoneInfo(name)
-    except (zoneinfo.ZoneInfoNotFoundError, ValueError, OSError):
-        close = difflib.get_close_matches(name, sorted(zoneinfo.available_timezones()), n=1)
-        hint = f" (did you mean {close[0]!r}?)" if close else ""
+    zone, hint = named_time_zone(name)
+    if zone is None:
         raise SiteError(
             f"{where}: unknown time zone {name!r}{hint}: give {what} (a clock without daylight saving keeps "
             "standard time: leave time_zone out)"
-        ) from None
+        )
+    return zone
 
 
 def known_parameter(name: str, value: Any) -> float:

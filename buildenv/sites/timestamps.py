@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import calendar
 import datetime as dt
+import difflib
 import functools
 import logging
 import re
@@ -88,6 +89,16 @@ def _parse_timestamp(
             "at HH:00 (resample sub-hourly data: mean temperature, summed kWh)"
         )
     return stamp + dt.timedelta(days=1) if end_of_day else stamp
+
+
+def named_time_zone(name: str) -> tuple[zoneinfo.ZoneInfo | None, str]:
+    """The IANA time zone ``name`` and ``""``, or ``None`` and a hint naming the closest known zone
+    (`` (did you mean 'America/Chicago'?)``, ``""`` when none is close)."""
+    try:
+        return zoneinfo.ZoneInfo(name), ""
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError, OSError):
+        close = difflib.get_close_matches(name, sorted(zoneinfo.available_timezones()), n=1)
+        return None, f" (did you mean {close[0]!r}?)" if close else ""
 
 
 def _fmt(stamp: dt.datetime) -> str:

@@ -157,13 +157,15 @@ def _cmd_verify(args: argparse.Namespace) -> int:
     if args.json:
         print(dumps(check.summary, where="the response check", nonfinite="null"))
         return 0
-    s = check.summary
+    s, shoebox = check.summary, check.shoebox_savings
     print(
-        f"{'setting':>7} {'savings predicted %':>20} {'realised %':>10} {'comfort predicted K':>20} {'realised K':>10}"
+        f"{'setting':>7} {'savings predicted %':>20} {'realised %':>10} {'shoebox %':>9} "
+        f"{'comfort predicted K':>20} {'realised K':>10}"
     )
     for i in range(len(check.actions)):
         print(
             f"{i:>7} {check.predicted_savings[i]:>20.1f} {check.realised_savings[i]:>10.1f} "
+            f"{'-' if shoebox is None else f'{shoebox[i]:.1f}':>9} "
             f"{check.predicted_comfort[i]:>20.3f} {check.realised_comfort[i]:>10.3f}"
         )
     print(
@@ -172,6 +174,14 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         f"Spearman {s['savings_spearman']}; comfort error {s['comfort_error_mean_abs_k']} K, "
         f"Spearman {s['comfort_spearman']}"
     )
+    if shoebox is not None:
+        print(
+            f"split at the EnergyPlus shoebox of the calibrated parameters: metamodel - shoebox "
+            f"{s['metamodel_vs_shoebox_p90_abs_points']} points at the 90th percentile (bias "
+            f"{s['metamodel_vs_shoebox_bias_points']}), shoebox - building {s['shoebox_vs_building_p90_abs_points']} "
+            f"(bias {s['shoebox_vs_building_bias_points']}, Spearman {s['shoebox_spearman']}); the shoebox "
+            "lacks the declared effects"
+        )
     return 0
 
 

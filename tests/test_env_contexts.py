@@ -19,7 +19,7 @@ from buildenv.cli.main import main
 from buildenv.env.building_week import DEFAULT_SITE, BuildingWeekEnv
 from buildenv.errors import BuildingEnvError
 from buildenv.sites import load_site
-from buildenv.sites.library import LIBRARY_FILES, LIBRARY_INDEX, read_library
+from buildenv.sites.library import LIBRARY_FILES, LIBRARY_INDEX, SHIPPED_LIBRARY, read_library
 from buildenv.sites.suite import write_manifest
 
 N_ACTION = 7 * 11  # the default site's BMS changes 11 of the 12 settings
@@ -278,6 +278,11 @@ def test_the_library_command_copies_calibrated_sites_and_their_split(library, su
     assert json.loads(capsys.readouterr().out) == {"library": str(out), "sites": 2, "train": 1, "test": 1}
     assert main(["suite", "library", "--suite", str(suite), "--out", str(out), "--sites", "1", "--quiet"]) == 0
     assert len(read_library(out)) == 1 and not (tmp_path / "two.partial").exists()  # an earlier library replaced
+    one = tmp_path / "one"
+    assert main(["suite", "library", "--suite", str(suite), "--out", str(one), "--buildings", "medium_office"]) == 0
+    assert [s.name for s in read_library(one)] == [s.name for s in sites]
+    assert main(["suite", "library", "--suite", str(suite), "--out", str(tmp_path / "x"), "--buildings", "shed"]) == 2
+    assert "--buildings shed: no calibrated site of it" in capsys.readouterr().err and not (tmp_path / "x").exists()
     other = tmp_path / "other"
     other.mkdir()
     (other / "notes.txt").write_text("mine", encoding="utf-8")
@@ -295,6 +300,21 @@ def test_a_library_split_runs_only_its_part(library):
     assert {train.reset(seed=s)[1]["site"] for s in range(10)} == set(TRAIN)
     chosen = BuildingWeekEnv(site=library, sites=[NEWARK, TRAIN[0]])
     assert chosen.site_names == (NEWARK, TRAIN[0])
+
+
+def test_the_shipped_library_trains_on_the_development_climates_and_tests_on_the_held_out_ones():
+    from gymnasium.utils.env_checker import check_env
+
+    from buildenv.sites.suite import HELD_OUT_CLIMATES
+
+    sites = read_library(SHIPPED_LIBRARY)
+    assert {s.building for s in sites} == {"small_office", "medium_office", "large_office"}  # one action space
+    assert {s.part for s in sites if s.climate in HELD_OUT_CLIMATES} == {"test"}
+    assert {s.part for s in sites if s.climate not in HELD_OUT_CLIMATES} == {"train"}
+    assert {s.season for s in sites} == {"heating", "cooling"}
+    test = gym.make("BuildingWeek-v0", site="library", sites="test")  # made with the default metamodel
+    assert set(test.unwrapped.site_names) == {s.name for s in sites if s.part == "test"}
+    check_env(test.unwrapped, skip_render_check=True)
 
 
 @pytest.mark.parametrize(

@@ -387,7 +387,7 @@ def test_diagnosis_names_the_default_sites_cold_night_air(tmp_path, surrogate):
     # three CMA-ES runs, the lowest fit cost kept, as the blind checks calibrate (--base-restarts 3): from one run
     # (seed 0) a fresh install on 2026-11-27 landed in a basin whose refit gained 0.028 on R2_T (score 0.17),
     # where seeds 1-3 gained 0.054-0.060 (0.38-0.44); with three runs seed 0 gains 0.053 (0.41)
-    calibrate_site(load_site(tmp_path / "site"), surrogate, seed=0, restarts=3)
+    calibrate_site(load_site(tmp_path / "site"), surrogate, seed=0, restarts=3, prior=False)
     settings = DiagnosisSettings(candidates=("night_cycle_cold_air",), refit_step=0.05)
     result = diagnose(load_site(tmp_path / "site"), surrogate, settings)
     assert result["selected"] == ["night_cycle_cold_air"]

@@ -5,13 +5,14 @@ from __future__ import annotations
 import json
 import shutil
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
 from buildenv.calibration.calibrate import calibrate_site
 from buildenv.cli.main import main
-from buildenv.env.response import summarise
+from buildenv.env.response import first_heldout_week, response_check, split_error, summarise
 from buildenv.errors import BuildenvError
 from buildenv.metamodel.surrogate import load_metamodel
 from buildenv.sites import load_site
@@ -102,11 +103,22 @@ def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys)
     (checked,) = json.loads(capsys.readouterr().out)["rows"]
     assert checked["settings"] == 3 and -1.0 <= checked["savings_spearman"] <= 1.0
     assert checked["savings_error_p90_abs_points"] >= checked["savings_error_mean_abs_points"] * 0.5
+    # the same settings on the shoebox at the calibrated parameters split the error
+    assert checked["shoebox_vs_building_p90_abs_points"] >= 0 and -1.0 <= checked["shoebox_spearman"] <= 1.0
+    env = gym.make("BuildingWeek-v0", site=row["site"], weeks="all")
+    historical = env.unwrapped.historical_action  # run as the baseline is: saves nothing on any of the three
+    check = response_check(env, first_heldout_week(env), n=1, extra=historical)
+    assert check.shoebox_savings[-1] == pytest.approx(0.0, abs=1e-6) and check.shoebox_savings[0] != 0.0
+    assert check.predicted_savings[-1] == pytest.approx(0.0, abs=1e-3)
+    assert check.realised_savings[-1] == pytest.approx(0.0, abs=1e-3)
     assert main(["verify", "--site", row["site"], "--random", "3", "--json"]) == 0
     single = json.loads(capsys.readouterr().out)  # the same site, week and seed: the same figures
     assert {k: v for k, v in single.items() if k != "seconds_energyplus"} == {
         k: checked[k] for k in single if k != "seconds_energyplus"
     }
+    assert main(["verify", "--site", row["site"], "--random", "2"]) == 0
+    text = capsys.readouterr().out  # a table with the shoebox's column, then the split in one line
+    assert "shoebox %" in text and "metamodel - shoebox" in text and "shoebox - building" in text
 
 
 def test_the_response_summary_scores_agreement_and_disagreement():
@@ -114,6 +126,16 @@ def test_the_response_summary_scores_agreement_and_disagreement():
     assert same["savings_error_p90_abs_points"] == 0.0 and same["savings_spearman"] == 1.0
     off = summarise([30.0, -15.0, 9.0], [10.0, -5.0, 3.0], [0.2, 0.5, 0.1], [0.1, 0.6, 0.3])
     assert off["savings_bias_points"] > 0 and off["savings_spearman"] == 1.0 and off["comfort_spearman"] < 1.0
+
+
+def test_the_split_at_the_shoebox_tells_the_metamodel_from_the_model_structure():
+    split = split_error([12.0, -4.0, 5.0], [10.0, -5.0, 3.0], [10.0, -5.0, 3.0])  # a shoebox right, its imitation off
+    assert split["shoebox_vs_building_p90_abs_points"] == 0.0 and split["shoebox_spearman"] == 1.0
+    assert split["metamodel_vs_shoebox_bias_points"] == pytest.approx(5 / 3, abs=0.01)
+    split = split_error(
+        [10.0, -5.0, 3.0], [10.0, -5.0, 3.0], [-5.0, 10.0, 9.0]
+    )  # a faithful imitation of a wrong model
+    assert split["metamodel_vs_shoebox_p90_abs_points"] == 0.0 and split["shoebox_spearman"] < 0.0
 
 
 def test_a_copied_suite_folder_names_its_own_sites(tmp_path):

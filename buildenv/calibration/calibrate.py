@@ -1,7 +1,8 @@
 """Calibrating a site: the metamodel fitted to a site's fit weeks and scored on its held-out weeks.
 
-:func:`calibrate_site` builds the problem (:mod:`buildenv.calibration.problem`), runs CMA-ES or Adam, fits the
-declared effects in a second stage, scores fit and held-out weeks and writes ``calibration.json``.
+:func:`calibrate_site` builds the problem (:mod:`buildenv.calibration.problem`), runs CMA-ES (by default again
+under the building parameters' prior, :mod:`buildenv.calibration.prior`) or Adam, fits the declared effects in a
+further stage, scores fit and held-out weeks and writes ``calibration.json``.
 """
 
 from __future__ import annotations
@@ -13,6 +14,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.calibration.gradient import calibrate_adam
+from buildenv.calibration.prior import prior_anchor
 from buildenv.calibration.problem import (
     CalibrationError,
     _scale,
@@ -21,6 +23,7 @@ from buildenv.calibration.problem import (
     calibrate_cmaes,
     check_declared_effects,
     default_weeks,
+    evaluate,
     fit_declared_effects,
     metamodel_record,
     parameters_at_bounds,
@@ -78,6 +81,7 @@ def calibrate_site(
     save: bool = True,
     restarts: int = 1,
     effects: tuple[str, ...] | None = None,
+    prior: bool = True,
 ) -> dict:
     """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
 
@@ -96,12 +100,15 @@ def calibrate_site(
         save: write ``calibration.json`` into the site folder.
         effects: declared effects, fitted after the building and occupancy; None (default)
             takes the site's own (``site.toml``'s ``effects``, :attr:`buildenv.sites.Site.effects`), ``()`` none.
+        prior: with CMA-ES, the maximum a posteriori estimate under the building parameters' prior
+            (:mod:`buildenv.calibration.prior`, weighted by a first fit without it); ``False``: least squares only.
     Returns:
         ``{"fit", "heldout"}`` metrics (:func:`buildenv.metrics.site_metrics`, with ``weeks``; ``heldout`` only
         when there are held-out weeks), ``"theta": {name: value}`` (catalogue units), ``"occupancy"``
         (``[[start, end] x 5]``, h), ``"known"``, ``"method"``, ``"seconds"``, ``"evaluations"``, ``"cost"``
         (CMA-ES also ``"run_costs"``), ``"fit_weeks"``, ``"heldout_weeks"``, ``"guideline14_p"``,
-        ``"metamodel"``, ``"catalogue_hash"`` and ``"at_bounds"``
+        ``"metamodel"``, ``"catalogue_hash"``, ``"prior"`` (its weight and the residuals' effective hours, ``None``
+        without it) and ``"at_bounds"``
         (:func:`buildenv.calibration.problem.parameters_at_bounds`). With ``effects``:
         ``"declared_effects": [names]``, ``"effects": {effect: {parameter: value}}`` and
         ``"cost_without_effects"``. With CMA-ES ``restarts`` > 1 and held-out weeks, ``"runs"``: each run's
@@ -125,8 +132,11 @@ def calibrate_site(
         temperature_before=surrogate.uses_temperature_before,
         metamodel=surrogate,
     )
+    prior_record = None
     if method == "cmaes":
         best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
+        if prior and int(problem.free.sum()) > 1:  # one parameter is searched without a pull (a line search)
+            best, info, prior_record = _with_prior(problem, surrogate, best, info, seed, max_evaluations, restarts)
         run_parameters = info.pop("run_parameters")
     elif method == "adam":
         best, info = calibrate_adam(problem, surrogate, seed, progress=progress)
@@ -168,6 +178,7 @@ def calibrate_site(
         "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known, surrogate),
         **metamodel_record(surrogate),
         "catalogue_hash": cat.catalogue_hash(),
+        "prior": prior_record,
         **declared,
     }
     scale = _scale(problem)
@@ -183,6 +194,37 @@ def calibrate_site(
 
         save_calibration(site.path, result)
     return result
+
+
+def _with_prior(problem, surrogate, best, info, seed, max_evaluations, restarts):
+    """CMA-ES again from the fit without the prior (``best``), on the cost plus the prior
+    (:mod:`buildenv.calibration.prior`, centred on the ranges), its weight read off that fit's residuals; returns the
+    new best, the CMA-ES record (evaluations of both runs) and the prior's record."""
+    t, q = predict(problem, surrogate, best)
+    anchor, record = prior_anchor([problem.temperature_c, problem.consumption_wh_m2], [t, q])
+    centre = problem.from_unit(np.full(int(problem.free.sum()), 0.5))[0]
+    theta = np.array([n in cat.THETA_NAMES for n in problem.names])
+    found, second = calibrate_cmaes(
+        problem,
+        surrogate,
+        seed,
+        max_evaluations,
+        start=best,
+        anchor=anchor,
+        anchored=theta,
+        towards=centre,
+        restarts=restarts,
+    )
+    record["cost_without_prior"] = round(float(info["cost"]), 5)
+    # CMA-ES keeps the best point it sampled, not its start: where none beat the first fit under the prior, the
+    # first fit is the estimate
+    first = float(info["cost"]) + anchor * float((((problem.to_unit(best) - 0.5) ** 2)[theta[problem.free]]).sum())
+    record["kept_first_fit"] = first <= min(second["run_costs"])
+    if record["kept_first_fit"]:
+        found, second = best, {**second, "cost": info["cost"], "run_parameters": best[None], "run_costs": [first]}
+    record["run_costs_with_prior"] = second["run_costs"]
+    second["run_costs"] = evaluate(problem, surrogate, second["run_parameters"]).tolist()  # the plain cost, as "cost"
+    return found, {**second, "evaluations": info["evaluations"] + second["evaluations"]}, record
 
 
 def _score_runs(

@@ -233,10 +233,14 @@ class ShoeboxPool:
 
     def simulate(self, run: SiteRun, theta: np.ndarray, occupancy: np.ndarray) -> np.ndarray:
         """Outputs ``(pop, len(run.keep), 168, 8)`` of candidates ``theta (pop, 21)``, ``occupancy (pop, 5, 2)``."""
-        tasks = [(run, th, oc, self.within_catalogue) for th, oc in zip(theta, occupancy)]
+        return np.stack(self.simulate_runs([run] * len(theta), theta, occupancy))
+
+    def simulate_runs(self, runs: list[SiteRun], theta: np.ndarray, occupancy: np.ndarray) -> list[np.ndarray]:
+        """Outputs ``[(len(run.keep), 168, 8)]`` of each run with its own ``theta[i]`` and ``occupancy[i]``."""
+        tasks = [(run, th, oc, self.within_catalogue) for run, th, oc in zip(runs, theta, occupancy)]
         if self._pool is None:
-            return np.stack([_simulate_task(t) for t in tasks])
-        return np.stack(self._pool.map(_simulate_task, tasks, chunksize=1))
+            return [_simulate_task(t) for t in tasks]
+        return self._pool.map(_simulate_task, tasks, chunksize=1)
 
 
 def evaluate_energyplus(problem, run: SiteRun, pool: ShoeboxPool, params: np.ndarray) -> np.ndarray:

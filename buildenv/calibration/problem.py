@@ -337,6 +337,7 @@ def calibrate_cmaes(
     restarts: int = 1,
     anchor: float = 0.0,
     anchored: np.ndarray | None = None,
+    towards: np.ndarray | None = None,
 ) -> tuple[np.ndarray, dict]:
     """CMA-ES on the unit box of the free parameters (:attr:`Problem.free`). Returns the best physical
     parameters ``(dim,)`` and ``{"evaluations", "cost", "run_costs", "run_parameters"}`` (each run's best
@@ -351,7 +352,8 @@ def calibrate_cmaes(
     (the unit box): a refit then moves a parameter only as far as the fit pays for it. The returned
     ``cost`` is the plain cost of the best point; ``run_costs`` are the costs each run searched (pull
     included), by which the best run is chosen. Without a ``start`` there is nothing to pull towards and
-    ``anchor`` is not used.
+    ``anchor`` is not used. ``towards`` (physical parameters, ``(dim,)``; with a ``start`` and ``anchor``) pulls
+    towards another point than the start (a prior's centre).
     """
     if restarts < 1:
         raise CalibrationError(f"restarts must be at least 1 (got {restarts})")
@@ -364,6 +366,7 @@ def calibrate_cmaes(
     if anchor > 0 and x0 is not None:
         mask = np.ones(len(problem.lo), bool) if anchored is None else np.asarray(anchored, bool)
         weights = anchor * mask[problem.free].astype(float)
+    pull = x0 if towards is None else problem.to_unit(towards)
     bar = _bar(progress, max_evaluations * restarts, "CMA-ES")
     best, best_cost, evaluations, run_costs, run_parameters = None, np.inf, 0, [], []
     for run in range(restarts):
@@ -379,7 +382,7 @@ def calibrate_cmaes(
             z = np.asarray(es.ask())
             f = evaluate(problem, surrogate, problem.from_unit(z))
             if weights is not None:
-                f = f + ((z - x0) ** 2 * weights).sum(-1)
+                f = f + ((z - pull) ** 2 * weights).sum(-1)
             es.tell(list(z), f.tolist())
             bar.update(len(z))
             bar.set_postfix(cost=f"{min(best_cost, es.result.fbest):.4f}")

@@ -25,14 +25,15 @@ RESULTS = "calibration.json"
 TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT = 15.0, 5.0
 
 
-def calibrate_case(record: dict, surrogate, seed: int = 0, max_evaluations: int = 6000) -> dict:
-    """Calibrate one suite site (a :func:`buildenv.sites.suite.make_case` record) and return its row."""
+def calibrate_case(record: dict, surrogate, seed: int = 0, max_evaluations: int = 6000, prior: bool = True) -> dict:
+    """Calibrate one suite site (a :func:`buildenv.sites.suite.make_case` record; ``prior`` as
+    :func:`buildenv.calibration.calibrate.calibrate_site`) and return its row."""
     from buildenv.calibration.calibrate import calibrate_site
     from buildenv.sites.reader import load_site
 
     site = load_site(record["site"])
     started = time.perf_counter()
-    result = calibrate_site(site, surrogate, seed=seed, max_evaluations=max_evaluations)
+    result = calibrate_site(site, surrogate, seed=seed, max_evaluations=max_evaluations, prior=prior)
     held = result["heldout"]
     cv, nmbe = held["cv_rmse_q_percent"], held["nmbe_q_percent"]
     return {
@@ -56,8 +57,10 @@ def calibrate_suite(
     seed: int = 0,
     max_evaluations: int = 6000,
     progress: bool = True,
+    prior: bool = True,
 ) -> list[dict]:
-    """Calibrate every made site of ``suite`` in ``parts``; rows are also written to ``<suite>/calibration.json``.
+    """Calibrate every made site of ``suite`` in ``parts`` (``prior``: as
+    :func:`buildenv.calibration.calibrate.calibrate_site`); rows are also written to ``<suite>/calibration.json``.
 
     Raises:
         BuildenvError: the folder has no suite manifest or no made site in ``parts``.
@@ -72,7 +75,7 @@ def calibrate_suite(
     surrogate = load_metamodel(checkpoint)
     rows = []
     for record in tqdm(records, desc="calibrate", unit="site", disable=not progress):
-        rows.append(calibrate_case(record, surrogate, seed, max_evaluations))
+        rows.append(calibrate_case(record, surrogate, seed, max_evaluations, prior))
     path = Path(suite) / RESULTS
     text = dumps({"rows": rows, "summary": summarise(rows)}, where=str(path), nonfinite="null", indent=1)
     path.write_text(text + "\n", encoding="utf-8")

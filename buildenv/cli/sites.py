@@ -226,6 +226,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         restarts=args.restarts,
         effects=declared_for_calibration(site, args.effect, args.no_site_effects),
+        prior=not args.no_prior,
     )
     result["plot"] = str(
         plot_calibration(
@@ -386,6 +387,12 @@ def register(sub) -> None:
         "--no-site-effects",
         action="store_true",
         help="leave out the effects site.toml declares (calibrate the plain model, for comparison)",
+    )
+    p.add_argument(
+        "--no-prior",
+        action="store_true",
+        help="least squares only: leave out the prior that keeps parameters the data do not pin near the middle "
+        "of their ranges (CMA-ES)",
     )
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--seed", type=int, default=0)

@@ -54,7 +54,13 @@ def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
 
     parts = ("development", "held_out") if args.part == "all" else (args.part,)
     rows = calibrate_suite(
-        args.suite, parts, args.checkpoint, seed=args.seed, max_evaluations=args.evaluations, progress=not args.quiet
+        args.suite,
+        parts,
+        args.checkpoint,
+        seed=args.seed,
+        max_evaluations=args.evaluations,
+        progress=not args.quiet,
+        prior=not args.no_prior,
     )
     if args.json:
         print(dumps({"rows": rows, "summary": summarise(rows)}, where="the suite calibration", nonfinite="null"))
@@ -100,7 +106,8 @@ def _cmd_suite_verify(args: argparse.Namespace) -> int:
 def _cmd_suite_library(args: argparse.Namespace) -> int:
     from buildenv.sites.library import write_library
 
-    summary = write_library(args.suite, args.out, n_sites=args.sites, progress=not args.quiet)
+    buildings = [b for b in (args.buildings or "").split(",") if b] or None
+    summary = write_library(args.suite, args.out, n_sites=args.sites, progress=not args.quiet, buildings=buildings)
     print(dumps(summary, where="the library"))
     return 0
 
@@ -134,6 +141,7 @@ def register(sub) -> None:
     p.add_argument("--checkpoint", default=None, help="metamodel checkpoint (default: the shipped one)")
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations per site")
     p.add_argument("--seed", type=int, default=0, help="seed of CMA-ES")
+    p.add_argument("--no-prior", action="store_true", help="least squares only (as buildenv calibrate --no-prior)")
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_suite_calibrate)
@@ -152,5 +160,12 @@ def register(sub) -> None:
     p.add_argument("--suite", required=True, help="suite folder (calibrated by buildenv suite calibrate)")
     p.add_argument("--out", required=True, help="library folder (buildenv/data/sites/library is site='library')")
     p.add_argument("--sites", type=int, default=None, help="how many sites, both parts in proportion (default: all)")
+    p.add_argument(
+        "--buildings",
+        default=None,
+        metavar="A,B",
+        help="only these buildings, e.g. small_office,medium_office,large_office (one action space: the 2004 "
+        "offices share their BMS limits, the 2019 ones fix their outdoor air)",
+    )
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_suite_library)

@@ -444,8 +444,9 @@ def stricter_score(against_control: dict, against_own_refit: dict) -> dict:
 
 
 def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
-    """The base model: the site's calibration when made on the fit weeks without effects, else a new one;
-    then extended with the known ``base_effects`` one by one (:func:`refit`)."""
+    """The base model: the site's calibration when made by least squares (no prior: the ceilings were measured on
+    such fits) on the fit weeks with the declared effects, else a new one; then extended with the known
+    ``base_effects`` one by one (:func:`refit`)."""
     calib = ctx.site.calibration or {}
     none = np.zeros((ctx.site.weeks, 7))
     declared = declared_effects(ctx.site)
@@ -455,6 +456,7 @@ def base_fit(ctx: _Context, progress: bool = False) -> ModelFit:
         and set(calib.get("effects") or ()) == set(declared)
         and calib.get("catalogue_hash") in (cat.catalogue_hash(), *cat.EARLIER_CATALOGUES)  # read upgraded
         and cal.metamodel_mismatch(calib, ctx.surrogate) is None
+        and not calib.get("prior")
     ):
         fit = ModelFit(declared, cal.calibrated_parameters(calib, declared), none, float(calib.get("cost", np.nan)), 0)
     else:

@@ -145,7 +145,11 @@ def _index(rows: list[dict]) -> str:
 
 
 def write_library(
-    suite: str | os.PathLike, out: str | os.PathLike, n_sites: int | None = None, progress: bool = True
+    suite: str | os.PathLike,
+    out: str | os.PathLike,
+    n_sites: int | None = None,
+    progress: bool = True,
+    buildings: list[str] | None = None,
 ) -> dict:
     """Copy calibrated sites of a suite into a library folder ``out`` and write its index.
 
@@ -153,11 +157,15 @@ def write_library(
         suite: a suite folder (``buildenv suite make``) whose sites were calibrated (``buildenv suite calibrate``).
         out: the library folder; replaced when it holds an earlier library, refused when it holds anything else.
         n_sites: how many sites (:func:`choose`); default every calibrated one.
+        buildings: only the sites of these buildings (the suite's names, e.g. ``medium_office``); default all.
+            A context set of ``BuildingWeek-v0`` needs one action space: buildings whose BMS limits differ (the
+            ASHRAE 2019 offices' fixed outdoor air) go in a library of their own.
         progress: a progress bar.
     Returns:
         ``{"library", "sites", "train", "test"}``.
     Raises:
-        BuildenvError: no suite manifest, no calibrated site, ``out`` not a library, ``n_sites`` below 1.
+        BuildenvError: no suite manifest, no calibrated site (of ``buildings``), ``out`` not a library, ``n_sites``
+            below 1.
         SiteError: a copied site that does not load (nothing is left behind).
     """
     from tqdm import tqdm
@@ -165,6 +173,12 @@ def write_library(
     from buildenv.sites.reader import load_site
 
     cases = calibrated_cases(suite)
+    if buildings:
+        unknown = sorted(set(buildings) - {c["building"] for c in cases})
+        if unknown:
+            known = ", ".join(sorted({c["building"] for c in cases}))
+            raise BuildenvError(f"--buildings {','.join(unknown)}: no calibrated site of it in {suite} ({known})")
+        cases = [c for c in cases if c["building"] in buildings]
     if not cases:
         raise BuildenvError(f"{suite}: no calibrated site; run buildenv suite calibrate --suite {suite} first")
     chosen = choose(cases, n_sites)

@@ -212,11 +212,20 @@ def test_same_step_autoreset_with_two_sites_matches_sync(two_sites):
         assert set(got[4]["final_info"]["site"]) <= {"chicago", "leaky"}
 
 
+def _edited_default(folder: Path, *edits: tuple[str, str]) -> Path:
+    """A copy of the default site whose site.toml has each ``(old, new)`` text replaced."""
+    site = _copy_default(folder)
+    toml = (site / "site.toml").read_text(encoding="utf-8")
+    for old, new in edits:
+        toml = toml.replace(old, new)
+    (site / "site.toml").write_text(toml, encoding="utf-8")
+    return site
+
+
 def test_sites_with_different_action_spaces_are_refused_in_one_line(two_sites, tmp_path):
-    fewer = _copy_default(tmp_path / "fewer")
-    toml = (fewer / "site.toml").read_text(encoding="utf-8")
-    toml = toml.replace('    "ventilation_ach",\n', "").replace("limits = { ventilation_ach = [0.45, 0.7] }\n", "")
-    (fewer / "site.toml").write_text(toml, encoding="utf-8")
+    fewer = _edited_default(
+        tmp_path / "fewer", ('    "ventilation_ach",\n', ""), ("limits = { ventilation_ach = [0.45, 0.7] }\n", "")
+    )
     with pytest.raises(BuildingEnvError) as error:
         BuildingWeekEnv(site=[two_sites[0], str(fewer)])
     message = str(error.value)
@@ -225,10 +234,7 @@ def test_sites_with_different_action_spaces_are_refused_in_one_line(two_sites, t
 
 
 def test_sites_with_different_action_ranges_are_refused_in_one_line(two_sites, tmp_path):
-    narrow = _copy_default(tmp_path / "narrow")
-    toml = (narrow / "site.toml").read_text(encoding="utf-8")
-    toml = toml.replace("limits = { ventilation_ach = [0.45, 0.7] }", "limits = { ventilation_ach = [0.45, 0.6] }")
-    (narrow / "site.toml").write_text(toml, encoding="utf-8")
+    narrow = _edited_default(tmp_path / "narrow", ("ventilation_ach = [0.45, 0.7]", "ventilation_ach = [0.45, 0.6]"))
     with pytest.raises(BuildingEnvError) as error:
         BuildingWeekEnv(site=[two_sites[0], str(narrow)])
     message = str(error.value)

@@ -48,6 +48,12 @@ def _handmade(path: Path, start: dt.date, t: np.ndarray, q: np.ndarray) -> Path:
     )
 
 
+def _hourly_rows(start: dt.date, t: np.ndarray, q: np.ndarray) -> list[list[str]]:
+    """Rows ``[timestamp, temperature, energy]`` of an hourly export starting on ``start`` at midnight."""
+    midnight = dt.datetime.combine(start, dt.time())
+    return [[f"{midnight + dt.timedelta(hours=h):%Y-%m-%d %H:%M}", f"{t[h]:.3f}", f"{q[h]:.4f}"] for h in range(HOURS)]
+
+
 def _export(path: Path, header: list[str], rows: list[list[str]]) -> Path:
     path.write_text("\n".join(",".join(r) for r in [header, *rows]) + "\n", encoding="utf-8")
     return path
@@ -183,14 +189,7 @@ def test_end_stamped_register_export(tmp_path):
 def test_a_semicolon_export_with_a_bom_blank_lines_and_empty_rows(tmp_path):
     start = dt.date(2024, 1, 8)
     t, q = _truth(6)
-    rows = [
-        [
-            f"{dt.datetime.combine(start, dt.time()) + dt.timedelta(hours=h):%Y-%m-%d %H:%M}",
-            f"{t[h]:.3f}",
-            f"{q[h]:.4f}",
-        ]
-        for h in range(HOURS)
-    ]
+    rows = _hourly_rows(start, t, q)
     lines = [";".join(r) for r in [["timestamp", "temperature_c", "energy_kwh"], *rows[:50], ["", "", ""], *rows[50:]]]
     export = tmp_path / "bms.csv"
     export.write_text("\ufeff\n" + "\n".join(lines[:30] + [""] + lines[30:]) + "\n", encoding="utf-8")
@@ -244,14 +243,7 @@ def test_hourly_export_in_mwh_and_gj_with_a_settings_file_through_the_cli(tmp_pa
 def test_temperature_gaps_are_reported_or_filled_when_asked(tmp_path):
     start = dt.date(2024, 1, 8)
     t, q = _truth(3)
-    rows = [
-        [
-            f"{dt.datetime.combine(start, dt.time()) + dt.timedelta(hours=h):%Y-%m-%d %H:%M}",
-            f"{t[h]:.3f}",
-            f"{q[h]:.4f}",
-        ]
-        for h in range(HOURS)
-    ]
+    rows = _hourly_rows(start, t, q)
     for h in (30, 31, 100, 101, 102):  # a 2-hour gap and a 3-hour one
         rows[h][1] = ""
     export = _export(tmp_path / "bms.csv", ["timestamp", "temperature_c", "energy_kwh"], rows)

@@ -259,8 +259,8 @@ def train_ppo(
         save: write the trained model there (an SB3 ``.zip``, see :func:`save_policy`).
         progress: show a tqdm bar of simulated weeks.
         historical_start: start the policy's mean at the site's historical settings (the action layer's
-            bias set to ``historical_action``), as CMA-ES starts from them; the saved model needs nothing
-            extra to act.
+            bias set to ``historical_action``; with several sites, the mean of theirs), as CMA-ES starts from
+            them; the saved model needs nothing extra to act.
         observation_noise: standard deviation of the Gaussian noise added to training observations
             (:class:`ObservationNoise`; 0: none). Acting and evaluation use clean observations.
         callback: SB3 callback(s) called during training (e.g. to record a learning curve).
@@ -284,7 +284,7 @@ def train_ppo(
     if historical_start:
         import torch
 
-        historical = np.asarray(venv.unwrapped.venv.unwrapped.historical_action, dtype=np.float32)
+        historical = np.asarray(venv.unwrapped.venv.unwrapped.site_historical_actions.mean(axis=0), dtype=np.float32)
         with torch.no_grad():
             model.policy.action_net.bias.copy_(torch.from_numpy(historical))
     callbacks = [] if callback is None else list(callback) if isinstance(callback, list) else [callback]

@@ -13,6 +13,7 @@ import gymnasium as gym
 import numpy as np
 
 from agents.cmaes import scalar_scores
+from buildenv.errors import BuildingEnvError
 
 
 @dataclass
@@ -45,8 +46,15 @@ def verify(env, week: int, action: np.ndarray) -> Verification:
         ``realised_savings_percent``, ``comfort_historical``, ``comfort_chosen``, ``comfort_historical_predicted``,
         ``comfort_chosen_predicted``, ``energy_historical_kwh``, ``energy_chosen_kwh``,
         ``energy_historical_predicted_kwh``, ``energy_chosen_predicted_kwh``, ``seconds_energyplus``.
+    Raises:
+        BuildingEnvError: an environment with morphed weather years (EnergyPlus runs the site's own weather file).
     """
     base = env.unwrapped
+    if base.arguments.get("weather_years", 1) not in (1, [0], (0,)):
+        raise BuildingEnvError(
+            "verify: the EnergyPlus model runs the site's own weather file, not morphed weather years; verify on an "
+            "environment made with weather_years=1"
+        )
     kwargs = {k: v for k, v in base.arguments.items() if k not in ("backend", "weeks")}
     both = np.stack([base.historical_action, np.asarray(action, dtype=np.float32)])
     predicted = base.evaluate(both, week=week)

@@ -11,6 +11,11 @@ PPO is trained once per seed of ``--ppo-seeds`` (its spread across seeds is part
     PYTHONPATH=. .venv/bin/python bench/ppo_vs_cmaes.py [--variant default] [--timesteps 300000]
         [--num-envs 64] [--ppo-seeds 0,1,2] [--seed 0] [--cmaes-evaluations 6000] [--model PATH] [--validation]
 
+``--library`` trains PPO and SAC (seeds ``--ppo-seeds``) across the shipped site library's training sites and
+weeks instead, scores them against per-week CMA-ES and the historical settings on the held-out sites' test weeks
+and on held-out weeks of the training sites, times the native, sync and async vector environments, and writes
+``bench/results/rl_library.{md,json}``.
+
 ``--model`` scores a saved policy instead of training one (no training time then). ``--variant`` picks one
 of :data:`VARIANTS` (the settings tried while tuning). ``--validation`` is the tuning protocol, which never
 looks at the test weeks: PPO trains on the training weeks less :data:`VALIDATION_WEEKS` and is compared with
@@ -21,6 +26,7 @@ CMA-ES on those; it prints its figures and writes no result file. Otherwise writ
 from __future__ import annotations
 
 import argparse
+import copy
 import datetime as dt
 import json
 import os
@@ -195,7 +201,17 @@ def main() -> None:
         action="store_true",
         help="tuning protocol: hold out VALIDATION_WEEKS of the training weeks, print only",
     )
+    parser.add_argument(
+        "--library",
+        action="store_true",
+        help="PPO and SAC across the shipped site library, scored on held-out sites and weeks (rl_library.md)",
+    )
+    parser.add_argument("--sac-timesteps", type=int, default=100_000, help="SAC training weeks per seed (--library)")
+    parser.add_argument("--sac-num-envs", type=int, default=16, help="SAC environments per step (--library)")
     args = parser.parse_args()
+    if args.library:
+        library_main(args)
+        return
     load_at_start = os.getloadavg()
 
     env = gym.make("BuildingWeek-v0", weeks="all")
@@ -452,6 +468,245 @@ def markdown(result: dict) -> str:
             f"| {t['variant']} | `{json.dumps(VARIANTS[t['variant']])}` | {t['timesteps']} "
             f"| {t['train_reward']:.3f}{note} |"
         )
+    return "\n".join(lines) + "\n"
+
+
+# ---------------------------------------------------------------------------------------------- the library
+#: SAC on the library (``stable_baselines3.SAC`` arguments; SB3's defaults otherwise). Episodes last one week, so
+#: no value is bootstrapped (``gamma`` 0, as PPO's); not tuned.
+SAC_SETTINGS: dict = {
+    "learning_starts": 1024,
+    "batch_size": 256,
+    "buffer_size": 200_000,
+    "train_freq": 1,
+    "gradient_steps": 4,
+    "gamma": 0.0,
+    "policy_kwargs": {"net_arch": [256, 256]},
+}
+#: Held-out weeks scored on the training sites: one of each block of test weeks (every test week on the test sites).
+TRAIN_SITE_WEEKS = (13, 29, 45)
+#: Vector environments timed: (gymnasium's vectorization mode, number of sub-environments).
+SPEED_CASES = (("vector_entry_point", 8), ("vector_entry_point", 64), ("sync", 8), ("sync", 64), ("async", 8))
+
+
+def train_sac(env_kwargs: dict, timesteps: int, num_envs: int, seed: int, save: Path):
+    """SAC (:data:`SAC_SETTINGS`) on ``BuildingWeek-v0``, its mean action started at the mean of the sites'
+    historical actions as PPO's is; returns the model, saved to ``save``."""
+    from stable_baselines3 import SAC
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from agents.ppo import BuildingVecEnv, save_policy
+
+    venv = VecMonitor(BuildingVecEnv(num_envs=num_envs, **env_kwargs))
+    model = SAC("MlpPolicy", venv, seed=seed, device="cpu", verbose=0, **copy.deepcopy(SAC_SETTINGS))
+    historical = venv.unwrapped.venv.unwrapped.site_historical_actions.mean(axis=0)
+    with torch.no_grad():  # SAC squashes its mean with tanh; the actions' range is [-1, 1]
+        model.actor.mu.bias.copy_(torch.from_numpy(np.arctanh(np.clip(historical, -0.95, 0.95)).astype(np.float32)))
+    model.learn(total_timesteps=int(timesteps))
+    save_policy(model, save)
+    return model
+
+
+def library_cases(library: list) -> list[dict]:
+    """The (site, week) pairs scored: every test week of the library's test sites, and :data:`TRAIN_SITE_WEEKS`
+    of its training sites."""
+    from buildenv.env.arguments import split_weeks
+
+    test_weeks = split_weeks(52, "test")
+    return [
+        {"site": s.name, "part": s.part, "week": w}
+        for s in library
+        for w in (test_weeks if s.part == "test" else TRAIN_SITE_WEEKS)
+    ]
+
+
+def steps_per_second(mode: str, num_envs: int, seconds: float = 5.0) -> float:
+    """Simulated weeks per second of a vector ``BuildingWeek-v0`` on the library's training sites (random
+    actions, after one untimed step)."""
+    vec = gym.make_vec(
+        "buildenv:BuildingWeek-v0", num_envs=num_envs, vectorization_mode=mode, site="library", sites="train"
+    )
+    try:
+        vec.reset(seed=0)
+        vec.action_space.seed(0)
+        vec.step(vec.action_space.sample())
+        steps, started = 0, time.perf_counter()
+        while time.perf_counter() - started < seconds:
+            vec.step(vec.action_space.sample())
+            steps += 1
+        return steps * num_envs / (time.perf_counter() - started)
+    finally:
+        vec.close()
+
+
+def library_main(args: argparse.Namespace) -> None:
+    """PPO and SAC trained on the library's training sites and weeks, scored with CMA-ES and the historical
+    settings on held-out sites and weeks; the vector environments' speed. Writes ``rl_library.{md,json}``."""
+    from buildenv.sites.library import SHIPPED_LIBRARY, read_library
+
+    library = read_library(SHIPPED_LIBRARY)
+    train_kwargs = {"site": "library", "sites": "train", "weeks": "train"}
+    seeds = [int(x) for x in args.ppo_seeds.split(",")]
+    agents = []
+    for algo in ("PPO", "SAC"):
+        for seed in seeds:
+            path = ROOT / "out" / "ppo" / f"library_{algo.lower()}_seed{seed}.zip"
+            started = time.perf_counter()
+            if algo == "PPO":
+                model = train_ppo(train_kwargs, timesteps=args.timesteps, num_envs=args.num_envs, seed=seed, save=path)
+            else:
+                model = train_sac(train_kwargs, args.sac_timesteps, args.sac_num_envs, seed, path)
+            seconds = time.perf_counter() - started
+            print(f"{algo} seed {seed}: trained in {seconds:.0f} s", file=sys.stderr, flush=True)
+            agents.append({"algo": algo, "seed": seed, "model": model, "path": str(path), "train_seconds": seconds})
+
+    env = gym.make("BuildingWeek-v0", site="library", sites="all", weeks="all")
+    base = env.unwrapped
+    rows = []
+    for case in library_cases(library):
+        obs, _ = env.reset(options={"site": case["site"], "week": case["week"]})
+        hist = base.evaluate(base.historical_action[None], week=case["week"])
+        cma = optimise_week(env, case["week"], evaluations=args.cmaes_evaluations, seed=args.seed)
+        row = {
+            **case,
+            "historical": {k: float(hist[k][0]) for k in TERMS},
+            "cmaes": {**scores_of(cma), "seconds": cma.seconds},
+            "agents": [],
+        }
+        for agent in agents:
+            scores = base.evaluate(policy_actions(agent["model"], obs[None]), week=case["week"])
+            reward = float(scores["reward"][0])
+            row["agents"].append(
+                {
+                    **{k: float(scores[k][0]) for k in TERMS},
+                    "gap_percent": gap_percent(cma.scores["reward"], reward),
+                }
+            )
+        rows.append(row)
+        print(
+            f"{case['site']} week {case['week']}: historical {row['historical']['reward']:.3f}, CMA-ES "
+            f"{cma.scores['reward']:.3f}, agents " + ", ".join(f"{a['reward']:.3f}" for a in row["agents"]),
+            file=sys.stderr,
+            flush=True,
+        )
+    speed = []
+    for mode, n in SPEED_CASES:
+        speed.append({"mode": mode, "num_envs": n, "steps_per_second": steps_per_second(mode, n)})
+        print(f"{mode} x {n}: {speed[-1]['steps_per_second']:.0f} weeks/s", file=sys.stderr, flush=True)
+    result = {
+        "library": [{"name": s.name, "part": s.part, "building": s.building, "climate": s.climate} for s in library],
+        "ppo_settings": PPO_DEFAULTS,
+        "sac_settings": SAC_SETTINGS,
+        "timesteps": {"PPO": args.timesteps, "SAC": args.sac_timesteps},
+        "num_envs": {"PPO": args.num_envs, "SAC": args.sac_num_envs},
+        "cmaes_evaluations": args.cmaes_evaluations,
+        "cmaes_seed": args.seed,
+        "agents": [{k: v for k, v in a.items() if k != "model"} for a in agents],
+        "cases": rows,
+        "summary": library_summary(rows, agents),
+        "speed": speed,
+    }
+    print(dumps(result["summary"], where="the summary", nonfinite="null", indent=1), flush=True)
+    harness.write_results("rl_library", library_markdown(result), result)
+
+
+def library_summary(rows: list[dict], agents: list[dict]) -> dict:
+    """Per part (held-out sites, training sites' held-out weeks): mean reward of the historical settings, CMA-ES
+    and each agent, each agent's gap of the mean reward to CMA-ES and its weeks within 5 %."""
+    out = {}
+    for part in ("test", "train"):
+        mine = [r for r in rows if r["part"] == part]
+        if not mine:
+            continue
+        cma = float(np.mean([r["cmaes"]["reward"] for r in mine]))
+        out[part] = {
+            "weeks": len(mine),
+            "historical": {k: float(np.mean([r["historical"][k] for r in mine])) for k in TERMS},
+            "cmaes": {k: float(np.mean([r["cmaes"][k] for r in mine])) for k in (*TERMS, "seconds")},
+            "agents": [],
+        }
+        for i, agent in enumerate(agents):
+            mean = {k: float(np.mean([r["agents"][i][k] for r in mine])) for k in TERMS}
+            gaps = [r["agents"][i]["gap_percent"] for r in mine]
+            out[part]["agents"].append(
+                {
+                    "algo": agent["algo"],
+                    "seed": agent["seed"],
+                    **mean,
+                    "gap_percent_of_mean_reward": gap_percent(cma, mean["reward"]),
+                    "weeks_within_5_percent": int(sum(g <= 5.0 for g in gaps)),
+                    "weeks_better_than_historical": int(
+                        sum(r["agents"][i]["reward"] > r["historical"]["reward"] for r in mine)
+                    ),
+                }
+            )
+    return out
+
+
+def library_markdown(result: dict) -> str:
+    """The library benchmark as a Markdown page."""
+    n_train = sum(s["part"] == "train" for s in result["library"])
+    n_test = len(result["library"]) - n_train
+    lines = [
+        "# PPO and SAC across the site library, on held-out sites and weeks, vs per-week CMA-ES",
+        "",
+        f"Trained on the shipped library's {n_train} training sites (`site='library', sites='train', "
+        f"weeks='train'`), each episode a site and a training week drawn at random: PPO "
+        f"(`agents.ppo.train_ppo`, its defaults) {result['timesteps']['PPO']} weeks with "
+        f"{result['num_envs']['PPO']} environments, SAC ({json.dumps(result['sac_settings'])}, not tuned) "
+        f"{result['timesteps']['SAC']} weeks with {result['num_envs']['SAC']}; both start at the sites' mean "
+        "historical settings. Scored (deterministic action, one metamodel-scored week) on every test week "
+        f"(12-15, 28-31, 44-47) of the {n_test} held-out sites (Phoenix, Newark: climates no training site has) "
+        f"and on weeks {', '.join(map(str, TRAIN_SITE_WEEKS))} of the training sites, against CMA-ES optimising "
+        f"each week on its own ({result['cmaes_evaluations']} scored weeks, from the historical settings) and "
+        "against the historical settings. Reward = -(energy_term + comfort_k); gap = (CMA-ES reward - agent "
+        "reward) / |CMA-ES reward|, positive when the agent is worse.",
+        "",
+        "| part | weeks | historical reward | CMA-ES reward (energy / comfort K) | CMA-ES s a week | "
+        "agent | seed | training s | reward (energy / comfort K) | gap % | weeks within 5 % "
+        "| weeks better than historical |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    seconds = {(a["algo"], a["seed"]): a["train_seconds"] for a in result["agents"]}
+    names = {"test": "held-out sites", "train": "training sites, held-out weeks"}
+    for part, s in result["summary"].items():
+        h, c = s["historical"], s["cmaes"]
+        for j, a in enumerate(s["agents"]):
+            first = j == 0
+            lines.append(
+                (
+                    f"| {names[part]} | {s['weeks']} | {h['reward']:.3f} | {c['reward']:.3f} ({c['energy_term']:.3f} / "
+                    f"{c['comfort_k']:.3f}) | {c['seconds']:.1f} "
+                    if first
+                    else "| | | | | "
+                )
+                + f"| {a['algo']} | {a['seed']} | {seconds[(a['algo'], a['seed'])]:.0f} | {a['reward']:.3f} "
+                f"({a['energy_term']:.3f} / {a['comfort_k']:.3f}) | {a['gap_percent_of_mean_reward']:+.1f} "
+                f"| {a['weeks_within_5_percent']}/{s['weeks']} | {a['weeks_better_than_historical']}/{s['weeks']} |"
+            )
+    lines += ["", "Per held-out site (mean over its test weeks; gap % of the mean reward to CMA-ES):", ""]
+    agents = result["agents"]
+    lines.append("| site | historical | CMA-ES | " + " | ".join(f"{a['algo']} s{a['seed']}" for a in agents) + " |")
+    lines.append("|---|---|---|" + "---|" * len(agents))
+    for site in dict.fromkeys(r["site"] for r in result["cases"] if r["part"] == "test"):
+        mine = [r for r in result["cases"] if r["site"] == site]
+        cma = float(np.mean([r["cmaes"]["reward"] for r in mine]))
+        hist = float(np.mean([r["historical"]["reward"] for r in mine]))
+        cells = []
+        for i in range(len(agents)):
+            reward = float(np.mean([r["agents"][i]["reward"] for r in mine]))
+            cells.append(f"{reward:.3f} ({gap_percent(cma, reward):+.1f})")
+        lines.append(f"| {site} | {hist:.3f} | {cma:.3f} | " + " | ".join(cells) + " |")
+    lines += [
+        "",
+        "Speed of the vector environments on the training sites (random actions, simulated weeks per second; "
+        "`gymnasium.make_vec(..., vectorization_mode=...)`; the native one scores each site's sub-environments "
+        "in one metamodel call):",
+        "",
+        "| vectorization | sub-environments | weeks per second |",
+        "|---|---|---|",
+        *(f"| {s['mode']} | {s['num_envs']} | {s['steps_per_second']:,.0f} |" for s in result["speed"]),
+    ]
     return "\n".join(lines) + "\n"
 
 

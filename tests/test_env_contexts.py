@@ -378,3 +378,45 @@ def test_render_names_the_site(two_sites):
     _, info = native.reset(seed=1)
     frames = native.render()
     assert all(f"site {name}, week {week}," in frame for frame, name, week in zip(frames, info["site"], info["week"]))
+
+
+def test_weather_years_are_contexts_scored_under_their_own_weather():
+    env = BuildingWeekEnv(weather_years=3)
+    assert env.site_names == ("default", "default:year1", "default:year2")
+    drawn = {env.reset(seed=seed)[1]["site"] for seed in range(16)}
+    assert drawn == set(env.site_names)
+    plain = BuildingWeekEnv()
+    action = plain.historical_action[None]
+    same = env.evaluate(action, week=46, site="default")
+    np.testing.assert_allclose(same["reward"], plain.evaluate(action, week=46)["reward"], rtol=1e-6)
+    other = env.evaluate(action, week=46, site="default:year1")
+    assert other["energy_historical_kwh"][0] != pytest.approx(same["energy_historical_kwh"][0], rel=1e-3)
+    assert other["energy_term"][0] == pytest.approx(1.0, abs=1e-5)  # the historical settings under that year's weather
+    obs_plain, _ = env.reset(options={"site": "default", "week": 40})
+    obs_year, _ = env.reset(options={"site": "default:year1", "week": 40})
+    assert not np.allclose(obs_plain, obs_year)  # the forecast is the year's
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "message"),
+    [
+        ({"weather_years": 0}, "weather_years=0; give a whole number, 1 or more"),
+        ({"weather_years": [2, 2]}, "weather_years=\\[2, 2\\]; give distinct year numbers"),
+        ({"weather_years": 2, "backend": "energyplus"}, "runs the site's own weather file; give weather_years=1"),
+    ],
+)
+def test_bad_weather_years_get_one_clear_line(kwargs, message):
+    with pytest.raises(BuildingEnvError, match=message) as error:
+        BuildingWeekEnv(**kwargs)
+    assert "\n" not in str(error.value)
+
+
+def test_weather_years_of_one_site_share_its_historical_action_and_are_not_verified_on_energyplus():
+    from agents.verify import verify
+
+    vector = gym.make_vec("BuildingWeek-v0", num_envs=2, weather_years=2)
+    np.testing.assert_array_equal(vector.unwrapped.historical_action, BuildingWeekEnv().historical_action)
+    env = gym.make("BuildingWeek-v0", weather_years=2)
+    env.reset(seed=0)
+    with pytest.raises(BuildingEnvError, match="^verify: the EnergyPlus model runs the site's own weather file"):
+        verify(env, 10, env.unwrapped.historical_action)

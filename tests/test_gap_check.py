@@ -18,9 +18,11 @@ from buildenv.diagnosis.blind_check import (
     REFERENCE_START,
     StandIn,
     _site,
+    beyond_twin,
     diagnose_twin,
     latest_first_monday,
     plan_cases,
+    plan_suite_cases,
     ranked_first,
     reference_start,
     run_check,
@@ -481,3 +483,118 @@ def test_the_merged_records_judge_as_the_run_they_came_from(tmp_path, monkeypatc
     records = harness.records_from_checks(tmp_path / "checks.json")
     assert records["seed7_case_003_twin"][1] == "none" and records["seed7_case_003"][1] == "wind_infiltration"
     assert harness.judge(records["seed7_case_003"][0]) == harness.judge(record)
+
+
+def test_a_suite_plan_draws_buildings_climates_and_seasons_of_its_part():
+    from buildenv.sites.suite import HELD_OUT_CLIMATES, SEASONS
+
+    plan = plan_suite_cases(40, 3, weeks=8, part="held_out")
+    assert plan == plan_suite_cases(40, 3, weeks=8, part="held_out") != plan_suite_cases(40, 4, weeks=8)
+    assert [{k: c[k] for k in ("true", "magnitude")} for c in plan] == [
+        {k: c[k] for k in ("true", "magnitude")} for c in plan_cases(40, 3, weeks=8)
+    ]  # the labels and magnitudes of the stand-in check's plan
+    assert {c["climate"] for c in plan} == set(HELD_OUT_CLIMATES) and {c["part"] for c in plan} == {"held_out"}
+    assert len({c["building"] for c in plan}) >= 4 and {c["season"] for c in plan} == set(SEASONS)
+    for case in plan:
+        start = dt.date.fromisoformat(case["start"])
+        month, day = SEASONS[case["season"]]
+        first = dt.date(start.year, month, day)
+        assert start.weekday() == 0 and first <= start < first + dt.timedelta(weeks=5)
+        assert start + dt.timedelta(weeks=8) <= dt.date(start.year + 1, 1, 1)  # no new year crossed
+    development = plan_suite_cases(40, 3, weeks=8, part="development")
+    assert not {c["climate"] for c in development} & set(HELD_OUT_CLIMATES)
+    with pytest.raises(ValueError, match="part='west'"):
+        plan_suite_cases(2, 0, part="west")
+
+
+def test_a_suite_case_is_judged_beyond_what_its_clean_twin_names():
+    row = {"true": "wind_infiltration", "named": "night_plug_loads", "correct": False}
+    twin = {"selected": ["night_plug_loads"], "named_by_estimate": []}
+    found = beyond_twin({**row, "selected": ["night_plug_loads", "wind_infiltration"], "named_by_estimate": []}, twin)
+    assert found["named"] == "wind_infiltration" and found["correct"] and found["named_raw"] == "night_plug_loads"
+    assert found["twin_named"] == ["night_plug_loads"]
+    missed = beyond_twin({**row, "selected": ["night_plug_loads"], "named_by_estimate": []}, twin)
+    assert missed["named"] == NONE and not missed["correct"]
+    by_estimate = beyond_twin({**row, "selected": [], "named_by_estimate": ["wind_infiltration"]}, twin)
+    assert by_estimate["correct"]
+    clean = {"true": NONE, "named": "night_plug_loads", "selected": ["night_plug_loads"], "named_by_estimate": []}
+    assert beyond_twin(clean, twin)["correct"]  # the site's own structural miss is no false alarm
+    assert not beyond_twin(clean, {"selected": [], "named_by_estimate": []})["correct"]
+
+
+def test_a_blind_check_over_the_suite_makes_its_sites_as_the_suite_does_and_judges_beyond_the_twin(
+    tmp_path, monkeypatch
+):
+    from buildenv.diagnosis import blind_check
+    from buildenv.sites import load_site
+    from buildenv.sites.suite import SEASON_END_USES
+
+    settings = DiagnosisSettings(candidates=("temperature_sensor_bias",), evaluations=400, max_effects=1)
+    check = {
+        "cases": 1,
+        "seed": 5,
+        "settings": settings,
+        "effects": ("temperature_sensor_bias",),
+        "weeks": 4,
+        "matrix": "suite",
+        "part": "held_out",
+    }
+    result = run_check(tmp_path, **check)
+    [row] = result["cases"]
+    assert (row["true"], row["building"], row["climate"], row["season"]) == (
+        "temperature_sensor_bias",
+        "small_office",
+        "usa_nj_newark",
+        "cooling",
+    )
+    site = load_site(tmp_path / "case_000")
+    assert site.weather == "usa_nj_newark" and site.start.isoformat() == row["start"]
+    assert tuple(site.consumption_end_uses) == SEASON_END_USES["cooling"]  # the cooling season's meter
+    assert len({site.settings[w].tobytes() for w in range(site.weeks)}) > 1  # a BMS history that changes
+    assert abs(row["footprint"]["temperature_k"] - abs(row["magnitude"])) < 0.1  # the twin lacks the bias only
+    assert result["base_effects"] == [] and "twin_named" in row and "named_raw" in row
+    assert row["correct"] == (row["named"] == "temperature_sensor_bias")
+    assert set(result["summary"]["by_part"]) == {"held_out"} and result["plan"]["matrix"] == "suite"
+    # a site folder made for another building or climate is refused, not diagnosed under this case's label
+    case = {k: row[k] for k in plan_suite_cases(1, 5, ("temperature_sensor_bias",), 4, "held_out")[0]}
+    with pytest.raises(ValueError, match="made in usa_nj_newark"):
+        _site(tmp_path, {**case, "climate": "usa_az_phoenix"}, StandIn(weeks=4), inject=True)
+
+    def not_again(*args):
+        raise AssertionError("a finished case was run again")
+
+    monkeypatch.setattr(blind_check, "run_case", not_again)
+    assert run_check(tmp_path, **check)["cases"] == result["cases"]  # a rerun reads the finished case back
+
+
+def test_a_clean_suite_case_s_twin_is_another_noise_draw(tmp_path, monkeypatch):
+    from buildenv.diagnosis import blind_check
+
+    made = {}
+    monkeypatch.setattr(blind_check.StandIn, "make", lambda self, path, start, seed, *a: made.update({path.name: seed}))
+    clean = next(c for c in plan_suite_cases(12, 0, weeks=4) if c["true"] == NONE)
+    effect = next(c for c in plan_suite_cases(12, 0, weeks=4) if c["true"] != NONE)
+    for case in (clean, effect):
+        for inject in (True, False):
+            _site(tmp_path, case, StandIn(weeks=4), inject)
+    name = "case_{:03d}".format
+    assert made[name(clean["case"]) + "_twin"] == made[name(clean["case"])] + 1
+    assert made[name(effect["case"]) + "_twin"] == made[name(effect["case"])]  # differs by its effect alone
+
+
+def test_a_suite_case_energyplus_cannot_run_is_recorded_as_refused_not_scored(tmp_path, monkeypatch):
+    from buildenv.diagnosis import blind_check
+    from buildenv.errors import SimulationError
+
+    def fails(self, path, *args):
+        path.mkdir(parents=True)  # a half-made site
+        raise SimulationError("EnergyPlus failed on office.idf: warmup did not converge\nmore detail")
+
+    monkeypatch.setattr(blind_check.StandIn, "make", fails)
+    result = run_check(tmp_path, cases=1, seed=0, effects=("temperature_sensor_bias",), weeks=4, matrix="suite")
+    [row] = result["cases"]
+    assert row["status"] == "refused" and row["reason"] == "EnergyPlus failed on office.idf: warmup did not converge"
+    assert result["summary"]["cases"] == 0 and list(result["summary"]["refused"]) == [0]
+    assert not (tmp_path / "case_000").exists()  # nothing half-made is left
+    with pytest.raises(SimulationError):  # the stand-in check of one building stops on it, as before
+        run_check(tmp_path / "plain", cases=1, seed=0, effects=("temperature_sensor_bias",), base_effects=[])

@@ -106,3 +106,20 @@ def test_save_and_load_reproduce_actions(tiny_model, env, tmp_path):
     np.testing.assert_array_equal(policy_actions(load_policy(again), obs), policy_actions(model, obs))
     with pytest.raises(BuildingEnvError, match="not found"):
         load_policy(tmp_path / "missing.zip")
+
+
+def test_ppo_on_the_library_starts_at_the_mean_of_the_sites_historical_settings():
+    model = train_ppo(
+        {"site": "library", "sites": "train"},
+        timesteps=N_ENVS * 2,
+        num_envs=N_ENVS,
+        n_steps=2,
+        batch_size=16,
+        n_epochs=1,
+        learning_rate=1e-9,
+    )
+    venv = gym.make_vec("BuildingWeek-v0", num_envs=2, site="library", sites="train").unwrapped
+    each = venv.site_historical_actions
+    assert each.shape == (len(venv.site_names), N_ACTION) and len(venv.site_names) > 1
+    bias = model.policy.action_net.bias.detach().numpy()
+    np.testing.assert_allclose(bias, each.mean(axis=0), atol=1e-4)

@@ -11,7 +11,17 @@ from buildenv import catalogue as cat
 from buildenv.cli.main import main
 from buildenv.errors import WeatherError
 from buildenv.weather.epw import load_weather, resolve_epw
-from buildenv.weather.morph import MORPH_RANGES, Morph, draw_morph, morph_epw, morph_many, morph_rows, morph_source
+from buildenv.weather.morph import (
+    MORPH_RANGES,
+    Morph,
+    draw_morph,
+    morph_epw,
+    morph_many,
+    morph_rows,
+    morph_source,
+    morph_weather,
+    weather_year,
+)
 
 DAYS = np.array([31, 28, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31])
 
@@ -143,3 +153,38 @@ def test_energyplus_runs_a_morphed_file_and_a_warmer_january_needs_less_heat(tmp
             result.outputs[0][:, [i for i, n in enumerate(cat.OUTPUT_NAMES) if n != "T_INT_OFFICE"]].sum()
         )
     assert heat["+6 K"] < 0.9 * heat["as is"]
+
+
+def test_the_morph_in_memory_reads_as_the_morphed_file(tmp_path):
+    morph = Morph(shift_k=2.0, stretch=1.15, solar_scale=0.9, wind_scale=1.2)
+    source = load_weather("usa_il_chicago")
+    in_memory = morph_weather(source, morph)
+    from_file = load_weather(morph_epw("usa_il_chicago", tmp_path / "m.epw", morph))
+    # the file rounds to its fields' precision: 0.1 K, 0.1 m/s, whole Wh/m2 and %
+    for name, tolerance in (("TAMB", 0.051), ("WIND_SPEED", 0.051), ("IGLOB_H", 0.51), ("DNI", 0.51), ("RHUM", 1.0)):
+        column = cat.WEATHER_NAMES.index(name)
+        np.testing.assert_allclose(in_memory.hourly[:, column], from_file.hourly[:, column], atol=tolerance)
+
+    # the humidity keeps the dew-point depression: the dew point (Magnus) moves with the dry bulb
+    def dew_point(w):
+        t, rh = w.channel("TAMB"), np.clip(w.channel("RHUM"), 0.1, 100.0)
+        gamma = np.log(rh / 100.0) + 17.625 * t / (243.04 + t)
+        return 243.04 * gamma / (17.625 - gamma)
+
+    moved = dew_point(in_memory) - dew_point(source)
+    shift = in_memory.channel("TAMB") - source.channel("TAMB")
+    kept = in_memory.channel("RHUM") < 99.9  # not capped at saturation
+    np.testing.assert_allclose(moved[kept], shift[kept], atol=0.01)
+    assert np.abs(shift).max() > 4.0
+    warmer = in_memory.channel("TAMB").mean() - source.channel("TAMB").mean()
+    assert warmer == pytest.approx(2.0, abs=1e-6) and not in_memory.hourly.flags.writeable
+    assert in_memory.latitude_deg == source.latitude_deg and np.array_equal(
+        source.channel("TAMB"), load_weather("usa_il_chicago").channel("TAMB")
+    )
+
+
+def test_weather_years_are_the_same_morph_every_time_and_year_0_is_the_file():
+    assert weather_year(0) == Morph()
+    assert weather_year(3) == weather_year(3) != weather_year(4)
+    for name, (low, high) in MORPH_RANGES.items():
+        assert low <= getattr(weather_year(3), name) <= high

@@ -105,6 +105,8 @@ def _cmd_diagnose_check(args: argparse.Namespace) -> int:
         progress=not args.quiet,
         known_parameters=parse_known(args.known),
         weeks=WEEKS if args.weeks is None else args.weeks,
+        matrix=args.matrix,
+        part=args.part,
     )
     (Path(args.out) / "check.json").write_text(
         dumps(result, where="the blind check", nonfinite="null", indent=1, default=float) + "\n"
@@ -266,6 +268,19 @@ def register(sub) -> None:
     p.add_argument("--out", default="out/diagnose-check", help="folder of the cases (a rerun resumes)")
     p.add_argument("--building", default="medium_office")
     p.add_argument("--epw", default="usa_il_chicago")
+    p.add_argument(
+        "--matrix",
+        choices=("stand_in", "suite"),
+        default="stand_in",
+        help="stand_in: every case of --building in --epw; suite: each case a building, climate and season of the "
+        "suite, judged beyond its clean twin's own namings, scored per part",
+    )
+    p.add_argument(
+        "--part",
+        choices=("development", "held_out", "both"),
+        default="both",
+        help="with --matrix suite: the suite's part to draw from (held_out: its held-out climates)",
+    )
     p.add_argument(
         "--weeks",
         type=int,

@@ -28,16 +28,19 @@ from __future__ import annotations
 
 import datetime as dt
 import json
+import shutil
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
 
 from buildenv.diagnosis.effects import DIAGNOSIS_SPLITS, EFFECTS, get_effect
 from buildenv.diagnosis.gap import SERIES, DiagnosisSettings, base_model_gap, diagnose
+from buildenv.errors import ReferenceBuildingError, SimulationError
 
 NONE = "none"
+REFUSED = "refused"
 FIRST_MONDAYS = (dt.date(2019, 10, 7), dt.date(2019, 12, 2))
 REFERENCE_START = dt.date(2019, 11, 4)
 WEEKS = 4
@@ -55,6 +58,32 @@ class StandIn:
     known: dict[str, float] = field(default_factory=dict)
     weeks: int = WEEKS
     split: str = DIAGNOSIS_SPLITS[0]
+    end_uses: tuple[str, ...] | None = None
+    history_seed: int | None = None
+
+    def for_case(self, case: dict) -> StandIn:
+        """The stand-in of one case: itself, or for a suite case (:func:`plan_suite_cases`) its building and
+        climate, its season's meter and a BMS history drawn from its seed, as ``buildenv suite make`` makes them."""
+        if "building" not in case:
+            return self
+        from buildenv.sites.suite import SEASON_END_USES
+
+        return replace(
+            self,
+            building=case["building"],
+            epw=case["climate"],
+            end_uses=SEASON_END_USES[case["season"]],
+            history_seed=case["history_seed"],
+        )
+
+    def history(self) -> np.ndarray:
+        """A suite case's BMS history ``(weeks, 7, 12)``, drawn from :attr:`history_seed` as ``buildenv suite make``
+        draws its sites' (:func:`buildenv.sites.suite.bms_history`)."""
+        from buildenv.energyplus.reference import historical_ventilation_ach
+        from buildenv.sites.suite import bms_history
+
+        rng = np.random.default_rng(self.history_seed)
+        return bms_history(self.weeks, historical_ventilation_ach(self.building), rng)
 
     def plan(self, start: dt.date, effects: list | None, effect_seed: int) -> list:
         """The effects' random choices fixed (:func:`buildenv.energyplus.injections.plan_effects`): holidays with one
@@ -68,6 +97,7 @@ class StandIn:
         """Run the stand-in over :attr:`weeks` weeks from ``start`` and write the site folder ``path``."""
         from buildenv.energyplus.reference import make_reference_site
 
+        suite = {} if self.history_seed is None else {"settings": self.history(), "end_uses": self.end_uses}
         return make_reference_site(
             path,
             self.building,
@@ -79,6 +109,7 @@ class StandIn:
             effect_seed=effect_seed,
             known=self.known,
             record_supply_air=False,  # the checks' ceilings were measured on histories at the default supply air
+            **suite,
         )
 
 
@@ -141,13 +172,52 @@ def plan_cases(
     return plan
 
 
+#: Weeks after its season's first Monday (:data:`buildenv.sites.suite.SEASONS`) a suite case may start.
+SUITE_OFFSETS_WEEKS = 4
+
+
+def plan_suite_cases(
+    cases: int, seed: int, effects: tuple[str, ...] | None = None, weeks: int = WEEKS, part: str = "both"
+) -> list[dict]:
+    """The cases of a blind check over the suite's matrix: each a label (cycling through "none" and ``effects`` as
+    :func:`plan_cases`), a magnitude, and a building, climate and season drawn uniformly from the suite
+    (:func:`buildenv.sites.suite.suite_cases`; ``part`` ``development``, ``held_out`` or ``both``), starting 0 to
+    :data:`SUITE_OFFSETS_WEEKS` - 1 weeks after the season's first Monday, with seeds for its noise, its BMS history
+    and its effect's choices. A clean case's twin is the same site with another noise draw."""
+    from buildenv.sites.suite import suite_cases
+
+    matrix = [c for c in suite_cases() if part in ("both", c.part)]
+    if not matrix:
+        raise ValueError(f"part={part!r}: choose development, held_out or both")
+    rng = np.random.default_rng([seed, 1])  # a stream of its own, apart from the labels' and seeds'
+    plan = []
+    for row in plan_cases(cases, seed, (), effects, weeks):
+        suite_case = matrix[int(rng.integers(len(matrix)))]
+        start = suite_case.start() + dt.timedelta(weeks=int(rng.integers(SUITE_OFFSETS_WEEKS)))
+        plan.append(
+            {
+                **row,
+                "building": suite_case.building,
+                "climate": suite_case.climate,
+                "season": suite_case.season,
+                "part": suite_case.part,
+                "start": start.isoformat(),
+                "history_seed": int(rng.integers(1_000_000)),
+            }
+        )
+    return plan
+
+
 def _site(out: Path, case: dict, stand_in: StandIn, inject: bool) -> Path:
     effects = [(case["true"], case["magnitude"])] if inject and case["true"] != NONE else []
     path = out / (f"case_{case['case']:03d}" if inject else f"case_{case['case']:03d}_twin")
+    stand_in = stand_in.for_case(case)
+    # a clean suite case's twin is another noise draw of it (an effect case's differs by its effect alone)
+    noise = case["noise_seed"] + (1 if "building" in case and not inject and case["true"] == NONE else 0)
     if (path / "site.toml").is_file():
         _check_site_matches(path, case, effects, stand_in)
     else:
-        stand_in.make(path, dt.date.fromisoformat(case["start"]), case["noise_seed"], effects, case["effect_seed"])
+        stand_in.make(path, dt.date.fromisoformat(case["start"]), noise, effects, case["effect_seed"])
     return path
 
 
@@ -186,6 +256,15 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
         raise ValueError(
             f"{path}: this site measures {site.weeks} weeks, the check {stand_in.weeks}; give the "
             "check a fresh --out folder"
+        )
+    if stand_in.history_seed is not None and (
+        site.weather != stand_in.epw
+        or tuple(site.consumption_end_uses) != tuple(stand_in.end_uses)
+        or not np.allclose(site.settings, stand_in.history(), atol=1e-3)
+    ):
+        raise ValueError(
+            f"{path}: this site was made in {site.weather} with another meter or BMS history than case "
+            f"{case['case']} ({stand_in.building} in {stand_in.epw}); give the check a fresh --out folder"
         )
 
 
@@ -338,6 +417,29 @@ def diagnose_twin(out: Path, case: dict, surrogate, settings: DiagnosisSettings,
     }
 
 
+def _make_sites(out: Path, case: dict, stand_in: StandIn) -> str | None:
+    """Make a suite case's site and its clean twin; None when both ran, else why EnergyPlus or the stand-in could
+    not make them (one line; as ``buildenv suite make`` refuses such a case, nothing of them is left behind)."""
+    try:
+        _site(out, case, stand_in, inject=True)
+        _site(out, case, stand_in, inject=False)
+    except (SimulationError, ReferenceBuildingError) as error:
+        for folder in (out / f"case_{case['case']:03d}", out / f"case_{case['case']:03d}_twin"):
+            shutil.rmtree(folder, ignore_errors=True)
+        return str(error).splitlines()[0][:400]
+    return None
+
+
+def beyond_twin(row: dict, twin: dict) -> dict:
+    """A suite case judged beyond its clean twin (:func:`diagnose_twin`): the effects the twin names are the site's
+    own structural misses, not false alarms; the case's answer is the first effect it names (selected, then named
+    by its estimate alone) that its twin does not, else "none". ``named_raw`` keeps the diagnosis' own answer."""
+    own = sorted({*twin["selected"], *twin.get("named_by_estimate", [])})
+    beyond = [e for e in (*row["selected"], *row.get("named_by_estimate", [])) if e not in own]
+    named = beyond[0] if beyond else NONE
+    return {**row, "named_raw": row["named"], "twin_named": own, "named": named, "correct": named == row["true"]}
+
+
 def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> list[str]:
     """Effects the clean stand-in already has (diagnosis of a clean reference site), cached in ``out``."""
     from buildenv.sites import load_site
@@ -429,6 +531,8 @@ def run_check(
     progress: bool = False,
     known_parameters: dict[str, float] | None = None,
     weeks: int = WEEKS,
+    matrix: str = "stand_in",
+    part: str = "both",
 ) -> dict:
     """Run (or resume) a blind check and summarise it.
 
@@ -444,6 +548,11 @@ def run_check(
         progress: progress bar over cases.
         known_parameters: building parameters every site declares known (:class:`StandIn`).
         weeks: weeks each site measures (split as ``settings.split`` says, :func:`buildenv.diagnosis.gap.split_weeks`).
+        matrix: ``"stand_in"`` (every case of ``building`` in ``epw``, the stand-in's own effects from a clean
+            reference site) or ``"suite"``: each case drawn from the suite's buildings, climates and seasons
+            (:func:`plan_suite_cases`, ``part`` of it), diagnosed with no base effects and judged beyond its clean
+            twin's own namings (:func:`beyond_twin`); the summary is given per part.
+        part: with ``matrix="suite"``, ``development``, ``held_out`` or ``both``.
     Returns:
         ``{"summary": ..., "cases": [...], "base_effects": [...], "plan": {...}}``.
     """
@@ -456,20 +565,27 @@ def run_check(
     surrogate = surrogate or load_metamodel("diagnosis")
     settings = settings or DiagnosisSettings()
     stand_in = StandIn(building, epw, dict(known_parameters or {}), weeks, settings.split)
-    known = (
-        known_effects(out, surrogate, settings, stand_in)
-        if base_effects == "auto"
-        else [get_effect(e).name for e in base_effects]
-    )
+    suite = matrix == "suite"
+    if suite:
+        known = []
+    elif base_effects == "auto":
+        known = known_effects(out, surrogate, settings, stand_in)
+    else:
+        known = [get_effect(e).name for e in base_effects]
     settings = DiagnosisSettings(**{**settings.__dict__, "base_effects": tuple(known)})
-    plan = plan_cases(cases, seed, tuple(known), effects, weeks)
+    plan = (
+        plan_suite_cases(cases, seed, effects, weeks, part)
+        if suite
+        else plan_cases(cases, seed, tuple(known), effects, weeks)
+    )
     rows = []
     for case in tqdm(plan, desc="blind cases", disable=not progress):
         path = out / f"case_{case['case']:03d}.json"
         if path.is_file():
             row = json.loads(path.read_text())
             if {k: row.get(k) for k in case} == case:
-                if case["true"] != NONE and ("footprint" not in row or "gap_left" not in row):
+                refused = row.get("status") == REFUSED
+                if not refused and case["true"] != NONE and ("footprint" not in row or "gap_left" not in row):
                     # a case finished before footprints or the gap left after calibration were recorded
                     row["footprint"] = row.get("footprint") or footprint(out, case, stand_in)
                     if "gap_left" not in row:
@@ -477,19 +593,38 @@ def run_check(
                     path.write_text(json.dumps(row, indent=1, default=float) + "\n")
                 rows.append(row)
                 continue
-        row = run_case(out, case, surrogate, settings, stand_in)
+        refused = _make_sites(out, case, stand_in) if suite else None
+        if refused:
+            row = {**case, "status": REFUSED, "reason": refused}
+        else:
+            row = run_case(out, case, surrogate, settings, stand_in)
+            if suite:
+                row = beyond_twin(row, diagnose_twin(out, case, surrogate, settings, stand_in))
         path.write_text(json.dumps(row, indent=1, default=float) + "\n")
         rows.append(row)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]
+    scored = [r for r in rows if r.get("status") != REFUSED]
+    summary = summarise(scored, labels)
+    if suite:
+        summary["refused"] = {
+            r["case"]: f"{r['building']} in {r['climate']}: {r['reason']}" for r in rows if r not in scored
+        }
+        summary["by_part"] = {
+            name: summarise([r for r in scored if r["part"] == name], labels)
+            for name in ("development", "held_out")
+            if any(r["part"] == name for r in scored)
+        }
     return {
-        "summary": summarise(rows, labels),
+        "summary": summary,
         "cases": rows,
         "base_effects": known,
         "plan": {
             "cases": cases,
             "seed": seed,
-            "building": building,
-            "epw": epw,
+            "matrix": matrix,
+            "part": part if suite else None,
+            "building": None if suite else building,
+            "epw": None if suite else epw,
             "weeks": weeks,
             "known_parameters": stand_in.known,
             "settings": {k: v for k, v in settings.__dict__.items() if k != "candidates"},

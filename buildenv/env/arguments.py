@@ -35,6 +35,7 @@ ARGUMENTS: dict[str, Any] = {
     "sites": "all",
     "backend": "metamodel",
     "forecast_noise": 0.0,
+    "weather_years": 1,
     "price": None,
     "render_mode": None,
 }
@@ -69,6 +70,18 @@ def whole(name: str, value: Any, minimum: int = 1) -> int:
     if isinstance(value, bool) or not whole or int(value) < minimum:
         raise BuildingEnvError(f"{ENV_ID}: {name}={value!r}; give a whole number, {minimum} or more")
     return int(value)
+
+
+def weather_years(value: Any) -> list[int]:
+    """The weather years ``weather_years=`` names: a whole number N gives years ``0..N-1``, a list its years
+    (0 is the site's own weather file, k >= 1 the k-th morph of it, :func:`buildenv.weather.morph.weather_year`);
+    else one clear error."""
+    if isinstance(value, (list, tuple)):
+        years = [whole("weather_years", v, 0) for v in value] if value else []
+        if not years or len(set(years)) != len(years):
+            raise BuildingEnvError(f"{ENV_ID}: weather_years={value!r}; give distinct year numbers, 0 or more")
+        return sorted(years)
+    return list(range(whole("weather_years", value)))
 
 
 def finite(name: str, value: Any, minimum: float | None = None) -> float:

@@ -25,7 +25,7 @@ from buildenv.env import contexts as ctx
 from buildenv.env import objectives as obj
 from buildenv.env import render as rnd
 from buildenv.env import tariff as tar
-from buildenv.env.arguments import RENDER_MODES, checked_arguments, finite, split_weeks, whole
+from buildenv.env.arguments import RENDER_MODES, checked_arguments, finite, split_weeks, weather_years, whole
 from buildenv.env.observations import BOUND, forecast, observation_size, observe
 from buildenv.env.registration import ENV_ID
 from buildenv.errors import BuildingEnvError
@@ -42,7 +42,8 @@ class ResetNeededError(BuildingEnvError, gym.error.ResetNeeded):
 
 class Building:
     """What the single and the vector environment share: arguments, spaces and the calibrated site, or the sites of
-    a context set (:mod:`buildenv.env.contexts`), one :class:`SiteScorer` each, all on one loaded metamodel."""
+    a context set (:mod:`buildenv.env.contexts`), one :class:`SiteScorer` per site and weather year, all on one
+    loaded metamodel."""
 
     def __init__(self, extra: tuple[str, ...] = (), **kwargs: Any) -> None:
         args = checked_arguments(kwargs, extra)
@@ -54,11 +55,20 @@ class Building:
         self.band_k = finite("comfort_band_k", args["comfort_band_k"], 0.0)
         self.forecast_noise = finite("forecast_noise", args["forecast_noise"], 0.0)
         self.tariff = tar.tariff_from(args["price"], ENV_ID)
+        years = weather_years(args["weather_years"])
+        if args["backend"] == "energyplus" and years != [0]:
+            raise BuildingEnvError(
+                f"{ENV_ID}: weather_years={args['weather_years']!r} with backend='energyplus': the reference "
+                "building runs the site's own weather file; give weather_years=1 (or [0])"
+            )
         chosen, self.many = ctx.resolve(args["site"], args["sites"])
         from buildenv.metamodel.surrogate import load_metamodel
 
         self.surrogate = load_metamodel(args["metamodel"])  # loaded once, shared by every site
-        self.contexts = [SiteScorer(self, context) for context in chosen]
+        self.contexts = [scorer.in_year(k) for scorer in (SiteScorer(self, c) for c in chosen) for k in years]
+        self.many = self.many or len(years) > 1  # a context set, or weather years of a site: each episode draws one
+        for scorer in self.contexts:
+            scorer.label = scorer.name if self.many else ""
         self.names = tuple(c.name for c in self.contexts)
         ctx.check_alike([(c.name, c.actions) for c in self.contexts])
         n_obs = observation_size(args["observation"])
@@ -145,7 +155,7 @@ class SiteScorer:
         self.comfort_weight, self.target_c, self.band_k = shared.comfort_weight, shared.target_c, shared.band_k
         self.forecast_noise = shared.forecast_noise
         args = self.args
-        self.name = context.name
+        self.name = self.site_name = context.name  # the context's name; its site's (without a weather year)
         self.label = context.name if shared.many else ""  # what info and render name: nothing for a single site
         on = f" on site {self.name!r}" if self.label else ""
         self.site = _load_site(context.source)
@@ -171,6 +181,20 @@ class SiteScorer:
 
             reference_building(self.site)  # fail now, not at the first step
         self._historical: dict[int, tuple[float, float, float]] = {}
+
+    def in_year(self, year: int) -> SiteScorer:
+        """This site under synthetic weather year ``year`` (:func:`buildenv.weather.morph.weather_year`; itself for
+        year 0), named ``"<site>:year<k>"``, its historical scores computed afresh."""
+        if year == 0:
+            return self
+        from buildenv.weather.epw import load_weather
+        from buildenv.weather.morph import morph_weather, weather_year
+
+        twin = copy.copy(self)
+        twin.name = f"{self.name}:year{year}"
+        twin.model = self.model.with_weather(morph_weather(load_weather(self.site.weather), weather_year(year)))
+        twin._historical = {}
+        return twin
 
     def with_surrogate(self, surrogate) -> SiteScorer:
         """A shallow copy whose model runs ``surrogate`` (for pickling)."""

@@ -117,7 +117,9 @@ class BuildingWeekEnv(gym.Env):
     ``comfort`` ("rms", "band", "mean_abs"), ``comfort_band_k`` (1.0 K), ``observation`` ("compact"),
     ``episode_weeks`` (1), ``weeks`` ("train"; "test" is weeks 12-15, 28-31 and 44-47; "all"; or a list),
     ``backend`` ("metamodel", or "energyplus": the site's reference building, for verification),
-    ``forecast_noise`` (0.0 K: the true weather; see Observation Space), ``price`` (None: relative energy; see
+    ``forecast_noise`` (0.0 K: the true weather; see Observation Space), ``weather_years`` (1: the site's own
+    weather file; N: also N - 1 morphs of it, each (site, year) a context named ``"<site>:year<k>"``; or a list of
+    years, :mod:`buildenv.weather.morph`), ``price`` (None: relative energy; see
     Rewards), ``render_mode`` (None, "rgb_array", "ansi"). Unknown arguments and bad values (``comfort_weight=nan``,
     ``episode_weeks=2.7``, ...) are rejected with one line each. ``env.unwrapped.evaluate(actions)`` scores
     ``(N, 7 x k)`` actions in one call.

@@ -331,9 +331,10 @@ class BuildingWeekVectorEnv(VectorEnv):
         range gets the nearest end; the energy term is measured against the historical settings themselves).
 
         Raises:
-            BuildingEnvError: with several sites (each has its own; use :attr:`historical_actions`).
+            BuildingEnvError: with several sites (each has its own; use :attr:`historical_actions`); weather years
+                of one site share its historical action.
         """
-        if self._b.many:
+        if len({c.site_name for c in self._b.contexts}) > 1:
             raise BuildingEnvError(
                 f"{ENV_ID}: historical_action is one site's; with several sites use historical_actions, one row per "
                 "sub-environment (num_envs, 7 x k)"
@@ -345,6 +346,12 @@ class BuildingWeekVectorEnv(VectorEnv):
         """The historical action of each sub-environment's current site, ``(num_envs, 7 x k)`` (see
         :attr:`historical_action`; the first site's before ``reset``)."""
         return np.stack([self._b.contexts[s].actions.encode(self._b.contexts[s].model.historical) for s in self._sites])
+
+    @property
+    def site_historical_actions(self) -> np.ndarray:
+        """The historical action of each of the environment's sites, ``(n_sites, 7 x k)`` in the order of
+        :attr:`site_names` (one row for a single site)."""
+        return np.stack([c.actions.encode(c.model.historical) for c in self._b.contexts])
 
     @property
     def site_names(self) -> tuple[str, ...]:

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -55,6 +55,13 @@ def model_weeks(first_measured: dt.date, measured_weeks: int) -> list[dt.date]:
     while starts[-1] < last:
         starts.append(starts[-1] + dt.timedelta(weeks=1))
     return starts
+
+
+def _epw_rows(day0: dt.date, starts: list[dt.date]) -> np.ndarray:
+    """Hour rows of the EPW year ``(days, 24)`` of each day from ``day0`` to the end of the last week in ``starts``
+    (each day takes the same calendar day of the EPW year)."""
+    days = [day0 + dt.timedelta(days=d) for d in range((starts[-1] - day0).days + 7)]
+    return np.array([epw_day_of_year(d) for d in days])[:, None] * cat.HOURS_PER_DAY + np.arange(24)
 
 
 @dataclass
@@ -115,9 +122,8 @@ class SiteModel:
         occupancy = np.asarray(calib["occupancy"], dtype=float).reshape(len(cat.WEEKDAYS), 2)
         starts = model_weeks(site.start, site.weeks)
         day0 = starts[0] - dt.timedelta(days=7)
-        days = [day0 + dt.timedelta(days=d) for d in range((starts[-1] - day0).days + 7)]
         hourly = np.asarray(load_weather(site.weather).hourly)
-        rows = np.array([epw_day_of_year(d) for d in days])[:, None] * cat.HOURS_PER_DAY + np.arange(24)
+        rows = _epw_rows(day0, starts)
         effects = {
             name: np.array([[values[p.name] for p in get_effect(name).parameters]], dtype=float)
             for name, values in (calib.get("effects") or {}).items()
@@ -136,6 +142,16 @@ class SiteModel:
             effects,
             day0,
         )
+
+    def with_weather(self, weather) -> SiteModel:
+        """The same building on the same calendar under another year of weather (a
+        :class:`buildenv.weather.epw.Weather`, such as a morph of the site's): every day's weather and ground
+        temperature taken from it."""
+        from buildenv.energyplus.shoebox import hourly_ground_temperature_c
+
+        rows = _epw_rows(self._day0, self.week_starts)
+        ground = hourly_ground_temperature_c(weather)
+        return replace(self, weather_days=np.asarray(weather.hourly)[rows], ground_days=ground[rows])
 
     @property
     def weeks(self) -> int:

@@ -25,13 +25,14 @@ from __future__ import annotations
 
 import json
 import os
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from buildenv import catalogue as cat
 from buildenv.errors import WeatherError
-from buildenv.weather.epw import HOURS_PER_YEAR, month_of_hour, resolve_epw
+from buildenv.weather.epw import HOURS_PER_YEAR, Weather, month_of_hour, resolve_epw
 
 #: Ranges the random morphs are drawn from (uniform), spanning neighbouring US climate zones' differences in
 #: mean temperature, synoptic swings, annual irradiation and exposure to wind
@@ -97,6 +98,12 @@ def draw_morph(rng: np.random.Generator, **fixed: float) -> Morph:
     return Morph(**{**values, **{k: float(v) for k, v in fixed.items()}})
 
 
+def weather_year(year: int) -> Morph:
+    """The morph that makes synthetic weather year ``year`` of any weather file: no change for year 0, else a
+    :func:`draw_morph` seeded with ``year`` (the same morph for every site and every run)."""
+    return Morph() if year == 0 else draw_morph(np.random.default_rng(year))
+
+
 def _magnus(t_c: np.ndarray) -> np.ndarray:
     """Saturation vapour pressure up to a constant factor (Magnus, over water), for ratios only."""
     return np.exp(17.625 * t_c / (243.04 + t_c))
@@ -114,9 +121,7 @@ def morph_rows(rows: np.ndarray, morph: Morph) -> np.ndarray:
     """
     out = rows.copy()
     t = rows[:, _DRY_BULB - 1]
-    month = month_of_hour()
-    monthly = np.array([t[month == m].mean() for m in range(12)])[month]
-    t_new = t + morph.shift_k + (morph.stretch - 1.0) * (t - monthly)
+    t_new = _stretched(t, morph)
     dew = np.minimum(rows[:, _DEW_POINT - 1] + (t_new - t), t_new)
     out[:, _DRY_BULB - 1] = t_new
     out[:, _DEW_POINT - 1] = dew
@@ -130,6 +135,38 @@ def morph_rows(rows: np.ndarray, morph: Morph) -> np.ndarray:
         gone = rows[:, field - 1] >= code
         out[gone, field - 1] = rows[gone, field - 1]
     return out
+
+
+def _stretched(t: np.ndarray, morph: Morph) -> np.ndarray:
+    """Hourly dry-bulb temperatures ``(8760,)`` shifted and stretched about their monthly means."""
+    month = month_of_hour()
+    monthly = np.array([t[month == m].mean() for m in range(12)])[month]
+    return t + morph.shift_k + (morph.stretch - 1.0) * (t - monthly)
+
+
+def morph_weather(weather: Weather, morph: Morph) -> Weather:
+    """``weather`` changed as :func:`morph_epw` changes its file, in memory: the dry bulb shifted and stretched
+    about its monthly means, the relative humidity kept at the same dew-point depression (the dew point from
+    the temperature and humidity by the Magnus formula), the solar channels times ``solar_scale``, the wind speed
+    times ``wind_scale``; the wind direction and the site's metadata kept.
+
+    Returns:
+        a new :class:`buildenv.weather.epw.Weather` (``name`` the source's with ``+morph``, ``path`` the source's).
+    """
+    hourly = np.array(weather.hourly, dtype=float)
+    column = {name: cat.WEATHER_NAMES.index(name) for name in cat.WEATHER_NAMES}
+    t = hourly[:, column["TAMB"]]
+    t_new = _stretched(t, morph)
+    gamma = np.log(np.clip(hourly[:, column["RHUM"]], 0.1, 100.0) / 100.0) + 17.625 * t / (243.04 + t)
+    dew = 243.04 * gamma / (17.625 - gamma)
+    dew_new = np.minimum(dew + (t_new - t), t_new)
+    hourly[:, column["RHUM"]] = np.clip(100.0 * _magnus(dew_new) / _magnus(t_new), 0.0, 100.0)
+    hourly[:, column["TAMB"]] = t_new
+    for name in ("DNI", "IBEAM_H", "IBEAM_N", "IDIFF_H", "IGLOB_H"):
+        hourly[:, column[name]] *= morph.solar_scale
+    hourly[:, column["WIND_SPEED"]] *= morph.wind_scale
+    hourly.setflags(write=False)
+    return replace(weather, name=f"{weather.name}+morph", hourly=hourly)
 
 
 def morph_epw(source: str | os.PathLike, out: str | os.PathLike, morph: Morph) -> Path:

@@ -601,6 +601,7 @@ def library_main(args: argparse.Namespace) -> None:
         "num_envs": {"PPO": args.num_envs, "SAC": args.sac_num_envs},
         "cmaes_evaluations": args.cmaes_evaluations,
         "cmaes_seed": args.seed,
+        "conditions": args.conditions,
         "agents": [{k: v for k, v in a.items() if k != "model"} for a in agents],
         "cases": rows,
         "summary": library_summary(rows, agents),
@@ -660,7 +661,8 @@ def library_markdown(result: dict) -> str:
         f"and on weeks {', '.join(map(str, TRAIN_SITE_WEEKS))} of the training sites, against CMA-ES optimising "
         f"each week on its own ({result['cmaes_evaluations']} scored weeks, from the historical settings) and "
         "against the historical settings. Reward = -(energy_term + comfort_k); gap = (CMA-ES reward - agent "
-        "reward) / |CMA-ES reward|, positive when the agent is worse.",
+        "reward) / |CMA-ES reward|, positive when the agent is worse."
+        + (f" Conditions: {result['conditions']}" if result.get("conditions") else ""),
         "",
         "| part | weeks | historical reward | CMA-ES reward (energy / comfort K) | CMA-ES s a week | "
         "agent | seed | training s | reward (energy / comfort K) | gap % | weeks within 5 % "

@@ -555,6 +555,9 @@ def test_a_blind_check_over_the_suite_makes_its_sites_as_the_suite_does_and_judg
     assert result["base_effects"] == [] and "twin_named" in row and "named_raw" in row
     assert row["correct"] == (row["named"] == "temperature_sensor_bias")
     assert set(result["summary"]["by_part"]) == {"held_out"} and result["plan"]["matrix"] == "suite"
+    masked = "temperature_sensor_bias" in row["twin_named"]
+    assert result["summary"]["twin_names_the_injected_effect"] == ({0: "temperature_sensor_bias"} if masked else {})
+    assert result["summary"]["top1_accuracy_beyond_masked"] == (None if masked else float(row["correct"]))
     # a site folder made for another building or climate is refused, not diagnosed under this case's label
     case = {k: row[k] for k in plan_suite_cases(1, 5, ("temperature_sensor_bias",), 4, "held_out")[0]}
     with pytest.raises(ValueError, match="made in usa_nj_newark"):

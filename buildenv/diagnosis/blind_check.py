@@ -606,6 +606,11 @@ def run_check(
     scored = [r for r in rows if r.get("status") != REFUSED]
     summary = summarise(scored, labels)
     if suite:
+        # an effect its clean twin already names cannot be named beyond it: counted apart
+        masked = [r for r in scored if r["true"] != NONE and r["true"] in r.get("twin_named", [])]
+        summary["twin_names_the_injected_effect"] = {r["case"]: r["true"] for r in masked}
+        rest = [r for r in scored if r["true"] != NONE and r not in masked]
+        summary["top1_accuracy_beyond_masked"] = float(np.mean([r["correct"] for r in rest])) if rest else None
         summary["refused"] = {
             r["case"]: f"{r['building']} in {r['climate']}: {r['reason']}" for r in rows if r not in scored
         }

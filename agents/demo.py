@@ -64,8 +64,8 @@ def _diagnosis_text(d: dict) -> str:
         {
             "label": e["name"],
             "score": 100 * e["score"],
-            "p": e["significance"]["p_value"],
-            "selected": "yes" if e["selected"] else "no",
+            "p": e["p_value"] if e["p_value"] is not None else float("nan"),
+            "status": e["status"],
             "parameters": ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items()),
         }
         for e in d["effects"]
@@ -74,7 +74,7 @@ def _diagnosis_text(d: dict) -> str:
         ("effect", "label", ""),
         ("held-out gain %", "score", ".1f"),
         ("p-value", "p", ".2g"),
-        ("selected", "selected", ""),
+        ("answer", "status", ""),
         ("estimated", "parameters", ""),
     ]
     text = f"Verdict: **{d['verdict']}** ({d['seconds']:.0f} s).\n\n{markdown_table(rows, cols)}"
@@ -85,8 +85,6 @@ def _diagnosis_text(d: dict) -> str:
             f"-> {a['cv_rmse_q_percent']:.1f} %, RMSE_T {b['rmse_t_celsius']:.2f} -> {a['rmse_t_celsius']:.2f} "
             f"degC, R2_Q {b['r2_q']:.3f} -> {a['r2_q']:.3f}.\n"
         )
-    if d.get("settings_note"):  # the demo fits the first half, reusing its calibration
-        text += f"\nNote: {d['settings_note']} (`buildenv diagnose` runs theirs).\n"
     loc = d["localisation"]
     return text + f"\nWhere it misses: {loc['temperature']['summary']} {loc['consumption']['summary']}\n"
 

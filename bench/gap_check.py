@@ -1,371 +1,301 @@
-"""The withheld-effect check of the gap diagnosis: confusion matrix, accuracy, shrinkage, time.
+"""The withheld-effect check of the gap diagnosis: confusion matrix, top-1, false alarms, "not enough data", wrong
+effects, shrinkage and time, per part of the suite.
 
-Runs ``buildenv.diagnosis.blind_check.run_check`` (resumable: cases already in ``--out`` are not redone) and merges
-its cases into ``bench/results/<name>.json`` (default ``gap_check``), which holds every seed's sites at their
-latest record (:func:`harness.slim_record`); ``<name>.md`` summarises them all, then this run in full. Targets:
-the injected effect named first in >= 90 % of cases, the no-effect case recognised in >= 90 %, the effect's gap
-shrinking by >= 50 % on held-out weeks, one diagnosis of a 4-week site in under 5 minutes on 2 cores.
+Runs :func:`buildenv.diagnosis.blind_check.run_check` (resumable: the cases already in ``--out`` are read back, not
+redone) and merges its cases into ``bench/results/<name>.json`` (default ``gap_check``), which holds every seed's
+cases of one setup (matrix, part, weeks, diagnosis settings, base effects) at their latest run
+(:func:`harness.slim_case`); ``<name>.md`` scores them all, per part with ``--matrix suite``, then lists this run's
+cases. Targets: the injected effect named first in >= 90 % of the effect cases, no effect named on >= 90 % of the
+clean ones, the effect's gap shrinking by >= 50 % on held-out weeks, one diagnosis of a 4-week site in under 5
+minutes on 2 cores. The diagnosis's options and defaults are those of ``buildenv diagnose-check``.
 """
 
 from __future__ import annotations
 
-import datetime as dt
 import json
-import os
-import platform
+import sys
 import time
 
 import harness
 import numpy as np
 
 from buildenv.cli.sites import add_known_argument, parse_known
-from buildenv.diagnosis.blind_check import (
-    FIRST_MONDAYS,
-    NONE,
-    VISIBLE_NOISE_MULTIPLE,
-    WEEKS,
-    latest_first_monday,
-    run_check,
-)
-from buildenv.diagnosis.effects import DIAGNOSIS_SPLITS, JUDGES, get_effect
-from buildenv.diagnosis.gap import DiagnosisSettings, split_weeks
-from buildenv.energyplus.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
+from buildenv.diagnosis.blind_check import NONE, REFUSED, WEEKS, run_check, summarise
+from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, get_effect
+from buildenv.diagnosis.gap import DiagnosisSettings
+from buildenv.jsonio import dumps
 from buildenv.metamodel.surrogate import load_metamodel
 
-ABOUT = (
-    "Every blind-check site at its latest diagnosis record (runs of bench/gap_check.py, and sites diagnosed "
-    "again), slimmed to what judging its first step needs; bench/gap_headline.py judges them."
-)
+ABOUT = "Every case of the runs of bench/gap_check.py of one setup at its latest run, slimmed (bench/harness.py)."
+PARTS = ("development", "held_out")
 
 
-def _pct(x: float | None) -> str:
-    return "-" if x is None else f"{100 * x:.0f} %"
-
-
-def _implausible(row: dict, alpha: float) -> str:
-    """Candidates of the first step that were significant (``alpha`` Bonferroni over the candidates) but whose
-    estimate is smaller than the effect ever is in practice (``Effect.smallest``), so never named."""
-    names = [n for n in row.get("implausible", []) if row["p_values"].get(n, 1.0) < alpha / len(row["p_values"])]
-    return ", ".join(f"{n} {_primary(row['estimates'][n])}" for n in names) or "-"
-
-
-def _primary(estimate: dict) -> str:
-    return next((f"{k} {v:.3g}" for k, v in estimate.items()), "")
+def arguments():
+    """The check's options: the plan, the diagnosis (as ``buildenv diagnose-check``'s) and the page."""
+    p = harness.parser(__doc__, first_line=True)
+    p.add_argument("--cases", type=int, default=16)
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", default="out/diagnose-check", help="folder of the cases (a rerun resumes)")
+    p.add_argument("--matrix", choices=("stand_in", "suite"), default="stand_in")
+    p.add_argument("--part", choices=("development", "held_out", "both"), default="both", help="with --matrix suite")
+    p.add_argument("--weeks", type=int, default=WEEKS, help="weeks each site measures (fit and held out: --split)")
+    p.add_argument("--effects", default="", help="comma-separated effects injected (default: the whole catalogue)")
+    p.add_argument("--base-effects", default="auto", help="auto, none, or comma-separated effects every case models")
+    add_known_argument(p)
+    p.add_argument("--checkpoint", default="diagnosis", help="metamodel checkpoint of the diagnosis")
+    p.add_argument("--evaluations", type=int, default=DiagnosisSettings.evaluations)
+    p.add_argument("--alpha", type=float, default=DiagnosisSettings.alpha, help="significance level of a step")
+    p.add_argument("--max-effects", type=int, default=CHECKED_DIAGNOSIS["max_effects"])
+    p.add_argument("--base-restarts", type=int, default=CHECKED_DIAGNOSIS["base_restarts"])
+    p.add_argument("--split", choices=DIAGNOSIS_SPLITS, default=CHECKED_DIAGNOSIS["split"])
+    p.add_argument("--refit-step", type=float, default=DiagnosisSettings.refit_step)
+    p.add_argument("--effect-first", type=int, default=DiagnosisSettings.effect_first_evaluations)
+    p.add_argument("--refit-restarts", type=int, default=DiagnosisSettings.refit_restarts)
+    p.add_argument("--refit-anchor", type=float, default=DiagnosisSettings.refit_anchor)
+    p.add_argument("--name", default="gap_check", help="stem of the result files in bench/results")
+    p.add_argument("--note", default="", help="a line on this run for the page")
+    return p
 
 
 def main() -> None:
-    """Run (or resume) the check and write the results."""
-    parser = harness.parser(__doc__)
-    parser.add_argument("--cases", type=int, default=16)
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", default="out/diagnose-check")
-    parser.add_argument("--evaluations", type=int, default=1500)
-    parser.add_argument("--max-effects", type=int, default=2)
-    parser.add_argument(
-        "--refit-step",
-        type=float,
-        default=DiagnosisSettings.refit_step,
-        help="CMA-ES initial step of the building parameters in a refit (share of their ranges)",
-    )
-    parser.add_argument(
-        "--effect-first",
-        type=int,
-        default=DiagnosisSettings.effect_first_evaluations,
-        help="evaluations of a refit's first stage, the new effect alone (0: joint refit only)",
-    )
-    parser.add_argument(
-        "--refit-restarts",
-        type=int,
-        default=DiagnosisSettings.refit_restarts,
-        help="CMA-ES runs of every refit (control and candidates), the lowest fit cost kept",
-    )
-    parser.add_argument(
-        "--refit-anchor",
-        type=float,
-        default=DiagnosisSettings.refit_anchor,
-        help="pull of every refit towards the model it starts from (0: none)",
-    )
-    parser.add_argument("--name", default="gap_check", help="stem of the result files in bench/results")
-    parser.add_argument(
-        "--base-effects",
-        default="auto",
-        help="effects every case models from the start: auto (diagnose a clean reference site "
-        "first), none, or comma-separated names",
-    )
-    parser.add_argument(
-        "--judge",
-        choices=JUDGES,
-        default="pooled",
-        help="score candidates on both series, or on the series each shows in",
-    )
-    parser.add_argument(
-        "--base-restarts", type=int, default=1, help="CMA-ES runs of each base calibration, the lowest fit cost kept"
-    )
-    parser.add_argument(
-        "--checkpoint", default="diagnosis", help="metamodel checkpoint the diagnosis uses (default: 'diagnosis')"
-    )
-    parser.add_argument(
-        "--split",
-        choices=DIAGNOSIS_SPLITS,
-        default=DiagnosisSettings.split,
-        help="fit weeks: the first half, or every other week (buildenv.diagnosis.gap.split_weeks)",
-    )
-    parser.add_argument(
-        "--weeks", type=int, default=WEEKS, help="weeks each site measures (fit and held-out weeks: --split)"
-    )
-    parser.add_argument(
-        "--note", default="", help="a line for the page under its header, e.g. where cases resumed from --out were run"
-    )
-    parser.add_argument(
-        "--effects",
-        default="",
-        help="comma-separated effects the cases inject, with none between them (default: the whole "
-        "catalogue less the known effects)",
-    )
-    add_known_argument(parser)
-    args = parser.parse_args()
-    known = parse_known(args.known)
-    effects = tuple(e.strip() for e in args.effects.split(",") if e.strip()) or None
-    for name in effects or ():
-        get_effect(name)  # a misspelt name fails here, before the long check
-    started, load = time.perf_counter(), os.getloadavg()[0]
+    """Run (or resume) the check, merge its cases and write the page."""
+    args = arguments().parse_args()
+    effects = tuple(get_effect(e.strip()).name for e in args.effects.split(",") if e.strip()) or None
+    base = args.base_effects
+    base = base if base == "auto" else [get_effect(e.strip()).name for e in base.split(",") if e.strip() != "none"]
     settings = DiagnosisSettings(
         evaluations=args.evaluations,
+        alpha=args.alpha,
         max_effects=args.max_effects,
-        judge=args.judge,
         base_restarts=args.base_restarts,
+        split=args.split,
         refit_step=args.refit_step,
         effect_first_evaluations=args.effect_first,
         refit_restarts=args.refit_restarts,
         refit_anchor=args.refit_anchor,
-        split=args.split,
     )
-    base: str | list[str] = args.base_effects
-    if base != "auto":
-        base = [] if base == "none" else [e.strip() for e in base.split(",")]
-    surrogate = load_metamodel(args.checkpoint)
+    started = time.perf_counter()
     result = run_check(
         args.out,
         args.cases,
         args.seed,
-        surrogate=surrogate,
+        surrogate=load_metamodel(args.checkpoint),
         settings=settings,
         base_effects=base,
-        progress=True,
-        known_parameters=known,
-        weeks=args.weeks,
         effects=effects,
+        progress=True,
+        known_parameters=parse_known(args.known),
+        weeks=args.weeks,
+        matrix=args.matrix,
+        part=args.part,
     )
-    s = result["summary"]
-    command = (
-        f"python bench/gap_check.py --cases {args.cases} --seed {args.seed} --out {args.out} "
-        f"--evaluations {args.evaluations} --max-effects {args.max_effects}"
-        + (f" --name {args.name}" if args.name != "gap_check" else "")
-        + (f" --judge {args.judge}" if args.judge != "pooled" else "")
-        + (f" --base-effects {args.base_effects}" if args.base_effects != "auto" else "")
-        + (f" --base-restarts {args.base_restarts}" if args.base_restarts != 1 else "")
-        + (f" --refit-step {args.refit_step:g}" if args.refit_step != DiagnosisSettings.refit_step else "")
-        + (
-            f" --refit-restarts {args.refit_restarts}"
-            if args.refit_restarts != DiagnosisSettings.refit_restarts
-            else ""
-        )
-        + (f" --refit-anchor {args.refit_anchor:g}" if args.refit_anchor != DiagnosisSettings.refit_anchor else "")
-        + (
-            f" --effect-first {args.effect_first}"
-            if args.effect_first != DiagnosisSettings.effect_first_evaluations
-            else ""
-        )
-        + "".join(f" --known {k}={v:g}" for k, v in known.items())
-        + (f" --effects {','.join(effects)}" if effects else "")
-        + (f" --checkpoint {args.checkpoint}" if args.checkpoint != "diagnosis" else "")
-        + (f" --weeks {args.weeks}" if args.weeks != WEEKS else "")
-        + (f" --split {args.split}" if args.split != DiagnosisSettings.split else "")
-    )
-    record = {
-        "date": dt.date.today().isoformat(),
-        "machine": f"{platform.platform()}, {os.cpu_count()} cores",
-        "load_average_at_start": load,
-        "command": command,
+    run = harness.provenance()
+    source = {
+        "source": f"seed{args.seed}_{args.part + '_' if args.matrix == 'suite' else ''}{run['date']}",
+        "seed": args.seed,
+        "command": run["command"],
+        "date": run["date"],
+        "machine": run["machine"],
+        "seconds": round(time.perf_counter() - started, 1),
         "note": args.note,
-        "seconds_this_run": round(time.perf_counter() - started, 1),
-        **result,
     }
-    labels = s["labels"]
-    weeks = result["plan"]["weeks"]
-    fit_weeks = split_weeks(weeks, args.split)[0]
-    named = sorted(
-        {n for row in s["confusion"].values() for n, c in row.items() if c} | set(labels),
-        key=lambda n: (n not in labels, labels.index(n) if n in labels else 0, n),
-    )
-    lines = [
-        "# Gap diagnosis: the withheld-effect check",
-        "",
-        f"{record['date']}, {record['machine']}, 1-min load average at start {load:.2f}; `{command}`.",
-        f"Building: {result['plan']['building']} in {result['plan']['epw']}, {weeks}-week sites "
-        f"({len(fit_weeks)} fit + {weeks - len(fit_weeks)} held-out weeks, split {args.split}), first Monday "
-        f"drawn between {FIRST_MONDAYS[0]} and {FIRST_MONDAYS[1]} (at latest {latest_first_monday(weeks)}, so "
-        f"the period ends in {FIRST_MONDAYS[1].year}), one effect "
-        + (f"of {', '.join(effects)} " if effects else "")
-        + "(or none) injected at a random magnitude, "
-        "diagnosed blind (`buildenv/diagnosis/blind_check.py` states the procedure).",
-        f"Known effects of the clean stand-in, modelled in every case: {result['base_effects'] or 'none'}.",
-        "Building parameters every site declares known (fixed in calibration): "
-        + (", ".join(f"{k} = {v:g}" for k, v in known.items()) or "none")
-        + ".",
-        *([args.note] if args.note else []),
-        "",
-        "| | value | target |",
-        "|---|---|---|",
-        f"| cases | {s['cases']} ({s['effect_cases']} with an effect, {s['none_cases']} without) | |",
-        f"| injected effect named first (top-1) | {_pct(s['top1_accuracy'])} | >= 90 % |",
-        *(
-            [
-                "| of which named by the estimate alone (no held-out gain; "
-                f"`buildenv.diagnosis.gap.named_by_estimate`) | "
-                f"{s['named_by_estimate_right']} | |"
-            ]
-            if "named_by_estimate_right" in s
-            else []
-        ),
-        "| injected effect ranked first (best held-out gain, named or not: attribution alone) | "
-        f"{_pct(s.get('ranked_first_accuracy'))} | |",
-        f"| top-1 among the {s.get('visible_effect_cases', '-')} cases whose effect shows in the data "
-        f"(footprint >= {VISIBLE_NOISE_MULTIPLE * TEMPERATURE_NOISE_K:g} K or "
-        f"{VISIBLE_NOISE_MULTIPLE * 100 * CONSUMPTION_NOISE_FRACTION:g} %) | "
-        f"{_pct(s.get('top1_accuracy_visible'))} | |",
-        f"| top-1 among the {s.get('gap_left_cases') if s.get('gap_left_cases') is not None else '-'} cases "
-        f"whose effect left >= {100 * settings.min_gain:.0f} % of the calibrated model's held-out error "
-        f"(gap left) | {_pct(s.get('top1_accuracy_gap_left'))} | |",
-        f"| no-effect cases recognised | {_pct(s['none_recognised'])} | >= 90 % |",
-        f"| false-alarm rate | {_pct(s['false_alarm_rate'])} | |",
-        *(
-            [f"| no-effect cases named an effect by the estimate alone | {s['named_by_estimate_on_none']} | |"]
-            if "named_by_estimate_on_none" in s
-            else []
-        ),
-        "| mean shrinkage of the effect's gap (held-out, the "
-        f"{s.get('shrinkage_cases_gap_left', '-')} found cases whose effect left a gap) | "
-        f"{_pct(s['mean_shrinkage_of_effect_gap'])} | >= 50 % |",
-        f"| median shrinkage of the effect's gap (every found case) | {_pct(s['median_shrinkage_of_effect_gap'])} | |",
-        f"| mean shrinkage of the whole gap of the series | {_pct(s['mean_shrinkage_of_total_gap'])} | |",
-    ]
-    times = [r["seconds"] for r in result["cases"]]
-    if times:
-        lines.append(
-            f"| seconds per case (diagnosis, + twin run) | median {np.median(times):.0f}, "
-            f"max {max(times):.0f} | diagnosis < 300 |"
-        )
-    lines += [
-        "",
-        "## Confusion matrix (rows: injected, columns: named first)",
-        "",
-        "| injected \\ named | " + " | ".join(named) + " |",
-        "|---" * (len(named) + 1) + "|",
-    ]
-    for t in labels:
-        lines.append(f"| {t} | " + " | ".join(str(s["confusion"][t].get(n, 0)) for n in named) + " |")
-    lines += [
-        "",
-        "## Cases",
-        "",
-        "| case | injected | magnitude | first Monday | named | selected | "
-        "footprint K, % | gap left: T, Q, pooled | gain of the injected effect | shrinkage of its gap | "
-        "significant, estimate implausible | seconds |",
-        "|---|---|---|---|---|---|---|---|---|---|---|---|",
-    ]
-    for r in result["cases"]:
-        gain = r["scores"].get(r["true"])
-        sh = r.get("shrinkage", {}).get("of_effect_gap") if r.get("shrinkage") else None
-        mag = "-" if r["magnitude"] is None else f"{r['magnitude']:.2f}"
-        fp = r.get("footprint")
-        fp_text = (
-            "-"
-            if not fp
-            else (
-                f"{fp['temperature_k']:.2f}, {fp['consumption_percent']:.1f}"
-                + ("" if fp["visible"] else " (not visible)")
-            )
-        )
-        gl = r.get("gap_left")
-        gl_text = (
-            "-"
-            if not gl
-            else (
-                f"{_pct(gl['by_series']['temperature'])}, {_pct(gl['by_series']['consumption'])}"
-                f", {_pct(gl['share'])}" + ("" if gl["left"] else " (none left)")
-            )
-        )
-        lines.append(
-            f"| {r['case']} | {r['true']} | {mag} | {r['start']} | {r['named']} | "
-            f"{', '.join(r['selected']) or '-'} | {fp_text} | {gl_text} | "
-            f"{'-' if gain is None else f'{gain:.3f}'} | "
-            f"{'-' if sh is None else f'{100 * sh:.0f} %'} | {_implausible(r, settings.alpha)} | "
-            f"{r['seconds']} |"
-        )
-    merged = merge_run(args.name, record)
-    lines = [*summary_lines(merged), "", "## The latest run", "", *lines[3:]]
-    harness.write_results(args.name, lines, harness.checks_json(merged["sites"], merged["sources"], ABOUT), echo=True)
+    merged = merge_run(args.name, result, source)
+    lines = [*page(merged), "", *run_lines(result, source)]
+    harness.write_results(args.name, lines, harness.checks_json(merged, merged["sites"]), echo=True)
 
 
-def merge_run(name: str, record: dict) -> dict:
-    """``bench/results/<name>.json``'s sources and sites with ``record``'s run merged in: its cases replace those
-    of its seed (a clean twin diagnosed apart stays)."""
+def setup_of(result: dict) -> dict:
+    """What every run merged into one file shares: the plan less its cases and seed, the base effects modelled and
+    the labels scored (JSON types)."""
+    plan = {k: v for k, v in result["plan"].items() if k not in ("cases", "seed", "part")}
+    setup = {**plan, "base_effects": result["base_effects"], "labels": result["summary"]["labels"]}
+    return json.loads(dumps(setup, where="the check's setup", nonfinite="null"))
+
+
+def merge_run(name: str, result: dict, source: dict) -> dict:
+    """``bench/results/<name>.json`` with a run's cases merged in (those of its seed replaced), its summaries
+    (:func:`summaries`) computed again. A file of an earlier diagnosis's records is replaced; one of another setup
+    is refused (``SystemExit``, one line: the run's cases stay in its ``--out``)."""
     path = harness.RESULTS / f"{name}.json"
-    merged = json.loads(path.read_text()) if path.is_file() else {"sources": [], "sites": {}}
-    seed = record["plan"]["seed"]
-    source = f"{name}_seed{seed}_{record['date']}"
-    merged["sources"] = [s for s in merged["sources"] if s["source"] != source] + [
-        {
-            "source": source,
-            "kind": "run",
-            "command": record["command"],
-            "date": record["date"],
-            "machine": record["machine"],
-            "seed": seed,
-            "plan": record["plan"],
-            "base_effects": record["base_effects"],
-        }
-    ]
-    for case in record["cases"]:
-        merged["sites"][f"seed{seed}_case_{case['case']:03d}"] = harness.slim_record(case | {"source": source})
-    used = {s["source"] for s in merged["sites"].values()}
-    merged["sources"] = [s for s in merged["sources"] if s["source"] in used]
+    setup = setup_of(result)
+    merged = {"about": ABOUT, "setup": setup, "sources": [], "sites": {}}
+    if path.is_file():
+        try:
+            old = harness.read_checks(path)
+        except ValueError as error:
+            print(f"{error}: replaced by this run's cases", file=sys.stderr)
+        else:
+            if old["setup"] != setup:
+                differ = sorted(k for k in {*setup, *old["setup"]} if setup.get(k) != old["setup"].get(k))
+                raise SystemExit(
+                    f"{path}: its runs differ from this one in {', '.join(differ)}; rerun with --name NAME "
+                    "(the cases are read back from --out)"
+                )
+            merged |= {"sources": old["sources"], "sites": old["sites"]}
+    seed, part = source["seed"], result["plan"].get("part")
+    part_key = f"{part}_" if part else ""
+
+    def same_run(site: str) -> bool:
+        s_seed, s_part, _ = harness.SITE.match(site).groups()
+        return int(s_seed) == seed and (s_part or None) == part
+
+    sites = {s: r for s, r in merged["sites"].items() if not same_run(s)}
+    for case in result["cases"]:
+        sites[f"seed{seed}_{part_key}case_{case['case']:03d}"] = harness.slim_case(case) | {"source": source["source"]}
+    used = {r["source"] for r in sites.values()}
+    merged["sources"] = [s for s in merged["sources"] if s["source"] in used and s["source"] != source["source"]]
+    merged["sources"].append(source)
+    merged["sites"] = sites
+    rows = [harness.expand_case(r) | {"case": site} for site, r in sites.items()]
+    merged["summary"] = summaries(rows, setup["labels"])
     return merged
 
 
-def summary_lines(merged: dict) -> list[str]:
-    """The page's summary of every seed's sites as their own diagnoses named them (``named`` as recorded)."""
-    seeds: dict[int, dict] = {}
-    for site, s in merged["sites"].items():
-        seed, _, twin = harness.SITE.match(site).groups()
-        row = seeds.setdefault(
-            int(seed), {"cases": 0, "right": 0, "clean": 0, "clean_right": 0, "twins": 0, "twins_right": 0}
-        )
-        kind = "twins" if twin else "clean" if s["true"] == NONE else "cases"
-        row[kind] += 1
-        row[kind + "_right" if kind != "cases" else "right"] += s["named"] == (NONE if kind != "cases" else s["true"])
-    total = {
-        k: sum(r[k] for r in seeds.values()) for k in ("cases", "right", "clean", "clean_right", "twins", "twins_right")
-    }
-    runs = [s for s in merged["sources"] if s["kind"] == "run"]
-    weeks = sorted({s["plan"]["weeks"] for s in runs})
-    return [
+def summaries(rows: list[dict], labels: list[str]) -> dict:
+    """``{"all": ..., part: ...}``: :func:`buildenv.diagnosis.blind_check.summarise` of the scored cases, over all
+    and over each part of the suite they come from, each with its refused cases, the effect cases whose clean twin
+    names the injected effect too, and the seconds per case (median, max)."""
+    out = {}
+    for part in ("all", *(p for p in PARTS if any(r.get("part") == p for r in rows))):
+        mine = [r for r in rows if part in ("all", r.get("part"))]
+        scored = [r for r in mine if r.get("status") != REFUSED]
+        seconds = [r["seconds"] for r in scored]
+        out[part] = {
+            **summarise(scored, labels),
+            "refused_cases": len(mine) - len(scored),
+            "twin_names_the_injected_effect": sum(
+                r["true"] != NONE and r["true"] in r.get("twin_named", []) for r in scored
+            ),
+            "seconds_median": float(np.median(seconds)) if seconds else None,
+            "seconds_max": max(seconds, default=None),
+        }
+    return out
+
+
+#: The page's rates: (label, summary key, the count it is a share of, target).
+RATES = (
+    ("injected effect named first (top-1)", "top1_accuracy", "effect_cases", ">= 90 %"),
+    ("another effect named", "wrong_effect_rate", "effect_cases", ""),
+    ('"not enough data to tell" for the injected effect', "not_enough_data_rate", "effect_cases", ""),
+    ("injected effect ranked first (best held-out gain, named or not)", "ranked_first_accuracy", "effect_cases", ""),
+    ("top-1 where the effect left a gap after calibration", "top1_accuracy_gap_left", "gap_left_cases", ""),
+    ("false alarms (an effect named on a clean case)", "false_alarm_rate", "none_cases", "<= 5 %"),
+    (
+        "mean shrinkage of the effect's gap (found, a gap left)",
+        "mean_shrinkage_of_effect_gap",
+        "shrinkage_cases_gap_left",
+        ">= 50 %",
+    ),
+    ("median shrinkage of the effect's gap (found)", "median_shrinkage_of_effect_gap", None, ""),
+)
+
+
+def _rate(x: float | None, n: int | None = None) -> str:
+    return "-" if x is None or n == 0 else f"{100 * x:.0f} %" + (f" of {n}" if n else "")
+
+
+def page(merged: dict) -> list[str]:
+    """The page's scores of every merged case: a table with a column per part, a confusion matrix per part."""
+    setup, parts = merged["setup"], merged["summary"]
+    seeds = sorted({int(harness.SITE.match(s).group(1)) for s in merged["sites"]})
+    suite = setup["matrix"] == "suite"
+    where = (
+        "the suite's buildings, climates and seasons, judged beyond each clean twin"
+        if suite
+        else f"{setup['building']} in {setup['epw']}"
+    )
+    settings = ", ".join(f"{k} {v}" for k, v in setup["settings"].items() if k not in ("base_effects", "seed"))
+    lines = [
         "# Gap diagnosis: the withheld-effect check",
         "",
-        f"{len(merged['sites'])} sites of {len(seeds)} seeds ({min(seeds)}-{max(seeds)}): "
-        f"{total['cases']} with an injected effect, {total['clean']} clean, {total['twins']} clean twins, "
-        f"{'/'.join(map(str, weeks))}-week sites of {', '.join(sorted({s['plan']['building'] for s in runs}))} "
-        f"in {', '.join(sorted({s['plan']['epw'] for s in runs}))}, recorded by {len(merged['sources'])} runs "
-        "(`gap_check.json` lists them). As each site's own diagnosis named it; `gap_headline.md` judges them "
-        "with the current rules.",
+        f"{len(merged['sites'])} cases of {len(seeds)} seeds ({seeds[0]}-{seeds[-1]}), {setup['weeks']}-week sites of "
+        f"{where}, one effect (or none) injected at a random magnitude and diagnosed blind "
+        f"(`buildenv/diagnosis/blind_check.py`); base effects {', '.join(setup['base_effects']) or 'none'}; "
+        f"{settings}. Recorded by {len(merged['sources'])} runs (their commands in the json).",
         "",
-        "| | recorded | target |",
-        "|---|---|---|",
-        f"| injected effect named first | {harness.percent(total['right'], total['cases'])} | >= 90 % |",
-        f"| clean cases recognised | {harness.percent(total['clean_right'], total['clean'])} | >= 90 % |",
-        f"| clean twins recognised | {harness.percent(total['twins_right'], total['twins'])} | |",
+        "| | " + " | ".join(parts) + " | target |",
+        "|---" * (len(parts) + 2) + "|",
     ]
+
+    def row(label: str, cell, target: str = "") -> str:
+        return f"| {label} | " + " | ".join(cell(s) for s in parts.values()) + f" | {target} |"
+
+    lines.append(
+        row(
+            "cases: with an effect, clean, refused",
+            lambda s: f"{s['effect_cases']}, {s['none_cases']}, {s['refused_cases']}",
+        )
+    )
+    lines += [
+        row(label, lambda s, k=key, n=count: _rate(s[k], s[n] if n else None), aim) for label, key, count, aim in RATES
+    ]
+    if suite:
+        lines.append(
+            row("injected effect named by the clean twin too", lambda s: str(s["twin_names_the_injected_effect"]))
+        )
+    lines.append(
+        row(
+            "seconds of one diagnosis, case or twin (median)",
+            lambda s: "-" if s.get("median_diagnosis_seconds") is None else f"{s['median_diagnosis_seconds']:.0f}",
+            "< 120 (8 weeks)",
+        )
+    )
+    lines.append(
+        row(
+            "seconds a case (its diagnosis, its footprint and gap left): median, max",
+            lambda s: "-" if s["seconds_max"] is None else f"{s['seconds_median']:.0f}, {s['seconds_max']:.0f}",
+        )
+    )
+    for part, s in parts.items():
+        names = list(next(iter(s["confusion"].values())))
+        lines += ["", f"## Confusion matrix, {part} (rows: injected; columns: the answer)", ""]
+        lines += ["| injected \\ answer | " + " | ".join(names) + " |", "|---" * (len(names) + 1) + "|"]
+        lines += [f"| {t} | " + " | ".join(str(c[n]) for n in names) + " |" for t, c in s["confusion"].items()]
+    return lines
+
+
+def run_lines(result: dict, source: dict) -> list[str]:
+    """This run's cases, one a row: where (suite), injected, answer, the injected effect's gain, p-value and the
+    naming rules it failed, the shrinkage of its gap and the seconds."""
+    suite = result["plan"]["matrix"] == "suite"
+    lines = [
+        f"## This run: seed {source['seed']}",
+        "",
+        f"`{source['command']}`, {source['seconds']:.0f} s (cases already in its --out read back). {source['note']}",
+        "",
+        "| case | " + ("site | " if suite else "") + "injected | magnitude | first Monday | answer | selected | "
+        "not enough data | injected effect: gain, p, rules failed | shrinkage of its gap | seconds |",
+        "|---" * (10 + suite) + "|",
+    ]
+    for r in result["cases"]:
+        where = f"{r['building']}, {r['climate']}, {r['season']} ({r['part']}) | " if suite else ""
+        magnitude = "-" if r["magnitude"] is None else f"{r['magnitude']:.3g}"
+        if r.get("status") == REFUSED:
+            lines.append(
+                f"| {r['case']} | {where}{r['true']} | {magnitude} | {r['start']} | refused: {r['reason']} |||||"
+            )
+            continue
+        t = r["true"]
+        injected = (
+            "-"
+            if t not in r["scores"]
+            else (
+                f"{r['scores'][t]:.3f}, "
+                + ("-" if r["p_values"][t] is None else f"{r['p_values'][t]:.2g}")
+                + f", {', '.join(r['failed'][t]) or 'none'}"
+            )
+        )
+        shrink = (r.get("shrinkage") or {}).get("of_effect_gap")
+        cells = (
+            r["named"],
+            ", ".join(r["selected"]) or "-",
+            ", ".join(r["not_enough_data"]) or "-",
+            injected,
+            "-" if shrink is None or not np.isfinite(shrink) else f"{100 * shrink:.0f} %",
+            f"{r['seconds']:.0f}",
+        )
+        lines.append(f"| {r['case']} | {where}{t} | {magnitude} | {r['start']} | " + " | ".join(cells) + " |")
+    return lines
 
 
 if __name__ == "__main__":

@@ -78,17 +78,17 @@ def main() -> None:
         "",
         f"Diagnosis {result['seconds']:.0f} s.",
         "",
-        f"Verdict: **{result['verdict']}**. Fit weeks {result['fit_weeks']}, held-out weeks {result['heldout_weeks']}.",
+        f"Answer: **{result['answer']}** ({', '.join(result['selected']) or 'no effect selected'}). Verdict: "
+        f"{result['verdict']}. Fit weeks {result['fit_weeks']}, held-out weeks {result['heldout_weeks']}.",
         "",
-        "| effect | held-out gain | p-value | selected | estimated |",
-        "|---|---|---|---|---|",
+        "| effect | status | held-out gain | p-value (threshold) | estimated | why not named |",
+        "|---|---|---|---|---|---|",
     ]
-    for e in result["effects"]:
-        est = ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items())
-        lines.append(
-            f"| {e['name']} | {100 * e['score']:.1f} % | {e['significance']['p_value']:.2g} | "
-            f"{'yes' if e['selected'] else 'no'} | {est} |"
-        )
+    for e in result["effects"]:  # the first step's candidates, best held-out gain first
+        est = ", ".join(f"{k} {v:g}" for k, v in e["parameters"].items()) or "-"
+        p = "-" if e["p_value"] is None else f"{e['p_value']:.2g} ({e['threshold']:.2g})"
+        why = "; ".join(e["failed"].values()) or ("-" if e["status"] == "named" else "another candidate gained more")
+        lines.append(f"| {e['name']} | {e['status']} | {100 * e['score']:.1f} % | {p} | {est} | {why} |")
     if result.get("heldout_after"):
         b, a = result["heldout_before"], result["heldout_after"]
         lines += ["", "| held-out | base model | extended model |", "|---|---|---|"]

@@ -4,8 +4,8 @@ Every benchmark is run from the repository root as ``python bench/NAME.py [optio
 from its own folder. :func:`write_results` writes ``bench/results/<name>.md`` (the page, with the provenance line
 under its title) and ``<name>.json`` (the record, with the provenance under ``"provenance"``).
 
-The rest are measurement helpers more than one benchmark uses: the metamodel runs and timings, the calibration
-benches' machine and CPU meter, and the blind checks' records judged as the current diagnosis judges them.
+The rest are helpers more than one benchmark uses: the metamodel runs and timings, the calibration
+benches' machine and CPU meter, and the blind checks' merged records (``bench/gap_check.py``).
 """
 
 from __future__ import annotations
@@ -371,303 +371,83 @@ def speed_lines(speed: dict, eplus: float, label: str = "model") -> list[str]:
 
 # --- the blind checks' records ----------------------------------------------------------------------------------
 #
-# ``bench/results/gap_check.json`` holds every blind-check site at its latest diagnosis record, one a site
-# (``seed<S>_case_<NNN>``, a clean twin ``..._twin``), slimmed to what judging its first step needs. A record's
-# candidates are stored as ``{effect: [held-out gain, p-value, gain on the temperature, gain on the consumption,
-# estimate]}`` in the diagnosis's order; :func:`expand_record` gives back the diagnosis's own fields.
+# ``bench/results/gap_check.json`` holds the cases of every run of ``bench/gap_check.py`` of one setup (matrix,
+# weeks, diagnosis settings, base effects), one a line under ``sites`` (``seed<S>_case_<NNN>``, over the suite
+# ``seed<S>_<part>_case_<NNN>``), slimmed to what the
+# scores (:func:`buildenv.diagnosis.blind_check.summarise`) read.
 
-ALONE = "estimate alone"  # how :func:`naming` says a record names its effect by the estimate alone
-NIGHT_FIRST = "night electricity"  # ... and by the night electricity its model carries
-SITE = re.compile(r"seed(\d+)_case_(\d+)(_twin)?$")
-SERIES = ("temperature", "consumption")
+SITE = re.compile(r"seed(\d+)_(?:([a-z_]+)_)?case_(\d+)$")
 CHECKS = RESULTS / "gap_check.json"
+#: The fields of a blind-check case :func:`slim_case` keeps as they are.
+KEPT = (
+    *("case", "true", "magnitude", "start", "building", "climate", "season", "part", "status", "reason"),
+    *("named", "answer", "selected", "not_enough_data", "named_raw", "twin_named", "correct", "seconds"),
+    *("diagnosis_seconds", "twin_diagnosis_seconds"),
+)
 
 
-def slim_record(record: dict) -> dict:
-    """A diagnosis record as ``gap_check.json`` keeps it: the case, its truth and naming, its fit weeks'
-    irradiance and its first step's candidates (``ranked`` follows from the gains and is left out)."""
-    keep = ("case", "true", "twin_of", "magnitude", "start", "named", "fit_irradiance_w_m2", "source")
-    out = {k: record[k] for k in keep if k in record}
-    if record.get("joint_tests"):
-        out["joint_tests"] = record["joint_tests"]
-    gains = record.get("gains_by_series", {})
-    out["candidates"] = {
-        name: [
-            record["scores"][name],
-            record["p_values"][name],
-            *(gains.get(name, {}).get(s) for s in SERIES),
-            record["estimates"][name],
-        ]
-        for name in record["scores"]
-    }
+def slim_case(row: dict) -> dict:
+    """A blind-check case as ``gap_check.json`` keeps it: the fields of :data:`KEPT`, the shrinkage of its effect's
+    gap (``of_effect_gap``, ``of_total_gap``), the gap its effect left (``share``, ``left``), whether its footprint
+    is visible, and the first step's candidates as ``{effect: [held-out gain, p-value, [rules failed]]}``, best
+    gain first (a refused case has none)."""
+    out = {k: row[k] for k in KEPT if k in row}
+    if row.get("shrinkage"):
+        out["shrinkage"] = {k: row["shrinkage"][k] for k in ("of_effect_gap", "of_total_gap")}
+    if "gap_left" in row:
+        out["gap_left"] = {k: row["gap_left"][k] for k in ("share", "left")}
+    if "footprint" in row:
+        out["footprint"] = {"visible": row["footprint"]["visible"]}
+    if "ranked" in row:
+        out["candidates"] = {n: [row["scores"][n], row["p_values"][n], row["failed"][n]] for n in row["ranked"]}
     return out
 
 
-def expand_record(slim: dict) -> dict:
-    """The diagnosis record a :func:`slim_record` stands for (``scores``, ``p_values``, ``gains_by_series``,
-    ``estimates`` and ``ranked`` by held-out gain)."""
-    record = {k: v for k, v in slim.items() if k != "candidates"}
-    candidates = slim["candidates"]
-    record["scores"] = {n: c[0] for n, c in candidates.items()}
-    record["p_values"] = {n: c[1] for n, c in candidates.items()}
-    record["gains_by_series"] = {
-        n: dict(zip(SERIES, c[2:4])) for n, c in candidates.items() if c[2] is not None or c[3] is not None
-    }
-    record["estimates"] = {n: c[4] for n, c in candidates.items()}
-    record["ranked"] = sorted(record["scores"], key=lambda n: -record["scores"][n])
-    return record
+def expand_case(slim: dict) -> dict:
+    """The case a :func:`slim_case` stands for: ``ranked``, ``scores``, ``p_values`` and ``failed`` back from its
+    candidates, a shrinkage written as null (not defined) back to NaN."""
+    row = {k: v for k, v in slim.items() if k != "candidates"}
+    if "shrinkage" in slim:
+        row["shrinkage"] = {k: float("nan") if v is None else v for k, v in slim["shrinkage"].items()}
+    if "candidates" in slim:
+        candidates = slim["candidates"]
+        row["ranked"] = list(candidates)
+        for i, key in enumerate(("scores", "p_values", "failed")):
+            row[key] = {n: c[i] for n, c in candidates.items()}
+    return row
 
 
-def checks_json(sites: Mapping[str, dict], sources: list[dict], about: str) -> str:
-    """``gap_check.json``'s text: ``about``, the ``sources`` (the runs that recorded the sites) and the slim
-    ``sites`` in seed and case order, one a line."""
+def checks_json(header: Mapping, sites: Mapping[str, dict]) -> str:
+    """``gap_check.json``'s text: each entry of ``header`` on a line, then the slim ``sites`` in seed and case order,
+    one a line (non-finite numbers as null)."""
 
-    def order(site: str) -> tuple:
-        seed, case, twin = SITE.match(site).groups()
-        return int(seed), int(case), bool(twin)
+    def line(value) -> str:
+        return dumps(value, where="gap_check.json", nonfinite="null", separators=(",", ":"), default=_jsonable)
 
-    body = ",\n".join(
-        f"{json.dumps(site)}:{json.dumps(sites[site], separators=(',', ':'))}" for site in sorted(sites, key=order)
-    )
-    listed = ",\n".join(json.dumps(source, separators=(",", ":")) for source in sources)
-    return f'{{"about": {json.dumps(about)},\n"sources": [\n{listed}\n],\n"sites": {{\n{body}\n}}}}\n'
+    def order(site: str) -> tuple[int, str, int]:
+        seed, part, case = SITE.match(site).groups()
+        return int(seed), part or "", int(case)
+
+    head = "".join(f"{json.dumps(key)}: {line(value)},\n" for key, value in header.items() if key != "sites")
+    body = ",\n".join(f"{json.dumps(site)}:{line(sites[site])}" for site in sorted(sites, key=order))
+    return f'{{{head}"sites": {{\n{body}\n}}}}\n'
 
 
-def naming(
-    row: dict,
-    alpha: float,
-    min_gain: float,
-    clean_ceilings: bool | Mapping[str, float] = True,
-    estimate_ceilings: bool | Mapping[str, float] = False,
-) -> tuple[str, str]:
-    """The effect a recorded case's first step names under the current plausibility rules, and how: ``(name,
-    "held-out gain" | "joint test" | "estimate alone" | "night electricity")``, or ``("none", "")``.
+def read_checks(path: str | Path = CHECKS) -> dict:
+    """A ``gap_check.json`` (``path`` as given, else from the repository root), its sites slim (:func:`slim_case`).
 
-    The candidates are judged as :func:`buildenv.diagnosis.gap.candidate_qualifies` judges them; when none
-    qualifies, the joint tests the record ran, then the estimates against ``estimate_ceilings``
-    (:func:`buildenv.diagnosis.gap.named_by_estimate`); with estimate ceilings on, a night electricity far beyond
-    its ceiling names night plug loads first (:func:`buildenv.diagnosis.gap.night_load_named_first`). A record
-    with its fit weeks' irradiance (``fit_irradiance_w_m2``, W/m2) has the catalogue's ceilings judged at it.
+    Raises:
+        ValueError: the file holds no ``setup`` or a site without an ``answer``: records of an earlier diagnosis.
     """
-    from buildenv.diagnosis.effects import ceilings_in_sunshine
-    from buildenv.diagnosis.gap import NIGHT_LOADS, night_load_named_first
-
-    irradiance = row.get("fit_irradiance_w_m2")
-    if clean_ceilings is True and irradiance is not None:
-        clean_ceilings = ceilings_in_sunshine(irradiance)
-    if estimate_ceilings is True and irradiance is not None:
-        estimate_ceilings = ceilings_in_sunshine(irradiance, "estimate")
-    name, how = _naming_by_gain(row, alpha, min_gain, clean_ceilings, estimate_ceilings)
-    ceilings = False if clean_ceilings is False else estimate_ceilings
-    if (name, how) != (NIGHT_LOADS, "held-out gain") and night_load_named_first(row["estimates"], ceilings):
-        return NIGHT_LOADS, NIGHT_FIRST
-    return name, how
-
-
-def _naming_by_gain(
-    row: dict,
-    alpha: float,
-    min_gain: float,
-    clean_ceilings: bool | Mapping[str, float],
-    estimate_ceilings: bool | Mapping[str, float],
-) -> tuple[str, str]:
-    """:func:`naming` without the night-electricity rule."""
-    from buildenv.diagnosis.blind_check import NONE
-    from buildenv.diagnosis.gap import absorbed_candidate, candidate_qualifies, joint_test_qualifies, named_by_estimate
-
-    threshold = alpha / len(row["p_values"])
-    ranked = sorted(row["scores"], key=lambda n: -row["scores"][n])
-    for name in ranked:
-        if candidate_qualifies(
-            name,
-            row["scores"][name],
-            row["p_values"][name],
-            threshold,
-            min_gain,
-            row["estimates"][name],
-            row.get("gains_by_series", {}).get(name),
-            clean_ceilings,
-        ):
-            return name, "held-out gain"
-    joint = row.get("joint_tests", {})
-    for name in ranked:
-        if absorbed_candidate(name, row["estimates"][name], clean_ceilings):
-            if name in joint and joint_test_qualifies(name, joint[name], threshold, clean_ceilings):
-                return name, "joint test"
-    alone = named_by_estimate(
-        row["estimates"],
-        row["scores"],
-        False if clean_ceilings is False else estimate_ceilings,
-        row.get("gains_by_series"),
-    )
-    return (alone[0], ALONE) if alone else (NONE, "")
-
-
-def judge(record: dict) -> tuple[str, str]:
-    """The effect a diagnosis record's first step names under the catalogue's current ceilings, and how
-    (:func:`naming` at the diagnosis's significance level, estimate ceilings on)."""
-    from buildenv.diagnosis.effects import MIN_GAIN
-    from buildenv.diagnosis.gap import DiagnosisSettings
-
-    return naming(record, DiagnosisSettings().alpha, MIN_GAIN, estimate_ceilings=True)
-
-
-def records_from_checks(path: str | Path) -> dict[str, tuple[dict, str, str]]:
-    """``{site: (record, true effect, source)}`` of a ``gap_check.json`` (a clean twin's true effect is none)."""
-    from buildenv.diagnosis.blind_check import NONE
-
-    sites = json.loads(_path(path).read_text())["sites"]
-    return {
-        site: (expand_record(s), NONE if s.get("twin_of") else s["true"], s.get("source", Path(path).stem))
-        for site, s in sites.items()
-    }
-
-
-def records_from_rediagnosis(path: str) -> dict[str, tuple[dict, str, str]]:
-    """``{site: (record, true effect, source)}`` of a rediagnosis json (its ``records``; a clean twin's true
-    effect is none)."""
-    from buildenv.diagnosis.blind_check import NONE
-
-    page = json.loads(_path(path).read_text())
-    return {site: (r, NONE if r.get("twin_of") else r["true"], Path(path).stem) for site, r in page["records"].items()}
-
-
-def records_from_run(path: str) -> dict[str, tuple[dict, str, str]]:
-    """``{site: (record, true effect, source)}`` of one run's json of ``bench/gap_check.py`` (its ``cases``)."""
-    page = json.loads(_path(path).read_text())
-    seed = page["plan"]["seed"]
-    return {f"seed{seed}_case_{r['case']:03d}": (r, r["true"], Path(path).stem) for r in page["cases"]}
-
-
-def diagnosed_records(
-    rediagnosed: list[str], runs: list[str], checks: list[str] = ()
-) -> dict[str, tuple[dict, str, str]]:
-    """Every diagnosed site's latest record (``checks`` first, then rediagnoses, then runs; later pages over
-    earlier ones), each with its fit weeks' irradiance (``fit_irradiance_w_m2``, W/m2: :func:`irradiance_of_sites`
-    where the record lacks it and a page gives the weeks' weather)."""
-    out: dict[str, tuple[dict, str, str]] = {}
-    for path in checks:
-        out |= records_from_checks(path)
-    for paths, read in ((rediagnosed, records_from_rediagnosis), (runs, records_from_run)):
-        for path in paths:
-            out |= read(path)
-    missing = [site for site, (record, _, _) in out.items() if "fit_irradiance_w_m2" not in record]
-    if missing:
-        irradiance = irradiance_of_sites(runs + [p for path in rediagnosed for p in pages_of(path)])
-        for site in missing:
-            record, truth, source = out[site]
-            if site.removesuffix("_twin") in irradiance:
-                out[site] = ({**record, "fit_irradiance_w_m2": irradiance[site.removesuffix("_twin")]}, truth, source)
-    return out
-
-
-def pages_of(path: str) -> list[str]:
-    """The run pages a rediagnosis json diagnosed the sites of (its command's ``--page`` options)."""
-    words = shlex.split(json.loads(_path(path).read_text())["command"])
-    return [page for option, page in zip(words, words[1:]) if option == "--page"]
-
-
-def irradiance_of_sites(pages: list[str]) -> dict[str, float]:
-    """``{site: W/m2}``: the fit weeks' mean global horizontal irradiance
-    (:func:`buildenv.diagnosis.gap.fit_irradiance_w_m2`) of every case of run pages (a clean twin has its case's
-    weeks), from each case's first Monday and the page's weather, weeks and split (none for a page without them)."""
-    from buildenv.diagnosis.gap import fit_irradiance_w_m2, split_weeks
-    from buildenv.weather.epw import epw_hours, load_weather
-
-    out: dict[str, float] = {}
-    for path in dict.fromkeys(pages):
-        page = json.loads(_path(path).read_text())
-        plan = page["plan"]
-        if not {"epw", "weeks", "settings"} <= set(plan):
-            continue
-        hourly = load_weather(plan["epw"]).hourly
-        fit = split_weeks(plan["weeks"], plan["settings"]["split"])[0]
-        for case in page["cases"]:
-            weather = hourly[epw_hours(dt.date.fromisoformat(case["start"]), plan["weeks"])]
-            out[f"seed{plan['seed']}_case_{case['case']:03d}"] = fit_irradiance_w_m2(weather, fit)
-    return out
-
-
-def _path(path: str | Path) -> Path:
-    """A page's path as given, else from the repository root."""
     path = Path(path)
-    return path if path.is_absolute() or path.exists() else ROOT / path
-
-
-def add_sources(p: argparse.ArgumentParser) -> None:
-    """The blind checks' records as options: ``--checks`` files (default ``bench/results/gap_check.json`` when no
-    other source is given), ``--rediagnosed`` and ``--run`` pages (repeatable), or ``--sources-of`` a headline's
-    json, whose recorded command gives them."""
-    p.add_argument(
-        "--checks",
-        action="append",
-        default=[],
-        help="a merged gap_check.json (default: bench/results/gap_check.json when no other source is given)",
+    path = path if path.is_absolute() or path.exists() else ROOT / path
+    checks = json.loads(path.read_text())
+    old = next(
+        (s for s, r in checks.get("sites", {}).items() if "answer" not in r and r.get("status") != "refused"), None
     )
-    p.add_argument("--rediagnosed", action="append", default=[], help="a rediagnosis json (its records)")
-    p.add_argument("--run", action="append", default=[], help="one run's json of bench/gap_check.py")
-    p.add_argument(
-        "--sources-of",
-        default="",
-        metavar="HEADLINE_JSON",
-        help="take the sources from this headline's recorded command",
-    )
-
-
-def _options(path: str | Path) -> list[tuple[str, str]]:
-    words = shlex.split(json.loads(_path(path).read_text())["command"])
-    return list(zip(words, words[1:]))
-
-
-def headline_sources(path: str | Path) -> tuple[list[str], list[str]]:
-    """The ``--rediagnosed`` and ``--run`` pages of the headline json at ``path``, read off its recorded command;
-    a headline built from ``--replayed`` pages too cannot be replayed and raises ``ValueError``."""
-    pairs = _options(path)
-    if any(option == "--replayed" for option, _ in pairs):
-        raise ValueError(f"{path}: its headline counts --replayed pages, which a replay cannot judge again")
-    return ([p for option, p in pairs if option == "--rediagnosed"], [p for option, p in pairs if option == "--run"])
-
-
-def source_pages(args: argparse.Namespace) -> tuple[list[str], list[str]]:
-    """``args``' ``--rediagnosed`` and ``--run`` pages (:func:`add_sources`): those of ``--sources-of`` first, then
-    those given, each page once (a later page replaces an earlier one's sites)."""
-    rediagnosed, runs = headline_sources(args.sources_of) if args.sources_of else ([], [])
-    return (list(dict.fromkeys(rediagnosed + args.rediagnosed)), list(dict.fromkeys(runs + args.run)))
-
-
-def check_files(args: argparse.Namespace, default: bool = True) -> list[str]:
-    """``args``' ``--checks`` files: those of ``--sources-of`` first, then those given; with ``default``,
-    ``bench/results/gap_check.json`` when no source at all is given."""
-    given = list(getattr(args, "checks", []) or [])
-    sources_of = getattr(args, "sources_of", "")
-    checks = [p for option, p in _options(sources_of) if option == "--checks"] if sources_of else []
-    checks = list(dict.fromkeys(checks + given))
-    others = any(getattr(args, k, None) for k in ("rediagnosed", "run", "replayed", "sources_of"))
-    if not checks and default and not others:
-        checks = [os.path.relpath(CHECKS, Path.cwd()) if Path.cwd() == ROOT else str(CHECKS)]
+    if "setup" not in checks or old is not None:
+        raise ValueError(
+            f"{path}: records of an earlier diagnosis ({old or 'no setup'}); run bench/gap_check.py with the "
+            "current one, or give the file it wrote"
+        )
     return checks
-
-
-def judged_sources(args: argparse.Namespace) -> tuple[dict[str, tuple[dict, str, str]], dict[str, str], int, str]:
-    """The sites of ``args``' sources (:func:`add_sources`) as the headline judges them: ``(records, {site: named
-    now}, how many are named right, the sources as command-line options)``."""
-    checks = check_files(args)
-    records = diagnosed_records(*source_pages(args), checks)
-    before = {site: judge(record)[0] for site, (record, _, _) in records.items()}
-    right = sum(before[site] == truth for site, (_, truth, _) in records.items())
-    shown = list(getattr(args, "checks", []) or []) if args.sources_of else checks
-    options = (
-        "".join(f" --checks {p}" for p in shown)
-        + "".join(f" --rediagnosed {p}" for p in args.rediagnosed)
-        + "".join(f" --run {p}" for p in args.run)
-        + (f" --sources-of {args.sources_of}" if args.sources_of else "")
-    )
-    return records, before, right, options
-
-
-def replay_scope(records: dict, right: int) -> str:
-    """A sentence on what a page judges: ``records`` from :func:`judged_sources`, ``right`` of them named right."""
-    return (
-        f"{len(records)} sites as `bench/gap_headline.py` judges them ({right} named right), first step only, "
-        "in-sample."
-    )

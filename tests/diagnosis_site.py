@@ -1,4 +1,4 @@
-"""The default site as the gap diagnosis' ceilings and its tests were measured on.
+"""The default site as the gap diagnosis' tests diagnose it.
 
 Its history with the supply air at 19 degC (the shipped site now records what its air loops supply) and its
 calibration by the diagnosis' metamodel (``load_metamodel("diagnosis")``), in a temporary copy.

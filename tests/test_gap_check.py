@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import argparse
 import dataclasses
 import datetime as dt
 import json
@@ -14,7 +13,9 @@ from diagnosis_site import DEFAULT_SITE
 
 from buildenv.cli.main import main
 from buildenv.diagnosis.blind_check import (
+    GAP_LEFT_SHARE,
     NONE,
+    NOT_ENOUGH_DATA,
     REFERENCE_START,
     StandIn,
     _site,
@@ -71,8 +72,12 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     rows = {r["true"]: r for r in result["cases"]}
     assert rows["temperature_sensor_bias"]["named"] == "temperature_sensor_bias"
     assert rows[NONE]["named"] == NONE
+    # both candidates can show on any site: nothing lacked data, and the clean site's answer is a plain none
+    assert rows["temperature_sensor_bias"]["answer"] == "named" and rows[NONE]["answer"] == NONE
+    assert rows[NONE]["not_enough_data"] == []
     summary = result["summary"]
     assert summary["top1_accuracy"] == 1.0 and summary["false_alarm_rate"] == 0.0
+    assert summary["not_enough_data_rate"] == summary["wrong_effect_rate"] == 0.0
     assert summary["confusion"]["temperature_sensor_bias"]["temperature_sensor_bias"] == 1
     bias = rows["temperature_sensor_bias"]
     # the bias is all the injection changed: the twin differs by it on every hour, the consumption not at all
@@ -84,7 +89,7 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     assert shrink["series"] == "temperature" and shrink["mse_after"] < shrink["mse_before"]
     # a bias is no building parameter: the calibrated base model still misses it, on the temperature only
     left = bias["gap_left"]
-    assert left["left"] and left["by_series"]["temperature"] > left["share"] >= settings.min_gain
+    assert left["left"] and left["by_series"]["temperature"] > left["share"] >= GAP_LEFT_SHARE
     assert shrink["mse_twin"] == pytest.approx(bias["twin_heldout_base"]["rmse_t_celsius"] ** 2)
     assert summary["gap_left_cases"] == 1 and summary["top1_accuracy_gap_left"] == 1.0
     assert "gap_left" not in rows[NONE]
@@ -138,6 +143,21 @@ def test_ranked_first_counts_the_attribution_whether_or_not_the_effect_was_named
     assert summary["ranked_first_accuracy"] == 0.5 and summary["top1_accuracy"] == 0.25
 
 
+def test_the_summary_counts_not_enough_data_and_another_effect_apart_from_plain_misses():
+    rows = [
+        {"true": "heating_capacity_limit", "named": NOT_ENOUGH_DATA, "correct": False},
+        {"true": "wind_infiltration", "named": "solar_shading", "correct": False},
+        {"true": "wind_infiltration", "named": NONE, "correct": False},
+        {"true": "holidays", "named": "holidays", "correct": True},
+        {"true": NONE, "named": NONE, "correct": True},
+    ]
+    summary = summarise(rows, [NONE, "heating_capacity_limit", "wind_infiltration", "holidays"])
+    assert summary["top1_accuracy"] == summary["not_enough_data_rate"] == summary["wrong_effect_rate"] == 0.25
+    assert summary["false_alarm_rate"] == 0.0
+    assert summary["confusion"]["heating_capacity_limit"][NOT_ENOUGH_DATA] == 1
+    assert summary["confusion"]["wind_infiltration"]["solar_shading"] == 1
+
+
 def test_the_mean_shrinkage_is_over_found_effects_that_left_a_gap():
     # seed 11's found blinds left a held-out MSE 0.08006 against its twin's 0.07999: its shrinkage of 90 (9,000 %)
     # divides by noise, and took the check's mean to 906 %
@@ -164,46 +184,33 @@ def test_diagnose_cli_rejects_an_unknown_effect(tmp_path, capsys):
     assert len(err) == 1 and "unknown effect 'wind'" in err[0]
 
 
-@pytest.mark.parametrize(
-    "effect, message", [("temperature_sensor_bias", "base effect of this site"), ("holidays", "not calibrated jointly")]
-)
-def test_diagnose_cli_refuses_a_joint_test_it_cannot_run_before_diagnosing(monkeypatch, capsys, effect, message):
-    # the default site declares a sensor bias: it is in both models of a joint test, so there is nothing to test
-    import buildenv.diagnosis.gap
-
-    def no_diagnosis(*args, **kwargs):
-        raise AssertionError("the joint test was refused only after a diagnosis of minutes")
-
-    monkeypatch.setattr(buildenv.diagnosis.gap, "diagnose", no_diagnosis)
-    assert main(["diagnose", "--site", str(DEFAULT_SITE), "--joint-test", effect, "--no-save", "--quiet"]) == 2
-    err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and message in err[0] and effect in err[0]
-
-
-@pytest.mark.parametrize(
-    "flags, expected",
-    [
-        ([], True),
-        (["--no-clean-ceilings", "--no-joint-fallback", "--no-estimate-alone", "--no-night-load-first"], False),
-    ],
-)
-def test_diagnose_cli_passes_the_naming_rule_to_the_diagnosis(monkeypatch, flags, expected):
+@pytest.mark.parametrize("command", ["diagnose", "diagnose-check"])
+def test_the_cli_passes_alpha_and_the_checked_settings_into_the_diagnosis(monkeypatch, tmp_path, command):
+    import buildenv.diagnosis.blind_check
     import buildenv.diagnosis.gap
 
     seen = {}
 
-    def record(site, surrogate, settings, **kwargs):
-        seen["settings"] = settings
+    def record(*args, **kwargs):
+        seen["settings"] = next(a for a in (*args, *kwargs.values()) if isinstance(a, DiagnosisSettings))
         raise buildenv.diagnosis.gap.cal.CalibrationError("stopped after reading the settings")
 
     monkeypatch.setattr(buildenv.diagnosis.gap, "diagnose", record)
-    assert main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flags]) == 2
-    assert seen["settings"].clean_ceilings is expected and seen["settings"].min_gain == 0.10
-    assert seen["settings"].joint_fallback is expected and seen["settings"].estimate_alone is expected
-    assert seen["settings"].night_load_first is expected
-    # the blind checks' settings, under which the ceilings were measured, not DiagnosisSettings' faster defaults
+    monkeypatch.setattr(buildenv.diagnosis.blind_check, "run_check", record)
+    where = ["--site", str(DEFAULT_SITE), "--no-save"] if command == "diagnose" else ["--out", str(tmp_path)]
+    assert main([command, *where, "--quiet", "--alpha", "0.01"]) == 2
+    assert seen["settings"].alpha == 0.01
+    assert main([command, *where, "--quiet"]) == 2
+    assert seen["settings"].alpha == DiagnosisSettings.alpha == 0.05
+    # the blind checks' settings, not DiagnosisSettings' faster defaults
     assert {k: getattr(seen["settings"], k) for k in CHECKED_DIAGNOSIS} == CHECKED_DIAGNOSIS
     assert CHECKED_DIAGNOSIS["split"] != DiagnosisSettings.split
+
+
+@pytest.mark.parametrize("flag", [["--min-gain", "0.1"], ["--no-clean-ceilings"], ["--judge", "pooled"]])
+def test_the_cli_refuses_the_knobs_of_the_old_naming_rules(flag):
+    with pytest.raises(SystemExit):
+        main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flag])
 
 
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):
@@ -284,205 +291,128 @@ def _bench_module(name: str, monkeypatch):
     return module
 
 
-def test_the_headline_counts_each_site_at_its_latest_judgement(tmp_path, monkeypatch):
-    """bench/gap_headline.py: a run of the check replaces the replayed naming of the same site, other sites keep
-    theirs, and a run's case is judged again with the catalogue's ceilings (a holiday found is named)."""
-    headline = _bench_module("gap_headline", monkeypatch)
-
-    replay = {
-        "sites": [
-            {"key": "seed0_case_000", "true": "holidays", "night electricity": "none"},
-            {"key": "seed0_case_001", "true": "solar_shading", "night electricity": "wind_infiltration"},
-            {"key": "seed0_case_001_twin", "true": "solar_shading", "night electricity": "none"},
-            {"key": "seed0_case_002", "true": "none", "night electricity": "none"},
-        ]
-    }
-    found = {
-        "case": 0,
-        "true": "holidays",
-        "named": "holidays",
-        "ranked": ["holidays", "solar_shading"],
-        "scores": {"holidays": 0.4, "solar_shading": 0.01},
-        "p_values": {"holidays": 1e-9, "solar_shading": 0.3},
-        "estimates": {"holidays": {"absent_days": 2}, "solar_shading": {"blocked_fraction": 0.3}},
-        "gains_by_series": {
-            "holidays": {"temperature": 0.2, "consumption": 0.5},
-            "solar_shading": {"temperature": 0.0, "consumption": 0.01},
+def _case(case: int, true: str, named: str, **extra) -> dict:
+    """A blind-check case as :func:`buildenv.diagnosis.blind_check.run_case` records it (fields the merged records
+    keep, and some they drop)."""
+    scores = {"solar_shading": 0.04, "wind_infiltration": 0.02, "heating_capacity_limit": 0.0}
+    selected = [] if named in (NONE, NOT_ENOUGH_DATA) else [named]
+    return {
+        "case": case,
+        "true": true,
+        "magnitude": None if true == NONE else 0.3,
+        "start": "2019-11-04",
+        "noise_seed": 1,
+        "named": named,
+        "answer": "named" if selected else NONE,
+        "selected": selected,
+        "not_enough_data": ["heating_capacity_limit"],
+        "correct": named == true,
+        "ranked": list(scores),
+        "scores": scores,
+        "p_values": {"solar_shading": 0.001, "wind_infiltration": 0.2, "heating_capacity_limit": None},
+        "failed": {
+            "solar_shading": [],
+            "wind_infiltration": ["significant"],
+            "heating_capacity_limit": ["enough_data"],
         },
+        "estimates": {"solar_shading": {"blocked_fraction": 0.4}},
+        "verdict": "...",
+        "seconds": 30.0 + case,
+        **extra,
     }
-    # a wind the base calibration absorbed: no held-out gain, an estimate beyond every clean site's (0.0175)
-    absorbed = {
-        "case": 3,
-        "true": "wind_infiltration",
-        "named": "none",
-        "ranked": ["solar_shading", "wind_infiltration"],
-        "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
-        "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
-        "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}},
-    }
-    run = {"plan": {"seed": 0}, "cases": [found, absorbed]}
-    (tmp_path / "replay.json").write_text(json.dumps(replay))
-    (tmp_path / "run.json").write_text(json.dumps(run))
-    sites = headline.sites_from_replay(str(tmp_path / "replay.json")) | {
-        site: headline._site(*record)
-        for site, record in headline.diagnosed_records([], [str(tmp_path / "run.json")]).items()
-    }
-    assert sites["seed0_case_000"]["named"] == "holidays" and sites["seed0_case_000"]["ranked_first"] is True
-    assert sites["seed0_case_001_twin"]["true"] == "none"
-    assert (sites["seed0_case_003"]["named"], sites["seed0_case_003"]["how"]) == ("wind_infiltration", "estimate alone")
-    [row] = headline.tally(sites)
-    assert (row["cases"], row["right"], row["alone"], row["wrong"], row["ranked"], row["ranked_known"]) == (
-        3,
-        2,
-        1,
-        1,
-        1,
-        2,
-    )
-    assert (row["clean"], row["clean_right"], row["twins"], row["twins_right"]) == (1, 1, 1, 1)
-    assert row["sources"] == ["replay", "run"]
-    assert headline.by_effect(sites)["solar_shading"] == {"cases": 1, "right": 0, "alone": 0, "wrong": 1}
 
 
-def test_a_replay_takes_the_headline_s_sources_from_its_recorded_command(tmp_path, monkeypatch):
-    """bench/gap_headline.py: ``--sources-of`` reads a headline json's ``--rediagnosed`` and ``--run`` pages off
-    its command, puts them before the pages given (each page once), and refuses a headline of replayed pages."""
-    headline = _bench_module("gap_headline", monkeypatch)
-    page = tmp_path / "gap_headline.json"
-    page.write_text(
-        json.dumps(
-            {
-                "command": "python bench/gap_headline.py --rediagnosed a.json --rediagnosed b.json "
-                "--run s1.json --run s2.json --name gap_headline"
-            }
-        )
-    )
-    assert headline.headline_sources(page) == (["a.json", "b.json"], ["s1.json", "s2.json"])
-    parser = argparse.ArgumentParser()
-    headline.add_sources(parser)
-    args = parser.parse_args(["--sources-of", str(page), "--run", "s3.json", "--run", "s1.json"])
-    assert headline.source_pages(args) == (["a.json", "b.json"], ["s1.json", "s2.json", "s3.json"])
-    assert headline.source_pages(parser.parse_args(["--run", "s3.json"])) == ([], ["s3.json"])
-    page.write_text(json.dumps({"command": "python bench/gap_headline.py --replayed r.json --run s1.json"}))
-    with pytest.raises(ValueError, match="--replayed pages"):
-        headline.headline_sources(page)
+def _check(seed: int, cases: list[dict], matrix: str = "stand_in", weeks: int = 4) -> tuple[dict, dict]:
+    """A run_check result of ``cases`` and the source bench/gap_check.py records for it."""
+    plan = {"cases": len(cases), "seed": seed, "matrix": matrix, "part": None, "weeks": weeks}
+    plan |= {"building": "medium_office", "epw": "usa_il_chicago", "known_parameters": {}}
+    plan["settings"] = {"alpha": 0.05, "split": "alternate", "base_effects": ()}
+    labels = [NONE, "solar_shading", "heating_capacity_limit", "wind_infiltration", "holidays"]
+    result = {"plan": plan, "base_effects": [], "summary": {"labels": labels}, "cases": cases}
+    source = {"source": f"seed{seed}_{len(cases)}", "seed": seed, "command": "c", "seconds": 9.0, "note": ""}
+    return result, source
 
 
-def test_the_size_page_bins_cases_by_equal_count_and_finds_the_size_from_which_nine_in_ten_are_named(monkeypatch):
-    """bench/gap_by_size.py: sizes in quartile bins (one bin a size where there are four sizes or fewer), every case
-    in exactly one bin, and the smallest size from which 90 % of the cases that large or larger are named right."""
-    page = _bench_module("gap_by_size", monkeypatch)
-    assert page.injected_size("heating_capacity_limit", 40.0) == 60.0
-    assert page.injected_size("temperature_sensor_bias", -0.7) == 0.7
-    assert page.size_bins(np.array([2.0, 3.0, 2.0, 3.0, 3.0])) == [(2.0, 2.0), (3.0, 3.0)]
-    sizes = [float(s) for s in range(1, 21)]
-    cases = {
-        "night_plug_loads": [
-            (s, "night_plug_loads" if s > 4 else "none", f"seed0_case_{i:03d}") for i, s in enumerate(sizes)
-        ]
-    }
-    cases["night_plug_loads"][-1] = (20.0, "solar_shading", "seed0_case_019")
-    row = page.effect_rows(cases, least=10)["night_plug_loads"]
-    assert sum(b["cases"] for b in row["bins"]) == 20 and [b["cases"] for b in row["bins"]] == [5, 5, 5, 5]
-    assert [b["right"] for b in row["bins"]] == [1, 5, 5, 4] and row["bins"][-1]["wrong"] == 1
-    assert row["smallest_right"] == 5.0
-    # sizes 5-20: 15 of 16 right (94 %); from 4: 15 of 17 (88 %)
-    assert row["reliable"] == 5.0
-    assert page.effect_rows(cases, least=17)["night_plug_loads"]["reliable"] is None
-
-
-def test_the_headline_judges_blinds_at_the_fit_weeks_irradiance_of_each_recorded_site(tmp_path, monkeypatch):
-    """bench/harness.py, as bench/gap_headline.py judges: a record from before the irradiance was kept gets its
-    fit weeks' irradiance from its page (its first Monday, the page's weather, weeks and split), its twin from its
-    case; 0.45 blinds with a significant gain are named in November weeks (ceiling 0.412), not in sunny October
-    weeks (0.58)."""
-    replay = _bench_module("harness", monkeypatch)
-
-    def case(number, true, start, blinds):
-        return {
-            "case": number,
-            "true": true,
-            "named": "none",
-            "start": start,
-            "ranked": ["solar_shading"],
-            "scores": {"solar_shading": 0.05, "heat_recovery": 0.0},
-            "p_values": {"solar_shading": 1e-6, "heat_recovery": 1.0},
-            "estimates": {"solar_shading": {"blocked_fraction": blinds}, "heat_recovery": {"effectiveness": 0.0}},
-            "gains_by_series": {
-                "solar_shading": {"temperature": 0.05, "consumption": 0.05},
-                "heat_recovery": {"temperature": 0.0, "consumption": 0.0},
-            },
-        }
-
-    plan = {"seed": 5, "epw": "usa_il_chicago", "weeks": 8, "settings": {"split": "alternate"}}
-    page = {
-        "plan": plan,
-        "cases": [case(0, "solar_shading", "2019-11-04", 0.45), case(1, "solar_shading", "2019-10-14", 0.45)],
-    }
-    (tmp_path / "run.json").write_text(json.dumps(page))
-    twin = case(0, "solar_shading", "2019-11-04", 0.30) | {"twin_of": "solar_shading"}
-    twin.pop("start")
-    (tmp_path / "twins.json").write_text(
-        json.dumps({"command": f"x --page {tmp_path / 'run.json'}", "records": {"seed5_case_000_twin": twin}})
-    )
-    sources = argparse.Namespace(
-        rediagnosed=[str(tmp_path / "twins.json")], run=[str(tmp_path / "run.json")], sources_of=""
-    )
-    records, now, right, _ = replay.judged_sources(sources)
-    irradiance = {site: r["fit_irradiance_w_m2"] for site, (r, _, _) in records.items()}
-    assert irradiance["seed5_case_000"] == irradiance["seed5_case_000_twin"] == pytest.approx(66.88, abs=0.01)
-    assert irradiance["seed5_case_001"] == pytest.approx(94.4, abs=0.05)
-    assert now == {"seed5_case_000": "solar_shading", "seed5_case_001": "none", "seed5_case_000_twin": "none"}
-
-
-def test_the_merged_records_judge_as_the_run_they_came_from(tmp_path, monkeypatch):
-    """bench/gap_check.py merges a run's cases into one json of slim records (bench/harness.py); read back, each
-    expands to the fields the judging reads and is judged as the run's own record, and a new run of a seed
-    replaces that seed's cases and keeps its clean twins."""
+def test_a_run_merges_into_the_records_of_its_setup_and_the_page_scores_them_all(tmp_path, monkeypatch, capsys):
+    """bench/gap_check.py merges a run's cases into one json of slim records (bench/harness.py): read back, each
+    expands to the fields the scores read; the summary is the diagnosis's own over every merged case; a new run of
+    a seed replaces that seed's cases; a run of another setup is refused, a file of an earlier diagnosis replaced."""
     check = _bench_module("gap_check", monkeypatch)
     harness = check.harness  # the harness the script imported
     monkeypatch.setattr(harness, "RESULTS", tmp_path)
-    record = {
-        "case": 3,
-        "true": "wind_infiltration",
-        "named": "none",
-        "magnitude": 0.03,
-        "start": "2019-11-04",
-        "ranked": ["solar_shading", "wind_infiltration"],
-        "seconds": 12,
-        "fit_irradiance_w_m2": 66.9,
-        "scores": {"wind_infiltration": -0.03, "solar_shading": 0.01},
-        "p_values": {"wind_infiltration": 1.0, "solar_shading": 0.3},
-        "estimates": {"wind_infiltration": {"ach_per_m_s": 0.033}, "solar_shading": {"blocked_fraction": 0.3}},
-        "gains_by_series": {
-            "wind_infiltration": {"temperature": -0.01, "consumption": -0.05},
-            "solar_shading": {"temperature": 0.0, "consumption": 0.02},
-        },
+    gap = {"share": 0.3, "left": True, "by_series": {"temperature": 0.1, "consumption": 0.4}}
+    rows = [
+        _case(0, "solar_shading", "solar_shading", shrinkage={"of_effect_gap": 0.9, "of_total_gap": 0.5}, gap_left=gap),
+        _case(1, "heating_capacity_limit", NOT_ENOUGH_DATA, gap_left=gap, footprint={"visible": True, "t": 1}),
+        _case(2, NONE, NONE),
+        _case(3, "wind_infiltration", "solar_shading", gap_left=gap),
+        _case(4, "holidays", "holidays", shrinkage={"of_effect_gap": float("nan"), "of_total_gap": 0.1}),
+    ]
+    (tmp_path / "checks.json").write_text(json.dumps({"about": "old", "sites": {"seed0_case_000": {"true": NONE}}}))
+    merged = check.merge_run("checks", *_check(7, rows))
+    assert "records of an earlier diagnosis" in capsys.readouterr().err and "seed0_case_000" not in merged["sites"]
+    (tmp_path / "checks.json").write_text(harness.checks_json(merged, merged["sites"]))
+    back = harness.read_checks(tmp_path / "checks.json")
+    assert back["setup"] == merged["setup"] and back["setup"]["settings"]["base_effects"] == []
+    first = harness.expand_case(back["sites"]["seed7_case_000"])
+    assert {k: first[k] for k in ("ranked", "scores", "p_values", "failed")} == {
+        k: rows[0][k] for k in ("ranked", "scores", "p_values", "failed")
     }
-    back = harness.expand_record(harness.slim_record(record))
-    assert {k: back[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")} == {
-        k: record[k] for k in ("scores", "p_values", "estimates", "gains_by_series", "ranked")
-    }
-    run = {
-        "date": "2026-12-01",
-        "machine": "m",
-        "command": "c",
-        "base_effects": [],
-        "plan": {"seed": 7},
-        "cases": [record],
-    }
-    merged = check.merge_run("checks", run)
-    merged["sites"]["seed7_case_003_twin"] = harness.slim_record(
-        record | {"true": "none", "twin_of": "x", "source": "again"}
+    assert "estimates" not in first and "verdict" not in first and "noise_seed" not in first
+    assert np.isnan(harness.expand_case(back["sites"]["seed7_case_004"])["shrinkage"]["of_effect_gap"])
+    s = merged["summary"]["all"]
+    own = summarise([harness.expand_case(harness.slim_case(r)) for r in rows], merged["setup"]["labels"])
+    for key in ("top1_accuracy", "not_enough_data_rate", "wrong_effect_rate", "false_alarm_rate"):
+        assert s[key] == own[key]
+    assert (s["top1_accuracy"], s["not_enough_data_rate"], s["wrong_effect_rate"]) == (0.5, 0.25, 0.25)
+    assert s["mean_shrinkage_of_effect_gap"] == 0.9 and s["seconds_median"] == 32.0
+    assert list(merged["summary"]) == ["all"]  # a stand-in check has no parts
+    page = check.page(merged)
+    assert "| injected effect named first (top-1) | 50 % of 4 | >= 90 % |" in page
+    assert '| "not enough data to tell" for the injected effect | 25 % of 4 |  |' in page
+    # the answer "not enough data to tell" is a column of the confusion matrix of its own
+    columns = "none | solar_shading | heating_capacity_limit | wind_infiltration | holidays"
+    assert f"| injected \\ answer | {columns} | {NOT_ENOUGH_DATA} |" in page
+    assert "| heating_capacity_limit | 0 | 0 | 0 | 0 | 0 | 1 |" in page
+    # a new run of seed 7 replaces all its cases; another seed's join them
+    (tmp_path / "checks.json").write_text(harness.checks_json(merged, merged["sites"]))
+    again = check.merge_run("checks", *_check(7, rows[:2]))
+    assert sorted(again["sites"]) == ["seed7_case_000", "seed7_case_001"]
+    assert [s["source"] for s in again["sources"]] == ["seed7_2"]
+    (tmp_path / "checks.json").write_text(harness.checks_json(again, again["sites"]))
+    both = check.merge_run("checks", *_check(8, rows[2:3]))
+    assert sorted(both["sites"]) == ["seed7_case_000", "seed7_case_001", "seed8_case_002"]
+    assert both["summary"]["all"]["cases"] == 3 and len(both["sources"]) == 2
+    with pytest.raises(SystemExit, match="differ from this one in weeks"):
+        check.merge_run("checks", *_check(9, rows, weeks=8))
+
+
+def test_the_check_page_scores_each_part_of_the_suite_apart(tmp_path, monkeypatch):
+    check = _bench_module("gap_check", monkeypatch)
+    monkeypatch.setattr(check.harness, "RESULTS", tmp_path)
+    where = {"building": "small_office", "climate": "usa_nj_newark", "season": "heating"}
+    rows = [
+        _case(0, "solar_shading", "solar_shading", part="development", **where),
+        _case(1, "wind_infiltration", NONE, part="held_out", twin_named=["wind_infiltration"], **where),
+        _case(2, NONE, NONE, part="held_out", **where),
+        {**_case(3, "holidays", NONE, part="held_out", **where), "status": "refused", "reason": "no warmup"},
+    ]
+    rows[3] = {k: rows[3][k] for k in ("case", "true", "magnitude", "start", "part", "status", "reason", *where)}
+    result, source = _check(3, rows, matrix="suite")
+    merged = check.merge_run("checks", result, source)
+    parts = merged["summary"]
+    assert list(parts) == ["all", "development", "held_out"]
+    assert (parts["development"]["top1_accuracy"], parts["held_out"]["top1_accuracy"]) == (1.0, 0.0)
+    assert parts["held_out"]["refused_cases"] == 1 and parts["development"]["refused_cases"] == 0
+    assert parts["held_out"]["cases"] == 2 and parts["all"]["twin_names_the_injected_effect"] == 1
+    page = check.page(merged)
+    assert "| | all | development | held_out | target |" in page
+    assert "| injected effect named by the clean twin too | 1 | 0 | 1 |  |" in page
+    assert sum(line.startswith("## Confusion matrix, ") for line in page) == 3
+    lines = check.run_lines(result, source)
+    assert any(
+        "| 3 | small_office, usa_nj_newark, heating (held_out) | holidays |" in x and "refused" in x for x in lines
     )
-    (tmp_path / "checks.json").write_text(harness.checks_json(merged["sites"], merged["sources"], "test"))
-    again = check.merge_run("checks", run | {"date": "2026-12-02", "cases": [record | {"named": "wind_infiltration"}]})
-    assert sorted(again["sites"]) == ["seed7_case_003", "seed7_case_003_twin"]
-    assert [s["source"] for s in again["sources"]] == ["checks_seed7_2026-12-02"]
-    (tmp_path / "checks.json").write_text(harness.checks_json(again["sites"], again["sources"], "test"))
-    records = harness.records_from_checks(tmp_path / "checks.json")
-    assert records["seed7_case_003_twin"][1] == "none" and records["seed7_case_003"][1] == "wind_infiltration"
-    assert harness.judge(records["seed7_case_003"][0]) == harness.judge(record)
 
 
 def test_a_suite_plan_draws_buildings_climates_and_seasons_of_its_part():
@@ -508,18 +438,24 @@ def test_a_suite_plan_draws_buildings_climates_and_seasons_of_its_part():
 
 
 def test_a_suite_case_is_judged_beyond_what_its_clean_twin_names():
-    row = {"true": "wind_infiltration", "named": "night_plug_loads", "correct": False}
-    twin = {"selected": ["night_plug_loads"], "named_by_estimate": []}
-    found = beyond_twin({**row, "selected": ["night_plug_loads", "wind_infiltration"], "named_by_estimate": []}, twin)
+    row = {"true": "wind_infiltration", "named": "night_plug_loads", "correct": False, "not_enough_data": []}
+    twin = {"selected": ["night_plug_loads"]}
+    found = beyond_twin({**row, "selected": ["night_plug_loads", "wind_infiltration"]}, twin)
     assert found["named"] == "wind_infiltration" and found["correct"] and found["named_raw"] == "night_plug_loads"
     assert found["twin_named"] == ["night_plug_loads"]
-    missed = beyond_twin({**row, "selected": ["night_plug_loads"], "named_by_estimate": []}, twin)
+    missed = beyond_twin({**row, "selected": ["night_plug_loads"]}, twin)
     assert missed["named"] == NONE and not missed["correct"]
-    by_estimate = beyond_twin({**row, "selected": [], "named_by_estimate": ["wind_infiltration"]}, twin)
-    assert by_estimate["correct"]
-    clean = {"true": NONE, "named": "night_plug_loads", "selected": ["night_plug_loads"], "named_by_estimate": []}
+    clean = {"true": NONE, "named": "night_plug_loads", "selected": ["night_plug_loads"], "not_enough_data": []}
     assert beyond_twin(clean, twin)["correct"]  # the site's own structural miss is no false alarm
-    assert not beyond_twin(clean, {"selected": [], "named_by_estimate": []})["correct"]
+    assert not beyond_twin(clean, {"selected": []})["correct"]
+    # nothing beyond the twin named, and the diagnosis had not enough data to tell about the injected effect
+    limit = {"true": "heating_capacity_limit", "named": "night_plug_loads", "selected": ["night_plug_loads"]}
+    short = beyond_twin({**limit, "not_enough_data": ["heat_recovery", "heating_capacity_limit"]}, twin)
+    assert short["named"] == NOT_ENOUGH_DATA and not short["correct"]
+    assert beyond_twin({**limit, "not_enough_data": ["heat_recovery"]}, twin)["named"] == NONE
+    # an effect named beyond the twin is the answer, whatever the diagnosis could not tell
+    wrong = {**limit, "selected": ["night_plug_loads", "solar_shading"], "not_enough_data": ["heating_capacity_limit"]}
+    assert beyond_twin(wrong, twin)["named"] == "solar_shading"
 
 
 def test_a_blind_check_over_the_suite_makes_its_sites_as_the_suite_does_and_judges_beyond_the_twin(

@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from buildenv.cli.argtypes import positive_int
-from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS, JUDGES, MIN_GAIN
+from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS
 from buildenv.jsonio import dumps
 
 
@@ -28,15 +28,10 @@ def _settings(args: argparse.Namespace):
     return DiagnosisSettings(
         candidates=candidates,
         evaluations=args.evaluations,
-        min_gain=args.min_gain,
         **step,
-        clean_ceilings=args.clean_ceilings,
-        joint_fallback=args.joint_fallback,
-        estimate_alone=args.estimate_alone,
-        night_load_first=args.night_load_first,
+        alpha=args.alpha,
         max_effects=args.max_effects,
         seed=args.seed,
-        judge=args.judge.replace("-", "_"),
         base_restarts=args.base_restarts,
         split=args.split,
         base_effects=tuple(getattr(args, "base_effect", None) or ()),
@@ -44,13 +39,7 @@ def _settings(args: argparse.Namespace):
 
 
 def _cmd_diagnose(args: argparse.Namespace) -> int:
-    from buildenv.diagnosis.gap import (
-        check_joint_candidates,
-        diagnose,
-        joint_calibration_tests,
-        save_extended_model,
-        with_declared_effects,
-    )
+    from buildenv.diagnosis.gap import diagnose, save_extended_model
     from buildenv.metamodel.surrogate import load_metamodel
     from buildenv.sites import load_site
 
@@ -58,14 +47,10 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     # nothing goes into the site folder unless asked: the plot's default place is there only with --save
     plot = Path(args.plot) if args.plot else (Path(args.site) / "diagnosis.png" if args.save else None)
     settings = _settings(args)
-    joint = tuple(args.joint_test)
-    check_joint_candidates(joint, with_declared_effects(site, settings))  # names checked before the long diagnosis
     surrogate = load_metamodel(args.checkpoint)
     result = diagnose(site, surrogate, settings, progress=not args.quiet, plot=plot)
     saved = save_extended_model(site, result) if args.save else None
     result.pop("_fit")
-    if joint:
-        result["joint_tests"] = joint_calibration_tests(site, surrogate, joint, settings)
     result["saved"] = str(saved) if saved else None
     text = dumps(result, where="the diagnosis", nonfinite="null", indent=None if args.json else 2, default=float)
     if args.out:
@@ -118,12 +103,11 @@ def _cmd_diagnose_check(args: argparse.Namespace) -> int:
 
 def _common(p: argparse.ArgumentParser) -> None:
     """The options ``diagnose`` and ``diagnose-check`` share. The split, base runs and most effects default to the
-    blind checks' settings (``CHECKED_DIAGNOSIS``), under which the clean-site ceilings were measured, so that the
-    check checks what the diagnosis does."""
+    blind checks' settings (``CHECKED_DIAGNOSIS``), so that the check checks what the diagnosis does."""
     p.add_argument(
         "--checkpoint",
         default="diagnosis",
-        help="metamodel checkpoint, 'default' or 'diagnosis' (the one its ceilings were measured with)",
+        help="metamodel checkpoint, 'default' or 'diagnosis' (the one the blind checks ran with)",
     )
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
     p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
@@ -169,51 +153,16 @@ def _common(p: argparse.ArgumentParser) -> None:
         "lowest fit cost kept (default %(default)s)",
     )
     p.add_argument(
-        "--min-gain",
+        "--alpha",
         type=float,
-        default=MIN_GAIN,
-        help="smallest held-out gain (share of standardised squared error removed) to select an effect "
-        "without a clean-site ceiling (`buildenv effects`), or any with --no-clean-ceilings "
-        "(default %(default)s)",
-    )
-    p.add_argument(
-        "--no-clean-ceilings",
-        dest="clean_ceilings",
-        action="store_false",
-        help="judge every effect by --min-gain, not by its estimate against the largest one calibrated on clean sites",
-    )
-    p.add_argument(
-        "--no-joint-fallback",
-        dest="joint_fallback",
-        action="store_false",
-        help="when no candidate qualifies, do not test those with an estimate beyond every clean site's "
-        "again by calibrating the site from scratch without and with them",
-    )
-    p.add_argument(
-        "--no-estimate-alone",
-        dest="estimate_alone",
-        action="store_false",
-        help="when the first step selects nothing, do not name a candidate whose estimate is beyond every "
-        "clean site's by that estimate alone (`buildenv effects`: named by its estimate alone)",
-    )
-    p.add_argument(
-        "--no-night-load-first",
-        dest="night_load_first",
-        action="store_false",
-        help="do not name night plug loads first when the night electricity the model carries is far "
-        "beyond every clean site's and the sensor bias refits cold",
+        default=0.05,
+        help="significance level of each step, shared by its candidates (Bonferroni; default %(default)s)",
     )
     p.add_argument(
         "--max-effects",
         type=int,
         default=CHECKED_DIAGNOSIS["max_effects"],
         help="most effects selected (default %(default)s)",
-    )
-    p.add_argument(
-        "--judge",
-        choices=[j.replace("_", "-") for j in JUDGES],
-        default="pooled",
-        help="score each candidate on both series (default) or on the series it shows in",
     )
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")
@@ -246,16 +195,6 @@ def register(sub) -> None:
         "without it nothing is written into the site folder",
     )
     p.add_argument("--no-save", dest="save", action="store_false", help="the default: the site folder left as it is")
-    p.add_argument(
-        "--joint-test",
-        action="append",
-        default=[],
-        metavar="NAME",
-        help="also test an effect the base calibration may have absorbed into the building parameters "
-        "(wind-driven infiltration into the air change rate) by two calibrations from scratch, "
-        "without and with it, judged on the held-out weeks (JSON 'joint_tests'; not a diagnosis "
-        "step, nothing selected from it); repeatable",
-    )
     _common(p)
     p.set_defaults(func=_cmd_diagnose)
 

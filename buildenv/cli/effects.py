@@ -14,14 +14,11 @@ from buildenv.jsonio import dumps
 
 def catalogue_rows() -> list[dict[str, Any]]:
     """One JSON-ready row per effect: name, title, kind, magnitude unit, practice range, default, injection
-    limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names and
-    the size beyond which any significant held-out gain names it (the clean-site ceiling; on a site declaring
-    building parameters known, the one measured on such sites), the size beyond which its estimate alone names it
-    when nothing else is named (``Effect.estimate_ceiling``), both ceilings per W/m2 of the fit weeks' irradiance
-    where they grow with it (blinds: ``Effect.sunshine_ceiling``), when the estimate alone names it under its floor
-    too (night plug loads: :func:`alone_under_floor_text`), the size from which it is named first ahead of every
-    held-out gain (night plug loads: :func:`named_first_text`), and for an effect carried by a building parameter
-    that parameter and the values a diagnosis also recalibrates from (``Effect.carried_starts``)."""
+    limits, no-effect magnitude, series, the model-side parameters, the smallest estimate a diagnosis names, the
+    hours a site's weeks need for the effect to show (:mod:`buildenv.diagnosis.data_needs`), and for an effect
+    carried by a building parameter that parameter and the values a diagnosis also recalibrates from
+    (``Effect.carried_starts``)."""
+    from buildenv.diagnosis.data_needs import NEEDS
     from buildenv.diagnosis.effects import EFFECTS, INJECTION_LIMITS, NO_EFFECT_MAGNITUDE
 
     return [
@@ -37,12 +34,7 @@ def catalogue_rows() -> list[dict[str, Any]]:
             "series": list(e.series),
             "model": e.model,
             "named_from": e.named_from() or None,
-            "named_beyond": e.clean_ceiling_text() or None,
-            "named_beyond_on_declaring_sites": e.on_declared_site().clean_ceiling_text() or None,
-            "named_by_estimate_alone_beyond": e.estimate_ceiling_text() or None,
-            "ceilings_in_sunshine": e.sunshine_ceiling_text() or None,
-            "named_by_estimate_alone_under_the_floor": alone_under_floor_text(e.name),
-            "named_first_beyond": named_first_text(e.name),
+            "needs": NEEDS[e.shows_in] if e.shows_in else None,
             "building_parameter": e.building_parameter,
             "carried_starts": list(e.carried_starts),
             "also_recalibrated_from": e.carried_starts_text() or None,
@@ -53,36 +45,6 @@ def catalogue_rows() -> list[dict[str, Any]]:
         }
         for e in EFFECTS.values()
     ]
-
-
-def alone_under_floor_text(name: str) -> str | None:
-    """When the estimate alone names effect ``name`` with its building parameter under the floor it is named from
-    (only night plug loads: :func:`buildenv.diagnosis.gap.plausible_alone`), as a person reads it, or None."""
-    from buildenv.diagnosis.effects import get_effect
-
-    if name != "night_plug_loads":
-        return None
-    effect = get_effect(name)
-    return (
-        f"{effect.ceiling_on} > {effect.estimate_ceiling:g} W/m2 with {effect.building_parameter} under "
-        f"{effect.carried_limit():g} %, the temperature sensor bias refit at 0 K or colder (the floor is the "
-        "held-out test's, which pins that share at 0 %; the night electricity counts both night shares)"
-    )
-
-
-def named_first_text(name: str) -> str | None:
-    """When a first step names effect ``name`` ahead of every held-out gain, as a person reads it (only night plug
-    loads: :func:`buildenv.diagnosis.gap.night_load_named_first`), or None."""
-    from buildenv.diagnosis.effects import NIGHT_LOAD_FIRST_BEYOND, get_effect
-
-    if name != "night_plug_loads" or NIGHT_LOAD_FIRST_BEYOND is None:
-        return None
-    effect = get_effect(name)
-    return (
-        f"{effect.ceiling_on} > {NIGHT_LOAD_FIRST_BEYOND * effect.estimate_ceiling:.3g} W/m2 "
-        f"({NIGHT_LOAD_FIRST_BEYOND:g} times the estimate ceiling) with the temperature sensor bias refit at 0 K "
-        "or colder (a sensor reading warm makes a calibration add heat at night too)"
-    )
 
 
 def _cmd_effects(args: argparse.Namespace) -> int:
@@ -100,33 +62,7 @@ def _cmd_effects(args: argparse.Namespace) -> int:
             f"    shows in: {', '.join(r['series'])}\n"
             f"    model side: {params}"
             + (f"\n    named from: {r['named_from']}" if r["named_from"] else "")
-            + (f"\n    named by significance alone when: {r['named_beyond']}" if r["named_beyond"] else "")
-            + (
-                f"\n    on a site declaring building parameters known: {r['named_beyond_on_declaring_sites']}"
-                if r["named_beyond_on_declaring_sites"]
-                else ""
-            )
-            + (
-                f"\n    named by its estimate alone (nothing else named) when: {r['named_by_estimate_alone_beyond']}"
-                if r["named_by_estimate_alone_beyond"]
-                else ""
-            )
-            + (
-                f"\n    named by its estimate alone under that floor too, when: "
-                f"{r['named_by_estimate_alone_under_the_floor']}"
-                if r["named_by_estimate_alone_under_the_floor"]
-                else ""
-            )
-            + (
-                f"\n    both ceilings, on a site whose fit weeks' irradiance is known: {r['ceilings_in_sunshine']}"
-                if r["ceilings_in_sunshine"]
-                else ""
-            )
-            + (
-                f"\n    named first, ahead of any held-out gain, when: {r['named_first_beyond']}"
-                if r["named_first_beyond"]
-                else ""
-            )
+            + (f"\n    needs: {r['needs']} in the fit and held-out weeks" if r["needs"] else "")
             + (
                 f"\n    also recalibrated from: {r['also_recalibrated_from']} (the best fit on the fit weeks kept)"
                 if r["also_recalibrated_from"]

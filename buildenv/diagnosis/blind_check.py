@@ -7,7 +7,7 @@ the new year: :func:`plan_cases`), with its own sensor-noise seed; labels cycle 
 a random order. Magnitudes are drawn from each effect's practice range (:func:`draw_magnitude`; a sensor bias
 of at least 0.5 K, 2-3 holidays so that one falls in the held-out weeks). Each site is diagnosed
 (:func:`buildenv.diagnosis.gap.diagnose`) knowing nothing of the injection; its answer is the first selected
-effect, else the one named by its estimate alone, else "none".
+effect, else "not enough data to tell" when the diagnosis said so of the injected effect, else "none".
 
 The stand-in's own effects (``base_effects="auto"``) are found first by diagnosing a clean reference site
 (:func:`known_effects`); they enter every case's model and are not injected. ``known_parameters`` makes every
@@ -35,16 +35,24 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv.diagnosis import rules
 from buildenv.diagnosis.effects import DIAGNOSIS_SPLITS, EFFECTS, get_effect
-from buildenv.diagnosis.gap import SERIES, DiagnosisSettings, base_model_gap, diagnose
+from buildenv.diagnosis.evidence import SERIES
+from buildenv.diagnosis.gap import DiagnosisSettings, diagnose
+from buildenv.diagnosis.refit import base_model_gap
 from buildenv.errors import ReferenceBuildingError, SimulationError
 
 NONE = "none"
+#: The answer of a case whose injected effect the diagnosis said it had not enough data to tell about.
+NOT_ENOUGH_DATA = rules.NOT_ENOUGH_DATA
 REFUSED = "refused"
 FIRST_MONDAYS = (dt.date(2019, 10, 7), dt.date(2019, 12, 2))
 REFERENCE_START = dt.date(2019, 11, 4)
 WEEKS = 4
 VISIBLE_NOISE_MULTIPLE = 2.0
+#: Share of a case's standardised held-out error its effect must add to count as a gap left after calibration
+#: (:func:`gap_left`): a tenth, well above what two noise draws of one site differ by.
+GAP_LEFT_SHARE = 0.10
 
 
 @dataclass(frozen=True)
@@ -88,7 +96,7 @@ class StandIn:
     def plan(self, start: dt.date, effects: list | None, effect_seed: int) -> list:
         """The effects' random choices fixed (:func:`buildenv.energyplus.injections.plan_effects`): holidays with one
         absent day in the weeks the diagnosis fits (:attr:`split`) and one in those it holds out."""
-        from buildenv.diagnosis.gap import split_weeks
+        from buildenv.diagnosis.split import split_weeks
         from buildenv.energyplus.injections import plan_effects
 
         return plan_effects(effects, start, self.weeks, effect_seed, split_weeks(self.weeks, self.split)[0])
@@ -108,7 +116,7 @@ class StandIn:
             effects=self.plan(start, effects, effect_seed),
             effect_seed=effect_seed,
             known=self.known,
-            record_supply_air=False,  # the checks' ceilings were measured on histories at the default supply air
+            record_supply_air=False,  # the stand-in's checks run histories at the default supply air
             **suite,
         )
 
@@ -128,8 +136,8 @@ def draw_magnitude(name: str, rng: np.random.Generator) -> float:
 
 
 def latest_first_monday(weeks: int) -> dt.date:
-    """The last first Monday from which ``weeks`` weeks end within :data:`FIRST_MONDAYS`' year (the window the
-    checks' ceilings were measured in): 2 December 2019 for 4 weeks, 4 November for 8."""
+    """The last first Monday from which ``weeks`` weeks end within :data:`FIRST_MONDAYS`' year (the stand-in
+    checks' window): 2 December 2019 for 4 weeks, 4 November for 8."""
     latest = dt.date(FIRST_MONDAYS[1].year, 12, 31) - dt.timedelta(days=7 * weeks - 1)
     return min(FIRST_MONDAYS[1], latest - dt.timedelta(days=latest.weekday()))
 
@@ -272,7 +280,7 @@ def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
     """What the injected effect changed in a case's held-out measurements: ``{"temperature_k": RMS of case -
     twin (K), "consumption_percent": RMS of case - twin (% of the twin's mean), "visible": either reaches
     VISIBLE_NOISE_MULTIPLE times the sensor noise}``."""
-    from buildenv.diagnosis.gap import split_weeks
+    from buildenv.diagnosis.split import split_weeks
     from buildenv.energyplus.reference import CONSUMPTION_NOISE_FRACTION, TEMPERATURE_NOISE_K
     from buildenv.sites import load_site
 
@@ -291,16 +299,16 @@ def footprint(out: Path, case: dict, stand_in: StandIn) -> dict:
     return {"temperature_k": round(t_rms, 4), "consumption_percent": round(q_percent, 3), "visible": bool(visible)}
 
 
-def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], min_gain: float) -> dict:
+def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], least: float = GAP_LEFT_SHARE) -> dict:
     """The share of a case's held-out error its injected effect added, as the calibrated base models see it:
     ``1 - SSE_twin / SSE_case``, both series standardised by ``sigma`` and pooled, as the diagnosis scores a
-    candidate. Returns ``{"share", "by_series": {series: share}, "left": share >= min_gain}``.
+    candidate. Returns ``{"share", "by_series": {series: share}, "left": share >= least}``.
 
     Args:
         case_heldout, twin_heldout: held-out metrics of the base models of the case and of its clean twin
             (:func:`buildenv.diagnosis.gap.base_model_gap`), with ``rmse_t_celsius`` (K) and ``rmse_q_wh_m2`` (Wh/m2).
         sigma: the case's fit-week residual standard deviations [K, Wh/m2].
-        min_gain: the diagnosis' smallest held-out gain to name an effect.
+        least: the share from which the effect counts as having left a gap.
     """
 
     def standardised(m: dict) -> list[float]:
@@ -309,22 +317,32 @@ def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], min_gai
     case, twin = standardised(case_heldout), standardised(twin_heldout)
     share = 1.0 - sum(twin) / sum(case) if sum(case) > 0 else 0.0
     by_series = {s: round(1.0 - b / a, 4) if a > 0 else 0.0 for s, a, b in zip(SERIES, case, twin)}
-    return {"share": round(share, 4), "by_series": by_series, "left": bool(share >= min_gain)}
+    return {"share": round(share, 4), "by_series": by_series, "left": bool(share >= least)}
 
 
-def _gap_left_row(out: Path, case: dict, row: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
+def _gap_left_row(
+    out: Path,
+    case: dict,
+    row: dict,
+    surrogate,
+    settings: DiagnosisSettings,
+    stand_in: StandIn,
+    twin: dict | None = None,
+) -> dict:
     """``row`` with ``gap_left`` and the base models' held-out metrics: the case's from its diagnosis (calibrated
-    again for a case finished before they were recorded), its clean twin's calibrated here."""
+    again for a case finished before they were recorded), its clean twin's from the twin's diagnosis ``twin``
+    (held-out metrics of its base model) when given, else calibrated here."""
     from buildenv.sites import load_site
 
     if "heldout_base" not in row:
         base = base_model_gap(load_site(_site(out, case, stand_in, inject=True)), surrogate, settings)
         row = {**row, "heldout_base": base["heldout"], "residual_sigma": base["residual_sigma"]}
-    twin = base_model_gap(load_site(_site(out, case, stand_in, inject=False)), surrogate, settings)["heldout"]
+    if twin is None:
+        twin = base_model_gap(load_site(_site(out, case, stand_in, inject=False)), surrogate, settings)["heldout"]
     return {
         **row,
         "twin_heldout_base": twin,
-        "gap_left": gap_left(row["heldout_base"], twin, row["residual_sigma"], settings.min_gain),
+        "gap_left": gap_left(row["heldout_base"], twin, row["residual_sigma"]),
     }
 
 
@@ -333,40 +351,43 @@ def _mse(metrics: dict, series: str) -> float:
 
 
 def _diagnosis_record(result: dict) -> dict:
-    """What a blind check keeps of one diagnosis: the first effect named, every candidate's first-step gains,
-    p-values and estimates (enough to judge the step again under other naming rules), its joint tests
-    (:func:`buildenv.diagnosis.gap.joint_fallback`), the base model's
-    held-out metrics, the residual standard deviations the gains are standardised by and the fit weeks' irradiance
-    the ceilings were judged at (W/m2)."""
-    by_estimate = result.get("named_by_estimate", [])
-    named = result["selected"][0] if result["selected"] else by_estimate[0] if by_estimate else NONE
+    """What a blind check keeps of one diagnosis: the effects named, the first step's candidates (gains, p-values,
+    thresholds, estimates, the rules each failed), the effects it had not enough data to tell about, the base
+    model's held-out metrics, the residual standard deviations the gains are standardised by and the diagnosis'
+    own time (s)."""
+    first = result["effects"]
     return {
-        "named": named,
+        "named": result["selected"][0] if result["selected"] else NONE,
         "selected": result["selected"],
-        "named_by_estimate": by_estimate,
-        "ranked": [e["name"] for e in result["effects"]],
-        "scores": {e["name"]: e["score"] for e in result["effects"]},
-        "gains_by_series": {e["name"]: e["gain_by_series"] for e in result["effects"]},
-        "gains_vs_control": {e["name"]: e["gain_vs_control"] for e in result["effects"] if "gain_vs_control" in e},
-        "sse_by_series": {e["name"]: e["sse_by_series"] for e in result["effects"]},
-        "p_values": {e["name"]: e["significance"]["p_value"] for e in result["effects"]},
-        "estimates": {e["name"]: e["parameters"] for e in result["effects"]},
-        "fit_costs": {e["name"]: e["fit_cost"] for e in result["effects"]},
-        "implausible": [e["name"] for e in result["effects"] if not e["plausible"]],
-        "joint_tests": {
-            e["name"]: {k: e["joint_test"][k] for k in ("gain", "gain_by_series", "p_value", "estimate", "qualifies")}
-            for e in result["effects"]
-            if "joint_test" in e
-        },
+        "answer": result["answer"],
+        "not_enough_data": sorted(result["not_enough_data"]),
+        "ranked": [e["name"] for e in first],
+        "scores": {e["name"]: e["score"] for e in first},
+        "gains_by_series": {e["name"]: (e["evidence"] or {}).get("gain_by_series") for e in first},
+        "p_values": {e["name"]: e["p_value"] for e in first},
+        "thresholds": {e["name"]: e["threshold"] for e in first},
+        "estimates": {e["name"]: e["parameters"] for e in first},
+        "failed": {e["name"]: sorted(e["failed"]) for e in first},
+        "fit_costs": {e["name"]: e.get("fit_cost") for e in first},
+        "hours_showing": result["hours_showing"],
         "verdict": result["verdict"],
         "heldout_base": result["heldout_base"],
         "residual_sigma": result["residual_sigma"],
-        "fit_irradiance_w_m2": result.get("fit_irradiance_w_m2"),
+        "diagnosis_seconds": result["seconds"],
     }
 
 
-def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> dict:
-    """Make, diagnose and score one case (and its clean twin when an effect is injected)."""
+def answer(named: str, true: str, not_enough_data: list[str]) -> str:
+    """A case's answer: the effect named first, else "not enough data to tell" when the diagnosis said it had not enough
+    data to tell about the injected effect ``true``, else "none"."""
+    return NOT_ENOUGH_DATA if named == NONE and true in not_enough_data else named
+
+
+def run_case(
+    out: Path, case: dict, surrogate, settings: DiagnosisSettings, stand_in: StandIn, twin: dict | None = None
+) -> dict:
+    """Make, diagnose and score one case (and its clean twin when an effect is injected: the held-out metrics of
+    its base model from ``twin``, its diagnosis' record, when given, else calibrated here)."""
     from buildenv.sites import load_site
 
     started = time.perf_counter()
@@ -374,9 +395,11 @@ def run_case(out: Path, case: dict, surrogate, settings: DiagnosisSettings, stan
     result = diagnose(site, surrogate, settings, localisation=False)
     result.pop("_fit", None)
     record = _diagnosis_record(result)
+    record["named"] = answer(record["named"], case["true"], record["not_enough_data"])
     row = {**case, **record, "correct": record["named"] == case["true"]}
     if case["true"] != NONE:
-        row = _gap_left_row(out, case, row, surrogate, settings, stand_in)
+        twin_base = twin["heldout_base"] if twin else None
+        row = _gap_left_row(out, case, row, surrogate, settings, stand_in, twin_base)
     if case["true"] != NONE and case["true"] in result["selected"]:
         series = get_effect(case["true"]).series[0]
         twin_mse = _mse(row["twin_heldout_base"], series)
@@ -432,12 +455,20 @@ def _make_sites(out: Path, case: dict, stand_in: StandIn) -> str | None:
 
 def beyond_twin(row: dict, twin: dict) -> dict:
     """A suite case judged beyond its clean twin (:func:`diagnose_twin`): the effects the twin names are the site's
-    own structural misses, not false alarms; the case's answer is the first effect it names (selected, then named
-    by its estimate alone) that its twin does not, else "none". ``named_raw`` keeps the diagnosis' own answer."""
-    own = sorted({*twin["selected"], *twin.get("named_by_estimate", [])})
-    beyond = [e for e in (*row["selected"], *row.get("named_by_estimate", [])) if e not in own]
-    named = beyond[0] if beyond else NONE
-    return {**row, "named_raw": row["named"], "twin_named": own, "named": named, "correct": named == row["true"]}
+    own structural misses, not false alarms; the case's answer is the first effect it names that its twin does
+    not, else "not enough data to tell" or "none" (:func:`answer`). ``named_raw`` keeps the diagnosis' own answer."""
+    own = sorted(twin["selected"])
+    beyond = [e for e in row["selected"] if e not in own]
+    named = answer(beyond[0] if beyond else NONE, row["true"], row.get("not_enough_data", []))
+    seconds = {"twin_diagnosis_seconds": twin["diagnosis_seconds"]} if "diagnosis_seconds" in twin else {}
+    return {
+        **row,
+        "named_raw": row["named"],
+        "twin_named": own,
+        "named": named,
+        "correct": named == row["true"],
+        **seconds,
+    }
 
 
 def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> list[str]:
@@ -460,8 +491,8 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
 
 def ranked_first(row: dict) -> bool:
     """Whether the diagnosis ranked a case's injected effect first with a positive held-out gain, named or not:
-    the attribution alone. A candidate with the best gain may still fail the naming rules (significance, a
-    plausible estimate, its clean-site ceiling or the ``min_gain`` bar), and one with no gain ranks first only
+    the attribution alone. A candidate with the best gain may still fail the naming rules
+    (:mod:`buildenv.diagnosis.rules`), and one with no gain ranks first only
     among candidates that all made the held-out error worse."""
     ranked = row.get("ranked") or []
     return bool(ranked) and ranked[0] == row["true"] and row["scores"].get(row["true"], 0.0) > 0.0
@@ -484,6 +515,7 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
     ]
     total = [r["shrinkage"]["of_total_gap"] for r in effect_rows if r.get("shrinkage")]
     visible = [r for r in effect_rows if r.get("footprint", {}).get("visible")]
+    seconds = [t for r in rows for t in (r.get("diagnosis_seconds"), r.get("twin_diagnosis_seconds")) if t is not None]
     left = [r for r in effect_rows if r.get("gap_left", {}).get("left")]
     # an effect that left next to no gap divides by next to nothing: the mean is taken where it left a gap
     shrink_left = [
@@ -507,12 +539,17 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
         "top1_accuracy_visible": float(np.mean([r["correct"] for r in visible])) if visible else None,
         "gap_left_cases": len(left) if any("gap_left" in r for r in effect_rows) else None,
         "top1_accuracy_gap_left": float(np.mean([r["correct"] for r in left])) if left else None,
-        # named by the estimate alone (buildenv.diagnosis.gap.named_by_estimate): right, and on clean sites
-        "named_by_estimate_right": sum(1 for r in effect_rows if r["correct"] and r.get("named_by_estimate")),
-        "named_by_estimate_on_none": sum(1 for r in none_rows if r.get("named_by_estimate")),
+        # an effect case answered "not enough data to tell", and one where another effect was named
+        "not_enough_data_rate": float(np.mean([r["named"] == NOT_ENOUGH_DATA for r in effect_rows]))
+        if effect_rows
+        else None,
+        "wrong_effect_rate": float(np.mean([r["named"] not in (r["true"], NONE, NOT_ENOUGH_DATA) for r in effect_rows]))
+        if effect_rows
+        else None,
         "named_where_no_gap_left": {
             r["case"]: r["named"] for r in effect_rows if "gap_left" in r and not r["gap_left"]["left"]
         },
+        "median_diagnosis_seconds": float(np.median(seconds)) if seconds else None,
         "labels": labels,
         "confusion": confusion,
     }
@@ -583,7 +620,8 @@ def run_check(
         path = out / f"case_{case['case']:03d}.json"
         if path.is_file():
             row = json.loads(path.read_text())
-            if {k: row.get(k) for k in case} == case:
+            # a record of the same case by this diagnosis (one from before its naming rules carries no "answer")
+            if {k: row.get(k) for k in case} == case and ("answer" in row or row.get("status") == REFUSED):
                 refused = row.get("status") == REFUSED
                 if not refused and case["true"] != NONE and ("footprint" not in row or "gap_left" not in row):
                     # a case finished before footprints or the gap left after calibration were recorded
@@ -596,10 +634,11 @@ def run_check(
         refused = _make_sites(out, case, stand_in) if suite else None
         if refused:
             row = {**case, "status": REFUSED, "reason": refused}
+        elif suite:  # the twin first: the case's gap left reuses its base model
+            twin = diagnose_twin(out, case, surrogate, settings, stand_in)
+            row = beyond_twin(run_case(out, case, surrogate, settings, stand_in, twin), twin)
         else:
             row = run_case(out, case, surrogate, settings, stand_in)
-            if suite:
-                row = beyond_twin(row, diagnose_twin(out, case, surrogate, settings, stand_in))
         path.write_text(json.dumps(row, indent=1, default=float) + "\n")
         rows.append(row)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]

@@ -18,65 +18,24 @@ the smallest instance seen in practice is not that effect.
 An effect the model already carries through a calibrated building parameter (:attr:`Effect.building_parameter`:
 the heating power for a capacity limit, the night shares for loads left on at night) is absorbed by the base
 calibration, so the diagnosis tests it against the model without it (that parameter where the effect vanishes).
-
-The clean-site ceilings (:attr:`Effect.clean_ceiling`, :attr:`Effect.declared_ceiling`,
-:attr:`Effect.estimate_ceiling`, :attr:`Effect.sunshine_ceiling`) are the largest estimates calibrated on sites
-without the effect in the blind checks; docs/gap-diagnosis.md describes how they were measured.
 """
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 from dataclasses import dataclass
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
 
-# How a gap diagnosis scores a candidate effect (buildenv.diagnosis.gap.DiagnosisSettings.judge): on both measured
-# series pooled, or on the series the effect shows in (Effect.series).
-JUDGES = ("pooled", "effect_series")
-# How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.diagnosis.gap.split_weeks); the
-# first is buildenv.diagnosis.gap.DiagnosisSettings' default.
+# How a gap diagnosis splits a site's weeks into fit and held-out weeks (buildenv.diagnosis.split.split_weeks); the
+# first is buildenv.diagnosis.refit.DiagnosisSettings' default.
 DIAGNOSIS_SPLITS = ("first_half", "alternate")
-# The settings the clean-site ceilings were measured under; `buildenv diagnose` defaults to them (DiagnosisSettings'
-# own defaults, the first half fitted, one base calibration and three effects, are faster).
-CHECKED_DIAGNOSIS = {"split": "alternate", "base_restarts": 3, "max_effects": 2}
-# The smallest held-out gain a gap diagnosis names an effect without a clean-site ceiling for
-# (buildenv.diagnosis.gap.DiagnosisSettings.min_gain; Effect.clean_ceiling).
-MIN_GAIN = 0.10
-# The lowest held-out gain at which a gap diagnosis still names an effect by its estimate alone
-# (buildenv.diagnosis.gap.named_by_estimate); None: no such guard.
-ESTIMATE_ALONE_LOWEST_GAIN: float | None = None
-# How many times its estimate ceiling the night electricity the first step's model carries must reach for a gap
-# diagnosis to name loads left on at night first, ahead of every held-out gain, unless the sensor bias candidate
-# refits warm (buildenv.diagnosis.gap.night_load_named_first); None: never.
-NIGHT_LOAD_FIRST_BEYOND: float | None = 1.25
-# Where Effect.clean_ceiling comes from (quoted with a verdict and by `buildenv effects`).
-CLEAN_CEILING_SOURCE = "estimate calibrated on 216 clean sites of the blind checks"
-
-# Where Effect.declared_ceiling comes from.
-DECLARED_CEILING_SOURCE = (
-    "estimate calibrated on 44 clean sites declaring the medium office's internal loads known "
-    "(occupants, workstations and both night shares)"
-)
-
-# Where the ceiling of night_plug_loads, judged on the night electricity, comes from.
-NIGHT_CEILING_SOURCE = (
-    "night electricity of the first step's recalibrated base model on 129 clean sites of the blind checks"
-)
-
-# Where the heating power's ceiling comes from: the clean sites above and those diagnosed again with
-# Effect.carried_starts.
-CAPACITY_CEILING_SOURCE = (
-    "estimate calibrated on 216 clean sites of the blind checks and on 50 more diagnosed "
-    "with the heating power's extra starts"
-)
-
-#: ``share x wind speed`` (m/s) at which the wind term of ``wind_infiltration`` adds nothing: about its mean over
-#: the blind checks' Chicago weeks. Centred there, the calibrated air changes stay those of a typical hour.
-#: The catalogue (:func:`buildenv.catalogue.catalogue_hash`) the ceilings and limits below were measured under,
-#: with the metamodel trained on it.
+# The settings of `buildenv diagnose` and the blind checks (DiagnosisSettings' own defaults, the first half fitted
+# and one base calibration, are faster).
+CHECKED_DIAGNOSIS = {"split": "alternate", "base_restarts": 3, "max_effects": 3}
+#: The catalogue (:func:`buildenv.catalogue.catalogue_hash`) the carried effects' limits are read in
+#: (:func:`measured_range`), with the metamodel trained on it.
 MEASURED_UNDER = "bf68f6178dc1d1b3"
 
 
@@ -88,22 +47,9 @@ def measured_range(name: str) -> tuple[float, float, float]:
     return earlier.ranges.get(name, (var.min, var.max, var.step)) if earlier else (var.min, var.max, var.step)
 
 
+#: ``share x wind speed`` (m/s) at which the wind term of ``wind_infiltration`` adds nothing: about the mean of a
+#: temperate site's hours. Centred there, the calibrated air changes stay those of a typical hour.
 WIND_REFERENCE_M_S = 3.0
-
-# Where the wind's ceiling comes from (measured with the term centred on WIND_REFERENCE_M_S).
-WIND_CEILING_SOURCE = "estimate calibrated with the centred wind term on 147 clean sites of the blind checks"
-
-# Where Effect.estimate_ceiling comes from.
-ESTIMATE_CEILING_SOURCE = "estimate calibrated on 464 clean sites of the blind checks"
-
-# Where Effect.sunshine_ceiling comes from.
-SUNSHINE_CEILING_SOURCE = (
-    "ratio of the estimate to the fit weeks' mean global horizontal irradiance over 1552 clean "
-    "sites of the blind checks (fit-week irradiance 66.9-95.6 W/m2)"
-)
-
-# Where the sensor bias's clean reading (Effect.clean_reading) and ceilings, measured from that reading, come from.
-BIAS_READING_SOURCE = "estimate calibrated on 464 clean sites of the blind checks"
 
 
 def night_electricity_w_m2(theta: dict[str, float]) -> float:
@@ -171,30 +117,16 @@ class Effect:
             unless the site declares it known (:mod:`buildenv.diagnosis.gap`).
         vanishes_at: the end of :attr:`building_parameter`'s range where the effect vanishes: ``max`` (an
             unlimited heating power) or ``min`` (no lighting left on at night).
-        clean_ceiling: the largest size (as :attr:`smallest`; for a carried effect, the value furthest from where
-            it vanishes, or the :attr:`judged_on` quantity) calibrated on clean sites, or None where not measured;
-            a significant held-out gain names the effect only beyond it (:meth:`beyond_clean_sites`).
-        judged_on: a quantity of :data:`DERIVED_SIZES` the clean-site ceiling of a carried effect is on instead
-            of :attr:`building_parameter` (larger: a stronger effect), or None; night loads are judged on the
-            night electricity, which stays put when a calibration trades one night share for the other.
-        ceiling_source: where :attr:`clean_ceiling` comes from.
-        declared_ceiling: :attr:`clean_ceiling` measured on clean sites declaring building parameters known
-            (``site.toml``'s ``[known]``; :data:`DECLARED_CEILING_SOURCE`), which such a site is judged by
-            (:meth:`on_declared_site`); None: judged by the gain bar there.
-        estimate_ceiling: the largest size (as :attr:`clean_ceiling`) over every clean site diagnosed
-            (:data:`ESTIMATE_CEILING_SOURCE`), or None; a first-step estimate beyond it names the effect alone
-            when no candidate improved the held-out weeks (:func:`buildenv.diagnosis.gap.named_by_estimate`).
         carried_starts: values of :attr:`building_parameter` (its unit) from which the diagnosis also recalibrates
             a carried effect's model, keeping the best fit on the fit weeks, since a calibration can settle where
-            something else absorbs the effect (:func:`buildenv.diagnosis.gap.carried_trial`).
-        clean_reading: for an effect whose size takes either sign, the median estimate on clean sites (unit of
-            :attr:`size_name`, from :attr:`reading_source`), from which the floor and ceilings measure the size
-            (:meth:`size`); 0 for every other effect.
-        reading_source: where :attr:`clean_reading` comes from ("" where it is 0).
-        sunshine_ceiling: ``(per_w_m2, lowest_w_m2)`` where clean sites' estimates grow with the fit weeks' mean
-            global horizontal irradiance (W/m2): the largest ratio of estimate to irradiance, and the lowest
-            irradiance measured; the ceilings are then that ratio times the site's (:meth:`in_sunshine`), else None.
-        irradiance_w_m2: the fit-week irradiance (W/m2) :meth:`in_sunshine` judged the ceilings at, or None.
+            something else absorbs the effect (:func:`buildenv.diagnosis.refit.carried_trial`).
+        judged_on: a quantity of :data:`DERIVED_SIZES` a carried effect is reported by, besides its building
+            parameter (night loads: the night electricity both night shares add up to), or None.
+        shows_in: the hours the effect needs in the fit and held-out weeks to show at all (a key of
+            :data:`buildenv.diagnosis.data_needs.NEEDS`), or None when every week can show it.
+        found_by_day: the effect is a matter of dates, found day by day from the data rather than calibrated
+            (holidays: the days found absent, with no parameters); it can be judged only where its fit weeks hold
+            such a day.
     """
 
     name: str
@@ -211,28 +143,16 @@ class Effect:
     smallest_reason: str = ""
     building_parameter: str | None = None
     vanishes_at: str = "max"
-    clean_ceiling: float | None = None
-    judged_on: str | None = None
-    ceiling_source: str = CLEAN_CEILING_SOURCE
-    declared_ceiling: float | None = None
     carried_starts: tuple[float, ...] = ()
-    estimate_ceiling: float | None = None
-    clean_reading: float = 0.0
-    reading_source: str = ""
-    sunshine_ceiling: tuple[float, float] | None = None
-    irradiance_w_m2: float | None = None
+    judged_on: str | None = None
+    shows_in: str | None = None
+    found_by_day: bool = False
 
     @property
     def size_name(self) -> str:
         """The value :meth:`plausible` judges: the first parameter, or ``absent_days`` for an effect without
         calibrated parameters (holidays, whose size is the number of fit-week days it flags)."""
         return self.parameters[0].name if self.parameters else "absent_days"
-
-    @property
-    def ceiling_on(self) -> str:
-        """The calibrated value the clean-site and estimate ceilings judge: :attr:`judged_on`, else
-        :attr:`building_parameter`, else :attr:`size_name`."""
-        return self.judged_on or self.building_parameter or self.size_name
 
     def carried_limit(self) -> float | None:
         """The calibrated value of :attr:`building_parameter` from which a carried effect is named: one catalogue
@@ -272,22 +192,19 @@ class Effect:
         if self.smallest is None:
             return ""
         size, unit = self._size_label()
-        reading = f"; sized from the {self.clean_reading:g}{unit} clean sites calibrate" if self.clean_reading else ""
-        return f"{size} >= {self.smallest:g}{unit} ({self.smallest_reason}{reading})"
+        return f"{size} >= {self.smallest:g}{unit} ({self.smallest_reason})"
 
     def _size_label(self) -> tuple[str, str]:
-        """How :meth:`named_from` and :meth:`clean_ceiling_text` write the size: its name (``|name|`` when it can
-        be negative, ``|name + 0.233|`` when sized from a :attr:`clean_reading` of -0.233) and its unit with a
+        """How :meth:`named_from` writes the size: its name (``|name|`` when it can be negative) and its unit with a
         leading space ("" for a ratio)."""
         unit = self.parameters[0].unit if self.parameters else "fit-week day"
-        shift = f" {'+' if self.clean_reading < 0 else '-'} {abs(self.clean_reading):g}" if self.clean_reading else ""
-        size = f"|{self.size_name}{shift}|" if self.parameters and self.parameters[0].lo < 0 else self.size_name
+        size = f"|{self.size_name}|" if self.parameters and self.parameters[0].lo < 0 else self.size_name
         return size, "" if unit == "-" else f" {unit}"
 
     def size(self, values: dict[str, float]) -> float:
-        """The size :attr:`smallest` and the ceilings judge (unit of :attr:`size_name`): ``|value - clean
-        reading|`` of :attr:`size_name` in calibrated values ``{name: value}``."""
-        return abs(float(values[self.size_name]) - self.clean_reading)
+        """The size :attr:`smallest` judges (unit of :attr:`size_name`): ``|value|`` of :attr:`size_name` in
+        calibrated values ``{name: value}``."""
+        return abs(float(values[self.size_name]))
 
     def plausible(self, values: dict[str, float]) -> bool:
         """Whether calibrated parameter values ``{name: value}`` describe an effect of a size seen in practice
@@ -301,25 +218,6 @@ class Effect:
             return True
         return self.size(values) >= self.smallest
 
-    def beyond_clean_sites(self, values: dict[str, float]) -> bool | None:
-        """Whether calibrated parameter values ``{name: value}`` lie beyond :attr:`clean_ceiling`: a size larger
-        than it, or for a carried effect a :attr:`building_parameter` further than it from the end of its
-        range where the effect vanishes (a heating power below it), or for one with :attr:`judged_on` that
-        quantity above it (a night electricity above it). None when
-        the effect has no ceiling, or ``values`` are a carried effect's model-side addition (the site declared
-        its building parameter known)."""
-        if self.clean_ceiling is None:
-            return None
-        if self.judged_on is not None:
-            return None if self.judged_on not in values else bool(values[self.judged_on] > self.clean_ceiling)
-        if self.building_parameter is not None:
-            if self.building_parameter not in values:
-                return None
-            return bool(self.strength(values[self.building_parameter]) > self.strength(self.clean_ceiling))
-        if self.size_name not in values:
-            return None
-        return bool(self.size(values) > self.clean_ceiling)
-
     def estimate_text(self, values: dict[str, float]) -> str:
         """Calibrated values ``{name: value}`` (its parameters, or a carried effect's building parameter) as a
         person reads them, with units: e.g. "light_night_percent 2.22 %"."""
@@ -332,89 +230,12 @@ class Effect:
             f"{k} {v:.3g}" + ("" if units.get(k, "-") == "-" else f" {units[k]}") for k, v in values.items()
         )
 
-    def beyond_estimate_ceiling(self, values: dict[str, float]) -> bool | None:
-        """:meth:`beyond_clean_sites` judged against :attr:`estimate_ceiling` instead (None where the effect has
-        none, or ``values`` lack the size it is on)."""
-        return dataclasses.replace(self, clean_ceiling=self.estimate_ceiling).beyond_clean_sites(values)
-
-    def in_sunshine(self, irradiance_w_m2: float | None) -> Effect:
-        """This effect as a diagnosis judges it on a site whose fit weeks had a mean global horizontal irradiance of
-        ``irradiance_w_m2`` (W/m2): for an effect with a :attr:`sunshine_ceiling`, clean-site and estimate
-        ceilings of ``per_w_m2 x max(irradiance_w_m2, lowest_w_m2)``; itself otherwise, or when the irradiance is
-        unknown (None)."""
-        if self.sunshine_ceiling is None or irradiance_w_m2 is None:
-            return self
-        per, lowest = self.sunshine_ceiling
-        ceiling = round(per * max(float(irradiance_w_m2), lowest), 4)
-        source = (
-            f"{SUNSHINE_CEILING_SOURCE}: at most {per:g} per W/m2, times this site's "
-            f"{float(irradiance_w_m2):.1f} W/m2" + (f" (taken as {lowest:g})" if irradiance_w_m2 < lowest else "")
-        )
-        return dataclasses.replace(
-            self,
-            clean_ceiling=ceiling,
-            estimate_ceiling=ceiling,
-            ceiling_source=source,
-            irradiance_w_m2=float(irradiance_w_m2),
-        )
-
-    def sunshine_ceiling_text(self) -> str:
-        """:attr:`sunshine_ceiling` as a person reads it ("" when the effect has none)."""
-        if self.sunshine_ceiling is None:
-            return ""
-        per, lowest = self.sunshine_ceiling
-        size, unit = self._size_label()
-        return (
-            f"{size} > {per:g}{unit} x the fit weeks' mean global horizontal irradiance in W/m2 (taken as "
-            f"{lowest:g} where lower; {per:g} is the largest {SUNSHINE_CEILING_SOURCE})"
-        )
-
-    def estimate_ceiling_text(self) -> str:
-        """:attr:`estimate_ceiling` with its unit and source, as :meth:`clean_ceiling_text` writes a ceiling ("" when
-        the effect has none)."""
-        source = (
-            self.reading_source
-            if self.clean_reading
-            else (self.ceiling_source if self.irradiance_w_m2 is not None else ESTIMATE_CEILING_SOURCE)
-        )
-        return dataclasses.replace(
-            self, clean_ceiling=self.estimate_ceiling, ceiling_source=source
-        ).clean_ceiling_text()
-
-    def on_declared_site(self) -> Effect:
-        """This effect as a diagnosis judges it on a site declaring building parameters known: its clean-site
-        ceiling is :attr:`declared_ceiling`, from :data:`DECLARED_CEILING_SOURCE` (and, for an effect sized from
-        a :attr:`clean_reading`, from :attr:`reading_source`'s median)."""
-        source = DECLARED_CEILING_SOURCE + (
-            f"; {self.size_name} from the median {self.reading_source}" if self.clean_reading else ""
-        )
-        return dataclasses.replace(self, clean_ceiling=self.declared_ceiling, ceiling_source=source)
-
     def carried_starts_text(self) -> str:
         """The values a diagnosis also recalibrates the carrying building parameter from, with its unit ("" when
         the effect has no :attr:`carried_starts`)."""
         if not self.carried_starts:
             return ""
         return f"{self.building_parameter} = {', '.join(f'{v:g}' for v in self.carried_starts)} {self._building_unit()}"
-
-    def clean_ceiling_text(self) -> str:
-        """The clean-site ceiling with its unit and source ("" when the effect has none)."""
-        if self.clean_ceiling is None:
-            return ""
-        if self.judged_on is not None:
-            return (
-                f"{self.judged_on} > {self.clean_ceiling:g} {DERIVED_SIZES[self.judged_on][1]} (the largest "
-                f"{self.ceiling_source})"
-            )
-        if self.building_parameter is not None:
-            below = self.vanishes_at == "max"
-            return (
-                f"{self.building_parameter} {'<' if below else '>'} {self.clean_ceiling:g} "
-                f"{self._building_unit()} (the {'lowest' if below else 'largest'} "
-                f"{self.ceiling_source})"
-            )
-        size, unit = self._size_label()
-        return f"{size} > {self.clean_ceiling:g}{unit} (the largest {self.ceiling_source})"
 
     def check_magnitude(self, magnitude: float) -> float:
         """The magnitude as a float; raises :class:`EffectError` if it lies outside what the injection can do."""
@@ -455,10 +276,6 @@ EFFECTS: dict[str, Effect] = {
             "air changes)",
             0.01,
             smallest_reason="10 % of a tight office's 0.1 air changes per hour",
-            clean_ceiling=0.0144,
-            declared_ceiling=0.0427,
-            ceiling_source=WIND_CEILING_SOURCE,
-            estimate_ceiling=0.0175,
         ),
         Effect(
             "temperature_sensor_bias",
@@ -474,12 +291,6 @@ EFFECTS: dict[str, Effect] = {
             "the predicted temperature reads bias_k higher",
             0.4,
             smallest_reason="a class-B Pt1000's tolerance near 20 degC",
-            clean_ceiling=0.281,
-            ceiling_source=BIAS_READING_SOURCE,
-            declared_ceiling=0.431,
-            estimate_ceiling=0.281,
-            clean_reading=-0.233,
-            reading_source=BIAS_READING_SOURCE,
         ),
         Effect(
             "temperature_sensor_lag",
@@ -495,9 +306,6 @@ EFFECTS: dict[str, Effect] = {
             "the predicted temperature is passed through a first-order lag of time constant tau_h",
             0.25,
             smallest_reason="below a quarter of the hourly sampling a lag cannot be told from noise",
-            clean_ceiling=0.668,
-            declared_ceiling=0.5,
-            estimate_ceiling=0.713,
         ),
         Effect(
             "holidays",
@@ -516,8 +324,7 @@ EFFECTS: dict[str, Effect] = {
             "the data like the occupancy hours",
             1.0,
             smallest_reason="a candidate that flags no fit-week day has estimated nothing from the fit weeks",
-            clean_ceiling=0.0,
-            declared_ceiling=1.0,
+            found_by_day=True,
         ),
         Effect(
             "night_plug_loads",
@@ -538,10 +345,7 @@ EFFECTS: dict[str, Effect] = {
             smallest_reason="one standby monitor per 10 m2",
             building_parameter="light_night_percent",
             vanishes_at="min",
-            clean_ceiling=3.61,
             judged_on="night_electricity_w_m2",
-            ceiling_source=NIGHT_CEILING_SOURCE,
-            estimate_ceiling=3.61,
         ),
         Effect(
             "solar_shading",
@@ -557,10 +361,6 @@ EFFECTS: dict[str, Effect] = {
             "every irradiance input of the metamodel is scaled by (1 - blocked_fraction)",
             0.15,
             smallest_reason="half the lightest blinds' 30 %",
-            clean_ceiling=0.574,
-            declared_ceiling=0.795,
-            estimate_ceiling=0.581,
-            sunshine_ceiling=(0.00616, 66.9),
         ),
         Effect(
             "heating_capacity_limit",
@@ -594,11 +394,8 @@ EFFECTS: dict[str, Effect] = {
             "diagnosis tests it against an unlimited heating power; with the heating power declared known, the "
             "predicted heating is capped at capacity_w_m2 and the heat not delivered lowers the temperature",
             building_parameter="heating_power_w_m2",
-            clean_ceiling=42.5,
-            declared_ceiling=40.1,
             carried_starts=(25.0, 40.0),
-            ceiling_source=CAPACITY_CEILING_SOURCE,
-            estimate_ceiling=38.1,
+            shows_in="heating_peaks",
         ),
         Effect(
             "heat_recovery",
@@ -614,9 +411,7 @@ EFFECTS: dict[str, Effect] = {
             "the air handling unit's heating is reduced by the heat an exchanger of that effectiveness recovers",
             0.3,
             smallest_reason="the poorest exchangers sold reach about 0.5",
-            clean_ceiling=0.129,
-            declared_ceiling=0.322,
-            estimate_ceiling=0.148,
+            shows_in="ventilated_heating",
         ),
         Effect(
             "night_cycle_cold_air",
@@ -664,6 +459,7 @@ EFFECTS: dict[str, Effect] = {
             "handling unit's heating by D (at most all of it)",
             0.02,
             smallest_reason="0.1 K on a night heated at 5 Wh/m2 (the sensor's resolution)",
+            shows_in="heating_fans_off",
         ),
         Effect(
             "evening_departure",
@@ -720,24 +516,6 @@ def get_effect(name: str) -> Effect:
     close = difflib.get_close_matches(name, list(EFFECTS), n=3)
     hint = f"; did you mean {', '.join(close)}?" if close else ""
     raise EffectError(f"unknown effect {name!r}{hint} (known: {', '.join(EFFECTS)})")
-
-
-def declared_ceilings() -> dict[str, float]:
-    """``{effect: Effect.declared_ceiling}`` where measured: the clean-site ceilings a diagnosis judges a site
-    declaring building parameters known by (``buildenv.diagnosis.gap.DiagnosisSettings.clean_ceilings`` as a mapping; an
-    effect missing from it is judged by the gain bar)."""
-    return {e.name: e.declared_ceiling for e in EFFECTS.values() if e.declared_ceiling is not None}
-
-
-def ceilings_in_sunshine(irradiance_w_m2: float | None, kind: str = "clean") -> dict[str, float]:
-    """``{effect: ceiling}`` of every effect with a clean-site ceiling (``kind="clean"``,
-    :attr:`Effect.clean_ceiling`) or an estimate ceiling (``"estimate"``, :attr:`Effect.estimate_ceiling`), as a
-    diagnosis judges a site whose fit weeks had a mean global horizontal irradiance of ``irradiance_w_m2`` (W/m2;
-    :meth:`Effect.in_sunshine`: the catalogue's own where unknown, None)."""
-    if kind not in ("clean", "estimate"):
-        raise ValueError(f"unknown ceiling kind {kind!r}; choose clean or estimate")
-    ceilings = {name: getattr(e.in_sunshine(irradiance_w_m2), f"{kind}_ceiling") for name, e in EFFECTS.items()}
-    return {name: c for name, c in ceilings.items() if c is not None}
 
 
 def check_declarable(names) -> tuple[str, ...]:

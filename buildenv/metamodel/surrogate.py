@@ -65,7 +65,7 @@ _T_OUT = TEMPERATURE_CHANNELS[0]  # the output a site's temperature sensor reads
 CONSUMPTION_CHANNELS: list[int] = [i for i in range(len(cat.OUTPUT_NAMES)) if i not in TEMPERATURE_CHANNELS]
 log = logging.getLogger(__name__)
 DEFAULT_CHECKPOINT = Path(__file__).resolve().parents[1] / "data" / "metamodel_default.pt"
-#: the earlier default, kept beside it for the gap diagnosis, whose ceilings were measured with it
+#: the earlier default, kept beside it for the gap diagnosis' blind checks, which ran with it
 DIAGNOSIS_CHECKPOINT = DEFAULT_CHECKPOINT.with_name("metamodel_diagnosis.pt")
 #: the checkpoints shipped in the package, by the name :func:`load_metamodel` takes
 SHIPPED_CHECKPOINTS: dict[str, Path] = {"default": DEFAULT_CHECKPOINT, "diagnosis": DIAGNOSIS_CHECKPOINT}

@@ -306,7 +306,7 @@ def gap_left(case_heldout: dict, twin_heldout: dict, sigma: list[float], least: 
 
     Args:
         case_heldout, twin_heldout: held-out metrics of the base models of the case and of its clean twin
-            (:func:`buildenv.diagnosis.gap.base_model_gap`), with ``rmse_t_celsius`` (K) and ``rmse_q_wh_m2`` (Wh/m2).
+            (:func:`buildenv.diagnosis.refit.base_model_gap`), with ``rmse_t_celsius`` (K) and ``rmse_q_wh_m2`` (Wh/m2).
         sigma: the case's fit-week residual standard deviations [K, Wh/m2].
         least: the share from which the effect counts as having left a gap.
     """

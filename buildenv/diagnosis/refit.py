@@ -379,8 +379,3 @@ def base_model_gap(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | 
     fit = base_fit(ctx)
     t, q = predict(ctx, fit, ctx.heldout)
     return {"heldout": metrics(ctx, fit, ctx.heldout, t, q), "residual_sigma": list(residual_sigma(ctx, fit))}
-
-
-def base_heldout_metrics(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:
-    """Held-out metrics (:func:`buildenv.metrics.site_metrics`) of a site's base model (:func:`base_model_gap`)."""
-    return base_model_gap(site, surrogate, settings)["heldout"]

@@ -291,11 +291,18 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     assert {"localisation", "effects", "selected", "not_enough_data", "hours_showing", "split_weather"} <= set(result)
     assert set(result["hours_showing"]) == {"heating_peaks", "ventilated_heating", "heating_fans_off"}
     assert (tmp_path / "diagnosis.png").stat().st_size > 0
+    site.calibration = {"method": "cmaes", "cost": 9.9, "fit": {"cv_rmse_q_percent": 99.0}, "run_costs": [9.9]}
     saved = save_extended_model(site, result)
-    result.pop("_fit")
+    fit = result.pop("_fit")
     json.dumps(result, default=float)
     calibration = json.loads(saved.read_text())
     assert calibration["effects"]["temperature_sensor_bias"]["bias_k"] == first["parameters"]["bias_k"]
+    # the figures at the top are the extended model's; the model without the effect keeps its own
+    assert calibration["heldout"] == result["heldout_after"]
+    assert calibration["at_bounds"] == result["model"]["at_bounds"]
+    assert calibration["verdict"]["judged_on"] == "heldout" and {"fit", "run_costs"}.isdisjoint(calibration)
+    assert calibration["without_effects"]["fit"] == {"cv_rmse_q_percent": 99.0}
+    assert calibration["cost"] == pytest.approx(fit.cost)
 
 
 def test_a_candidate_is_credited_only_with_what_its_own_parameters_add():
@@ -496,3 +503,11 @@ def test_a_clean_synthetic_site_names_nothing_and_a_sensor_bias_on_it_is_named(t
     if bias_k:  # the base calibration took part of it into the building parameters
         assert 0.4 <= result["model"]["effects"]["temperature_sensor_bias"]["bias_k"] <= bias_k + 0.3
         assert result["heldout_after"]["rmse_t_celsius"] < 0.8 * result["heldout_before"]["rmse_t_celsius"]
+
+
+def test_holidays_cannot_be_a_base_effect_their_days_are_found_from_the_data(surrogate):
+    from buildenv.diagnosis.effects import EffectError
+
+    site = load_site(DEFAULT_SITE)
+    with pytest.raises(EffectError, match="base effect 'holidays'"):
+        diagnose(site, surrogate, DiagnosisSettings(base_effects=("holidays",)), localisation=False)

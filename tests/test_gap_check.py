@@ -171,7 +171,7 @@ def test_the_mean_shrinkage_is_over_found_effects_that_left_a_gap():
             "gap_left": {"left": left},
         }
 
-    rows = [row(1, 0.9, True), row(2, 0.7, True), row(3, 90.6, False), row(4, float("nan"), True)]
+    rows = [row(1, 0.9, True), row(2, 0.7, True), row(3, 90.6, False), row(4, float("nan"), True), row(5, None, True)]
     summary = summarise(rows, [NONE, "solar_shading"])
     assert summary["mean_shrinkage_of_effect_gap"] == pytest.approx(0.8)
     assert summary["shrinkage_cases_gap_left"] == 2
@@ -205,6 +205,13 @@ def test_the_cli_passes_alpha_and_the_checked_settings_into_the_diagnosis(monkey
     # the blind checks' settings, not DiagnosisSettings' faster defaults
     assert {k: getattr(seen["settings"], k) for k in CHECKED_DIAGNOSIS} == CHECKED_DIAGNOSIS
     assert CHECKED_DIAGNOSIS["split"] != DiagnosisSettings.split
+
+
+@pytest.mark.parametrize("flag", ["--evaluations", "--max-effects", "--base-restarts", "--refit-restarts"])
+def test_the_cli_refuses_a_search_of_no_runs(flag, capsys):
+    with pytest.raises(SystemExit):
+        main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", flag, "0"])
+    assert "expected a whole number of at least 1, got '0'" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("flag", [["--min-gain", "0.1"], ["--no-clean-ceilings"], ["--judge", "pooled"]])
@@ -537,3 +544,13 @@ def test_a_suite_case_energyplus_cannot_run_is_recorded_as_refused_not_scored(tm
     assert not (tmp_path / "case_000").exists()  # nothing half-made is left
     with pytest.raises(SimulationError):  # the stand-in check of one building stops on it, as before
         run_check(tmp_path / "plain", cases=1, seed=0, effects=("temperature_sensor_bias",), base_effects=[])
+
+
+def test_a_case_record_is_standard_json_an_undefined_shrinkage_null():
+    from buildenv.diagnosis.blind_check import _record
+
+    def refuse(constant):
+        raise ValueError(f"non-standard JSON: {constant}")
+
+    row = json.loads(_record({"case": 1, "shrinkage": {"of_effect_gap": float("nan")}}), parse_constant=refuse)
+    assert row["shrinkage"]["of_effect_gap"] is None

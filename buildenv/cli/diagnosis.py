@@ -56,16 +56,18 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     if args.out:
         Path(args.out).write_text(text + "\n")
     print(text, flush=True)
-    print(_save_note(args, result, saved), file=sys.stderr)
+    print(_save_note(args, result, saved, plot), file=sys.stderr)
     return 0
 
 
-def _save_note(args: argparse.Namespace, result: dict, saved: Path | None) -> str:
-    """The last line of ``buildenv diagnose``: what it wrote into the site folder, or how to make it do so."""
+def _save_note(args: argparse.Namespace, result: dict, saved: Path | None, plot: Path | None = None) -> str:
+    """The last line of ``buildenv diagnose``: what it wrote (the extended model, the localisation plot), or how to
+    make it do so."""
+    plotted = f"; localisation plotted in {plot}" if plot else ""
     if saved:
-        return f"saved: {saved} holds the extended model (the previous calibration under 'without_effects')"
+        return f"saved: {saved} holds the extended model (the previous calibration under 'without_effects'){plotted}"
     if not result["selected"]:
-        return f"nothing saved: no effect selected, {args.site} left as it was"
+        return f"no effect selected: the site's model in {args.site} left as it was{plotted}"
     return (
         f"not saved: {args.site} left as it was; rerun with --save to make the extended model "
         f"({', '.join(result['selected'])}) the site's model (calibration.json) and plot diagnosis.png there"
@@ -77,7 +79,7 @@ def _cmd_diagnose_check(args: argparse.Namespace) -> int:
     from buildenv.diagnosis.blind_check import WEEKS, run_check
     from buildenv.metamodel.surrogate import load_metamodel
 
-    base = "auto" if args.base_effects == "auto" else [e for e in args.base_effects.split(",") if e]
+    base = "auto" if args.base_effects == "auto" else [e for e in args.base_effects.split(",") if e and e != "none"]
     result = run_check(
         args.out,
         args.cases,
@@ -110,7 +112,7 @@ def _common(p: argparse.ArgumentParser) -> None:
         help="metamodel checkpoint, 'default' or 'diagnosis' (the one the blind checks ran with)",
     )
     p.add_argument("--candidates", default=None, help="comma-separated effects to try (default: all)")
-    p.add_argument("--evaluations", type=int, default=1500, help="CMA-ES evaluations per candidate refit")
+    p.add_argument("--evaluations", type=positive_int, default=1500, help="CMA-ES evaluations per candidate refit")
     p.add_argument(
         "--refit-step",
         type=float,
@@ -126,7 +128,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--refit-restarts",
-        type=int,
+        type=positive_int,
         default=None,
         help="CMA-ES runs of every refit (control and candidates), lowest fit cost kept (default 1)",
     )
@@ -147,7 +149,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--base-restarts",
-        type=int,
+        type=positive_int,
         default=CHECKED_DIAGNOSIS["base_restarts"],
         help="CMA-ES runs of the base calibration (when the site has none for its fit weeks), "
         "lowest fit cost kept (default %(default)s)",
@@ -160,7 +162,7 @@ def _common(p: argparse.ArgumentParser) -> None:
     )
     p.add_argument(
         "--max-effects",
-        type=int,
+        type=positive_int,
         default=CHECKED_DIAGNOSIS["max_effects"],
         help="most effects selected (default %(default)s)",
     )
@@ -230,7 +232,7 @@ def register(sub) -> None:
     p.add_argument(
         "--base-effects",
         default="auto",
-        help="'auto' (diagnose a clean site of the building first), or comma-separated known effects",
+        help="'auto' (diagnose a clean site of the building first), 'none', or comma-separated known effects",
     )
     add_known_argument(p)
     _common(p)

@@ -41,6 +41,7 @@ from buildenv.diagnosis.evidence import SERIES
 from buildenv.diagnosis.gap import DiagnosisSettings, diagnose
 from buildenv.diagnosis.refit import base_model_gap
 from buildenv.errors import ReferenceBuildingError, SimulationError
+from buildenv.jsonio import dumps
 
 NONE = "none"
 #: The answer of a case whose injected effect the diagnosis said it had not enough data to tell about.
@@ -485,7 +486,7 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
         stand_in.make(path, start, seed=0)
     result = diagnose(load_site(path), surrogate, settings, localisation=False)
     result.pop("_fit", None)
-    cache.write_text(json.dumps(result, indent=1, default=float) + "\n")
+    cache.write_text(dumps(result, where="the reference diagnosis", nonfinite="null", indent=1, default=float) + "\n")
     return result["selected"]
 
 
@@ -498,6 +499,18 @@ def ranked_first(row: dict) -> bool:
     return bool(ranked) and ranked[0] == row["true"] and row["scores"].get(row["true"], 0.0) > 0.0
 
 
+def _record(row: dict) -> str:
+    """A case's record as standard JSON (a shrinkage that is undefined as null)."""
+    return dumps(row, where="a blind-check case", nonfinite="null", indent=1, default=float)
+
+
+def _shrinkage(row: dict, key: str) -> float | None:
+    """A case's shrinkage ``key`` (``of_effect_gap`` or ``of_total_gap``), None where not measured or undefined
+    (null in the record, NaN in an older one)."""
+    x = (row.get("shrinkage") or {}).get(key)
+    return float(x) if x is not None and np.isfinite(x) else None
+
+
 def summarise(rows: list[dict], labels: list[str]) -> dict:
     """Confusion matrix, top-1 accuracy, false-alarm rate and shrinkage of finished cases.
 
@@ -508,21 +521,13 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
     confusion = {t: {n: sum(1 for r in rows if r["true"] == t and r["named"] == n) for n in names} for t in labels}
     effect_rows = [r for r in rows if r["true"] != NONE]
     none_rows = [r for r in rows if r["true"] == NONE]
-    shrink = [
-        r["shrinkage"]["of_effect_gap"]
-        for r in effect_rows
-        if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])
-    ]
-    total = [r["shrinkage"]["of_total_gap"] for r in effect_rows if r.get("shrinkage")]
+    shrink = [x for r in effect_rows if (x := _shrinkage(r, "of_effect_gap")) is not None]
+    total = [x for r in effect_rows if (x := _shrinkage(r, "of_total_gap")) is not None]
     visible = [r for r in effect_rows if r.get("footprint", {}).get("visible")]
     seconds = [t for r in rows for t in (r.get("diagnosis_seconds"), r.get("twin_diagnosis_seconds")) if t is not None]
     left = [r for r in effect_rows if r.get("gap_left", {}).get("left")]
     # an effect that left next to no gap divides by next to nothing: the mean is taken where it left a gap
-    shrink_left = [
-        r["shrinkage"]["of_effect_gap"]
-        for r in left
-        if r.get("shrinkage") and np.isfinite(r["shrinkage"]["of_effect_gap"])
-    ]
+    shrink_left = [x for r in left if (x := _shrinkage(r, "of_effect_gap")) is not None]
     return {
         "cases": len(rows),
         "effect_cases": len(effect_rows),
@@ -628,7 +633,7 @@ def run_check(
                     row["footprint"] = row.get("footprint") or footprint(out, case, stand_in)
                     if "gap_left" not in row:
                         row = _gap_left_row(out, case, row, surrogate, settings, stand_in)
-                    path.write_text(json.dumps(row, indent=1, default=float) + "\n")
+                    path.write_text(_record(row) + "\n")
                 rows.append(row)
                 continue
         refused = _make_sites(out, case, stand_in) if suite else None
@@ -639,7 +644,7 @@ def run_check(
             row = beyond_twin(run_case(out, case, surrogate, settings, stand_in, twin), twin)
         else:
             row = run_case(out, case, surrogate, settings, stand_in)
-        path.write_text(json.dumps(row, indent=1, default=float) + "\n")
+        path.write_text(_record(row) + "\n")
         rows.append(row)
     labels = [NONE] + [e for e in (effects or EFFECTS) if e not in known]
     scored = [r for r in rows if r.get("status") != REFUSED]

@@ -67,14 +67,16 @@ def diagnose(
         progress: progress bar over the candidates.
         plot: PNG path of the localisation heatmaps (none if ``None``).
     Returns:
-        ``{"verdict", "answer", "selected", "not_enough_data", "effects", "steps", "model", "fit_weeks",
-        "heldout_weeks", "heldout_base", "residual_sigma", "base_at_bounds", "hours_showing", "split_weather",
-        "localisation", "seconds"}``: ``answer`` is ``named`` or ``none``, ``not_enough_data`` the effects the
+        ``{"site", "verdict", "answer", "selected", "not_enough_data", "effects", "steps", "model", "fit_weeks",
+        "heldout_weeks", "base_effects", "heldout_base", "residual_sigma", "base_at_bounds", "hours_showing",
+        "split_weather", "settings", "seconds", "_fit"}`` (``_fit`` the extended model, not for JSON), with
+        ``"localisation"`` when asked for: ``answer`` is ``named`` or ``none``, ``not_enough_data`` the effects the
         weeks cannot tell about (``{effect: why}``, the third answer, per effect); ``effects``
         the first step's candidates, best held-out gain first (:func:`candidate_entry`), ``steps`` every step's;
-        ``heldout_before``/``heldout_after`` the held-out metrics without and with the selected effects.
+        ``heldout_before``/``heldout_after``, when an effect is selected, the held-out metrics without and with the
+        selected effects; ``model["at_bounds"]`` the extended model's parameters at a bound.
     Raises:
-        buildenv.diagnosis.effects.EffectError: an unknown candidate or base effect.
+        buildenv.diagnosis.effects.EffectError: an unknown candidate or base effect, or holidays as a base effect.
         buildenv.calibration.problem.CalibrationError: the site has fewer than 2 weeks.
     """
     from tqdm import tqdm
@@ -107,8 +109,9 @@ def diagnose(
             tried.append(try_candidate(ctx, current, control, name, lacking))
             bar.update(1)
         candidates = [c for c, _, _ in tried]
+        judged = sum(c.lacking is None for c in candidates)
         for c in candidates:
-            c.threshold = settings.alpha / max(sum(c.lacking is None for c in candidates), 1)
+            c.threshold = settings.alpha / judged if c.lacking is None else None
         rules.judge(candidates)
         chosen = rules.select(candidates)
         by_name = {c.name: (trial, extra) for c, trial, extra in tried}
@@ -145,14 +148,13 @@ def diagnose(
         "hours_showing": {need: list(hours) for need, hours in showing.items()},
         "heldout_base": metrics(ctx, base, ctx.heldout, *predict(ctx, base, ctx.heldout)),
         "residual_sigma": list(ctx.sigma),
-        "base_at_bounds": cal.parameters_at_bounds(
-            dict(zip(cal.free_theta(), base.params[: len(cal.free_theta())].tolist())), site.known, ctx.surrogate
-        ),
+        "base_at_bounds": _at_bounds(ctx, base),
         "split_weather": split_weather(site, settings.split),
         "model": {
             "effects": current.effect_parameters(),
             "absent_days": absent_dates(site, current),
             "parameters": current.params.tolist(),
+            "at_bounds": _at_bounds(ctx, current),
         },
         "settings": dataclasses.asdict(settings),
     }
@@ -172,3 +174,10 @@ def diagnose(
     result["seconds"] = round(time.perf_counter() - started, 1)
     result["_fit"] = current  # the extended model (dropped from JSON output)
     return result
+
+
+def _at_bounds(ctx, fit: ModelFit) -> list[str]:
+    """The free building parameters of a model at a bound of their catalogue range
+    (:func:`buildenv.calibration.problem.parameters_at_bounds`)."""
+    free = cal.free_theta()
+    return cal.parameters_at_bounds(dict(zip(free, fit.params[: len(free)].tolist())), ctx.site.known, ctx.surrogate)

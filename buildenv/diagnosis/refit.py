@@ -16,7 +16,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.calibration import problem as cal
 from buildenv.diagnosis import model_effects as em
-from buildenv.diagnosis.effects import DERIVED_SIZES, DIAGNOSIS_SPLITS, EFFECTS, get_effect
+from buildenv.diagnosis.effects import DERIVED_SIZES, DIAGNOSIS_SPLITS, EFFECTS, EffectError, get_effect
 from buildenv.diagnosis.split import split_weeks
 from buildenv.metamodel import surrogate as sg
 
@@ -26,8 +26,9 @@ ABSENCE_THRESHOLD = 0.15
 
 @dataclass
 class DiagnosisSettings:
-    """Knobs of :func:`diagnose`. The only one that changes what is named is ``alpha``; the others say how long the
-    searches run. The blind checks and ``buildenv diagnose`` set ``split``, ``base_restarts`` and ``max_effects`` to
+    """Knobs of :func:`diagnose`. ``alpha`` is the one knob of the evidence; ``split`` says which weeks are held out,
+    ``candidates`` and ``max_effects`` which effects can be named, the others how long the searches run. The blind
+    checks and ``buildenv diagnose`` set ``split``, ``base_restarts`` and ``max_effects`` to
     :data:`.effects.CHECKED_DIAGNOSIS`.
 
     Attributes:
@@ -353,7 +354,17 @@ def metrics(ctx: Context, fit: ModelFit, weeks: list[int], t: np.ndarray, q: np.
 
 
 def make_context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> Context:
-    """The fit / held-out split of a site (:func:`split_weeks`) and its metric scales."""
+    """The fit / held-out split of a site (:func:`split_weeks`) and its metric scales.
+
+    Raises:
+        buildenv.diagnosis.effects.EffectError: a base effect found day by day (holidays), which is always a
+            candidate.
+    """
+    for name in settings.base_effects:
+        if get_effect(name).found_by_day:
+            raise EffectError(
+                f"base effect {name!r}: its days are found from the data, so it is a candidate, not a base effect"
+            )
     fit_weeks, heldout = split_weeks(site.weeks, settings.split)
     ctx = Context(site, surrogate, fit_weeks, heldout, settings)
     ctx.scale = cal._scale(cal.build_problem(site, fit_weeks))
@@ -362,12 +373,13 @@ def make_context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> 
 
 def residual_sigma(ctx: Context, fit: ModelFit) -> tuple[float, float]:
     """Standard deviations of a model's residuals on the fit weeks: temperature (K), consumption (Wh/m2); the
-    units the diagnosis standardises every residual in (1 where a series has no spread)."""
+    units the diagnosis standardises every residual in (1 where a series has no spread or nothing measured)."""
     t, q = predict(ctx, fit, ctx.fit_weeks)
-    return (
-        float(np.nanstd(ctx.site.temperature_c[ctx.fit_weeks] - t)) or 1.0,
-        float(np.nanstd(ctx.site.consumption_wh_m2()[ctx.fit_weeks] - q)) or 1.0,
-    )
+    out = []
+    for residual in (ctx.site.temperature_c[ctx.fit_weeks] - t, ctx.site.consumption_wh_m2()[ctx.fit_weeks] - q):
+        sd = float(np.nanstd(residual)) if np.isfinite(residual).any() else 0.0
+        out.append(sd if sd > 0 else 1.0)
+    return out[0], out[1]
 
 
 def base_model_gap(site, surrogate: sg.Surrogate, settings: DiagnosisSettings | None = None) -> dict:

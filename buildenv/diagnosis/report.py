@@ -11,9 +11,24 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.calibration import problem as cal
+from buildenv.calibration.verdict import calibration_verdict
 from buildenv.diagnosis import rules
 from buildenv.diagnosis.effects import get_effect
 from buildenv.diagnosis.refit import Context, ModelFit, predict, problem_for
+
+#: Keys of ``calibration.json`` that describe the calibrated model's fit, kept only under ``without_effects`` once the
+#: extended model is saved (:func:`save_extended_model`).
+MODEL_FIGURES = (
+    "cost",
+    "fit",
+    "at_bounds",
+    "evaluations",
+    "run_costs",
+    "cost_without_effects",
+    "seconds",
+    "guideline14_p",
+    "verdict",
+)
 
 
 def candidate_entry(c: rules.Candidate, extra: dict) -> dict:
@@ -107,7 +122,9 @@ def save_extended_model(site, result: dict) -> Path | None:
 
     The theta and occupancy refitted with the effects replace the calibrated ones, ``effects`` holds
     ``{effect: {parameter: value}}`` and ``absent_days`` the dates modelled unoccupied; the previous calibration
-    is kept under ``without_effects``. Nothing is written when no effect was selected (returns None).
+    is kept under ``without_effects`` (with its fit-week figures, :data:`MODEL_FIGURES`); ``cost``, ``at_bounds``,
+    ``heldout`` and the Guideline 14 ``verdict`` are the extended model's. Nothing is written when no effect was
+    selected (returns None).
     """
     from buildenv.sites import save_calibration
 
@@ -116,10 +133,14 @@ def save_extended_model(site, result: dict) -> Path | None:
         return None
     previous = dict(site.calibration or {})
     previous.pop("without_effects", None)
+    # what described the model without the effects stays under "without_effects" only
+    kept = {k: v for k, v in previous.items() if k not in MODEL_FIGURES}
     theta, occ = cal._split(cal.build_problem(site, result["fit_weeks"][:1], fit.model_effects), fit.params[None])
     extended = {
-        **previous,
+        **kept,
         "method": "cmaes+effects",
+        "cost": float(fit.cost),
+        "at_bounds": result["model"].get("at_bounds", []),
         "theta": dict(zip(cat.THETA_NAMES, np.round(theta[0], 5).tolist())),
         "occupancy": np.round(occ[0], 3).tolist(),
         # an effect carried by a building parameter is in "theta" (and named in "diagnosis")
@@ -135,4 +156,5 @@ def save_extended_model(site, result: dict) -> Path | None:
     }
     if "heldout_after" in result:
         extended["heldout"] = result["heldout_after"]
+    extended["verdict"] = calibration_verdict(extended)
     return save_calibration(site.path, extended)

@@ -174,9 +174,10 @@ def summaries(rows: list[dict], labels: list[str]) -> dict:
 
 #: The page's rates: (label, summary key, the count it is a share of, target).
 RATES = (
-    ("injected effect named first (top-1)", "top1_accuracy", "effect_cases", ">= 90 %"),
-    ("another effect named", "wrong_effect_rate", "effect_cases", ""),
+    ("injected effect named first (top-1)", "top1_accuracy", "effect_cases", ">= 90 % (8-week sites)"),
+    ("another effect named", "wrong_effect_rate", "effect_cases", "<= 5 % (4-week sites)"),
     ('"not enough data to tell" for the injected effect', "not_enough_data_rate", "effect_cases", ""),
+    ('right, or "not enough data to tell"', "right_or_not_enough_data_rate", "effect_cases", ""),
     ("injected effect ranked first (best held-out gain, named or not)", "ranked_first_accuracy", "effect_cases", ""),
     ("top-1 where the effect left a gap after calibration", "top1_accuracy_gap_left", "gap_left_cases", ""),
     ("false alarms (an effect named on a clean case)", "false_alarm_rate", "none_cases", "<= 5 %"),

@@ -153,7 +153,7 @@ def test_the_summary_counts_not_enough_data_and_another_effect_apart_from_plain_
     ]
     summary = summarise(rows, [NONE, "heating_capacity_limit", "wind_infiltration", "holidays"])
     assert summary["top1_accuracy"] == summary["not_enough_data_rate"] == summary["wrong_effect_rate"] == 0.25
-    assert summary["false_alarm_rate"] == 0.0
+    assert summary["right_or_not_enough_data_rate"] == 0.5 and summary["false_alarm_rate"] == 0.0
     assert summary["confusion"]["heating_capacity_limit"][NOT_ENOUGH_DATA] == 1
     assert summary["confusion"]["wind_infiltration"]["solar_shading"] == 1
 
@@ -375,7 +375,7 @@ def test_a_run_merges_into_the_records_of_its_setup_and_the_page_scores_them_all
     assert s["mean_shrinkage_of_effect_gap"] == 0.9 and s["seconds_median"] == 32.0
     assert list(merged["summary"]) == ["all"]  # a stand-in check has no parts
     page = check.page(merged)
-    assert "| injected effect named first (top-1) | 50 % of 4 | >= 90 % |" in page
+    assert "| injected effect named first (top-1) | 50 % of 4 | >= 90 % (8-week sites) |" in page
     assert '| "not enough data to tell" for the injected effect | 25 % of 4 |  |' in page
     # the answer "not enough data to tell" is a column of the confusion matrix of its own
     columns = "none | solar_shading | heating_capacity_limit | wind_infiltration | holidays"

@@ -551,6 +551,12 @@ def summarise(rows: list[dict], labels: list[str]) -> dict:
         "wrong_effect_rate": float(np.mean([r["named"] not in (r["true"], NONE, NOT_ENOUGH_DATA) for r in effect_rows]))
         if effect_rows
         else None,
+        # what a short site should answer: the effect, or that its weeks cannot tell
+        "right_or_not_enough_data_rate": float(
+            np.mean([r["named"] in (r["true"], NOT_ENOUGH_DATA) for r in effect_rows])
+        )
+        if effect_rows
+        else None,
         "named_where_no_gap_left": {
             r["case"]: r["named"] for r in effect_rows if "gap_left" in r and not r["gap_left"]["left"]
         },

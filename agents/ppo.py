@@ -32,6 +32,7 @@ from stable_baselines3.common.vec_env import VecEnv, VecEnvWrapper, VecMonitor
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
 from agents.cmaes import WeekResult, scalar_scores
+from buildenv.env.building_week import split_weeks
 from buildenv.errors import BuildingEnvError
 
 ENV_ID = "BuildingWeek-v0"
@@ -62,7 +63,7 @@ class BuildingVecEnv(VecEnv):
     The gymnasium vector environment resets finished sub-environments in the same step
     (``AutoresetMode.SAME_STEP``), which is what SB3 expects: the returned observation is the new episode's,
     the finished episode's last observation goes to ``infos[i]["terminal_observation"]`` and
-    ``infos[i]["TimeLimit.truncated"]`` says whether it was cut by a time limit (never, here). The vector
+    ``infos[i]["TimeLimit.truncated"]`` says whether it was cut by a time limit (``max_episode_steps``). The vector
     info dict of arrays is split into one dict per environment (reward terms, ``week``, ...).
 
     The N environments share one batched simulator, so ``get_attr``/``set_attr``/``env_method`` act on the
@@ -172,7 +173,9 @@ class BuildingVecEnv(VecEnv):
         return [False] * self._count(indices)
 
     def get_images(self) -> Sequence[np.ndarray | None]:
-        """BuildingWeek-v0 has no rendering."""
+        """The last week of each environment as a picture with ``render_mode="rgb_array"``, else None each."""
+        if getattr(self.venv, "render_mode", None) == "rgb_array":
+            return list(self.venv.render())
         return [None] * self.num_envs
 
     def evaluate(self, actions: np.ndarray, week: int) -> dict[str, np.ndarray]:
@@ -323,12 +326,18 @@ def evaluate_policy_weeks(
         One :class:`agents.cmaes.WeekResult` per week (``evaluations=1``; ``scores``: reward, energy_term,
         comfort_k, savings_percent, ...; ``seconds``: inference time of the action, s).
     """
+    if not isinstance(weeks, str):
+        weeks = [int(w) for w in weeks]  # once: an iterator is read only once
     own = env is None
     if own:
-        env = gym.make(ENV_ID, **{**(env_kwargs or {}), "weeks": weeks if isinstance(weeks, str) else list(weeks)})
+        env = gym.make(ENV_ID, **{**(env_kwargs or {}), "weeks": weeks})
     try:
         base = env.unwrapped
-        week_list = base.weeks if isinstance(weeks, str) and own else list(weeks)
+        if isinstance(weeks, str):  # the split's weeks the environment can start on
+            split = split_weeks(base.site_model.weeks, weeks)
+            week_list = [w for w in base.weeks if w in split]
+        else:
+            week_list = weeks
         obs, _ = env.reset(options={"week": int(week_list[0])})
         policy_actions(model, obs[None])  # warm-up (first call builds torch kernels)
         results = []

@@ -9,10 +9,10 @@ from __future__ import annotations
 import time
 from dataclasses import dataclass
 
-import gymnasium as gym
 import numpy as np
 
 from agents.cmaes import scalar_scores
+from buildenv.env.response import energyplus_env
 from buildenv.errors import BuildingEnvError
 
 
@@ -55,12 +55,10 @@ def verify(env, week: int, action: np.ndarray) -> Verification:
             "verify: the EnergyPlus model runs the site's own weather file, not morphed weather years; verify on an "
             "environment made with weather_years=1"
         )
-    kwargs = {k: v for k, v in base.arguments.items() if k not in ("backend", "weeks")}
     both = np.stack([base.historical_action, np.asarray(action, dtype=np.float32)])
     predicted = base.evaluate(both, week=week)
     started = time.perf_counter()
-    real_env = gym.make("BuildingWeek-v0", **kwargs, weeks="all", backend="energyplus")
-    realised = real_env.unwrapped.evaluate(both, week=week)
+    realised = energyplus_env(env).unwrapped.evaluate(both, week=week)
     seconds = time.perf_counter() - started
     p, r = scalar_scores(predicted, 1), scalar_scores(realised, 1)
     summary = {

@@ -80,6 +80,11 @@ def test_unknown_and_bad_arguments_are_rejected():
         gym.make("BuildingWeek-v0", comfort_wieght=2.0)
     with pytest.raises(BuildingEnvError, match="backend"):
         gym.make("BuildingWeek-v0", backend="trnsys")
+    # the reference building's run does not split heating from cooling, so it cannot price them apart
+    with pytest.raises(BuildingEnvError, match="price='flat' with backend='energyplus'"):
+        gym.make("BuildingWeek-v0", backend="energyplus", price="flat")
+    with pytest.raises(BuildingEnvError, match=r'options\["week"\]=12.5'):
+        gym.make("BuildingWeek-v0", weeks="test").reset(options={"week": 12.5})
 
 
 def test_week_splits_are_disjoint():

@@ -123,3 +123,29 @@ def test_ppo_on_the_library_starts_at_the_mean_of_the_sites_historical_settings(
     assert each.shape == (len(venv.site_names), N_ACTION) and len(venv.site_names) > 1
     bias = model.policy.action_net.bias.detach().numpy()
     np.testing.assert_allclose(bias, each.mean(axis=0), atol=1e-4)
+
+
+class _Zeros:
+    """A policy whose actions are all 0 (the middle of every range)."""
+
+    def __init__(self, size: int) -> None:
+        self.size = size
+
+    def predict(self, observations, deterministic=True):
+        return np.zeros((len(observations), self.size), np.float32), None
+
+
+def test_policy_weeks_are_a_split_of_a_given_env_or_any_iterable_of_weeks(env):
+    policy = _Zeros(env.action_space.shape[0])
+    every = gym.make("BuildingWeek-v0", weeks="all")
+    test = [r.week for r in evaluate_policy_weeks(policy, env=every)]
+    assert test == gym.make("BuildingWeek-v0", weeks="test").unwrapped.weeks
+    assert [r.week for r in evaluate_policy_weeks(policy, weeks=(w for w in test[:2]))] == test[:2]
+
+
+def test_the_sb3_adapter_renders_each_environment_s_last_week():
+    vec = BuildingVecEnv(num_envs=2, render_mode="rgb_array")
+    vec.reset()
+    vec.step(np.zeros((2, vec.action_space.shape[0]), np.float32))
+    images = vec.get_images()
+    assert len(images) == 2 and images[0].ndim == 3 and images[0].shape[-1] == 3

@@ -61,6 +61,11 @@ class Building:
                 f"{ENV_ID}: weather_years={args['weather_years']!r} with backend='energyplus': the reference "
                 "building runs the site's own weather file; give weather_years=1 (or [0])"
             )
+        if args["backend"] == "energyplus" and self.tariff is not None:
+            raise BuildingEnvError(
+                f"{ENV_ID}: price={args['price']!r} with backend='energyplus': the reference building's run gives "
+                "its HVAC energy undivided, so cooling cannot be priced through the chiller; leave price out"
+            )
         chosen, self.many = ctx.resolve(args["site"], args["sites"])
         from buildenv.metamodel.surrogate import load_metamodel
 
@@ -302,7 +307,7 @@ class SiteScorer:
     def pick_week(self, rng: np.random.Generator, options: dict | None) -> int:
         """The first week of a new episode: ``options["week"]`` if given (it must be a valid start), else drawn."""
         if options and "week" in options:
-            week = int(options["week"])
+            week = whole('options["week"]', options["week"], 0)
             if week not in self.starts:
                 raise BuildingEnvError(
                     f"{ENV_ID}: week {week} cannot start an episode of weeks="

@@ -48,7 +48,8 @@ class BuildingWeekEnv(gym.Env):
 
     ## Action Space
     ``Box(-1, 1, (7 x k,), float32)``: the k settings of :data:`buildenv.catalogue.SETTINGS` the site's BMS can
-    change (``[bms] controllable`` in ``site.toml``; all 12, ``(84,)``, by default, as on the default site) for
+    change (``[bms] controllable`` in ``site.toml``; all 12, ``(84,)``, when a site says nothing; 11 on the default
+    site, whose supply air temperature the BMS cannot set) for
     each day Monday..Sunday, day-major (``env.unwrapped.action_names``), each mapped linearly onto its catalogue
     range within the site's limits and what the metamodel was trained on (:class:`buildenv.env.actions.ActionMap`)
     and snapped to its step; the other settings stay at the site's historical values.

@@ -60,6 +60,15 @@ def first_heldout_week(env) -> int:
     return base.site_model.week_of(site.start + dt.timedelta(days=7 * int(held[0])))
 
 
+def energyplus_env(env: gym.Env) -> gym.Env:
+    """``BuildingWeek-v0`` on the EnergyPlus model of ``env``'s current site (the first before any reset), with
+    ``env``'s other arguments, every week of the site allowed: what its metamodel's predictions are checked
+    against."""
+    base = env.unwrapped
+    kwargs = {k: v for k, v in base.arguments.items() if k not in ("backend", "weeks", "site", "sites")}
+    return gym.make("BuildingWeek-v0", **kwargs, site=str(base.site.path), weeks="all", backend="energyplus")
+
+
 def random_actions(env, n: int, seed: int = 0) -> np.ndarray:
     """``(n, A)`` actions drawn uniformly over the environment's action space with ``seed``."""
     space = env.action_space
@@ -158,10 +167,8 @@ def response_check(
     if extra is not None:
         actions = np.concatenate([actions, np.atleast_2d(np.asarray(extra, np.float32))])
     predicted = base.evaluate(actions, week=week)
-    kwargs = {k: v for k, v in base.arguments.items() if k not in ("backend", "weeks")}
     started = time.perf_counter()
-    real_env = gym.make("BuildingWeek-v0", **kwargs, weeks="all", backend="energyplus")
-    realised = real_env.unwrapped.evaluate(actions, week=week)
+    realised = energyplus_env(env).unwrapped.evaluate(actions, week=week)
     seconds = time.perf_counter() - started
     ps, rs = predicted["savings_percent"], realised["savings_percent"]
     pc, rc = predicted["comfort_k"], realised["comfort_k"]

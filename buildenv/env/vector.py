@@ -152,7 +152,8 @@ class BuildingWeekVectorEnv(VectorEnv):
 
     @property
     def np_random_seed(self) -> tuple[int | None, ...]:
-        """The seeds the sub-environments' generators were made with (-1 where drawn from the OS)."""
+        """The seeds the sub-environments' generators were made with (the OS entropy drawn where no seed was given;
+        None before the first reset)."""
         return tuple(self._seeds)
 
     def _rng(self, i: int) -> np.random.Generator:

@@ -525,6 +525,10 @@ def test_the_verdict_passes_or_fails_a_calibration_and_the_site_is_warned_about_
     failed = calibration_verdict({"fit": good, "heldout": older})
     assert not failed["passed"] and failed["heldout"]["monthly"] is None and "FAILS" in failed["line"]
     assert calibration_verdict({"fit": good})["judged_on"] == "fit"
+    # held-out weeks without a measured consumption are not judged, not failed: the fit weeks are
+    unmeasured = {"cv_rmse_q_percent": float("nan"), "nmbe_q_percent": float("nan")}
+    fallback = calibration_verdict({"fit": good, "heldout": unmeasured})
+    assert fallback["passed"] and fallback["judged_on"] == "fit" and "hourly not judged" in fallback["line"]
     with caplog.at_level("WARNING"):
         check_calibration({"fit": good, "heldout": older}, "/sites/a")
         check_calibration({"fit": good, "heldout": older}, "/sites/a")
@@ -532,3 +536,12 @@ def test_the_verdict_passes_or_fails_a_calibration_and_the_site_is_warned_about_
     assert caplog.text.count("site /sites/a: calibration Guideline 14: FAILS") == 1 and "/sites/b" not in caplog.text
     with pytest.raises(CalibrationFailed, match="recalibrate it or check its data"):
         check_calibration({"fit": good, "heldout": older}, "/sites/a", strict=True)
+
+
+def test_a_week_given_twice_is_refused_not_counted_twice(surrogate):
+    from diagnosis_site import DEFAULT_SITE
+
+    from buildenv.sites import load_site
+
+    with pytest.raises(cal.CalibrationError, match=r"week\(s\) \[0\] given twice"):
+        cal.build_problem(load_site(DEFAULT_SITE), [0, 0, 1], context_hours=surrogate.context_hours)

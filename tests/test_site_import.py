@@ -342,3 +342,28 @@ def test_a_site_that_does_not_load_is_not_left_half_written(tmp_path):
     with pytest.raises(SiteError, match="pc_night_percent"):  # refused by load_site after writing
         import_export(export, tmp_path / "new" / "site", options=options, known={"pc_night_percent": 500.0}, **SITE)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["bms.csv"]
+
+
+def test_a_closing_midnight_row_does_not_make_a_week_of_its_own(tmp_path):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(4)
+    rows = _hourly_rows(start, t, q)
+    rows.append([f"{start + dt.timedelta(weeks=WEEKS):%Y-%m-%d} 00:00", "21.000", "30.0000"])  # the next Monday's
+    export = _export(tmp_path / "bms.csv", ["timestamp", "temperature_c", "energy_kwh"], rows)
+    report = import_export(export, tmp_path / "site", **SITE)
+    _same(tmp_path / "site", _handmade(tmp_path / "handmade", start, t, q))
+    assert report.notes == [
+        f"{export}: the week of 2024-01-22 holds 1 measured hour(s), under a day: left out (an export's closing "
+        "midnight row, or an hour daylight saving time moved across a Monday)"
+    ]
+
+
+@pytest.mark.parametrize("unit, offset, right", [("K", 0.0, "degC"), ("degC", 273.15, "K"), ("degC", 50.0, "degF")])
+def test_a_temperature_read_in_the_wrong_unit_names_the_unit_that_fits(tmp_path, unit, offset, right):
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(5)
+    t = t + offset if right != "degF" else t * 1.8 + 32.0
+    export = _export(tmp_path / "bms.csv", ["timestamp", "zone_temp", "energy_kwh"], _hourly_rows(start, t, q))
+    options = ImportOptions(units={"zone_temp": unit})
+    with pytest.raises(SiteError, match=rf"--unit 'zone_temp={right}'"):
+        import_export(export, tmp_path / "site", options=options, **SITE)

@@ -145,6 +145,9 @@ def build_problem(
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
+    twice = sorted({w for w in weeks if list(weeks).count(w) > 1})
+    if twice:
+        raise CalibrationError(f"week(s) {twice} given twice; give each week once")
     bad = [w for w in weeks if not 0 <= w < site.weeks]
     if bad:
         raise CalibrationError(f"week(s) {bad} not in {site.path} (it has weeks 0..{site.weeks - 1})")

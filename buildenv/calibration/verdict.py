@@ -46,7 +46,8 @@ def _judge(metrics: dict) -> dict:
         _within(metrics.get("nmbe_q_monthly_percent"), GUIDELINE14_MONTHLY_NMBE_PERCENT),
     ]
     judged = [m for m in monthly if m is not None]
-    return {"hourly": all(m is True for m in hourly), "monthly": all(judged) if judged else None}
+    # weeks without a measured consumption have no hourly figures: not judged, rather than failed
+    return {"hourly": None if None in hourly else all(hourly), "monthly": all(judged) if judged else None}
 
 
 def calibration_verdict(result: dict) -> dict:
@@ -55,13 +56,14 @@ def calibration_verdict(result: dict) -> dict:
     Returns:
         ``{"fit": {"hourly", "monthly"}, "heldout": {...} or None, "judged_on": "heldout" | "fit", "passed",
         "at_bounds", "line"}``; ``monthly`` is ``None`` where the result has no monthly figures (a calibration
-        saved before they were scored), and is then not held against it.
+        saved before they were scored), and is then not held against it; ``hourly`` is ``None`` on weeks with no
+        measured consumption, and the verdict is then judged on the fit weeks.
     """
     fit = _judge(result.get("fit") or {})
     heldout = _judge(result["heldout"]) if result.get("heldout") else None
-    judged_on = "heldout" if heldout else "fit"
-    judged = heldout or fit
-    passed = judged["hourly"] and judged["monthly"] is not False
+    judged_on = "heldout" if heldout and heldout["hourly"] is not None else "fit"
+    judged = heldout if judged_on == "heldout" else fit
+    passed = judged["hourly"] is True and judged["monthly"] is not False
     verdict = {
         "fit": fit,
         "heldout": heldout,

@@ -337,10 +337,20 @@ def _series(
         bad = measured[(values[measured] < lo) | (values[measured] > hi)]
         if bad.size:
             k = bad[0]
+            # the unit that brings every reading of the column into range, where one does
+            fits = [
+                u.name
+                for u in _UNITS.values()
+                if u.kind == "temperature"
+                and u is not unit
+                and np.all(
+                    ((raw[measured] + u.offset) * u.factor >= lo) & ((raw[measured] + u.offset) * u.factor <= hi)
+                )
+            ]
+            hint = f"give the column's unit with --unit '{column}={fits[0]}'" if fits else "check the column"
             raise SiteError(
                 f"{path}:{lines[k]}: {column}={raw[k]:g} read in {unit.name} is {values[k]:.1f} degC, outside "
-                f"[{lo:g}, {hi:g}]: give the column's unit with --unit '{column}=degF' (degC, degF or K), or leave "
-                "the cell empty if the sensor failed"
+                f"[{lo:g}, {hi:g}]: {hint} (degC, degF or K), or leave the cell empty if the sensor failed"
             )
     else:
         negative = measured[values[measured] < 0]
@@ -429,6 +439,29 @@ def _read_hourly(
     return monday, step, read, hourly[0], np.sum(hourly[1:], axis=0), hour_line
 
 
+def _measured_weeks(measured: np.ndarray) -> tuple[int, int, list[tuple[int, int]]]:
+    """The first and last week (from the export's first Monday) of the measured hours ``measured`` (indices), less
+    a week at either end measured for under a day (an export's closing midnight row; an hour that daylight saving
+    time moved across a Monday), as ``(first, last, [(week, measured hours), ...])``, those left out last."""
+    per_week = np.bincount(measured // cat.HOURS_PER_WEEK)
+    first, last, edges = int(measured[0]) // cat.HOURS_PER_WEEK, int(measured[-1]) // cat.HOURS_PER_WEEK, []
+    while last > first and per_week[first] < cat.HOURS_PER_DAY:
+        edges.append((first, int(per_week[first])))
+        first += 1
+    while last > first and per_week[last] < cat.HOURS_PER_DAY:
+        edges.append((last, int(per_week[last])))
+        last -= 1
+    return first, last, edges
+
+
+def _edge_note(path: Path, hours: int, monday: dt.date) -> str:
+    """What :func:`_measured_weeks` left out, as a note of the import."""
+    return (
+        f"{path}: the week of {monday:%Y-%m-%d} holds {hours} measured hour(s), under a day: left out (an export's "
+        "closing midnight row, or an hour daylight saving time moved across a Monday)"
+    )
+
+
 def import_export(
     export: str | os.PathLike,
     out: str | os.PathLike,
@@ -444,7 +477,8 @@ def import_export(
 ) -> ImportReport:
     """Write the site folder ``out`` from the BMS export ``export`` (see the module docstring).
 
-    Only the weeks from the first to the last measured hour are written; hours without a value stay gaps (with
+    Only the weeks from the first to the last measured hour are written, less a first or last week measured for
+    under a day (a note says so); hours without a value stay gaps (with
     ``options.fill_temperature_gaps``, temperature gaps of up to :data:`MAX_FILLED_GAP_HOURS` hours are
     interpolated) and :attr:`ImportReport.notes` names the first.
 
@@ -486,7 +520,8 @@ def import_export(
             f"{path}: no hour has a temperature or a consumption: check the columns, their units and --cumulative"
         )
     week = cat.HOURS_PER_WEEK
-    first_week, last_week = int(measured[0]) // week, int(measured[-1]) // week
+    first_week, last_week, edges = _measured_weeks(measured)
+    measured = measured[(measured >= first_week * week) & (measured < (last_week + 1) * week)]
     keep = slice(first_week * week, (last_week + 1) * week)
     temperature, consumption, hour_line = temperature[keep], consumption[keep], hour_line[keep]
     start = monday + dt.timedelta(weeks=first_week)
@@ -503,6 +538,7 @@ def import_export(
     first = start + dt.timedelta(hours=span.start)
     missing_t, missing_q = ~np.isfinite(temperature[span]), ~np.isfinite(consumption[span])
     notes = [
+        *(_edge_note(path, hours, monday + dt.timedelta(weeks=w)) for w, hours in edges),
         _gap_note(path, missing_t, before, first, "temperature"),
         _gap_note(path, missing_q, before, first, "consumption"),
     ]

@@ -324,7 +324,7 @@ def _check_step(
             raise SiteError(f"{message}: sort the rows by time")
         if zone is not None:
             raise SiteError(f"{message}: the same hour of {zone.key}'s clock twice; remove one")
-        if declare is None:
+        if declare is None or not autumn:  # a clock going back is a hint only where clocks go back
             raise SiteError(f"{message}: remove one")
         raise SiteError(
             f"{message}; if the BMS exports daylight-saving time, "

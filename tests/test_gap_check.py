@@ -90,7 +90,10 @@ def test_small_blind_check_names_the_injected_bias_and_nothing_on_the_clean_site
     # a bias is no building parameter: the calibrated base model still misses it, on the temperature only
     left = bias["gap_left"]
     assert left["left"] and left["by_series"]["temperature"] > left["share"] >= GAP_LEFT_SHARE
-    assert shrink["mse_twin"] == pytest.approx(bias["twin_heldout_base"]["rmse_t_celsius"] ** 2)
+    # what the bias removed at its step, over the gap it made: the case's base model against its twin's
+    gap = bias["heldout_base"]["rmse_t_celsius"] ** 2 - bias["twin_heldout_base"]["rmse_t_celsius"] ** 2
+    assert shrink["step"] == 0 and shrink["gap"] == pytest.approx(gap)
+    assert shrink["of_effect_gap"] == pytest.approx((shrink["mse_before"] - shrink["mse_after"]) / gap)
     assert summary["gap_left_cases"] == 1 and summary["top1_accuracy_gap_left"] == 1.0
     assert "gap_left" not in rows[NONE]
     json.dumps(result, default=float)
@@ -554,3 +557,22 @@ def test_a_case_record_is_standard_json_an_undefined_shrinkage_null():
 
     row = json.loads(_record({"case": 1, "shrinkage": {"of_effect_gap": float("nan")}}), parse_constant=refuse)
     assert row["shrinkage"]["of_effect_gap"] is None
+
+
+def test_a_record_whose_shrinkage_credited_other_effects_is_diagnosed_again(tmp_path, monkeypatch):
+    import buildenv.diagnosis.blind_check as bc
+
+    cases = bc.plan_cases(2, 5, effects=("temperature_sensor_bias",))
+    again = []
+
+    def run_case(out, case, *args, **kwargs):
+        again.append(case["case"])
+        return {**case, "named": case["true"], "answer": "named", "correct": True, "shrinkage": {"step": 0}}
+
+    monkeypatch.setattr(bc, "run_case", run_case)
+    for case, shrinkage in zip(cases, ({"of_effect_gap": 1.5}, {"of_effect_gap": 0.9, "step": 1})):
+        record = {**case, "named": case["true"], "answer": "named", "correct": True, "footprint": {}, "gap_left": {}}
+        (tmp_path / f"case_{case['case']:03d}.json").write_text(json.dumps({**record, "shrinkage": shrinkage}))
+    result = bc.run_check(tmp_path, 2, 5, surrogate=object(), base_effects=[], effects=("temperature_sensor_bias",))
+    assert again == [cases[0]["case"]]  # the one recorded before shrinkage was measured at the effect's own step
+    assert [r["shrinkage"]["step"] for r in result["cases"]] == [0, 1]

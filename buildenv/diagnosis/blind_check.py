@@ -30,7 +30,7 @@ import datetime as dt
 import json
 import shutil
 import time
-from dataclasses import dataclass, field, replace
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -492,7 +492,8 @@ def beyond_twin(row: dict, twin: dict) -> dict:
 
 
 def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: StandIn) -> list[str]:
-    """Effects the clean stand-in already has (diagnosis of a clean reference site), cached in ``out``."""
+    """Effects the clean stand-in already has (diagnosis of a clean reference site under ``settings``), cached in
+    ``out``."""
     from buildenv.sites import load_site
 
     path, cache = out / "reference", out / "reference_diagnosis.json"
@@ -500,7 +501,9 @@ def known_effects(out: Path, surrogate, settings: DiagnosisSettings, stand_in: S
     if (path / "site.toml").is_file():
         _check_site_matches(path, {"case": "reference", "start": start.isoformat()}, [], stand_in)
         if cache.is_file():
-            return json.loads(cache.read_text())["selected"]
+            cached = json.loads(cache.read_text())
+            if cached.get("settings") == json.loads(dumps(asdict(settings), where="the settings")):
+                return cached["selected"]  # (a diagnosis under other settings is made again)
     else:
         stand_in.make(path, start, seed=0)
     result = diagnose(load_site(path), surrogate, settings, localisation=False)

@@ -4,7 +4,8 @@ A :class:`WeekFrame` holds what one week needs (its dates, the occupied hours, t
 settings have been applied the indoor temperature, the setpoints and the HVAC energy with the week's scores);
 :func:`rgb` draws it with matplotlib's Agg canvas (no window, no global pyplot state) into an ``(H, W, 3)``
 ``uint8`` array, :func:`ansi` writes it as text. Before the week is simulated (just after ``reset``) the frame
-shows the week ahead: the outdoor temperature forecast against the comfort target.
+shows the week ahead: the site's outdoor temperature (the weather itself, not an observation's forecast noise)
+against the comfort target.
 """
 
 from __future__ import annotations
@@ -87,7 +88,7 @@ def ansi(frame: WeekFrame | None) -> str:
     if not frame.simulated:
         mean = float(frame.outdoor_c.mean())
         return (
-            f"{head}\nno settings applied yet; outdoor forecast mean {mean:.1f} degC, "
+            f"{head}\nno settings applied yet; outdoor temperature mean {mean:.1f} degC, "
             f"comfort target {frame.target_c:.1f} degC\n"
         )
     s = frame.scores
@@ -139,7 +140,7 @@ def rgb(frame: WeekFrame) -> np.ndarray:
         )
     else:
         ax_q.text(0.5, 0.5, "no settings applied yet", ha="center", va="center", transform=ax_q.transAxes)
-        subtitle = "the week ahead: outdoor forecast, no settings applied yet"
+        subtitle = "the week ahead: outdoor temperature, no settings applied yet"
     ax_t.set_ylabel("temperature (degC)")
     ax_t.legend(loc="upper right", fontsize=7, ncol=5)
     ax_t.set_title(f"BuildingWeek-v0 {frame.title()}\n{subtitle}", fontsize=9)

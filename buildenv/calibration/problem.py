@@ -27,6 +27,7 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -145,7 +146,7 @@ def build_problem(
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
-    twice = sorted({w for w in weeks if list(weeks).count(w) > 1})
+    twice = sorted(w for w, n in Counter(weeks).items() if n > 1)
     if twice:
         raise CalibrationError(f"week(s) {twice} given twice; give each week once")
     bad = [w for w in weeks if not 0 <= w < site.weeks]

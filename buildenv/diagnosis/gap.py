@@ -27,6 +27,7 @@ from buildenv.calibration import problem as cal
 from buildenv.diagnosis import data_needs, rules
 from buildenv.diagnosis.effects import get_effect
 from buildenv.diagnosis.refit import (
+    Context,
     DiagnosisSettings,
     ModelFit,
     base_fit,
@@ -176,7 +177,7 @@ def diagnose(
     return result
 
 
-def _at_bounds(ctx, fit: ModelFit) -> list[str]:
+def _at_bounds(ctx: Context, fit: ModelFit) -> list[dict]:
     """The free building parameters of a model at a bound of their catalogue range
     (:func:`buildenv.calibration.problem.parameters_at_bounds`)."""
     free = cal.free_theta()

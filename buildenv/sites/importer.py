@@ -338,15 +338,12 @@ def _series(
         if bad.size:
             k = bad[0]
             # the unit that brings every reading of the column into range, where one does
-            fits = [
-                u.name
+            converted = {
+                u.name: (raw[measured] + u.offset) * u.factor
                 for u in _UNITS.values()
-                if u.kind == "temperature"
-                and u is not unit
-                and np.all(
-                    ((raw[measured] + u.offset) * u.factor >= lo) & ((raw[measured] + u.offset) * u.factor <= hi)
-                )
-            ]
+                if u.kind == "temperature" and u is not unit
+            }
+            fits = [name for name, c in converted.items() if lo <= c.min() and c.max() <= hi]
             hint = f"give the column's unit with --unit '{column}={fits[0]}'" if fits else "check the column"
             raise SiteError(
                 f"{path}:{lines[k]}: {column}={raw[k]:g} read in {unit.name} is {values[k]:.1f} degC, outside "

@@ -298,7 +298,8 @@ def test_a_bad_column_name_gives_one_line_and_no_folder(tmp_path, capsys):
             lambda rows: None,
             {"cumulative": True, "time_zone": "America/New_York"},
             r"bms.csv: --time-zone America/New_York keeps standard time UTC-5 h, the weather file \(usa_il_chicago\) "
-            r"UTC-6 h: the site's hours would be off the weather's",
+            r"UTC-6 h: the data would be 1 h off the weather's; give the zone of the export's clock \(--time-zone\), "
+            r"or the weather file of the building's place \(--epw\)$",
         ),
         (
             lambda rows: None,
@@ -356,6 +357,29 @@ def test_a_closing_midnight_row_does_not_make_a_week_of_its_own(tmp_path):
         f"{export}: the week of 2024-01-22 holds 1 measured hour(s), under a day: left out (an export's closing "
         "midnight row, or an hour daylight saving time moved across a Monday)"
     ]
+
+
+def test_a_heating_meter_in_mwh_is_named_and_its_unit_reads_it(tmp_path):
+    """A meter of heating alone, in MWh under a kWh name, in January: named by the weeks that need heating; the
+    unit it names reads the hand-made site."""
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(6)
+    rows = [
+        [stamp, temperature, f"{mwh:.7f}"] for (stamp, temperature, _), mwh in zip(_hourly_rows(start, t, q), q / 1000)
+    ]
+    export = _export(tmp_path / "bms.csv", ["timestamp", "temperature_c", "heat_kwh"], rows)
+    site = {**SITE, "end_uses": ("heating",)}
+    with pytest.raises(
+        SiteError,
+        match=r"bms.csv:\d+: .* that need heating .*: below the 1 W/m2 .*looks like MWh or GJ: "
+        r"check the columns' units, --unit COLUMN=UNIT$",
+    ):
+        import_export(export, tmp_path / "site", **site)
+    import_export(export, tmp_path / "site", options=ImportOptions(units={"heat_kwh": "MWh"}), **site)
+    handmade = _handmade(tmp_path / "handmade", start, t, q)
+    toml = handmade / "site.toml"
+    toml.write_text(toml.read_text() + '\n[meters]\nconsumption = ["heating"]\n')
+    _same(tmp_path / "site", handmade)
 
 
 @pytest.mark.parametrize("unit, offset, right", [("K", 0.0, "degC"), ("degC", 273.15, "K"), ("degC", 50.0, "degF")])

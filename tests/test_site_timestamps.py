@@ -25,7 +25,7 @@ AREA = 4982.0
 UTC = dt.timezone.utc
 
 
-def _valid(path: Path, start: dt.date, weeks: int = 2, seed: int = 0) -> Path:
+def _valid(path: Path, start: dt.date, weeks: int = 2, seed: int = 0, weather: str = "usa_il_chicago") -> Path:
     """A valid site (local standard time, start-of-hour stamps, kWh) of ``weeks`` weeks from Monday ``start``."""
     rng = np.random.default_rng(seed)
     lo, hi = cat.bounds("settings")
@@ -33,7 +33,7 @@ def _valid(path: Path, start: dt.date, weeks: int = 2, seed: int = 0) -> Path:
     return write_site(
         path,
         name="office",
-        weather="usa_il_chicago",
+        weather=weather,
         start=start,
         floor_area_m2=AREA,
         number_of_floors=3,
@@ -50,6 +50,24 @@ def _rows(site_dir: Path) -> tuple[str, list[list[str]]]:
 
 def _write_rows(site_dir: Path, header: str, rows: list[list[str]]) -> None:
     (site_dir / "measurements.csv").write_text("\n".join([header, *(",".join(r) for r in rows)]) + "\n")
+
+
+def _set_weather(site_dir: Path, weather: str | Path) -> None:
+    """Point site.toml's ``weather`` at ``weather`` (a short name or an EPW path)."""
+    toml = site_dir / "site.toml"
+    toml.write_text(re.sub(r'(?m)^weather = ".*"$', f'weather = "{weather}"', toml.read_text()))
+
+
+def _weather_at(path: Path, place: str, utc_h: float) -> Path:
+    """A copy of Chicago's EPW whose header names ``place`` and standard time UTC``utc_h`` h (the reader reads
+    only the header's location; the weather of the place is not at hand)."""
+    from buildenv.weather.epw import resolve_epw
+
+    head, rest = resolve_epw("usa_il_chicago").read_text(encoding="latin-1").split("\n", 1)
+    fields = head.split(",")
+    fields[1], fields[8] = place, f"{utc_h:.1f}"
+    path.write_text(",".join(fields) + "\n" + rest, encoding="latin-1")
+    return path
 
 
 def _declare(site_dir: Path, table: str) -> None:
@@ -120,19 +138,21 @@ def _local_export(valid_dir: Path, out: Path, zone: str, *, stamped_end: bool = 
 
 
 @pytest.mark.parametrize(
-    ("zone", "start", "missing", "suggested"),
+    ("zone", "start", "missing", "utc_h"),
     [
-        ("America/Chicago", dt.date(2024, 3, 4), "2024-03-10 02:00", "America/Chicago"),  # 2nd Sunday of March
-        ("Europe/Paris", dt.date(2024, 3, 25), "2024-03-31 02:00", "Europe/"),  # last Sunday of March
-        ("Europe/London", dt.date(2024, 3, 25), "2024-03-31 01:00", "Europe/"),
-        ("Australia/Sydney", dt.date(2024, 9, 30), "2024-10-06 02:00", "Australia/"),  # 1st Sunday of October
+        ("America/Chicago", dt.date(2024, 3, 4), "2024-03-10 02:00", -6.0),  # 2nd Sunday of March
+        ("Europe/Paris", dt.date(2024, 3, 25), "2024-03-31 02:00", 1.0),  # last Sunday of March
+        ("Europe/London", dt.date(2024, 3, 25), "2024-03-31 01:00", 0.0),
+        ("Australia/Sydney", dt.date(2024, 9, 30), "2024-10-06 02:00", 10.0),  # 1st Sunday of October
     ],
 )
 def test_spring_daylight_saving_is_named_and_time_zone_reads_it(
-    tmp_path: Path, zone: str, start: dt.date, missing: str, suggested: str
+    tmp_path: Path, zone: str, start: dt.date, missing: str, utc_h: float
 ):
     valid = _valid(tmp_path / "valid", start)
     site = _local_export(valid, tmp_path / "site", zone)
+    _set_weather(site, _weather_at(tmp_path / "place.epw", zone.split("/")[1], utc_h))  # the weather of the place
+    suggested = zone  # the zone of the weather file's standard time and place
     after = (dt.datetime.fromisoformat(missing) + dt.timedelta(hours=1)).strftime("%Y-%m-%d %H:%M")
     line = _line_of(site, after)
     message = _error(site)
@@ -186,6 +206,27 @@ def test_time_zone_reads_a_year_of_local_clock_exactly(tmp_path: Path, stamped_e
     site = _local_export(valid, tmp_path / "site", "America/Chicago", stamped_end=stamped_end)
     _declare(site, 'time_zone = "America/Chicago"' + ('\nstamped = "end"' if stamped_end else ""))
     _same(site, valid)
+
+
+def test_a_time_zone_off_the_weather_is_named_and_either_fix_reads_the_data(tmp_path: Path):
+    """A zone whose standard time is not the weather file's would put the data hours off the weather: an error
+    naming both, and the right zone (a Chicago clock) or the right weather (a New York clock) reads the data."""
+    valid = _valid(tmp_path / "valid", dt.date(2024, 10, 28))  # clocks go back on Sunday 2024-11-03
+    for clock, fix in (("America/Chicago", "zone"), ("America/New_York", "weather")):
+        site = _local_export(valid, tmp_path / fix, clock)
+        _declare(site, 'time_zone = "America/New_York"')
+        line = (site / "site.toml").read_text().splitlines().index("[measurements]") + 1
+        assert _error(site) == (
+            f"{site / 'site.toml'}:{line}: [measurements] time_zone 'America/New_York' keeps standard time UTC-5 h, "
+            "the weather file (usa_il_chicago) UTC-6 h: the data would be 1 h off the weather's; give the zone of "
+            "the BMS clock (time_zone), or the weather file of the building's place (weather)"
+        )
+        if fix == "zone":
+            toml = site / "site.toml"
+            toml.write_text(toml.read_text().replace("America/New_York", clock))
+        else:
+            _set_weather(site, "usa_nj_newark")  # New York's standard time, UTC-5 h
+        _same(site, valid)
 
 
 def test_time_zone_on_a_standard_time_file_names_the_hour_the_clock_skips(tmp_path: Path):
@@ -341,15 +382,56 @@ def test_consumption_in_wh_is_still_named(tmp_path: Path):
     _same(site, valid, rtol=1e-12)
 
 
-def test_small_consumption_without_lighting_or_plug_loads_is_accepted(tmp_path: Path):
-    """A heating meter may read nothing for weeks: no smallest peak."""
-    site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
+def _meter(site: Path, *end_uses: str) -> None:
+    (site / "site.toml").write_text((site / "site.toml").read_text() + f"\n[meters]\nconsumption = {list(end_uses)}\n")
+
+
+def _scale(site: Path, factor: float) -> None:
+    """Multiply the consumption column by ``factor``."""
     header, rows = _rows(site)
     for row in rows:
-        row[2] = repr(float(row[2]) / 1000)
+        row[2] = repr(float(row[2]) * factor)
     _write_rows(site, header, rows)
-    (site / "site.toml").write_text((site / "site.toml").read_text() + '\n[meters]\nconsumption = ["heating"]\n')
-    assert load_site(site).consumption_kwh.max() < 0.1
+
+
+@pytest.mark.parametrize(
+    ("use", "start", "weather"),
+    [("heating", dt.date(2024, 1, 1), "usa_il_chicago"), ("cooling", dt.date(2024, 7, 1), "usa_az_phoenix")],
+)
+def test_a_heating_or_cooling_meter_in_mwh_is_named_and_the_conversion_reads_it(
+    tmp_path: Path, use: str, start: dt.date, weather: str
+):
+    """A meter of heating (cooling) alone is checked in the weeks that need it: 15 K or more colder outdoors than
+    the 17-24 degC measured indoors (no cooler outdoors than indoors)."""
+    valid = _valid(tmp_path / "valid", start, weather=weather)
+    site = _valid(tmp_path / "site", start, weather=weather)
+    _meter(valid, use)
+    _meter(site, use)
+    _scale(site, 1 / 1000)
+    peak = int(np.argmax(load_site(valid).consumption_kwh.ravel()))
+    message = _error(site)
+    assert re.fullmatch(
+        rf".*measurements\.csv:{peak + 2}: heat_consumption_kwh=[\d.e-]+ is the largest in the 2 week\(s\) that need "
+        rf"{use} \(.*\), 0\.0[12]\d* W/m2 for 4982 m2: below the 1 W/m2 a {use} meter of an office delivers in its "
+        r"busiest hour of such weeks; looks like MWh \(multiply by 1000\) or GJ \(multiply by 1000/3\.6 = 277\.78\)",
+        message,
+    ), message
+    _scale(site, 1000)
+    _same(site, valid, rtol=1e-12)
+
+
+def test_small_heating_or_cooling_is_accepted_in_weeks_that_need_none(tmp_path: Path):
+    """A heating meter in summer, a cooling meter in winter, a heating meter that reads nothing in winter (the
+    heating off): no smallest peak."""
+    for use, start, factor in (("heating", dt.date(2024, 7, 1), 1e-3), ("cooling", dt.date(2024, 1, 1), 1e-3)):
+        site = _valid(tmp_path / use, start)
+        _meter(site, use)
+        _scale(site, factor)
+        assert load_site(site).consumption_kwh.max() < 0.1
+    site = _valid(tmp_path / "off", dt.date(2024, 1, 1))
+    _meter(site, "heating")
+    _scale(site, 0.0)
+    assert load_site(site).consumption_kwh.max() == 0
 
 
 def _register(site: Path, *, stamped_end: bool = False, offset: float = 123456.0) -> list[list[str]]:
@@ -375,6 +457,24 @@ def test_a_cumulative_register_is_named_and_cumulative_reads_it(tmp_path: Path):
     )
     _declare(site, "cumulative = true")
     _same(site, valid, missing_q=(2 * 168 - 1,))  # no reading closes the last hour
+
+
+def test_a_register_with_its_closing_reading_is_named_and_cumulative_reads_every_hour(tmp_path: Path):
+    """A register read at each hour's start and at the end of the last (the Monday 00:00 after the weeks): named
+    as a register, not as a row past whole weeks; declared, the closing reading completes the last hour."""
+    valid = _valid(tmp_path / "valid", dt.date(2024, 1, 1))
+    site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
+    header, _ = _rows(site)
+    total = float(np.nansum(load_site(valid).consumption_kwh))
+    rows = [*_register(site), ["2024-01-15 00:00", "", f"{123456.0 + total:.4f}"]]
+    _write_rows(site, header, rows)
+    assert _error(site) == (
+        f"{site / 'measurements.csv'}:2: heat_consumption_kwh never falls, from 123456 here to {float(rows[-1][2]):g} "
+        "on line 338: a cumulative meter register, not the energy of each hour; give the hourly differences, or "
+        "declare it in site.toml: [measurements] cumulative = true"
+    )
+    _declare(site, "cumulative = true")
+    _same(site, valid, rtol=1e-9)
 
 
 def test_a_register_read_at_the_end_of_each_hour(tmp_path: Path):

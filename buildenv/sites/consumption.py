@@ -1,27 +1,58 @@
 """Checking the consumption column of ``measurements.csv`` and converting it to kWh in each hour.
 
-:func:`_check_not_negative` checks one cell; :func:`_consumption` takes the hourly series (after the timestamps):
-meter register readings differenced where ``[measurements] cumulative = true`` (:func:`_register_differences`),
-else recognised as a register that was not declared (:func:`_check_not_a_register`); then each hour checked against
-:data:`~buildenv.sites.model.MAX_KWH_PER_M2_PER_HOUR` (too large: Wh?) and the peak against the least a building's
-metered lighting and plug loads use (too small: MWh or GJ?, :func:`_check_size`). Every problem raises
-:class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"``. ``buildenv site import`` calls the
-same checks on an export's columns, with its column names and flags in the messages.
+:func:`_check_not_negative` checks one cell, :func:`_check_not_a_register` the column in file order (readings of a
+register that was not declared); :func:`_consumption` takes the hourly series (after the timestamps): meter
+register readings differenced where ``[measurements] cumulative = true`` (:func:`_register_differences`), then
+each hour checked against :data:`~buildenv.sites.model.MAX_KWH_PER_M2_PER_HOUR` (too large: Wh?) and the peak
+against the least a building's metered lighting and plug loads use, or, for a meter of heating or cooling alone,
+the least such a meter delivers in the weeks whose weather and indoor temperature need it (too small: MWh or GJ?,
+:func:`_check_size`). Every problem raises :class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is
+wrong>"``. ``buildenv site import`` calls the same checks on an export's columns, with its column names and flags
+in the messages.
 """
 
 from __future__ import annotations
 
+import datetime as dt
 from pathlib import Path
 
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.errors import SiteError
+from buildenv.errors import BuildenvError, SiteError
 from buildenv.sites.measurement_options import _MeasurementOptions
 from buildenv.sites.model import MAX_KWH_PER_M2_PER_HOUR, MIN_PEAK_SHARE_OF_LEAST_POWER
 
 #: The energy units a consumption column is found in too small, and the factor to kWh as a hint writes it.
 _SMALL_UNITS = "MWh (multiply by 1000) or GJ (multiply by 1000/3.6 = 277.78)"
+
+# A meter of heating or cooling alone (no lighting or plug loads, whose least power bounds the others' peak) is
+# checked in the weeks that need what it meters, with the week's mean of the measured indoor temperature and the
+# EPW's outdoor dry-bulb temperature (one measured day at least):
+# - heating: indoor 17-24 degC (the catalogue's least heating setback to its highest comfort setpoint: heated,
+#   and not so warm that internal gains alone may hold it) and outdoor 15 K or more colder. The least heat loss of
+#   heated offices in practice is that of passive-house offices, designed to a heating load of 10 W/m2 at about
+#   32 K below indoors: about 0.3 W/(m2 K) of floor area, ventilation with heat recovery included. 15 K colder
+#   on average is about 4.5 W/m2 of loss on average, mostly at nights and weekends, when internal gains are
+#   small: the meter's busiest hour delivers several W/m2.
+# - cooling: outdoor no cooler than indoor. The envelope then carries no heat out on average: the cooling
+#   removes the internal gains (people at the catalogue's least density, 0.02/m2 at about 70 W sensible, are
+#   1.4 W/m2; lights and plug loads at least 0.6 W/m2 in their busiest hour, MIN_PEAK_SHARE_OF_LEAST_POWER) and
+#   the sun's.
+# Below MIN_THERMAL_PEAK_W_M2 in its busiest hour of those weeks, such a meter is read in the wrong unit: an office
+# heating or cooling at a typical 30-100 W/m2 peaks at 0.03-0.1 W/m2 in MWh, 0.1-0.4 W/m2 in GJ. In the
+# EnergyPlus weeks of the campaigns (150,000 weeks sampled uniformly over the catalogue, 16 US climates) the
+# least peak of such weeks is 2.6 W/m2 (heating) and 19 W/m2 (cooling).
+#: Least energy a meter of heating (cooling) alone delivers in its busiest hour of the weeks that need heating
+#: (cooling), W per m2 of floor area.
+MIN_THERMAL_PEAK_W_M2 = 1.0
+#: Weeks that need heating: the measured indoor temperature averages in this range, degC (the catalogue's least
+#: heating setback to its highest heating comfort setpoint)...
+HEATING_WEEK_INDOOR_C = (cat.get("heating_setback_c").min, cat.get("heating_comfort_c").max)
+#: ...and the EPW's outdoor temperature averages at least this much colder, K.
+HEATING_WEEK_COLDER_K = 15.0
+#: Fewest measured indoor temperatures that make a week's mean (one day), hours.
+_MIN_MEASURED_HOURS = cat.HOURS_PER_DAY
 
 
 def _check_not_negative(path: Path, line: int, value: float) -> None:
@@ -39,19 +70,54 @@ def _consumption(
     floor_area_m2: float,
     options: _MeasurementOptions,
     end_uses: tuple[str, ...],
+    *,
+    closing: tuple[float, int] = (np.nan, 0),
+    indoor_c: np.ndarray | None = None,
+    weather: str | None = None,
+    start: dt.date | None = None,
 ) -> np.ndarray:
-    """The consumption column (hourly, ``line_at``: each hour's CSV line, 0 where none) as kWh in each hour:
-    register readings differenced where ``options.cumulative``, else checked not to be a register; then every
-    hour checked against :data:`MAX_KWH_PER_M2_PER_HOUR` and the peak against the smallest plausible one."""
+    """The consumption column (hourly over whole weeks, ``line_at``: each hour's CSV line, 0 where none) as kWh
+    in each hour: register readings differenced where ``options.cumulative`` (``closing``: the reading at the end
+    of the last hour and its line, NaN where none); then every hour checked against
+    :data:`MAX_KWH_PER_M2_PER_HOUR` and the peak against the smallest plausible one (:func:`_check_size`, with
+    ``indoor_c``, ``weather`` and ``start``). The caller checks that an undeclared register is not one
+    (:func:`_check_not_a_register`)."""
     if options.cumulative:
-        q, line_of = _register_differences(path, values, line_at, options)
+        readings, lines = np.append(values, closing[0]), np.append(line_at, closing[1])
+        q, line_of = _register_differences(path, readings, lines, options)
+        q, line_of = q[:-1], line_of[:-1]
         what = "the register rises by {:g} kWh in the hour to this reading"
     else:
-        _check_not_a_register(path, values, line_at)
         q, line_of = values, line_at
         what = "heat_consumption_kwh={:g}"
-    _check_size(path, q, line_of, floor_area_m2, end_uses, what)
+    _check_size(path, q, line_of, floor_area_m2, end_uses, what, indoor_c=indoor_c, weather=weather, start=start)
     return q
+
+
+def _outdoor_c(weather: str, start: dt.date, weeks: int) -> np.ndarray | None:
+    """The EPW ``weather``'s outdoor dry-bulb temperature, degC, in each hour of ``weeks`` weeks from Monday
+    ``start`` (flat; the EPW rows of :func:`buildenv.weather.epw.epw_hours`), or None where it cannot be read."""
+    from buildenv.weather.epw import epw_hours, load_weather
+
+    try:
+        outdoor = load_weather(weather).channel("TAMB")
+    except (BuildenvError, OSError):
+        return None
+    return outdoor[epw_hours(start, weeks).ravel()]
+
+
+def _thermal_weeks(indoor_c: np.ndarray, outdoor_c: np.ndarray, use: str) -> np.ndarray:
+    """Which weeks (rows of ``(weeks, 168)`` indoor and outdoor temperatures, degC, indoor NaN where missing)
+    need ``use`` (``"heating"`` or ``"cooling"``): see :data:`MIN_THERMAL_PEAK_W_M2`."""
+    measured = np.isfinite(indoor_c).sum(axis=1)
+    indoor = np.nansum(indoor_c, axis=1) / np.maximum(measured, 1)
+    outdoor = outdoor_c.mean(axis=1)
+    if use == "heating":
+        low, high = HEATING_WEEK_INDOOR_C
+        needs = (low <= indoor) & (indoor <= high) & (outdoor <= indoor - HEATING_WEEK_COLDER_K)
+    else:
+        needs = outdoor >= indoor
+    return needs & (measured >= _MIN_MEASURED_HOURS)
 
 
 def _check_size(
@@ -62,11 +128,18 @@ def _check_size(
     end_uses: tuple[str, ...],
     what: str = "heat_consumption_kwh={:g}",
     fix_units: str | None = None,
+    *,
+    indoor_c: np.ndarray | None = None,
+    weather: str | None = None,
+    start: dt.date | None = None,
 ) -> None:
     """A SiteError if an hour of ``q`` (kWh in each hour, NaN where missing; ``line_of``: each hour's line) is
     above :data:`MAX_KWH_PER_M2_PER_HOUR` x ``floor_area_m2``, or the largest is below the least power of the
-    metered ``end_uses``. ``what`` names a value in the message (a format taking it); the unit it looks like is
-    named with the reader's conversion, or with ``fix_units`` (an import's flag) where given."""
+    metered ``end_uses``; for a meter of heating or cooling without lighting or plug loads, and ``q`` over whole
+    weeks from Monday ``start`` with their measured ``indoor_c`` (degC, NaN where missing) and the EPW
+    ``weather``, if the largest in the weeks that need what it meters is below :data:`MIN_THERMAL_PEAK_W_M2`.
+    ``what`` names a value in the message (a format taking it); the unit it looks like is named with the
+    reader's conversion, or with ``fix_units`` (an import's flag) where given."""
     limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
     over = np.flatnonzero(q > limit)  # NaN never is
     if over.size:
@@ -80,6 +153,7 @@ def _check_size(
             f"{floor_area_m2:g} m2){hint}"
         )
 
+    small = f"MWh or GJ: {fix_units}" if fix_units else _SMALL_UNITS
     powers = {"lighting": "lighting_power_w_m2", "plug_loads": "plug_load_w_m2"}
     metered = [use for use in powers if use in end_uses]
     if metered and np.isfinite(q).any():
@@ -88,12 +162,40 @@ def _check_size(
         peak_w_m2 = peak * 1000.0 / floor_area_m2
         least_w_m2 = MIN_PEAK_SHARE_OF_LEAST_POWER * sum(cat.get(powers[use]).min for use in metered)
         if 0 < peak_w_m2 < least_w_m2:
-            small = f"MWh or GJ: {fix_units}" if fix_units else _SMALL_UNITS
             raise SiteError(
                 f"{path}:{line_of[peak_at]}: {what.format(peak)} is the largest in the file, {peak_w_m2:.3g} W/m2 "
                 f"for {floor_area_m2:g} m2: below the {least_w_m2:g} W/m2 a building whose meter includes "
                 f"{' and '.join(metered)} uses in its busiest hour (a tenth of the catalogue's least installed "
                 f"power); looks like {small}"
+            )
+    thermal = [use for use in ("heating", "cooling") if use in end_uses]
+    if metered or not thermal or indoor_c is None or weather is None or start is None or not np.isfinite(q).any():
+        return
+    weeks = q.size // cat.HOURS_PER_WEEK
+    outdoor_c = _outdoor_c(weather, start, weeks)
+    if outdoor_c is None:
+        return
+    shape = (weeks, cat.HOURS_PER_WEEK)
+    for use in thermal:
+        needs = _thermal_weeks(indoor_c.reshape(shape), outdoor_c.reshape(shape), use)
+        hours = np.where(np.repeat(needs, cat.HOURS_PER_WEEK), q, np.nan)
+        if not np.isfinite(hours).any():
+            continue
+        peak_at = int(np.nanargmax(hours))
+        peak = float(q[peak_at])
+        peak_w_m2 = peak * 1000.0 / floor_area_m2
+        if 0 < peak_w_m2 < MIN_THERMAL_PEAK_W_M2:
+            weather_of = (
+                f"the indoor temperature averages {HEATING_WEEK_INDOOR_C[0]:g}-{HEATING_WEEK_INDOOR_C[1]:g} degC "
+                f"and the outdoor air of the weather file at least {HEATING_WEEK_COLDER_K:g} K less"
+                if use == "heating"
+                else "the outdoor air of the weather file averages no cooler than the indoor temperature"
+            )
+            raise SiteError(
+                f"{path}:{line_of[peak_at]}: {what.format(peak)} is the largest in the {int(needs.sum())} week(s) "
+                f"that need {use} ({weather_of}), {peak_w_m2:.3g} W/m2 for {floor_area_m2:g} m2: below the "
+                f"{MIN_THERMAL_PEAK_W_M2:g} W/m2 a {use} meter of an office delivers in its busiest hour of such "
+                f"weeks; looks like {small}"
             )
 
 

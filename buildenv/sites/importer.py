@@ -37,8 +37,8 @@ from buildenv.sites.model import TEMPERATURE_RANGE_C
 from buildenv.sites.reader import _read_settings
 from buildenv.sites.timestamps import (
     _epw_location,
-    _epw_offset_mismatch,
     _fmt,
+    _offset_mismatch_error,
     _parse_timestamp,
     _standard_times,
     _ZoneWording,
@@ -257,13 +257,11 @@ def _standard_stamps(
         epw = dt.timezone(dt.timedelta(hours=tz_h))
         standard = [stamp.astimezone(epw).replace(tzinfo=None) for stamp in stamps]
         return _standard_times(path, lines, standard, None, weather, _OFFSET_WORDING)
-    mismatch = _epw_offset_mismatch(zone, stamps[0].year, weather) if zone is not None else None
-    if mismatch is not None:
-        raise SiteError(
-            f"{path}: --time-zone {zone.key} keeps standard time UTC{mismatch[0]:+g} h, the weather file ({weather}) "
-            f"UTC{mismatch[1]:+g} h: the site's hours would be off the weather's; give the weather of the "
-            "building's place (--epw) or the zone of the export's clock"
-        )
+    if zone is not None:
+        fix = "give the zone of the export's clock (--time-zone), or the weather file of the building's place (--epw)"
+        mismatch = _offset_mismatch_error(f"{path}: --time-zone {zone.key}", zone, stamps[0].year, weather, fix)
+        if mismatch is not None:
+            raise mismatch
     return _standard_times(path, lines, stamps, zone, weather, _ZONE_WORDING)
 
 
@@ -525,7 +523,18 @@ def import_export(
     weeks = last_week - first_week + 1
     sums = ", ".join(repr(c) for c in list(read)[1:]).replace("{", "{{").replace("}", "}}")
     what, fix = f"the hourly sum of {sums}, {{:g}} kWh,", "check the columns' units, --unit COLUMN=UNIT"
-    _check_size(path, consumption, hour_line, floor_area_m2, tuple(end_uses), what, fix)
+    _check_size(
+        path,
+        consumption,
+        hour_line,
+        floor_area_m2,
+        tuple(end_uses),
+        what,
+        fix,
+        indoor_c=temperature,
+        weather=weather,
+        start=start.date(),
+    )
 
     filled = 0
     if options.fill_temperature_gaps:

@@ -1,10 +1,11 @@
 """Reading ``measurements.csv`` into hourly temperature and consumption arrays, whole weeks from a Monday.
 
 :func:`_read_measurements` reads the file in three passes: each row's cells (header and its units, syntax,
-temperature range, negative consumption), then the timestamps (:mod:`.timestamps`), then the consumption series
-(:mod:`.consumption`). A header in other units (Wh, MWh or GJ, degF or K) and a temperature that looks like degF
-or K are named with the conversion that reads them right. Every problem raises
-:class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"`` (line 1 is the header).
+temperature range, negative consumption) and the consumption column (not an undeclared meter register), then the
+timestamps (:mod:`.timestamps`), then the consumption series (:mod:`.consumption`). A header in other units (Wh,
+MWh or GJ, degF or K) and a temperature that looks like degF or K are named with the conversion that reads them
+right. Every problem raises :class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"`` (line 1
+is the header).
 """
 
 from __future__ import annotations
@@ -19,7 +20,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.errors import SiteError
 from buildenv.sites.cells import _check_width, _parse_value, _rows, _separator_hint
-from buildenv.sites.consumption import _check_not_negative, _consumption
+from buildenv.sites.consumption import _check_not_a_register, _check_not_negative, _consumption
 from buildenv.sites.measurement_options import _MeasurementOptions
 from buildenv.sites.model import MEASUREMENT_COLUMNS, TEMPERATURE_RANGE_C
 from buildenv.sites.timestamps import _TIMESTAMP, _hours, _parse_timestamp
@@ -96,8 +97,13 @@ def _read_measurements(
 
     The arrays are in local standard time by the start of the hour, consumption in kWh in the hour;
     ``options`` (``[measurements]``) say how the file departs from that, ``end_uses`` (``[meters]``) what the
-    consumption sums (for its plausible size) and ``weather`` (the EPW) where the site's clock stands (for
-    hints only).
+    consumption sums (for its plausible size) and ``weather`` (the EPW) where the site's clock stands (its
+    standard time must be that of ``options.time_zone``; the hints name zones by it) and, for a meter of heating
+    or cooling alone, which weeks need them (:func:`~buildenv.sites.consumption._check_size`). An undeclared
+    register is named before the timestamps are checked.
+
+    Raises:
+        SiteError: on the first problem, as ``"<file>:<line>: <what is wrong>"``.
     """
     options = options or _MeasurementOptions()
     rows = _rows(path)
@@ -125,11 +131,17 @@ def _read_measurements(
     if not lines:
         raise SiteError(f"{path}:2: no data rows after the header")
 
+    if not options.cumulative:  # before the timestamps: a register's closing reading is no row past the weeks
+        _check_not_a_register(path, np.asarray(consumption), np.asarray(lines))
+
     start, hours, weeks = _hours(path, lines, stamps, options, weather)  # pass 2: the timestamps
     size = weeks * cat.HOURS_PER_WEEK
     keep = (hours >= 0) & (hours < size)
-    if not keep.all():
-        log.debug("%s: %d row(s) before the first Monday in standard time left out", path, int((~keep).sum()))
+    if (hours < 0).any():
+        log.debug("%s: %d row(s) before the first Monday in standard time left out", path, int((hours < 0).sum()))
+    closing: tuple[float, int] = (math.nan, 0)
+    if hours[-1] == size:  # a register's reading that closes the last hour (cumulative = true)
+        closing = (consumption[-1], lines[-1])
     index = hours[keep]
     t_out = np.full(size, np.nan)
     q_in = np.full(size, np.nan)
@@ -137,6 +149,17 @@ def _read_measurements(
     t_out[index] = np.asarray(temperature)[keep]
     q_in[index] = np.asarray(consumption)[keep]
     line_at[index] = np.asarray(lines)[keep]
-    q_out = _consumption(path, q_in, line_at, floor_area_m2, options, end_uses)  # pass 3: the consumption
+    q_out = _consumption(  # pass 3: the consumption
+        path,
+        q_in,
+        line_at,
+        floor_area_m2,
+        options,
+        end_uses,
+        closing=closing,
+        indoor_c=t_out,
+        weather=weather,
+        start=start.date(),
+    )
     shape = (weeks, cat.HOURS_PER_WEEK)
     return start.date(), t_out.reshape(shape), q_out.reshape(shape)

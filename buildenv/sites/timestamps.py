@@ -2,14 +2,15 @@
 
 :func:`_parse_timestamp` reads one cell (on the hour; ``24:00`` only with ``stamped = "end"``); :func:`_hours`
 converts the rows' timestamps to hours since the first Monday 00:00 in local standard time (from the clock of
-``[measurements] time_zone`` where declared, back an hour where ``stamped = "end"``), checks their order, duplicates
-and daylight-saving gaps (:func:`_check_step`) and that the data cover whole weeks, and names the likely cause: a
-daylight-saving clock (with the IANA zones whose clocks change then, :func:`_zones_changing`), end-of-hour stamps,
-missing rows. Every problem raises :class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"``.
+``[measurements] time_zone`` where declared, whose standard time must be the EPW's; back an hour where
+``stamped = "end"``), checks their order, duplicates and daylight-saving gaps (:func:`_check_step`) and that the
+data cover whole weeks, and names the likely cause: a daylight-saving clock (with the IANA zones whose clocks
+change then, :func:`_zones_changing`), end-of-hour stamps, missing rows. Every problem raises
+:class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is wrong>"``.
 
 ``buildenv site import`` (:mod:`buildenv.sites.importer`) reads an export's timestamps with the same functions:
 :func:`_parse_timestamp` with ``export=True``, :func:`_standard_times` (order and daylight-saving checks, any
-interval) and :func:`_epw_offset_mismatch`, its messages naming the command's flags (:class:`_ZoneWording`).
+interval) and :func:`_offset_mismatch_error`, its messages naming the command's flags (:class:`_ZoneWording`).
 """
 
 from __future__ import annotations
@@ -18,7 +19,6 @@ import calendar
 import datetime as dt
 import difflib
 import functools
-import logging
 import re
 import zoneinfo
 from dataclasses import dataclass
@@ -29,8 +29,6 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError, SiteError
 from buildenv.sites.measurement_options import _MeasurementOptions
-
-log = logging.getLogger(__name__)
 
 #: Months whose Sundays see clocks go forward (north: March, April; south: September, October) or back.
 _SPRING_MONTHS = (3, 4, 9, 10)
@@ -141,7 +139,13 @@ def _hours(
     Order, duplicates and gaps are checked in standard time (converted from ``options.time_zone`` where
     declared), whole weeks on the file's clock or in standard time: with a time zone, an export of whole weeks
     of the local clock in summer starts an hour before the first Monday in standard time (that row gets hour
-    -1) and ends an hour before the last Sunday's 23:00 (that hour stays missing).
+    -1) and ends an hour before the last Sunday's 23:00 (that hour stays missing). With ``options.cumulative``
+    (start stamps) the last row may be the Monday 00:00 after whole weeks: the register's reading that closes the
+    last hour (its hour is ``weeks x 168``).
+
+    Raises SiteError ``"<path>:<line>: ..."`` at the first row that breaks these rules, and
+    ``"<site.toml>:<line>: [measurements] time_zone ..."`` where the zone's standard time is not the EPW
+    ``weather``'s (:func:`_offset_mismatch_error`: the hours would be off the weather's).
     """
     zone = options.time_zone
     wording = _site_wording(options)
@@ -154,17 +158,16 @@ def _hours(
             break
     else:
         raise _first_row_error(path, lines, stamps, options)
-    mismatch = _epw_offset_mismatch(zone, start.year, weather) if zone is not None and weather else None
-    if mismatch is not None:
-        log.warning(
-            "%s: time_zone %r keeps standard time UTC%+g h, the weather file (%s) UTC%+g h: the measurements "
-            "are converted to the zone's standard time, not the weather's",
-            options.where,
-            zone.key,
-            mismatch[0],
+    if zone is not None and weather:
+        mismatch = _offset_mismatch_error(
+            f"{options.where}: [measurements] time_zone {zone.key!r}",
+            zone,
+            start.year,
             weather,
-            mismatch[1],
+            "give the zone of the BMS clock (time_zone), or the weather file of the building's place (weather)",
         )
+        if mismatch is not None:
+            raise mismatch
 
     standards = _standard_times(path, lines, stamps, zone, weather, wording)
     hours = [int((s - shift - start).total_seconds()) // 3600 for s in standards]
@@ -174,6 +177,8 @@ def _hours(
     for last in (hours[-1], clock):  # in standard time, on the clock
         if last % week == week - 1:
             return start, np.asarray(hours), last // week + 1
+    if options.cumulative and not options.stamped_end and hours[-1] > 0 and hours[-1] % week == 0:
+        return start, np.asarray(hours), hours[-1] // week  # the register's reading that closes the last hour
     raise _last_row_error(path, lines[-1], stamps[-1], start, clock, options)
 
 
@@ -213,6 +218,21 @@ def _epw_offset_mismatch(zone: zoneinfo.ZoneInfo, year: int, weather: str) -> tu
     if tz_h is None or offset == dt.timedelta(hours=tz_h):
         return None
     return offset.total_seconds() / 3600, tz_h
+
+
+def _offset_mismatch_error(named: str, zone: zoneinfo.ZoneInfo, year: int, weather: str, fix: str) -> SiteError | None:
+    """The error where ``zone``'s standard time in ``year`` is not the EPW ``weather``'s
+    (:func:`_epw_offset_mismatch`), else None: ``"<named> keeps standard time UTC-5 h, the weather file (...)
+    UTC-6 h: ...; <fix>"``, ``named`` the option with where it is set (``site.toml:12: [measurements] time_zone
+    'America/New_York'``; ``bms.csv: --time-zone America/New_York``)."""
+    mismatch = _epw_offset_mismatch(zone, year, weather)
+    if mismatch is None:
+        return None
+    ours, theirs = mismatch
+    return SiteError(
+        f"{named} keeps standard time UTC{ours:+g} h, the weather file ({weather}) UTC{theirs:+g} h: the data "
+        f"would be {abs(ours - theirs):g} h off the weather's; {fix}"
+    )
 
 
 def _skipped_hour_error(

@@ -9,6 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv.cli.argtypes import positive_int
 from buildenv.jsonio import dumps
 
 METHODS = ("nsga2", "cmaes", "ppo", "rules")
@@ -222,7 +223,7 @@ def register(sub) -> None:
 
     p = sub.add_parser("verify", help="the response check: random settings on the metamodel and on EnergyPlus")
     p.add_argument("--site", required=True, help="calibrated site folder made by `buildenv site reference`")
-    p.add_argument("--random", type=int, default=20, help="random settings to check")
+    p.add_argument("--random", type=positive_int, default=20, help="random settings to check")
     p.add_argument("--week", type=int, default=None, help="week of the site's year; default its first held-out week")
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--seed", type=int, default=0, help="seed of the random settings")

@@ -5,7 +5,8 @@ season, 8 weeks each under BMS histories that change week to week; resumable) an
 make (``buildenv suite calibrate``: the default calibration, first half fitted, second half held out). The
 development part and the held-out climates (Phoenix, Newark) are reported apart; the held-out part is what the
 any-office targets are judged on. With ``--random N`` (default 20) the response check (``buildenv suite verify``)
-runs N random settings on each held-out site's calibrated metamodel and on its EnergyPlus model.
+runs N random settings on each held-out site's calibrated metamodel and on its EnergyPlus model, and beside them
+NSGA-II's point of equal comfort (``--generations``, 0: none): its predicted savings against those realised.
 """
 
 from __future__ import annotations
@@ -16,9 +17,10 @@ import time
 from pathlib import Path
 
 import harness
+import numpy as np
 
 from buildenv.calibration.suite import TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT, calibrate_suite, summarise
-from buildenv.env.response import TARGET_P90_POINTS, TARGET_SPEARMAN, check_suite
+from buildenv.env.response import TARGET_CHOSEN_POINTS, TARGET_P90_POINTS, TARGET_SPEARMAN, check_suite
 from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT
 from buildenv.sites.suite import HELD_OUT_CLIMATES, make_suite, suite_cases
 
@@ -77,13 +79,35 @@ def render(record: dict, random: int) -> list[str]:
             "## The response check, held-out sites",
             "",
             f"{random} random settings on each site's first held-out week, through the calibrated metamodel "
-            f"and the site's EnergyPlus model ({record['response_seconds'] / 60:.1f} min): savings against the "
+            f"and the site's EnergyPlus model ({record['response_seconds'] / 60:.1f} min"
+            f"{', NSGA-II included' if record.get('generations') else ''}): savings against the "
             f"historical settings, predicted - realised, in points. {met} of {len(response)} sites within "
             f"{TARGET_P90_POINTS:.0f} points at the 90th percentile with Spearman >= {TARGET_SPEARMAN}. The same "
             "settings on the EnergyPlus shoebox at the calibrated parameters split the error: the metamodel against "
             "its shoebox, the shoebox against the building (p90 of the absolute, and bias; declared effects, which the "
             "shoebox lacks, count in the first).",
             "",
+        ]
+        chosen = [r for r in response if "chosen" in r]
+        if chosen:
+            met_chosen = sum(r["chosen_meets_target"] for r in chosen)
+            lines += [
+                f"NSGA-II's point of equal comfort ({record['generations']} generations of 100 on the calibrated "
+                f"metamodel), run on the same week: realised within {TARGET_CHOSEN_POINTS:.0f} points of its "
+                f"predicted savings on {met_chosen} of {len(chosen)} sites.",
+                "",
+                "| site | predicted savings % | realised % | error points | comfort predicted / realised K |",
+                "|---|---|---|---|---|",
+            ]
+            for r in chosen:
+                c = r["chosen"][0]
+                lines.append(
+                    f"| {r['building']} {r['climate']} {r['season']} | {c['predicted_savings_percent']:.1f} | "
+                    f"{c['realised_savings_percent']:.1f} | {c['savings_error_points']:.1f} | "
+                    f"{c['predicted_comfort_k']:.3f} / {c['realised_comfort_k']:.3f} |"
+                )
+            lines.append("")
+        lines += [
             "| site | error mean abs | error p90 | bias | Spearman | comfort error K | comfort Spearman "
             "| metamodel - shoebox p90 / bias | shoebox - building p90 / bias |",
             "|---|---|---|---|---|---|---|---|---|",
@@ -111,6 +135,13 @@ def render(record: dict, random: int) -> list[str]:
     return lines
 
 
+def _nsga2_choice(generations: int):
+    """``(env, week) -> (1, A)``: NSGA-II's point of equal comfort to the historical settings on the week."""
+    from agents.cli import optimise
+
+    return lambda env, week: np.asarray(optimise(env, "nsga2", week, generations=generations)["action"])[None]
+
+
 def main() -> None:
     p = harness.parser(__doc__, first_line=True)
     p.add_argument("--suite", default="out/suite", help="suite folder (made or reused)")
@@ -120,6 +151,7 @@ def main() -> None:
     p.add_argument("--render", default=None, metavar="JSON", help="only write the page again from a run's record")
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint (default: the shipped one)")
     p.add_argument("--no-prior", action="store_true", help="calibrate by least squares only")
+    p.add_argument("--generations", type=int, default=300, help="NSGA-II generations of the chosen point (0: none)")
     p.add_argument("--name", default="suite")
     args = p.parse_args()
     if args.render:
@@ -137,9 +169,15 @@ def main() -> None:
     )
     calibrate_seconds = time.perf_counter() - started
     started = time.perf_counter()
-    response = check_suite(args.suite, ("held_out",), n=args.random, metamodel=args.checkpoint) if args.random else []
+    chosen = _nsga2_choice(args.generations) if args.generations else None
+    response = (
+        check_suite(args.suite, ("held_out",), n=args.random, metamodel=args.checkpoint, chosen=chosen)
+        if args.random
+        else []
+    )
     record = {
         "checkpoint": args.checkpoint,
+        "generations": args.generations,
         "prior": not args.no_prior,
         "summary": summarise(rows),
         "rows": rows,

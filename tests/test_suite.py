@@ -12,7 +12,7 @@ import pytest
 from buildenv import catalogue as cat
 from buildenv.calibration.calibrate import calibrate_site
 from buildenv.cli.main import main
-from buildenv.env.response import first_heldout_week, response_check, split_error, summarise
+from buildenv.env.response import check_suite, first_heldout_week, response_check, split_error, summarise
 from buildenv.errors import BuildenvError
 from buildenv.metamodel.surrogate import load_metamodel
 from buildenv.sites import load_site
@@ -111,6 +111,13 @@ def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys)
     assert check.shoebox_savings[-1] == pytest.approx(0.0, abs=1e-6) and check.shoebox_savings[0] != 0.0
     assert check.predicted_savings[-1] == pytest.approx(0.0, abs=1e-3)
     assert check.realised_savings[-1] == pytest.approx(0.0, abs=1e-3)
+    # a chosen setting is scored apart from the random ones
+    (chosen,) = check.summary["chosen"]
+    assert check.summary["settings"] == 1 and chosen["savings_error_points"] == pytest.approx(0.0, abs=1e-2)
+    assert chosen["realised_comfort_k"] == pytest.approx(check.realised_comfort[-1], abs=1e-3)
+    # over the suite, an optimiser's choice for each site (here the historical settings) is checked beside them
+    (row_chosen,) = check_suite(out, ("held_out",), n=2, progress=False, chosen=lambda e, w: historical[None])
+    assert row_chosen["chosen_meets_target"] and row_chosen["settings"] == 2 and "meets_target" in row_chosen
     assert main(["verify", "--site", row["site"], "--random", "3", "--json"]) == 0
     single = json.loads(capsys.readouterr().out)  # the same site, week and seed: the same figures
     assert {k: v for k, v in single.items() if k != "seconds_energyplus"} == {

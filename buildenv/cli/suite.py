@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
+from buildenv.cli.argtypes import positive_int
 from buildenv.jsonio import dumps
 
 
@@ -148,7 +149,7 @@ def register(sub) -> None:
     p = suite_sub.add_parser("verify", help="the response check on every calibrated site (runs EnergyPlus)")
     p.add_argument("--suite", required=True, help="suite folder (calibrated by buildenv suite calibrate)")
     p.add_argument("--part", default="held_out", choices=["all", "development", "held_out"], help="which sites")
-    p.add_argument("--random", type=int, default=20, help="random settings per site")
+    p.add_argument("--random", type=positive_int, default=20, help="random settings per site")
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--seed", type=int, default=0, help="seed of the random settings")
     p.add_argument("--json", action="store_true", help="one JSON object")

@@ -151,7 +151,9 @@ def main() -> None:
     p.add_argument("--render", default=None, metavar="JSON", help="only write the page again from a run's record")
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint (default: the shipped one)")
     p.add_argument("--no-prior", action="store_true", help="calibrate by least squares only")
-    p.add_argument("--generations", type=int, default=300, help="NSGA-II generations of the chosen point (0: none)")
+    p.add_argument(
+        "--generations", type=int, default=300, help="NSGA-II generations of the point checked with --random (0: none)"
+    )
     p.add_argument("--name", default="suite")
     args = p.parse_args()
     if args.render:

@@ -40,9 +40,7 @@ _SMALL_UNITS = "MWh (multiply by 1000) or GJ (multiply by 1000/3.6 = 277.78)"
 #   1.4 W/m2; lights and plug loads at least 0.6 W/m2 in their busiest hour, MIN_PEAK_SHARE_OF_LEAST_POWER) and
 #   the sun's.
 # Below MIN_THERMAL_PEAK_W_M2 in its busiest hour of those weeks, such a meter is read in the wrong unit: an office
-# heating or cooling at a typical 30-100 W/m2 peaks at 0.03-0.1 W/m2 in MWh, 0.1-0.4 W/m2 in GJ. In the
-# EnergyPlus weeks of the campaigns (150,000 weeks sampled uniformly over the catalogue, 16 US climates) the
-# least peak of such weeks is 2.6 W/m2 (heating) and 19 W/m2 (cooling).
+# heating or cooling at a typical 30-100 W/m2 peaks at 0.03-0.1 W/m2 in MWh, 0.1-0.4 W/m2 in GJ.
 #: Least energy a meter of heating (cooling) alone delivers in its busiest hour of the weeks that need heating
 #: (cooling), W per m2 of floor area.
 MIN_THERMAL_PEAK_W_M2 = 1.0

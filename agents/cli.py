@@ -149,11 +149,41 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     return 0
 
 
+def _print_levers(rows: list[dict], week: int) -> None:
+    """The lever check as a table, then the lever the model gets most wrong in one line."""
+    print(
+        f"{'setting':<22} {'end':<4} {'historical':>10} {'value':>6} {'savings predicted %':>20} {'realised %':>10} "
+        f"{'shoebox %':>9} {'error':>6}"
+    )
+    for r in rows:
+        shoebox = r.get("shoebox_savings_percent")
+        print(
+            f"{r['setting']:<22} {r['end']:<4} {r['historical']:>10.2f} {r['value']:>6.2f} "
+            f"{r['predicted_savings_percent']:>20.1f} {r['realised_savings_percent']:>10.1f} "
+            f"{'-' if shoebox is None else f'{shoebox:.1f}':>9} {r['savings_error_points']:>6.1f}"
+        )
+    worst = max(rows, key=lambda r: abs(r["savings_error_points"]))
+    print(
+        f"week {week}: the lever most mispredicted is {worst['setting']} at its {worst['end']} end "
+        f"({worst['savings_error_points']:+.1f} points: predicted {worst['predicted_savings_percent']:.1f} %, "
+        f"realised {worst['realised_savings_percent']:.1f} %)"
+    )
+
+
 def _cmd_verify(args: argparse.Namespace) -> int:
     from buildenv.env.response import response_check
 
     env = make_env(args.site, args.metamodel)
     week = default_week(env) if args.week is None else args.week
+    if args.levers:
+        from buildenv.env.levers import lever_check
+
+        rows = lever_check(env, week)
+        if args.json:
+            print(dumps({"week": week, "levers": rows}, where="the lever check", nonfinite="null"))
+        else:
+            _print_levers(rows, week)
+        return 0
     check = response_check(env, week, n=args.random, seed=args.seed)
     if args.json:
         print(dumps(check.summary, where="the response check", nonfinite="null"))
@@ -227,6 +257,11 @@ def register(sub) -> None:
     p.add_argument("--week", type=int, default=None, help="week of the site's year; default its first held-out week")
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--seed", type=int, default=0, help="seed of the random settings")
+    p.add_argument(
+        "--levers",
+        action="store_true",
+        help="instead of random settings, each setting the BMS can change moved alone to either end of its range",
+    )
     p.add_argument("--json", action="store_true", help="the summary as one JSON line")
     p.set_defaults(func=_cmd_verify)
 

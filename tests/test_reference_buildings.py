@@ -176,3 +176,20 @@ def test_an_idf_of_another_energyplus_version_is_refused_in_one_line(tmp_path):
     ) as err:
         reference_idf(old)
     assert "\n" not in str(err.value)
+
+
+def test_infiltration_the_model_cuts_while_its_fans_run_follows_the_sites_ventilation_hours(tmp_path):
+    from buildenv.energyplus.reference import prepare_model, pressurised_infiltration
+
+    assert pressurised_infiltration(read_idf(reference_idf("medium_office_2019"))) == {"INFIL_SCH_PNNL": (0.25, 1.0)}
+    settings = historical_settings(1)
+    start, end = cat.SETTING_NAMES.index("ventilation_start_hour"), cat.SETTING_NAMES.index("ventilation_end_hour")
+    settings[0, 0, start], settings[0, 0, end] = 5, 21  # Monday: ventilated 05-21 h, not the model's 06-22 h
+    first = dt.date(2019, 1, 14)
+    idf, _ = prepare_model(reference_idf("medium_office_2019"), settings, first, tmp_path)
+    objects = read_idf(idf)
+    schedules = {o[3] for o in of_type(objects, "ZoneInfiltration:DesignFlowRate")}
+    assert schedules == {"buildenv_infiltration_1", "INFIL_Door_Opening_SCH"}  # door openings keep their clock
+    table = pd.read_csv(tmp_path / "buildenv_schedules.csv")
+    monday = table["infiltration_1"].to_numpy()[13 * 24 : 14 * 24]  # 14 January
+    assert set(monday[5:21]) == {0.25} and set(monday[:5]) == set(monday[21:]) == {1.0}

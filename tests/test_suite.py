@@ -9,9 +9,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
+from agents.cli import _print_levers
 from buildenv import catalogue as cat
 from buildenv.calibration.calibrate import calibrate_site
 from buildenv.cli.main import main
+from buildenv.env.levers import grouping, summarise_levers
 from buildenv.env.response import check_suite, first_heldout_week, response_check, split_error, summarise
 from buildenv.errors import BuildenvError
 from buildenv.metamodel.surrogate import load_metamodel
@@ -126,6 +128,46 @@ def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys)
     assert main(["verify", "--site", row["site"], "--random", "2"]) == 0
     text = capsys.readouterr().out  # a table with the shoebox's column, then the split in one line
     assert "shoebox %" in text and "metamodel - shoebox" in text and "shoebox - building" in text
+
+    # each lever alone: heating the nights of a January week to the comfort level costs energy in both
+    assert main(["verify", "--site", row["site"], "--levers", "--json"]) == 0
+    levers = json.loads(capsys.readouterr().out)["levers"]
+    assert all(r["value"] != r["historical"] for r in levers)  # every lever moved
+    assert "supply_air_c" not in {r["setting"] for r in levers}  # not mapped onto the stand-in: not a lever
+    nights = next(r for r in levers if (r["setting"], r["end"]) == ("heating_setback_c", "high"))
+    assert nights["predicted_savings_percent"] < 0 and nights["realised_savings_percent"] < 0
+    assert nights["shoebox_savings_percent"] < 0
+    _print_levers(levers, first_heldout_week(env))
+    assert "the lever most mispredicted is" in capsys.readouterr().out
+    # over the suite: only the parts asked for
+    assert main(["suite", "levers", "--suite", str(out), "--part", "development", "--quiet"]) == 2
+    assert "no calibrated site in development" in capsys.readouterr().err
+    assert main(["suite", "levers", "--suite", str(out), "--by", "building,weather"]) == 2
+    assert "weather is not a case field" in capsys.readouterr().err
+
+
+def test_the_lever_summary_takes_medians_per_group_setting_and_end():
+    def row(building, error, shoebox):
+        return {
+            "building": building,
+            "season": "heating",
+            "setting": "heating_setback_c",
+            "end": "high",
+            "savings_error_points": error,
+            "predicted_savings_percent": -20.0 + error,
+            "realised_savings_percent": -20.0,
+            "shoebox_savings_percent": -20.0 + shoebox,
+        }
+
+    rows = [row("medium_office", 10.0, 8.0), row("medium_office", 20.0, 16.0), row("small_office", -30.0, -25.0)]
+    (pooled,) = summarise_levers(rows)
+    assert pooled["season"] == "heating" and pooled["sites"] == 3 and pooled["error_median_points"] == 10.0
+    assert pooled["error_median_abs_points"] == 20.0 and pooled["shoebox_vs_building_median_points"] == 8.0
+    medium, small = summarise_levers(rows, grouping("building, season"))
+    assert (medium["building"], medium["sites"], medium["error_median_points"]) == ("medium_office", 2, 15.0)
+    assert medium["metamodel_vs_shoebox_median_points"] == 3.0 and small["error_median_points"] == -30.0
+    with pytest.raises(BuildenvError, match="floor is not a case field"):
+        grouping("building,floor")
 
 
 def test_the_response_summary_scores_agreement_and_disagreement():

@@ -104,6 +104,31 @@ def _cmd_suite_verify(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_suite_levers(args: argparse.Namespace) -> int:
+    from buildenv.env.levers import check_suite_levers, grouping, summarise_levers
+
+    parts = ("development", "held_out") if args.part == "all" else (args.part,)
+    by = grouping(args.by)
+    rows = check_suite_levers(args.suite, parts, metamodel=args.metamodel, progress=not args.quiet)
+    summary = summarise_levers(rows, by)
+    if args.json:
+        print(dumps({"rows": rows, "summary": summary}, where="the lever check", nonfinite="null"))
+        return 0
+    print(
+        f"{' '.join(by):<28} {'setting':<22} {'end':<4} {'sites':>5} {'error':>6} {'|error|':>7} "
+        f"{'shoebox - building':>18}"
+    )
+    for s in summary:
+        split = s.get("shoebox_vs_building_median_points")
+        print(
+            f"{' '.join(s[k] for k in by):<28} {s['setting']:<22} {s['end']:<4} {s['sites']:>5} "
+            f"{s['error_median_points']:>6.1f} {s['error_median_abs_points']:>7.1f} "
+            f"{'-' if split is None else f'{split:.1f}':>18}"
+        )
+    print("medians over the sites, in points of savings (predicted - realised); written to levers.json")
+    return 0
+
+
 def _cmd_suite_library(args: argparse.Namespace) -> int:
     from buildenv.sites.library import write_library
 
@@ -155,6 +180,18 @@ def register(sub) -> None:
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_suite_verify)
+    p = suite_sub.add_parser(
+        "levers", help="each setting moved alone on every calibrated site: model against building (runs EnergyPlus)"
+    )
+    p.add_argument("--suite", required=True, help="suite folder (calibrated by buildenv suite calibrate)")
+    p.add_argument("--part", default="development", choices=["all", "development", "held_out"], help="which sites")
+    p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
+    p.add_argument(
+        "--by", default="season", help="case fields the medians group sites by, comma-separated (e.g. building,season)"
+    )
+    p.add_argument("--json", action="store_true", help="one JSON object")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=_cmd_suite_levers)
     p = suite_sub.add_parser(
         "library", help="copy calibrated sites into a library for BuildingWeek-v0 (site=DIR or 'library')"
     )

@@ -6,7 +6,9 @@ through one Schedule:File, the schedules of four roles (:data:`SCHEDULE_ROLES`, 
 heating and cooling setpoints of every ``ThermostatSetpoint:DualSetpoint``, the HVAC availability (the union
 of the heating, cooling and ventilation periods) and the minimum outdoor air of every ``Controller:OutdoorAir``
 (``ventilation_on * min(1, ventilation_ach / design_ach)``, :func:`design_outdoor_air_ach`); the settings of
-:data:`UNMAPPED_SETTINGS` are not mapped. A stand-in site declares that in its ``[bms]`` (:func:`reference_bms`):
+:data:`UNMAPPED_SETTINGS` are not mapped. Infiltration that the model cuts while its air handling units run (the
+pressurised building of the reference offices, :func:`pressurised_infiltration`) follows the site's ventilation
+hours instead of the model's fixed clock. A stand-in site declares that in its ``[bms]`` (:func:`reference_bms`):
 the mapped settings are controllable, ventilation up to the design outdoor air. Schedules are re-pointed, not
 rewritten. Systems of 24/7 spaces keep their own schedules (:func:`serves_24h_space`); occupancy, lighting,
 equipment, constructions and systems are untouched; public holidays and daylight-saving time are removed. The
@@ -49,6 +51,7 @@ from buildenv.energyplus.injections import (
     plan_effects,
     sensor_effect_series,
     sizing_objects,
+    weekday_profile,
 )
 from buildenv.energyplus.model_files import user_model
 from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, clean_outputs, run_energyplus
@@ -182,6 +185,34 @@ def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
     return found
 
 
+def pressurised_infiltration(objects: list[IdfObject]) -> dict[str, tuple[float, float]]:
+    """The infiltration schedules a model lowers while its air handling units run: ``{name: (value while they
+    ventilate, value otherwise)}``.
+
+    A schedule of the offices' ``ZoneInfiltration:DesignFlowRate`` objects (not a 24/7 space's) counts when it is a
+    ``Schedule:Compact`` whose weekday clause takes two values, the higher at 03:00 and the lower at noon (the
+    reference offices: 1.0 outside, 0.25 inside their HVAC hours). Door-opening schedules, which rise by day, and
+    constant ones do not.
+    """
+    unoccupied = _unoccupied_thermostats(objects)
+    names = {
+        o[3].lower()
+        for o in of_type(objects, "ZoneInfiltration:DesignFlowRate")
+        if len(o) > 3 and not serves_24h_space(o, unoccupied)
+    }
+    found = {}
+    for o in of_type(objects, "Schedule:Compact"):
+        if o[1].lower() not in names:
+            continue
+        try:
+            values = weekday_profile(o)[2]
+        except ReferenceBuildingError:
+            continue  # not by weekday whole hours: left on its own schedule
+        if len(set(values.tolist())) == 2 and values[3] > values[12]:
+            found[o[1]] = (float(values[12]), float(values[3]))
+    return found
+
+
 def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.ndarray]:
     """Hourly values of the four roles for ``settings`` ``(weeks, 7, 12)`` -> ``{role: (weeks*168,)}``, for a
     model whose design minimum outdoor air is ``design_ach`` (1/h, see :func:`design_outdoor_air_ach`).
@@ -198,6 +229,7 @@ def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.n
         "cooling_setpoint": s["cooling_setpoint_c"],
         "hvac_availability": hvac,
         "outdoor_air": s["ventilation_on"] * np.minimum(1.0, s["ventilation_ach"] / design_ach),
+        "ventilation_on": s["ventilation_on"],
     }
 
 
@@ -232,18 +264,26 @@ def prepare_model(
     # the Schedule:File: a year of hourly values, the run's hours filled from the settings from the run's first
     # day on; a run across a new year continues at the start of the table, where EnergyPlus reads January
     columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
+    # pressurised infiltration: one column per pair of levels, its schedules' value while the AHUs ventilate
+    infiltration = pressurised_infiltration(objects)
+    levels = sorted(set(infiltration.values()))
+    roles = list(SCHEDULE_ROLES)
+    for k, (on, off) in enumerate(levels):
+        roles.append(f"infiltration_{k + 1}")
+        columns[roles[-1]] = off + (on - off) * columns["ventilation_on"]
     start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
     rows = (start + np.arange(7 * len(settings) * cat.HOURS_PER_DAY)) % HOURS_PER_YEAR
-    table = np.empty((HOURS_PER_YEAR, len(SCHEDULE_ROLES)))
-    for j, role in enumerate(SCHEDULE_ROLES):
+    table = np.empty((HOURS_PER_YEAR, len(roles)))
+    for j, role in enumerate(roles):
         values = columns[role]
         table[:, j] = values[: cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
         table[rows, j] = values
     csv = (workdir / "buildenv_schedules.csv").resolve()
     workdir.mkdir(parents=True, exist_ok=True)
-    np.savetxt(csv, table, fmt="%.4f", delimiter=",", header=",".join(SCHEDULE_ROLES), comments="")
+    np.savetxt(csv, table, fmt="%.4f", delimiter=",", header=",".join(roles), comments="")
     # re-point every reference to a replaced schedule (definitions and EMS objects keep the old names)
     rename = {old.lower(): f"buildenv_{role}" for role in SCHEDULE_ROLES for old in getattr(mapping, role)}
+    rename |= {name.lower(): f"buildenv_infiltration_{levels.index(v) + 1}" for name, v in infiltration.items()}
     kept_kinds = ("schedule:", "energymanagementsystem:", "output:")
     unoccupied = _unoccupied_thermostats(objects)
     edited = []
@@ -274,7 +314,7 @@ def prepare_model(
         sim[0][1:6] = ["Yes", "Yes", "Yes", "No", "Yes"]  # autosize on design days, simulate the run period only
     edited += [
         ["Schedule:File", f"buildenv_{role}", "", str(csv), str(j + 1), "1", str(HOURS_PER_YEAR), "Comma", "No", "60"]
-        for j, role in enumerate(SCHEDULE_ROLES)
+        for j, role in enumerate(roles)
     ]
     edited.append(
         [

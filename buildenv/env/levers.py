@@ -1,0 +1,160 @@
+"""The lever check: each setting the BMS can change, moved alone, on the model and on the building.
+
+A random setting moves every lever at once: when its savings are mispredicted, the response check
+(:mod:`buildenv.env.response`) cannot say which lever the model gets wrong. Here each controllable setting is
+pulled, on all seven days, to either end of its action range with every other setting historical, and run through
+the calibrated metamodel, the site's EnergyPlus model and the EnergyPlus shoebox at the calibrated parameters: the
+savings error of each lever, and where it arises (the metamodel against its shoebox, the shoebox against the
+building).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import gymnasium as gym
+import numpy as np
+
+from buildenv import catalogue as cat
+from buildenv.errors import BuildenvError
+from buildenv.sites.suite import CASE_FIELDS, read_manifest
+
+#: the ends a lever is pulled to, with their action value
+ENDS: dict[str, float] = {"low": -1.0, "high": 1.0}
+
+
+def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
+    """The settings of the lever check: ``([(setting, end)], actions (L, A))``.
+
+    For each controllable setting (in the action's order) the historical action with that setting's seven
+    components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the historical ones on every day
+    (a range of one grid point, or a historical value at that end) is left out.
+
+    Raises:
+        BuildenvError: the site declares no setting its BMS can change.
+    """
+    base = env.unwrapped
+    historical = np.asarray(base.historical_action, np.float32)
+    settings = base.decode(historical)
+    setting_of = [name.rsplit("_", 1)[0] for name in base.action_names]  # "<setting>_<day>"
+    levers, actions = [], []
+    for setting in dict.fromkeys(setting_of):
+        components = [i for i, s in enumerate(setting_of) if s == setting]
+        j = cat.SETTING_NAMES.index(setting)
+        for end, value in ENDS.items():
+            action = historical.copy()
+            action[components] = value
+            if np.array_equal(base.decode(action)[:, j], settings[:, j]):
+                continue
+            levers.append((setting, end))
+            actions.append(action)
+    if not actions:
+        raise BuildenvError(f"site {base.site_name}: its [bms] declares no setting the BMS can change; nothing to pull")
+    return levers, np.stack(actions)
+
+
+def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
+    """Pull each lever alone (:func:`lever_actions`) on ``week`` of ``env``'s site and compare.
+
+    Args:
+        env: the metamodel ``BuildingWeek-v0`` of a site with an EnergyPlus model (made by ``buildenv site
+            reference``).
+        week: week of the site's year.
+        shoebox: also run the levers on the EnergyPlus shoebox at the calibrated parameters.
+    Returns:
+        one row per lever: ``setting``, ``end``, ``historical`` (the site's) and ``value`` (the setting's mean over
+        the week's days, catalogue units), then predicted and realised savings (percent) and comfort (K),
+        ``savings_error_points`` (predicted - realised) and, with the shoebox, ``shoebox_savings_percent``.
+    Raises:
+        BuildingEnvError: the site has no EnergyPlus model.
+    """
+    from buildenv.env.response import response_check
+
+    levers, actions = lever_actions(env)
+    check = response_check(env, week, n=0, extra=actions, shoebox=shoebox)
+    settings = env.unwrapped.decode(actions)
+    historical = np.asarray(env.unwrapped.site_model.historical, float)
+    rows = []
+    for i, ((setting, end), figures) in enumerate(zip(levers, check.summary["chosen"])):
+        j = cat.SETTING_NAMES.index(setting)
+        rows.append(
+            {
+                "setting": setting,
+                "end": end,
+                "historical": round(float(historical[:, j].mean()), 2),
+                "value": round(float(settings[i, :, j].mean()), 2),
+                **figures,
+            }
+        )
+    return rows
+
+
+def check_suite_levers(suite, parts=("development",), metamodel: str = "default", progress: bool = True) -> list[dict]:
+    """The lever check on every calibrated site of a suite folder in ``parts``, on each site's first held-out week;
+    one row per site and lever (the case's fields, ``week``, then :func:`lever_check`'s), also written to
+    ``<suite>/levers.json``.
+
+    Raises:
+        BuildenvError: no calibrated site in ``parts`` (run ``buildenv suite calibrate`` first).
+    """
+    from tqdm import tqdm
+
+    from buildenv.env.response import first_heldout_week
+
+    records = [
+        r
+        for r in read_manifest(suite)
+        if r["status"] in ("made", "reused") and r["part"] in parts and (Path(r["site"]) / "calibration.json").is_file()
+    ]
+    if not records:
+        raise BuildenvError(f"{suite}: no calibrated site in {', '.join(parts)}; run buildenv suite calibrate first")
+    rows = []
+    for r in tqdm(records, desc="levers", unit="site", disable=not progress):
+        env = gym.make("BuildingWeek-v0", site=r["site"], metamodel=metamodel, weeks="all")
+        week = first_heldout_week(env)
+        rows += [{**{k: r[k] for k in CASE_FIELDS}, "week": week, **row} for row in lever_check(env, week)]
+    Path(suite, "levers.json").write_text(json.dumps({"rows": rows}, indent=1) + "\n", encoding="utf-8")
+    return rows
+
+
+def grouping(text: str) -> tuple[str, ...]:
+    """The case fields of a comma-separated ``text`` (``"building,season"``) to group sites by.
+
+    Raises:
+        BuildenvError: a name that is not a case field, named with the ones there are.
+    """
+    by = tuple(k.strip() for k in text.split(",") if k.strip())
+    unknown = [k for k in by if k not in CASE_FIELDS]
+    if unknown:
+        raise BuildenvError(f"--by {text}: {', '.join(unknown)} is not a case field; use {', '.join(CASE_FIELDS)}")
+    return by
+
+
+def summarise_levers(rows: list[dict], by: tuple[str, ...] = ("season",)) -> list[dict]:
+    """Per group of sites (case fields ``by``, see :func:`grouping`), setting and end: ``sites``, the median savings
+    error (points) and its median absolute, and, where the shoebox ran, the median of the shoebox against the
+    building and of the metamodel against the shoebox (points)."""
+    groups: dict[tuple, list[dict]] = {}
+    for r in rows:
+        groups.setdefault((*(r[k] for k in by), r["setting"], r["end"]), []).append(r)
+    out = []
+    for key, rs in sorted(groups.items()):
+        error = np.array([r["savings_error_points"] for r in rs])
+        entry = {
+            **dict(zip(by, key)),
+            "setting": key[-2],
+            "end": key[-1],
+            "sites": len(rs),
+            "error_median_points": round(float(np.median(error)), 2),
+            "error_median_abs_points": round(float(np.median(np.abs(error))), 2),
+        }
+        with_shoebox = [r for r in rs if "shoebox_savings_percent" in r]
+        if with_shoebox:
+            sb = np.array([r["shoebox_savings_percent"] for r in with_shoebox])
+            real = np.array([r["realised_savings_percent"] for r in with_shoebox])
+            pred = np.array([r["predicted_savings_percent"] for r in with_shoebox])
+            entry["shoebox_vs_building_median_points"] = round(float(np.median(sb - real)), 2)
+            entry["metamodel_vs_shoebox_median_points"] = round(float(np.median(pred - sb)), 2)
+        out.append(entry)
+    return out

@@ -253,11 +253,12 @@ def register(sub) -> None:
 
     p = sub.add_parser("verify", help="the response check: random settings on the metamodel and on EnergyPlus")
     p.add_argument("--site", required=True, help="calibrated site folder made by `buildenv site reference`")
-    p.add_argument("--random", type=positive_int, default=20, help="random settings to check")
+    what = p.add_mutually_exclusive_group()
+    what.add_argument("--random", type=positive_int, default=20, help="random settings to check")
     p.add_argument("--week", type=int, default=None, help="week of the site's year; default its first held-out week")
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--seed", type=int, default=0, help="seed of the random settings")
-    p.add_argument(
+    what.add_argument(
         "--levers",
         action="store_true",
         help="instead of random settings, each setting the BMS can change moved alone to either end of its range",

@@ -190,6 +190,13 @@ def test_infiltration_the_model_cuts_while_its_fans_run_follows_the_sites_ventil
     objects = read_idf(idf)
     schedules = {o[3] for o in of_type(objects, "ZoneInfiltration:DesignFlowRate")}
     assert schedules == {"buildenv_infiltration_1", "INFIL_Door_Opening_SCH"}  # door openings keep their clock
-    table = pd.read_csv(tmp_path / "buildenv_schedules.csv")
-    monday = table["infiltration_1"].to_numpy()[13 * 24 : 14 * 24]  # 14 January
+    (column,) = [int(o[4]) for o in of_type(objects, "Schedule:File") if o[1] == "buildenv_infiltration_1"]
+    table = np.loadtxt(tmp_path / "buildenv_schedules.csv", delimiter=",", skiprows=1)
+    monday = table[13 * 24 : 14 * 24, column - 1]  # 14 January, the column EnergyPlus reads
     assert set(monday[5:21]) == {0.25} and set(monday[:5]) == set(monday[21:]) == {1.0}
+    assert table[0, column - 1] == 1.0  # outside the run (design days): the model's night value
+    # a site made by the first stand-in keeps the model's own clock when its building runs again
+    idf, _ = prepare_model(reference_idf("medium_office_2019"), settings, first, tmp_path / "v1", stand_in=1)
+    assert "INFIL_SCH_PNNL" in {o[3] for o in of_type(read_idf(idf), "ZoneInfiltration:DesignFlowRate")}
+    with pytest.raises(ReferenceBuildingError, match="stand-in version 9"):
+        prepare_model(reference_idf("medium_office_2019"), settings, first, tmp_path / "v9", stand_in=9)

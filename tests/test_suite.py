@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import shutil
+from dataclasses import asdict
 
 import gymnasium as gym
 import numpy as np
@@ -13,7 +14,8 @@ from agents.cli import _print_levers
 from buildenv import catalogue as cat
 from buildenv.calibration.calibrate import calibrate_site
 from buildenv.cli.main import main
-from buildenv.env.levers import grouping, summarise_levers
+from buildenv.energyplus.reference import STAND_IN_VERSION
+from buildenv.env.levers import grouping, lever_actions, summarise_levers
 from buildenv.env.response import check_suite, first_heldout_week, response_check, split_error, summarise
 from buildenv.errors import BuildenvError
 from buildenv.metamodel.surrogate import load_metamodel
@@ -66,6 +68,11 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
     cooling_meter = ("heating", "cooling", "lighting", "plug_loads")  # a cooling-season site meters its cooling
     assert site.consumption_end_uses == cooling_meter and record["meters"] == list(cooling_meter)
     assert make_case(case, tmp_path, weeks=2)["status"] == "reused"
+    # a site an earlier stand-in made (no version recorded) is made again with this one
+    truth = json.loads((tmp_path / case.name / "truth.json").read_text())
+    assert truth["stand_in"] == STAND_IN_VERSION
+    (tmp_path / case.name / "truth.json").write_text(json.dumps({k: v for k, v in truth.items() if k != "stand_in"}))
+    assert make_case(case, tmp_path, weeks=2)["status"] == "made"
 
     # an EnergyPlus model that cannot run the case: the 2019 large office's data-centre coil
     refused = make_case(SuiteCase("large_office_2019", "usa_ok_oklahoma", "heating"), tmp_path, weeks=1)
@@ -144,6 +151,44 @@ def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys)
     assert "no calibrated site in development" in capsys.readouterr().err
     assert main(["suite", "levers", "--suite", str(out), "--by", "building,weather"]) == 2
     assert "weather is not a case field" in capsys.readouterr().err
+
+
+def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp_path, monkeypatch, capsys):
+    from buildenv.env import levers as lever_module
+
+    env = gym.make("BuildingWeek-v0")  # the default site
+    base = env.unwrapped
+    levers, actions = lever_actions(env)
+    historical = base.site_model.historical
+    assert len(levers) == len(actions) == len(set(levers)) and len(levers) > len(base.action_names) // 7
+    for (setting, end), settings in zip(levers, base.decode(actions)):
+        moved = np.flatnonzero((settings != historical).any(axis=0))
+        assert [cat.SETTING_NAMES[j] for j in moved] == [setting], (setting, end)
+        j = cat.SETTING_NAMES.index(setting)
+        assert (settings[:, j] < historical[:, j]).all() if end == "low" else (settings[:, j] > historical[:, j]).all()
+
+    # over a suite (here one calibrated site, the lever check itself stood in for): rows, medians and the file
+    suite = tmp_path / "suite"
+    case = SuiteCase("medium_office", "usa_il_chicago", "heating")
+    shutil.copytree(base.site.path, suite / case.name)
+    write_manifest(suite, [{**asdict(case), "part": "development", "site": str(suite / case.name), "status": "made"}])
+    fake = [
+        {
+            "setting": s,
+            "end": e,
+            "savings_error_points": 2.0,
+            "realised_savings_percent": 1.0,
+            "predicted_savings_percent": 3.0,
+        }
+        for s, e in levers
+    ]
+    monkeypatch.setattr(lever_module, "lever_check", lambda env, week: fake)
+    assert main(["suite", "levers", "--suite", str(suite), "--by", "building,season", "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "medium_office heating" in text and "heating_setback_c" in text and "levers.json" in text
+    written = json.loads((suite / "levers.json").read_text())
+    assert len(written["rows"]) == len(levers) and written["errors"] == []
+    assert {r["building"] for r in written["rows"]} == {"medium_office"}
 
 
 def test_the_lever_summary_takes_medians_per_group_setting_and_end():

@@ -6,13 +6,14 @@ through one Schedule:File, the schedules of four roles (:data:`SCHEDULE_ROLES`, 
 heating and cooling setpoints of every ``ThermostatSetpoint:DualSetpoint``, the HVAC availability (the union
 of the heating, cooling and ventilation periods) and the minimum outdoor air of every ``Controller:OutdoorAir``
 (``ventilation_on * min(1, ventilation_ach / design_ach)``, :func:`design_outdoor_air_ach`); the settings of
-:data:`UNMAPPED_SETTINGS` are not mapped. Infiltration that the model cuts while its air handling units run (the
-pressurised building of the reference offices, :func:`pressurised_infiltration`) follows the site's ventilation
-hours instead of the model's fixed clock. A stand-in site declares that in its ``[bms]`` (:func:`reference_bms`):
-the mapped settings are controllable, ventilation up to the design outdoor air. Schedules are re-pointed, not
-rewritten. Systems of 24/7 spaces keep their own schedules (:func:`serves_24h_space`); occupancy, lighting,
-equipment, constructions and systems are untouched; public holidays and daylight-saving time are removed. The
-run starts ``warmup_weeks`` before the first measured week.
+:data:`UNMAPPED_SETTINGS` are not mapped. A stand-in site declares that in its ``[bms]`` (:func:`reference_bms`):
+the mapped settings are controllable, ventilation up to the design outdoor air. Infiltration that the model cuts
+while its air handling units ventilate (the pressurised building of the reference offices,
+:func:`pressurised_infiltration`) follows the site's ventilation hours instead of the model's fixed clock (from
+:data:`STAND_IN_VERSION` 2; a site records the version it was made with, and its building runs again as that
+version). Schedules are re-pointed, not rewritten. Systems of 24/7 spaces keep their own schedules
+(:func:`serves_24h_space`); occupancy, lighting, equipment, constructions and systems are untouched; public
+holidays and daylight-saving time are removed. The run starts ``warmup_weeks`` before the first measured week.
 
 Unmodelled effects (:mod:`buildenv.diagnosis.effects`) are put in by :mod:`buildenv.energyplus.injections`:
 model edits after the schedules are re-pointed, sensor effects on the true temperature before the noise.
@@ -31,6 +32,7 @@ from __future__ import annotations
 
 import datetime as dt
 import functools
+import logging
 import math
 import re
 import tempfile
@@ -71,6 +73,10 @@ REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
     "large_office_2019": ("ASHRAE901_OfficeLarge_STD2019_Denver.idf", 12),
 }
 SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
+#: How the stand-in maps a site's settings onto its model, recorded in a site's ``truth.json`` (``stand_in``; none:
+#: 1): 1, the model's infiltration on its own clock; 2, infiltration it cuts while its fans run follows the site's
+#: ventilation hours.
+STAND_IN_VERSION = 2
 #: Settings the stand-in's schedules do not map: they do not act on the reference model.
 UNMAPPED_SETTINGS: tuple[str, ...] = ("supply_air_c",)
 #: End use (:data:`buildenv.catalogue.END_USE_OUTPUTS`) -> (EnergyPlus meter the stand-in's consumption sums,
@@ -93,6 +99,7 @@ _DATA_CENTRE_COIL_ERROR = (
     "at its inlet temperature (the BMS setbacks of the offices around it make it heat): try a warmer period"
 )
 # names of the systems of 24/7 spaces, which keep their own schedules (see serves_24h_space)
+log = logging.getLogger(__name__)
 _24H_NAME = re.compile(r"data[\s_-]*cent(er|re)|server[\s_-]*room", re.IGNORECASE)
 
 
@@ -185,8 +192,14 @@ def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
     return found
 
 
+def stand_in_version(site) -> int:
+    """The version of the stand-in's mapping a site was made with (``truth.json``'s ``stand_in``; 1 where it names
+    none: sites made before versions were recorded), see :data:`STAND_IN_VERSION`."""
+    return int((site.truth or {}).get("stand_in", 1))
+
+
 def pressurised_infiltration(objects: list[IdfObject]) -> dict[str, tuple[float, float]]:
-    """The infiltration schedules a model lowers while its air handling units run: ``{name: (value while they
+    """The infiltration schedules a model lowers while its air handling units ventilate: ``{name: (value while they
     ventilate, value otherwise)}``.
 
     A schedule of the offices' ``ZoneInfiltration:DesignFlowRate`` objects (not a 24/7 space's) counts when it is a
@@ -206,16 +219,22 @@ def pressurised_infiltration(objects: list[IdfObject]) -> dict[str, tuple[float,
             continue
         try:
             values = weekday_profile(o)[2]
-        except ReferenceBuildingError:
-            continue  # not by weekday whole hours: left on its own schedule
+        except (ReferenceBuildingError, ValueError):
+            continue  # not by weekday, whole hours and numbers: left on its own schedule
         if len(set(values.tolist())) == 2 and values[3] > values[12]:
             found[o[1]] = (float(values[12]), float(values[3]))
     return found
 
 
+def _mapped(mapping: ScheduleMap) -> set[str]:
+    """Names (lower case) of the schedules a map's roles replace."""
+    return {name.lower() for role in SCHEDULE_ROLES for name in getattr(mapping, role)}
+
+
 def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.ndarray]:
-    """Hourly values of the four roles for ``settings`` ``(weeks, 7, 12)`` -> ``{role: (weeks*168,)}``, for a
-    model whose design minimum outdoor air is ``design_ach`` (1/h, see :func:`design_outdoor_air_ach`).
+    """Hourly values of the four roles and ``ventilation_on`` for ``settings`` ``(weeks, 7, 12)`` -> ``{role:
+    (weeks*168,)}``, for a model whose design minimum outdoor air is ``design_ach`` (1/h, see
+    :func:`design_outdoor_air_ach`).
 
     Outside the HVAC availability the systems only cycle on to hold the setbacks (the model's night-cycle
     managers); outdoor air above the design cannot be expressed (EnergyPlus caps the schedule at 1).
@@ -241,16 +260,23 @@ def prepare_model(
     schedule_map: ScheduleMap | None = None,
     effects: Sequence[InjectedEffect] = (),
     epw: Path | None = None,
+    stand_in: int = STAND_IN_VERSION,
 ) -> tuple[Path, ScheduleMap]:
     """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
 
     ``effects`` (planned with :func:`buildenv.energyplus.injections.plan_effects`): the ``kind="energyplus"`` ones
     are injected into the model (:func:`buildenv.energyplus.injections.inject_energyplus`); none gives the model of
     a run without effects, unchanged. ``epw`` (an EPW path) is needed by ``heating_capacity_limit``, whose
-    design capacities come from a sizing run in ``workdir/sizing``.
+    design capacities come from a sizing run in ``workdir/sizing``. ``stand_in``: the mapping's version
+    (:data:`STAND_IN_VERSION`).
 
-    Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule.
+    Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule
+    or ``stand_in`` is not a known version.
     """
+    if stand_in not in (1, 2):
+        raise ReferenceBuildingError(
+            f"stand-in version {stand_in} is not one this buildenv knows (1-{STAND_IN_VERSION}); update buildenv"
+        )
     objects = read_idf(source)
     mapping = schedule_map or detect_schedule_map(objects)
     missing = [r for r in SCHEDULE_ROLES if not getattr(mapping, r)]
@@ -265,18 +291,23 @@ def prepare_model(
     # day on; a run across a new year continues at the start of the table, where EnergyPlus reads January
     columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
     # pressurised infiltration: one column per pair of levels, its schedules' value while the AHUs ventilate
-    infiltration = pressurised_infiltration(objects)
+    infiltration = pressurised_infiltration(objects) if stand_in >= 2 else {}
+    infiltration = {k: v for k, v in infiltration.items() if k.lower() not in _mapped(mapping)}
     levels = sorted(set(infiltration.values()))
-    roles = list(SCHEDULE_ROLES)
+    roles, outside = list(SCHEDULE_ROLES), {}
     for k, (on, off) in enumerate(levels):
         roles.append(f"infiltration_{k + 1}")
         columns[roles[-1]] = off + (on - off) * columns["ventilation_on"]
+        outside[roles[-1]] = off  # the design days size the heating for the night's infiltration, as the model's own
+    if infiltration:
+        log.info("%s: infiltration %s follows the ventilation hours", source.stem, ", ".join(sorted(infiltration)))
     start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
     rows = (start + np.arange(7 * len(settings) * cat.HOURS_PER_DAY)) % HOURS_PER_YEAR
     table = np.empty((HOURS_PER_YEAR, len(roles)))
     for j, role in enumerate(roles):
         values = columns[role]
-        table[:, j] = values[: cat.HOURS_PER_DAY * 7].mean()  # outside the run: a week's mean (not simulated)
+        # outside the run (the sizing design days only): a week's mean
+        table[:, j] = outside.get(role, values[: cat.HOURS_PER_DAY * 7].mean())
         table[rows, j] = values
     csv = (workdir / "buildenv_schedules.csv").resolve()
     workdir.mkdir(parents=True, exist_ok=True)
@@ -587,6 +618,7 @@ def run_reference(
     effects: Sequence[tuple[str, float | None] | InjectedEffect] | None = None,
     effect_seed: int = 0,
     end_uses: Sequence[str] = cat.DEFAULT_END_USES,
+    stand_in: int = STAND_IN_VERSION,
 ) -> ReferenceRun:
     """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
 
@@ -603,6 +635,7 @@ def run_reference(
             noise), ``hvac_kwh`` and ``warmup_temperature_c`` stay true. Recorded in ``ReferenceRun.effects``.
         effect_seed: seed of the effects' random choices (holiday dates).
         end_uses: end uses the consumption sums (keys of :data:`END_USE_METERS`).
+        stand_in: the version of the stand-in's mapping (:data:`STAND_IN_VERSION`; a site's own, to run it again).
     Returns:
         the :class:`ReferenceRun` of the measured weeks (true readings, no noise).
     Raises:
@@ -620,7 +653,9 @@ def run_reference(
     with tempfile.TemporaryDirectory(prefix="buildenv-ref-") as tmp:
         work = Path(workdir) if workdir else Path(tmp)
         weather = resolve_epw(epw)
-        idf, _ = prepare_model(source, full, first_day, work, schedule_map, effects=planned, epw=weather)
+        idf, _ = prepare_model(
+            source, full, first_day, work, schedule_map, effects=planned, epw=weather, stand_in=stand_in
+        )
         occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
         try:
             # a simulated warm-up week sets the measured weeks' starting state, whatever EnergyPlus's warm-up days left
@@ -750,7 +785,7 @@ def make_reference_site(
         temperature_c=temperature,
         consumption_kwh=consumption,
         source=source,
-        truth={"building": str(building), "effects": run.effects},
+        truth={"building": str(building), "effects": run.effects, "stand_in": STAND_IN_VERSION},
         known=known,
         consumption_end_uses=end_uses,
         controllable=controllable,

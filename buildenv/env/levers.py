@@ -10,7 +10,7 @@ building).
 
 from __future__ import annotations
 
-import json
+import logging
 from pathlib import Path
 
 import gymnasium as gym
@@ -18,7 +18,10 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
+from buildenv.jsonio import dumps
 from buildenv.sites.suite import CASE_FIELDS, read_manifest
+
+log = logging.getLogger(__name__)
 
 #: the ends a lever is pulled to, with their action value
 ENDS: dict[str, float] = {"low": -1.0, "high": 1.0}
@@ -28,29 +31,43 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     """The settings of the lever check: ``([(setting, end)], actions (L, A))``.
 
     For each controllable setting (in the action's order) the historical action with that setting's seven
-    components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the historical ones on every day
-    (a range of one grid point, or a historical value at that end) is left out.
+    components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the site's historical ones on
+    every day (a range of one grid point, or a historical value at that end) is left out. A controllable setting
+    whose historical value no action holds (outside its action range, or off the grid) moves in every lever: it is
+    logged.
 
     Raises:
-        BuildenvError: the site declares no setting its BMS can change.
+        BuildenvError: no setting can be moved (none controllable, or each range holds only its historical value).
     """
     base = env.unwrapped
     historical = np.asarray(base.historical_action, np.float32)
-    settings = base.decode(historical)
+    truth = np.asarray(base.site_model.historical, float)
     setting_of = [name.rsplit("_", 1)[0] for name in base.action_names]  # "<setting>_<day>"
+    controllable = list(dict.fromkeys(setting_of))
+    column = {s: cat.SETTING_NAMES.index(s) for s in controllable}
+    nearest = base.decode(historical)
+    shifted = [s for s in controllable if not np.allclose(nearest[:, column[s]], truth[:, column[s]])]
+    if shifted:
+        log.warning(
+            "site %s: the historical %s lie outside the action range or off the grid; every lever moves them too",
+            base.site_name,
+            ", ".join(shifted),
+        )
     levers, actions = [], []
-    for setting in dict.fromkeys(setting_of):
+    for setting in controllable:
         components = [i for i, s in enumerate(setting_of) if s == setting]
-        j = cat.SETTING_NAMES.index(setting)
         for end, value in ENDS.items():
             action = historical.copy()
             action[components] = value
-            if np.array_equal(base.decode(action)[:, j], settings[:, j]):
+            if np.allclose(base.decode(action)[:, column[setting]], truth[:, column[setting]]):
                 continue
             levers.append((setting, end))
             actions.append(action)
     if not actions:
-        raise BuildenvError(f"site {base.site_name}: its [bms] declares no setting the BMS can change; nothing to pull")
+        raise BuildenvError(
+            f"site {base.site_name}: no setting can be moved (controllable: {', '.join(controllable) or 'none'}; "
+            "each range holds only its historical value): widen the site's [bms] limits"
+        )
     return levers, np.stack(actions)
 
 
@@ -68,6 +85,7 @@ def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
         ``savings_error_points`` (predicted - realised) and, with the shoebox, ``shoebox_savings_percent``.
     Raises:
         BuildingEnvError: the site has no EnergyPlus model.
+        BuildenvError: no setting can be moved (:func:`lever_actions`).
     """
     from buildenv.env.response import response_check
 
@@ -92,8 +110,8 @@ def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
 
 def check_suite_levers(suite, parts=("development",), metamodel: str = "default", progress: bool = True) -> list[dict]:
     """The lever check on every calibrated site of a suite folder in ``parts``, on each site's first held-out week;
-    one row per site and lever (the case's fields, ``week``, then :func:`lever_check`'s), also written to
-    ``<suite>/levers.json``.
+    one row per site and lever (the case's fields, ``week``, then :func:`lever_check`'s), written to
+    ``<suite>/levers.json`` after each site (with ``errors``: the sites that could not be checked, and why).
 
     Raises:
         BuildenvError: no calibrated site in ``parts`` (run ``buildenv suite calibrate`` first).
@@ -109,12 +127,18 @@ def check_suite_levers(suite, parts=("development",), metamodel: str = "default"
     ]
     if not records:
         raise BuildenvError(f"{suite}: no calibrated site in {', '.join(parts)}; run buildenv suite calibrate first")
-    rows = []
+    rows, errors = [], []
     for r in tqdm(records, desc="levers", unit="site", disable=not progress):
-        env = gym.make("BuildingWeek-v0", site=r["site"], metamodel=metamodel, weeks="all")
-        week = first_heldout_week(env)
-        rows += [{**{k: r[k] for k in CASE_FIELDS}, "week": week, **row} for row in lever_check(env, week)]
-    Path(suite, "levers.json").write_text(json.dumps({"rows": rows}, indent=1) + "\n", encoding="utf-8")
+        case = {k: r[k] for k in CASE_FIELDS}
+        try:
+            env = gym.make("BuildingWeek-v0", site=r["site"], metamodel=metamodel, weeks="all")
+            week = first_heldout_week(env)
+            rows += [{**case, "week": week, **row} for row in lever_check(env, week)]
+        except BuildenvError as error:
+            log.warning("%s: lever check failed: %s", r["site"], str(error).splitlines()[0])
+            errors.append({**case, "error": str(error).splitlines()[0]})
+        text = dumps({"rows": rows, "errors": errors}, where="the lever check", nonfinite="null", indent=1)
+        Path(suite, "levers.json").write_text(text + "\n", encoding="utf-8")
     return rows
 
 

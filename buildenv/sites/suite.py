@@ -185,7 +185,13 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
         (``made``, ``reused``, ``refused``: the stand-in or the site format cannot take the case, ``reason`` says
         why in one line), ``seconds``.
     """
-    from buildenv.energyplus.reference import historical_ventilation_ach, make_reference_site, reference_bms
+    from buildenv.energyplus.reference import (
+        STAND_IN_VERSION,
+        historical_ventilation_ach,
+        make_reference_site,
+        reference_bms,
+        stand_in_version,
+    )
     from buildenv.sites.reader import load_site
 
     folder = Path(out) / case.name
@@ -203,6 +209,7 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
         if (folder / "site.toml").is_file():
             site = load_site(folder)
             same = (site.weeks, site.start, site.consumption_end_uses) == (weeks, case.start(), case.end_uses)
+            same = same and stand_in_version(site) == STAND_IN_VERSION  # an earlier stand-in's site is made again
             if same and (site.controllable, site.setting_limits) == reference_bms(case.building):
                 return {**record, "status": "reused", "seconds": 0.0}
         rng = np.random.default_rng(case.seed(suite_seed))

@@ -184,7 +184,7 @@ def _cmd_verify(args: argparse.Namespace) -> int:
         else:
             _print_levers(rows, week)
         return 0
-    check = response_check(env, week, n=args.random, seed=args.seed)
+    check = response_check(env, week, n=args.random or 20, seed=args.seed)
     if args.json:
         print(dumps(check.summary, where="the response check", nonfinite="null"))
         return 0
@@ -254,7 +254,7 @@ def register(sub) -> None:
     p = sub.add_parser("verify", help="the response check: random settings on the metamodel and on EnergyPlus")
     p.add_argument("--site", required=True, help="calibrated site folder made by `buildenv site reference`")
     what = p.add_mutually_exclusive_group()
-    what.add_argument("--random", type=positive_int, default=20, help="random settings to check")
+    what.add_argument("--random", type=positive_int, default=None, help="random settings to check (default 20)")
     p.add_argument("--week", type=int, default=None, help="week of the site's year; default its first held-out week")
     p.add_argument("--metamodel", default="default", help="checkpoint path or 'default'")
     p.add_argument("--seed", type=int, default=0, help="seed of the random settings")

@@ -169,9 +169,10 @@ def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp
 
     # over a suite (here one calibrated site, the lever check itself stood in for): rows, medians and the file
     suite = tmp_path / "suite"
-    case = SuiteCase("medium_office", "usa_il_chicago", "heating")
-    shutil.copytree(base.site.path, suite / case.name)
-    write_manifest(suite, [{**asdict(case), "part": "development", "site": str(suite / case.name), "status": "made"}])
+    case, failing = (SuiteCase("medium_office", "usa_il_chicago", s) for s in ("heating", "cooling"))
+    for c in (case, failing):
+        shutil.copytree(base.site.path, suite / c.name)
+        write_manifest(suite, [{**asdict(c), "part": "development", "site": str(suite / c.name), "status": "made"}])
     fake = [
         {
             "setting": s,
@@ -182,13 +183,28 @@ def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp
         }
         for s, e in levers
     ]
-    monkeypatch.setattr(lever_module, "lever_check", lambda env, week: fake)
+
+    def check(env, week):  # the second site's building fails: the first site's rows are kept
+        if env.unwrapped.site.path.name == failing.name:
+            raise BuildenvError("EnergyPlus failed on the building\nits error file")
+        return fake
+
+    monkeypatch.setattr(lever_module, "lever_check", check)
     assert main(["suite", "levers", "--suite", str(suite), "--by", "building,season", "--quiet"]) == 0
     text = capsys.readouterr().out
     assert "medium_office heating" in text and "heating_setback_c" in text and "levers.json" in text
     written = json.loads((suite / "levers.json").read_text())
-    assert len(written["rows"]) == len(levers) and written["errors"] == []
-    assert {r["building"] for r in written["rows"]} == {"medium_office"}
+    assert len(written["rows"]) == len(levers) and {r["season"] for r in written["rows"]} == {"heating"}
+    assert written["errors"] == [
+        {
+            **asdict(failing),
+            "part": "development",
+            "site": str(suite / failing.name),
+            "error": "EnergyPlus failed on the building",
+        }
+    ]
+    with pytest.raises(SystemExit):  # random settings or levers, not both
+        main(["verify", "--site", str(suite / case.name), "--random", "20", "--levers"])
 
 
 def test_the_lever_summary_takes_medians_per_group_setting_and_end():

@@ -234,9 +234,15 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
     """Raise when a site folder left by an earlier run was made for another case (another plan: other seed or
     other known effects), declares other known parameters or measures another number of weeks, instead of
     diagnosing it under the wrong label."""
+    from buildenv.energyplus.reference import STAND_IN_VERSION, stand_in_version
     from buildenv.sites import load_site
 
     site = load_site(path)
+    if stand_in_version(site) != STAND_IN_VERSION:
+        raise ValueError(
+            f"{path}: made by stand-in version {stand_in_version(site)}, not this buildenv's {STAND_IN_VERSION}; "
+            "run the check into a fresh --out"
+        )
     truth_path = path / "truth.json"
     truth = json.loads(truth_path.read_text()) if truth_path.is_file() else {"effects": []}
     made = [(e["name"], float(e["magnitude"])) for e in truth["effects"]]

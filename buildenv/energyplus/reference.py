@@ -194,8 +194,18 @@ def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
 
 def stand_in_version(site) -> int:
     """The version of the stand-in's mapping a site was made with (``truth.json``'s ``stand_in``; 1 where it names
-    none: sites made before versions were recorded), see :data:`STAND_IN_VERSION`."""
-    return int((site.truth or {}).get("stand_in", 1))
+    none: sites made before versions were recorded), see :data:`STAND_IN_VERSION`.
+
+    Raises:
+        ReferenceBuildingError: the version is not one this buildenv knows.
+    """
+    version = (site.truth or {}).get("stand_in", 1)
+    if not isinstance(version, int) or isinstance(version, bool) or not 1 <= version <= STAND_IN_VERSION:
+        raise ReferenceBuildingError(
+            f"{site.path}/truth.json: stand_in {version!r} is not a stand-in version this buildenv knows "
+            f"(1-{STAND_IN_VERSION}); update buildenv or make the site again"
+        )
+    return version
 
 
 def pressurised_infiltration(objects: list[IdfObject]) -> dict[str, tuple[float, float]]:
@@ -273,7 +283,7 @@ def prepare_model(
     Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule
     or ``stand_in`` is not a known version.
     """
-    if stand_in not in (1, 2):
+    if stand_in not in range(1, STAND_IN_VERSION + 1):
         raise ReferenceBuildingError(
             f"stand-in version {stand_in} is not one this buildenv knows (1-{STAND_IN_VERSION}); update buildenv"
         )
@@ -294,11 +304,10 @@ def prepare_model(
     infiltration = pressurised_infiltration(objects) if stand_in >= 2 else {}
     infiltration = {k: v for k, v in infiltration.items() if k.lower() not in _mapped(mapping)}
     levels = sorted(set(infiltration.values()))
-    roles, outside = list(SCHEDULE_ROLES), {}
+    roles = list(SCHEDULE_ROLES)
     for k, (on, off) in enumerate(levels):
         roles.append(f"infiltration_{k + 1}")
         columns[roles[-1]] = off + (on - off) * columns["ventilation_on"]
-        outside[roles[-1]] = off  # the design days size the heating for the night's infiltration, as the model's own
     if infiltration:
         log.info("%s: infiltration %s follows the ventilation hours", source.stem, ", ".join(sorted(infiltration)))
     start = epw_day_of_year(first_day) * cat.HOURS_PER_DAY
@@ -306,8 +315,7 @@ def prepare_model(
     table = np.empty((HOURS_PER_YEAR, len(roles)))
     for j, role in enumerate(roles):
         values = columns[role]
-        # outside the run (the sizing design days only): a week's mean
-        table[:, j] = outside.get(role, values[: cat.HOURS_PER_DAY * 7].mean())
+        table[:, j] = values[: cat.HOURS_PER_DAY * 7].mean()  # outside the run (design days only): a week's mean
         table[rows, j] = values
     csv = (workdir / "buildenv_schedules.csv").resolve()
     workdir.mkdir(parents=True, exist_ok=True)

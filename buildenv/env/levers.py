@@ -11,6 +11,7 @@ building).
 from __future__ import annotations
 
 import logging
+import os
 from pathlib import Path
 
 import gymnasium as gym
@@ -135,10 +136,13 @@ def check_suite_levers(suite, parts=("development",), metamodel: str = "default"
             week = first_heldout_week(env)
             rows += [{**case, "week": week, **row} for row in lever_check(env, week)]
         except BuildenvError as error:
-            log.warning("%s: lever check failed: %s", r["site"], str(error).splitlines()[0])
-            errors.append({**case, "error": str(error).splitlines()[0]})
+            reason = (str(error).splitlines() or [type(error).__name__])[0]
+            log.warning("%s: lever check failed: %s", r["site"], reason)
+            errors.append({**case, "error": reason})
         text = dumps({"rows": rows, "errors": errors}, where="the lever check", nonfinite="null", indent=1)
-        Path(suite, "levers.json").write_text(text + "\n", encoding="utf-8")
+        tmp = Path(suite, "levers.json.tmp")
+        tmp.write_text(text + "\n", encoding="utf-8")
+        os.replace(tmp, Path(suite, "levers.json"))
     return rows
 
 

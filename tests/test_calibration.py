@@ -16,6 +16,7 @@ from buildenv.calibration.calibrate import calibrate_site
 from buildenv.energyplus.idf import read_idf
 from buildenv.energyplus.reference import (
     REFERENCE_BUILDINGS,
+    STAND_IN_VERSION,
     add_sensor_noise,
     detect_schedule_map,
     historical_settings,
@@ -47,7 +48,11 @@ def test_reference_site_reads_like_sensors(tmp_path):
     night = q[:120].reshape(5, 24)[:, 1:4].mean()
     assert weekday_day > 2 * night > 0  # lights and plug loads of an occupied office
     assert np.allclose(t * 10, np.round(t * 10), atol=1e-6)  # the sensor's 0.1 K resolution
-    assert site.source["building"] == "medium_office" and site.truth == {"building": "medium_office", "effects": []}
+    assert site.source["building"] == "medium_office" and site.truth == {
+        "building": "medium_office",
+        "effects": [],
+        "stand_in": STAND_IN_VERSION,
+    }
     # [bms]: what the stand-in maps; its ventilation up to the design outdoor air (0.7 1/h on the grid)
     assert "supply_air_c" not in site.controllable and len(site.controllable) == len(cat.SETTING_NAMES) - 1
     assert site.setting_limits == {"ventilation_ach": (0.45, 0.7)}  # the code minimum for its occupants, its design

@@ -6,6 +6,7 @@ import dataclasses
 import datetime as dt
 import json
 import shutil
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -32,6 +33,7 @@ from buildenv.diagnosis.blind_check import (
 from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS
 from buildenv.diagnosis.gap import DiagnosisSettings, split_weeks
 from buildenv.energyplus.injections import choose_holidays
+from buildenv.energyplus.reference import STAND_IN_VERSION
 from buildenv.metamodel.surrogate import load_metamodel
 
 
@@ -223,8 +225,15 @@ def test_the_cli_refuses_the_knobs_of_the_old_naming_rules(flag):
         main(["diagnose", "--site", str(DEFAULT_SITE), "--no-save", "--quiet", *flag])
 
 
+def _left_by_this_stand_in(folder: Path) -> None:
+    """Mark a copied site as made by this buildenv's stand-in, as a site an earlier run of the check left."""
+    truth = json.loads((folder / "truth.json").read_text())
+    (folder / "truth.json").write_text(json.dumps({**truth, "stand_in": STAND_IN_VERSION}))
+
+
 def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_label(tmp_path):
     shutil.copytree(DEFAULT_SITE, tmp_path / "case_000")  # a clean site from 2019-11-04
+    _left_by_this_stand_in(tmp_path / "case_000")
     case = {"case": 0, "true": NONE, "magnitude": None, "start": "2019-11-04", "noise_seed": 0, "effect_seed": 0}
     stand_in = StandIn("medium_office", "usa_il_chicago", weeks=6)  # the default site measures 6 weeks
     assert _site(tmp_path, case, stand_in, inject=True) == tmp_path / "case_000"
@@ -237,6 +246,9 @@ def test_a_site_left_by_another_plan_is_refused_not_diagnosed_under_the_wrong_la
     declaring = StandIn("medium_office", "usa_il_chicago", {"pc_night_percent": 44.4}, weeks=6)
     with pytest.raises(ValueError, match="declares known parameters none"):
         _site(tmp_path, case, declaring, inject=True)
+    shutil.copy(DEFAULT_SITE / "truth.json", tmp_path / "case_000" / "truth.json")  # an earlier stand-in's site
+    with pytest.raises(ValueError, match="made by stand-in version 1"):
+        _site(tmp_path, case, stand_in, inject=True)
 
 
 def test_an_alternate_split_fits_every_other_week_and_the_holidays_follow_it():
@@ -262,7 +274,8 @@ def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path)
     first_half, alternate = StandIn(weeks=6), StandIn(weeks=6, split="alternate")
     planned = first_half.plan(dt.date(2019, 11, 4), [("holidays", 2.0)], 3)
     assert planned[0].details != alternate.plan(dt.date(2019, 11, 4), [("holidays", 2.0)], 3)[0].details
-    (tmp_path / "case_000" / "truth.json").write_text(json.dumps({"effects": [planned[0].truth()]}))
+    truth = {"effects": [planned[0].truth()], "stand_in": STAND_IN_VERSION}
+    (tmp_path / "case_000" / "truth.json").write_text(json.dumps(truth))
     assert _site(tmp_path, case, first_half, inject=True) == tmp_path / "case_000"
     with pytest.raises(ValueError, match="made for another case"):
         _site(tmp_path, case, alternate, inject=True)
@@ -280,7 +293,8 @@ def test_a_site_whose_holidays_were_drawn_for_another_split_is_refused(tmp_path)
             {
                 "effects": [
                     {"name": "heating_capacity_limit", "magnitude": 40.0, "details": {"design_capacity_kw": 395.5}}
-                ]
+                ],
+                "stand_in": STAND_IN_VERSION,
             }
         )
     )

@@ -238,9 +238,10 @@ def _check_site_matches(path: Path, case: dict, effects: list[tuple[str, float]]
     from buildenv.sites import load_site
 
     site = load_site(path)
-    if stand_in_version(site) != STAND_IN_VERSION:
+    version = stand_in_version(site)
+    if version != STAND_IN_VERSION:
         raise ValueError(
-            f"{path}: made by stand-in version {stand_in_version(site)}, not this buildenv's {STAND_IN_VERSION}; "
+            f"{path}: made by stand-in version {version}, not this buildenv's {STAND_IN_VERSION}; "
             "run the check into a fresh --out"
         )
     truth_path = path / "truth.json"

@@ -20,7 +20,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
-from buildenv.sites.suite import CASE_FIELDS, read_manifest
+from buildenv.sites.suite import CASE_FIELDS, calibrated_records
 
 log = logging.getLogger(__name__)
 
@@ -121,13 +121,7 @@ def check_suite_levers(suite, parts=("development",), metamodel: str = "default"
 
     from buildenv.env.response import first_heldout_week
 
-    records = [
-        r
-        for r in read_manifest(suite)
-        if r["status"] in ("made", "reused") and r["part"] in parts and (Path(r["site"]) / "calibration.json").is_file()
-    ]
-    if not records:
-        raise BuildenvError(f"{suite}: no calibrated site in {', '.join(parts)}; run buildenv suite calibrate first")
+    records = calibrated_records(suite, parts)
     rows, errors = [], []
     for r in tqdm(records, desc="levers", unit="site", disable=not progress):
         case = {k: r[k] for k in CASE_FIELDS}

@@ -23,8 +23,7 @@ import gymnasium as gym
 import numpy as np
 from scipy.stats import spearmanr
 
-from buildenv.errors import BuildenvError
-from buildenv.sites.suite import CASE_FIELDS, read_manifest
+from buildenv.sites.suite import CASE_FIELDS, calibrated_records
 
 
 @dataclass
@@ -231,13 +230,7 @@ def check_suite(
     """
     from tqdm import tqdm
 
-    records = [
-        r
-        for r in read_manifest(suite)
-        if r["status"] in ("made", "reused") and r["part"] in parts and (Path(r["site"]) / "calibration.json").is_file()
-    ]
-    if not records:
-        raise BuildenvError(f"{suite}: no calibrated site in {', '.join(parts)}; run buildenv suite calibrate first")
+    records = calibrated_records(suite, parts)
     rows = []
     for r in tqdm(records, desc="response", unit="site", disable=not progress):
         env = gym.make("BuildingWeek-v0", site=r["site"], metamodel=metamodel, weeks="all")

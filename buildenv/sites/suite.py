@@ -299,6 +299,22 @@ def _by_folder(out: Path, records: Iterable[dict]) -> dict[str, dict]:
     return {Path(r["site"]).name: {**r, "site": str(out / Path(r["site"]).name)} for r in records}
 
 
+def calibrated_records(out: str | Path, parts: Sequence[str]) -> list[dict]:
+    """The records of the suite's made sites in ``parts`` that hold a ``calibration.json``.
+
+    Raises:
+        BuildenvError: none (run ``buildenv suite calibrate`` first), or the folder has no manifest.
+    """
+    records = [
+        r
+        for r in read_manifest(out)
+        if r["status"] in ("made", "reused") and r["part"] in parts and (Path(r["site"]) / "calibration.json").is_file()
+    ]
+    if not records:
+        raise BuildenvError(f"{out}: no calibrated site in {', '.join(parts)}; run buildenv suite calibrate first")
+    return records
+
+
 def write_manifest(out: Path, records: Sequence[dict]) -> Path:
     """Merge ``records`` into ``out/suite.json`` by site folder (later records replace earlier ones)."""
     path = out / MANIFEST

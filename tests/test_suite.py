@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import shutil
 from dataclasses import asdict
+from types import SimpleNamespace
 
 import gymnasium as gym
 import numpy as np
@@ -205,6 +206,20 @@ def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp
     ]
     with pytest.raises(SystemExit):  # random settings or levers, not both
         main(["verify", "--site", str(suite / case.name), "--random", "20", "--levers"])
+
+    # the response check over the same suite keeps going past the failing site too
+    from buildenv.env import response as response_module
+
+    def respond(env, week, n, seed, extra):
+        if env.unwrapped.site.path.name == failing.name:
+            raise BuildenvError("EnergyPlus failed on the building\nits error file")
+        return SimpleNamespace(summary={"savings_error_p90_abs_points": 4.0, "savings_spearman": 0.95})
+
+    monkeypatch.setattr(response_module, "response_check", respond)
+    (row,) = check_suite(suite, ("development",), n=20, progress=False)
+    assert row["meets_target"] and row["season"] == "heating"
+    written = json.loads((suite / "response.json").read_text())
+    assert written["rows"] == [row] and [e["season"] for e in written["errors"]] == ["cooling"]
 
 
 def test_the_lever_summary_takes_medians_per_group_setting_and_end():

@@ -11,16 +11,13 @@ building).
 from __future__ import annotations
 
 import logging
-import os
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
-from buildenv.jsonio import dumps
-from buildenv.sites.suite import CASE_FIELDS, calibrated_records
+from buildenv.sites.suite import CASE_FIELDS, check_calibrated_sites
 
 log = logging.getLogger(__name__)
 
@@ -117,27 +114,14 @@ def check_suite_levers(suite, parts=("development",), metamodel: str = "default"
     Raises:
         BuildenvError: no calibrated site in ``parts`` (run ``buildenv suite calibrate`` first).
     """
-    from tqdm import tqdm
-
     from buildenv.env.response import first_heldout_week
 
-    records = calibrated_records(suite, parts)
-    rows, errors = [], []
-    for r in tqdm(records, desc="levers", unit="site", disable=not progress):
-        case = {k: r[k] for k in CASE_FIELDS}
-        try:
-            env = gym.make("BuildingWeek-v0", site=r["site"], metamodel=metamodel, weeks="all")
-            week = first_heldout_week(env)
-            rows += [{**case, "week": week, **row} for row in lever_check(env, week)]
-        except BuildenvError as error:
-            reason = (str(error).splitlines() or [type(error).__name__])[0]
-            log.warning("%s: lever check failed: %s", r["site"], reason)
-            errors.append({**case, "error": reason})
-        text = dumps({"rows": rows, "errors": errors}, where="the lever check", nonfinite="null", indent=1)
-        tmp = Path(suite, "levers.json.tmp")
-        tmp.write_text(text + "\n", encoding="utf-8")
-        os.replace(tmp, Path(suite, "levers.json"))
-    return rows
+    def levers(record: dict) -> list[dict]:
+        env = gym.make("BuildingWeek-v0", site=record["site"], metamodel=metamodel, weeks="all")
+        week = first_heldout_week(env)
+        return [{"week": week, **row} for row in lever_check(env, week)]
+
+    return check_calibrated_sites(suite, parts, levers, "levers.json", "levers", progress)
 
 
 def grouping(text: str) -> tuple[str, ...]:

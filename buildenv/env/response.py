@@ -13,17 +13,15 @@ and the shoebox against the building (the model's structure and what calibration
 from __future__ import annotations
 
 import datetime as dt
-import json
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
-from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
 from scipy.stats import spearmanr
 
-from buildenv.sites.suite import CASE_FIELDS, calibrated_records
+from buildenv.sites.suite import check_calibrated_sites
 
 
 @dataclass
@@ -221,29 +219,27 @@ def check_suite(
     chosen: Callable[[gym.Env, int], np.ndarray] | None = None,
 ) -> list[dict]:
     """The response check on every calibrated site of a suite folder (:mod:`buildenv.sites.suite`) in ``parts``,
-    on each site's first held-out week; rows are also written to ``<suite>/response.json``. ``chosen(env, week)``
-    gives settings ``(M, A)`` an optimiser chose for the site's week, checked beside the random ones; a row then
-    holds their figures (``"chosen"``) and whether the first was realised within :data:`TARGET_CHOSEN_POINTS`.
+    on each site's first held-out week. Rows are also written to ``<suite>/response.json`` after each site, with
+    ``errors``: the sites that could not be checked, and why (:func:`buildenv.sites.suite.check_calibrated_sites`).
+    ``chosen(env, week)`` gives settings ``(M, A)`` an optimiser chose for the site's week, checked beside the
+    random ones; a row then holds their figures (``"chosen"``) and whether the first was realised within
+    :data:`TARGET_CHOSEN_POINTS`.
 
     Raises:
         BuildenvError: no calibrated site in ``parts`` (run ``buildenv suite calibrate`` first).
     """
-    from tqdm import tqdm
 
-    records = calibrated_records(suite, parts)
-    rows = []
-    for r in tqdm(records, desc="response", unit="site", disable=not progress):
-        env = gym.make("BuildingWeek-v0", site=r["site"], metamodel=metamodel, weeks="all")
+    def one_site(record: dict) -> list[dict]:
+        env = gym.make("BuildingWeek-v0", site=record["site"], metamodel=metamodel, weeks="all")
         week = first_heldout_week(env)
         check = response_check(env, week, n=n, seed=seed, extra=None if chosen is None else chosen(env, week))
-        s = check.summary
-        row = {**{k: r[k] for k in CASE_FIELDS}, **s}
+        row = dict(check.summary)
         if n > 0:
             row["meets_target"] = bool(
-                s["savings_error_p90_abs_points"] <= TARGET_P90_POINTS and s["savings_spearman"] >= TARGET_SPEARMAN
+                row["savings_error_p90_abs_points"] <= TARGET_P90_POINTS and row["savings_spearman"] >= TARGET_SPEARMAN
             )
-        if "chosen" in s:
-            row["chosen_meets_target"] = bool(abs(s["chosen"][0]["savings_error_points"]) <= TARGET_CHOSEN_POINTS)
-        rows.append(row)
-    Path(suite, "response.json").write_text(json.dumps({"rows": rows}, indent=1) + "\n", encoding="utf-8")
-    return rows
+        if "chosen" in row:
+            row["chosen_meets_target"] = bool(abs(row["chosen"][0]["savings_error_points"]) <= TARGET_CHOSEN_POINTS)
+        return [row]
+
+    return check_calibrated_sites(suite, parts, one_site, "response.json", "response", progress)

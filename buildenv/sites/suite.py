@@ -25,7 +25,7 @@ import os
 import shutil
 import time
 import zlib
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
@@ -313,6 +313,41 @@ def calibrated_records(out: str | Path, parts: Sequence[str]) -> list[dict]:
     if not records:
         raise BuildenvError(f"{out}: no calibrated site in {', '.join(parts)}; run buildenv suite calibrate first")
     return records
+
+
+def check_calibrated_sites(
+    out: str | Path,
+    parts: Sequence[str],
+    check: Callable[[dict], list[dict]],
+    results: str,
+    desc: str,
+    progress: bool = True,
+) -> list[dict]:
+    """Run ``check(record)`` on every calibrated site of the suite in ``parts`` (:func:`calibrated_records`) and keep
+    its rows, each led by the case's fields. A site whose check raises :class:`BuildenvError` is logged and recorded
+    under ``errors`` (the message's first line), and the others go on. ``out/<results>`` (``{"rows", "errors"}``,
+    standard JSON) is rewritten after each site, so an interrupted run keeps what it finished.
+
+    Raises:
+        BuildenvError: no calibrated site in ``parts``.
+    """
+    from tqdm import tqdm
+
+    rows, errors = [], []
+    for r in tqdm(calibrated_records(out, parts), desc=desc, unit="site", disable=not progress):
+        case = {k: r[k] for k in CASE_FIELDS}
+        try:
+            rows += [{**case, **row} for row in check(r)]
+        except BuildenvError as error:
+            reason = (str(error).splitlines() or [type(error).__name__])[0]
+            log.warning("%s: %s failed: %s", r["site"], desc, reason)
+            errors.append({**case, "error": reason})
+        path = Path(out, results)
+        text = dumps({"rows": rows, "errors": errors}, where=str(path), nonfinite="null", indent=1)
+        tmp = path.with_name(path.name + ".tmp")
+        tmp.write_text(text + "\n", encoding="utf-8")
+        os.replace(tmp, path)
+    return rows
 
 
 def write_manifest(out: Path, records: Sequence[dict]) -> Path:

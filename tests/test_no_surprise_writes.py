@@ -7,6 +7,7 @@ import os
 import shutil
 import tempfile
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -121,6 +122,39 @@ def test_site_reference_into_an_existing_folder_replaces_the_site(tmp_path, fake
     assert not (site / "calibration.json").exists()  # it described the earlier data
     assert (site / "notes.txt").read_text() == "mine"
     assert sorted(p.name for p in tmp_path.iterdir()) == ["site"]
+
+
+def test_site_reference_records_the_schedules_it_was_told_and_its_building_runs_again_with_them(
+    tmp_path, fake_reference_run, monkeypatch
+):
+    from buildenv.env.energyplus_backend import run_weeks
+
+    named = {role: [f"my {role}"] for role in reference.SCHEDULE_ROLES}
+    named["hvac_availability"] = ["my fans", "my pumps"]
+    maps = [f"{role}={','.join(names)}" for role, names in named.items()]
+    site_dir = tmp_path / "site"
+    argv = ["site", "reference", "--weeks", "1", "--out", str(site_dir)]
+    assert main([*argv, *(a for m in maps for a in ("--map", m))]) == 0
+    site = load_site(site_dir)
+    assert site.truth["schedule_map"] == named
+    # detected, not named: nothing recorded, detected again on each run
+    assert main(["site", "reference", "--weeks", "1", "--out", str(tmp_path / "detected")]) == 0
+    assert reference.recorded_schedule_map(load_site(tmp_path / "detected")) is None
+    used = []
+    monkeypatch.setattr(
+        reference,
+        "run_reference",
+        lambda *args, schedule_map=None, **kwargs: (
+            used.append(schedule_map)
+            or SimpleNamespace(temperature_c=np.zeros((2, 168)), hvac_kwh=np.zeros((2, 168)), floor_area_m2=1.0)
+        ),
+    )
+    run_weeks(site, [site.start], site.settings[:1], workers=1)
+    assert used == [reference.ScheduleMap(**named)]
+    # a damaged record is refused in one line naming the file
+    bad = SimpleNamespace(truth={"schedule_map": {"heating_setpoint": "x"}}, path=site_dir)
+    with pytest.raises(reference.ReferenceBuildingError, match="truth.json: schedule_map must name"):
+        reference.recorded_schedule_map(bad)
 
 
 def test_write_site_refused_after_writing_leaves_nothing(tmp_path):

@@ -37,7 +37,7 @@ import math
 import re
 import tempfile
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -206,6 +206,29 @@ def stand_in_version(site) -> int:
             f"(1-{STAND_IN_VERSION}); update buildenv or make the site again"
         )
     return version
+
+
+def recorded_schedule_map(site) -> ScheduleMap | None:
+    """The schedules a site's building was made with when they were named (``buildenv site reference --map``,
+    ``truth.json``'s ``schedule_map``), so that its building runs again with them; ``None`` where they were detected.
+
+    Raises:
+        ReferenceBuildingError: ``schedule_map`` is not ``{role: [schedule names]}`` over :data:`SCHEDULE_ROLES`.
+    """
+    recorded = (site.truth or {}).get("schedule_map")
+    if recorded is None:
+        return None
+    valid = (
+        isinstance(recorded, dict)
+        and set(recorded) == set(SCHEDULE_ROLES)
+        and all(isinstance(v, list) and v and all(isinstance(n, str) for n in v) for v in recorded.values())
+    )
+    if not valid:
+        raise ReferenceBuildingError(
+            f"{site.path}/truth.json: schedule_map must name schedules for each of {', '.join(SCHEDULE_ROLES)}, "
+            "as lists of names; make the site again with --map"
+        )
+    return ScheduleMap(**{role: list(recorded[role]) for role in SCHEDULE_ROLES})
 
 
 def pressurised_infiltration(objects: list[IdfObject]) -> dict[str, tuple[float, float]]:
@@ -793,7 +816,12 @@ def make_reference_site(
         temperature_c=temperature,
         consumption_kwh=consumption,
         source=source,
-        truth={"building": str(building), "effects": run.effects, "stand_in": STAND_IN_VERSION},
+        truth={
+            "building": str(building),
+            "effects": run.effects,
+            "stand_in": STAND_IN_VERSION,
+            **({} if schedule_map is None else {"schedule_map": asdict(schedule_map)}),
+        },
         known=known,
         consumption_end_uses=end_uses,
         controllable=controllable,

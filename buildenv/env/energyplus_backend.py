@@ -5,7 +5,8 @@ its weeks can then be run under any settings, so optimised settings are checked 
 not on the metamodel that chose them. Each week runs with the previous week's settings as one warm-up week
 (the historical settings unless given), as the metamodel's context, across a new year where the week before
 lies in the previous one. Weeks run in parallel processes, with the stand-in's mapping the site was made with
-(:func:`buildenv.energyplus.reference.stand_in_version`).
+(:func:`buildenv.energyplus.reference.stand_in_version`) and the schedules it named, if any
+(:func:`buildenv.energyplus.reference.recorded_schedule_map`).
 
 The HVAC energy is the reference's heating + cooling coil energy (:mod:`buildenv.energyplus.reference`), the
 temperature its occupied-zone mean, both without sensor noise.
@@ -35,12 +36,20 @@ def reference_building(site) -> str:
 
 
 def _run_one(
-    building: str, epw: str, monday: dt.date, settings: np.ndarray, previous: np.ndarray, stand_in: int
+    building: str, epw: str, monday: dt.date, settings: np.ndarray, previous: np.ndarray, stand_in: int, schedule_map
 ) -> tuple[np.ndarray, np.ndarray, float]:
     from buildenv.energyplus.reference import run_reference
 
     week = np.stack([previous, settings])
-    run = run_reference(building, epw, monday - dt.timedelta(days=7), week, warmup_weeks=1, stand_in=stand_in)
+    run = run_reference(
+        building,
+        epw,
+        monday - dt.timedelta(days=7),
+        week,
+        warmup_weeks=1,
+        schedule_map=schedule_map,
+        stand_in=stand_in,
+    )
     return run.temperature_c[1], run.hvac_kwh[1], run.floor_area_m2
 
 
@@ -68,10 +77,12 @@ def run_weeks(
     settings = np.asarray(settings, dtype=float)
     hist = np.asarray(site.settings[0] if historical is None else historical, dtype=float)
     prev = np.broadcast_to(hist, settings.shape) if previous is None else np.asarray(previous, dtype=float)
-    from buildenv.energyplus.reference import stand_in_version
+    from buildenv.energyplus.reference import recorded_schedule_map, stand_in_version
 
-    version = stand_in_version(site)
-    jobs = [(building, site.weather, monday, settings[i], prev[i], version) for i, monday in enumerate(week_starts)]
+    version, mapping = stand_in_version(site), recorded_schedule_map(site)
+    jobs = [
+        (building, site.weather, monday, settings[i], prev[i], version, mapping) for i, monday in enumerate(week_starts)
+    ]
     workers = max(1, min(len(jobs), workers or os.cpu_count() or 1))
     if workers == 1:
         results = [_run_one(*job) for job in jobs]

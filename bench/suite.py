@@ -22,7 +22,7 @@ import numpy as np
 from buildenv.calibration.suite import TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT, calibrate_suite, summarise
 from buildenv.env.response import TARGET_CHOSEN_POINTS, TARGET_P90_POINTS, TARGET_SPEARMAN, check_suite
 from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT
-from buildenv.sites.suite import HELD_OUT_CLIMATES, make_suite, suite_cases
+from buildenv.sites.suite import HELD_OUT_CLIMATES, failed_sites, make_suite, suite_cases
 
 
 def _table(rows: list[dict]) -> list[str]:
@@ -72,6 +72,13 @@ def render(record: dict, random: int) -> list[str]:
             f"| {part} | {s['sites']} | {s['guideline14_share']:.0%} | {s['tight_share']:.0%} | "
             f"{s['r2_t_above_0_9_share']:.0%} | {s['mean_at_bounds']} | {s['median_seconds']} |"
         )
+    failed = record.get("response_errors") or []
+    if failed:
+        lines += [
+            "",
+            f"The response check could not check {len(failed)} held-out site(s): "
+            + "; ".join(f"{e['building']} {e['climate']} {e['season']}: {e['error']}" for e in failed),
+        ]
     if response:
         met = sum(r["meets_target"] for r in response)
         lines += [
@@ -177,6 +184,7 @@ def main() -> None:
         if args.random
         else []
     )
+    response_errors = failed_sites(args.suite, "response.json") if args.random else []
     record = {
         "checkpoint": args.checkpoint,
         "generations": args.generations,
@@ -184,6 +192,7 @@ def main() -> None:
         "summary": summarise(rows),
         "rows": rows,
         "response": response,
+        "response_errors": response_errors,
         "made": made,
         "make_seconds": round(make_seconds, 1),
         "calibrate_seconds": round(calibrate_seconds, 1),

@@ -191,9 +191,11 @@ def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp
         return fake
 
     monkeypatch.setattr(lever_module, "lever_check", check)
-    assert main(["suite", "levers", "--suite", str(suite), "--by", "building,season", "--quiet"]) == 0
-    text = capsys.readouterr().out
+    assert main(["suite", "levers", "--suite", str(suite), "--by", "building,season", "--quiet"]) == 1
+    captured = capsys.readouterr()  # the failing site named on stderr, the exit status 1
+    text = captured.out
     assert "medium_office heating" in text and "heating_setback_c" in text and "levers.json" in text
+    assert "1 site(s) could not be checked" in captured.err and "EnergyPlus failed on the building" in captured.err
     written = json.loads((suite / "levers.json").read_text())
     assert len(written["rows"]) == len(levers) and {r["season"] for r in written["rows"]} == {"heating"}
     assert written["errors"] == [
@@ -220,6 +222,8 @@ def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp
     assert row["meets_target"] and row["season"] == "heating"
     written = json.loads((suite / "response.json").read_text())
     assert written["rows"] == [row] and [e["season"] for e in written["errors"]] == ["cooling"]
+    assert main(["suite", "verify", "--suite", str(suite), "--part", "development", "--quiet", "--json"]) == 1
+    assert [e["season"] for e in json.loads(capsys.readouterr().out)["errors"]] == ["cooling"]
 
 
 def test_the_lever_summary_takes_medians_per_group_setting_and_end():

@@ -84,14 +84,16 @@ def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
 
 def _cmd_suite_verify(args: argparse.Namespace) -> int:
     from buildenv.env.response import check_suite
+    from buildenv.sites.suite import failed_sites
 
     parts = ("development", "held_out") if args.part == "all" else (args.part,)
     rows = check_suite(
         args.suite, parts, n=args.random, seed=args.seed, metamodel=args.metamodel, progress=not args.quiet
     )
+    errors = failed_sites(args.suite, "response.json")
     if args.json:
-        print(dumps({"rows": rows}, where="the response check", nonfinite="null"))
-        return 0
+        print(dumps({"rows": rows, "errors": errors}, where="the response check", nonfinite="null"))
+        return _report_failed(errors, "response.json", quiet=True)
     print(f"{'site':<52} {'part':<12} {'error p90':>9} {'bias':>6} {'Spearman':>8} {'comfort K':>9}")
     for r in rows:
         name = f"{r['building']}-{r['climate']}-{r['season']}"
@@ -101,19 +103,30 @@ def _cmd_suite_verify(args: argparse.Namespace) -> int:
         )
     met = sum(r["meets_target"] for r in rows)
     print(f"{met} of {len(rows)} sites within 5 points at the 90th percentile with Spearman >= 0.9")
-    return 0
+    return _report_failed(errors, "response.json")
+
+
+def _report_failed(errors: list[dict], results: str, quiet: bool = False) -> int:
+    """Name on stderr the sites a suite check could not check (unless ``quiet``); the exit status: 1 if any."""
+    if errors and not quiet:
+        print(f"{len(errors)} site(s) could not be checked (errors in {results}):", file=sys.stderr)
+        for e in errors:
+            print(f"  {e['building']}-{e['climate']}-{e['season']}: {e['error']}", file=sys.stderr)
+    return 1 if errors else 0
 
 
 def _cmd_suite_levers(args: argparse.Namespace) -> int:
     from buildenv.env.levers import check_suite_levers, grouping, summarise_levers
+    from buildenv.sites.suite import failed_sites
 
     parts = ("development", "held_out") if args.part == "all" else (args.part,)
     by = grouping(args.by)
     rows = check_suite_levers(args.suite, parts, metamodel=args.metamodel, progress=not args.quiet)
+    errors = failed_sites(args.suite, "levers.json")
     summary = summarise_levers(rows, by)
     if args.json:
-        print(dumps({"rows": rows, "summary": summary}, where="the lever check", nonfinite="null"))
-        return 0
+        print(dumps({"rows": rows, "summary": summary, "errors": errors}, where="the lever check", nonfinite="null"))
+        return _report_failed(errors, "levers.json", quiet=True)
     print(
         f"{' '.join(by):<28} {'setting':<22} {'end':<4} {'sites':>5} {'error':>6} {'|error|':>7} "
         f"{'shoebox - building':>18}"
@@ -126,7 +139,7 @@ def _cmd_suite_levers(args: argparse.Namespace) -> int:
             f"{'-' if split is None else f'{split:.1f}':>18}"
         )
     print("medians over the sites, in points of savings (predicted - realised); written to levers.json")
-    return 0
+    return _report_failed(errors, "levers.json")
 
 
 def _cmd_suite_library(args: argparse.Namespace) -> int:

@@ -182,11 +182,12 @@ class SiteScorer:
                 f"{ENV_ID}: no {self.episode_weeks} consecutive weeks in weeks={args['weeks']!r}{on}"
             )
         if args["backend"] == "energyplus":
-            from buildenv.energyplus.reference import stand_in_version
+            from buildenv.energyplus.reference import recorded_schedule_map, stand_in_version
             from buildenv.env.energyplus_backend import reference_building
 
             reference_building(self.site)  # fail now, not at the first step
             stand_in_version(self.site)
+            recorded_schedule_map(self.site)
         self._historical: dict[int, tuple[float, float, float]] = {}
 
     def in_year(self, year: int) -> SiteScorer:

@@ -350,6 +350,15 @@ def check_calibrated_sites(
     return rows
 
 
+def failed_sites(out: str | Path, results: str) -> list[dict]:
+    """The ``errors`` of a results file :func:`check_calibrated_sites` wrote (``[]`` where it holds none)."""
+    path = Path(out, results)
+    try:
+        return list(json.loads(path.read_text(encoding="utf-8")).get("errors", []))
+    except (OSError, json.JSONDecodeError, AttributeError) as error:
+        raise BuildenvError(f"{path}: not a results file of the suite checks ({error}); run the check again") from error
+
+
 def write_manifest(out: Path, records: Sequence[dict]) -> Path:
     """Merge ``records`` into ``out/suite.json`` by site folder (later records replace earlier ones)."""
     path = out / MANIFEST

@@ -98,8 +98,8 @@ _DATA_CENTRE_COIL_ERROR = (
     "coil, which the model's EMS switches on when the data centre heats below 10 degC outdoors, with its setpoint "
     "at its inlet temperature (the BMS setbacks of the offices around it make it heat): try a warmer period"
 )
-# names of the systems of 24/7 spaces, which keep their own schedules (see serves_24h_space)
 log = logging.getLogger(__name__)
+# names of the systems of 24/7 spaces, which keep their own schedules (see serves_24h_space)
 _24H_NAME = re.compile(r"data[\s_-]*cent(er|re)|server[\s_-]*room", re.IGNORECASE)
 
 
@@ -325,7 +325,8 @@ def prepare_model(
     columns = _schedule_columns(settings, design_outdoor_air_ach(source, resolve_epw(OUTDOOR_AIR_SIZING_WEATHER)))
     # pressurised infiltration: one column per pair of levels, its schedules' value while the AHUs ventilate
     infiltration = pressurised_infiltration(objects) if stand_in >= 2 else {}
-    infiltration = {k: v for k, v in infiltration.items() if k.lower() not in _mapped(mapping)}
+    mapped = _mapped(mapping)
+    infiltration = {k: v for k, v in infiltration.items() if k.lower() not in mapped}
     levels = sorted(set(infiltration.values()))
     roles = list(SCHEDULE_ROLES)
     for k, (on, off) in enumerate(levels):

@@ -22,7 +22,8 @@ Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to cal
     The paper's 8 outputs; energies in Wh per m2 of floor area in the hour (x floor area / 1000 for kWh).
 
 A variable with a ``step`` is sampled on the grid ``min, min + step, ...`` up to ``max`` (the paper's uniform
-sampling): ``ventilation_ach`` (0.1-1.7 step 0.3) takes 0.1, 0.4, ..., 1.6, the paper's 0.7-1.6 among them.
+sampling): ``ventilation_ach`` (0.1-1.7 step 0.05) takes 0.1, 0.15, ..., 1.7, the paper's 0.7-1.6 (step 0.3)
+among them, and any outdoor air a BMS sets between an office's ASHRAE 62.1 minimum and its design.
 
 Data and checkpoints made with a catalogue this one replaced are read through :data:`EARLIER_CATALOGUES`
 (its ranges, renamed variables and the values it implies for variables it lacked).
@@ -511,9 +512,10 @@ SETTINGS: tuple[Variable, ...] = (
         "1/h",
         0.1,
         1.7,
-        0.3,
+        0.05,
         D,
-        "Outdoor air supplied by the air handling unit, in air changes per hour of the zone volume.",
+        "Outdoor air supplied by the air handling unit, in air changes per hour of the zone volume (its minimum "
+        "outdoor air damper or flow set point, which a BMS sets between the ASHRAE 62.1 minimum and the design).",
         "vol_ventilation_day",
     ),
 )
@@ -787,8 +789,24 @@ class EarlierCatalogue:
     renamed: dict[str, tuple[str, float]]
     implied: dict[str, float]
 
+    @property
+    def same_variables(self) -> bool:
+        """Whether it had this catalogue's variables, in this order and units, drawn within this one's ranges (a
+        coarser grid or a narrower range): every value it holds is a value of this catalogue."""
+        if self.theta_names != THETA_NAMES or self.renamed or self.implied:
+            return False
+        for name, (lo, hi, step) in self.ranges.items():
+            var = get(name)
+            on_grid = var.step is None or all(
+                abs(x / var.step - round(x / var.step)) < 1e-9 for x in (lo - var.min, step)
+            )
+            if not (var.min <= lo and hi <= var.max and on_grid):
+                return False
+        return True
+
 
 _WALLS = ("north", "east", "south", "west")
+_VENTILATION_BY_0_3 = (0.1, 1.6, 0.3)  # the outdoor air grid before the 0.05 1/h step: 0.1, 0.4, ..., 1.6
 _THETA_BEFORE_ECONOMISER = tuple(v.name for v in THETA_BUILD if v.name != "economiser_share")
 _THETA_BEFORE_MINIMUM_SUPPLY = tuple(n for n in _THETA_BEFORE_ECONOMISER if n != "minimum_supply_air_ach")
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
@@ -834,23 +852,30 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     # supply air from 18 degC
     "11c21d55c2939cd8": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
-        ranges={"supply_air_c": (18.0, 26.0, 0.5)},
+        ranges={"supply_air_c": (18.0, 26.0, 0.5), "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
     ),
     # no minimum supply air flow: 100 % outdoor air units only
     "6f2f25c1acea3f20": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
-        ranges={},
+        ranges={"ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
     ),
     # no economiser: the fan coils cool mechanically only
     "bda1c8ff3b9294aa": EarlierCatalogue(
         theta_names=_THETA_BEFORE_ECONOMISER,
-        ranges={},
+        ranges={"ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={"economiser_share": 0.0},
+    ),
+    # outdoor air by 0.3 air changes per hour
+    "88d16120a6d2221f": EarlierCatalogue(
+        theta_names=THETA_NAMES,
+        ranges={"ventilation_ach": _VENTILATION_BY_0_3},
+        renamed={},
+        implied={},
     ),
 }
 

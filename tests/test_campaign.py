@@ -87,6 +87,19 @@ def test_other_campaign_in_same_directory_is_refused(small_dataset):
         run_campaign(CampaignConfig(**{**SMALL, "seed": 99}), small_dataset, workers=1, progress=False)
 
 
+def test_a_campaign_of_another_catalogue_is_not_resumed(tmp_path):
+    import json
+
+    from buildenv.campaign.runs import _config_record
+
+    (tmp_path / "old").mkdir()
+    (tmp_path / "old" / "campaign.json").write_text(
+        json.dumps({**_config_record(CampaignConfig(**SMALL)), "catalogue_hash": "88d16120a6d2221f"})
+    )
+    with pytest.raises(DatasetError, match="catalogue 88d16120a6d2221f .* drawn differently"):
+        run_campaign(CampaignConfig(**SMALL), tmp_path / "old", workers=1, progress=False)
+
+
 def test_unfinished_directory_is_not_a_dataset(tmp_path):
     (tmp_path / "half").mkdir()
     with pytest.raises(DatasetError, match="resume"):

@@ -86,12 +86,13 @@ def test_grid_starts_at_min_stays_within_max_and_has_the_step(var):
     np.testing.assert_allclose(np.diff(grid), var.step, rtol=0, atol=1e-9)
 
 
-def test_vol_ventilation_grid_holds_the_papers():
+def test_vol_ventilation_grid_holds_the_papers_and_a_bms_range():
     grid = cat.get("ventilation_ach").grid()
-    np.testing.assert_allclose(grid, [0.1, 0.4, 0.7, 1.0, 1.3, 1.6])
-    # the paper's 0.7, 1.0, 1.3 and 1.6 are on it, with the same step
+    assert grid[0] == pytest.approx(0.1) and grid[-1] == pytest.approx(1.7) and len(grid) == 33
+    # the paper's 0.7, 1.0, 1.3 and 1.6 are on it
     assert np.isclose(grid[:, None], [0.7, 1.0, 1.3, 1.6]).any(axis=0).all()
-    assert cat.get("ventilation_ach").max == 1.7  # 1.7 itself is not on the grid
+    # a DOE medium office's BMS range, from the ASHRAE 62.1 minimum (0.45) to its design (0.7), has six settings
+    assert np.count_nonzero((grid > 0.45 - 1e-9) & (grid < 0.7 + 1e-9)) == 6
 
 
 def test_grid_of_continuous_variable_raises():
@@ -131,11 +132,12 @@ def test_snap_round_trips_grid_values(var):
 
 def test_snap_rounds_to_nearest_and_clips():
     vent = cat.get("ventilation_ach")
-    assert float(vent.snap(1.1)) == pytest.approx(1.0)
-    assert float(vent.snap(1.2)) == pytest.approx(1.3)
-    assert float(vent.snap(1.7)) == pytest.approx(1.6)  # max is clipped to the last grid point
+    assert float(vent.snap(1.11)) == pytest.approx(1.1)
+    assert float(vent.snap(0.44)) == pytest.approx(0.45)
     assert float(vent.snap(-5.0)) == pytest.approx(0.1)
-    assert float(vent.snap(99.0)) == pytest.approx(1.6)
+    assert float(vent.snap(99.0)) == pytest.approx(1.7)
+    off_grid = dataclasses.replace(vent, max=1.72)  # a max off the grid clips to the last grid point below it
+    assert float(off_grid.snap(99.0)) == pytest.approx(1.7)
     area = cat.get("floor_area_m2")
     np.testing.assert_array_equal(area.snap([10.0, 2449.0, 2451.0, 1e9]), [300.0, 2400.0, 2500.0, 50000.0])
     # a continuous variable is only clipped
@@ -363,12 +365,13 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     assert vector[cat.THETA_NAMES.index("plug_load_w_m2")] == pytest.approx(150 * mid["pc_density_per_m2"])
 
 
-def test_shipped_checkpoints_the_default_of_this_catalogue_the_diagnosis_through_the_earlier_one():
+def test_shipped_checkpoints_read_through_their_earlier_catalogues():
     from buildenv.metamodel.surrogate import load_metamodel
 
     default = load_metamodel()
-    assert default.checkpoint.metadata["catalogue_hash"] == cat.catalogue_hash() and default.earlier is None
-    assert default.implied == {} and default.domain["ventilation_ach"] == (0.1, 1.7)
+    # trained on outdoor air by 0.3 1/h: the same variables, read as this catalogue's
+    assert default.earlier is cat.EARLIER_CATALOGUES["88d16120a6d2221f"] and default.earlier.same_variables
+    assert default.implied == {} and default.domain["ventilation_ach"] == (0.1, 1.6)  # its grid's last point
     surrogate = load_metamodel("diagnosis")
     assert surrogate.checkpoint.metadata["catalogue_hash"] in cat.EARLIER_CATALOGUES
     assert surrogate.earlier is cat.EARLIER_CATALOGUES[surrogate.checkpoint.metadata["catalogue_hash"]]
@@ -426,3 +429,12 @@ def test_describe_selected_groups():
     rows = cat.describe(["occupancy", "settings"])
     assert [r["name"] for r in rows] == list(cat.OCCUPANCY_NAMES + cat.SETTING_NAMES)
     json.dumps(rows)
+
+
+def test_datasets_of_the_coarser_outdoor_air_grid_read_as_this_catalogues():
+    from buildenv.campaign.dataset import readable_catalogue
+
+    assert readable_catalogue(cat.catalogue_hash())
+    assert readable_catalogue("88d16120a6d2221f")  # outdoor air by 0.3 1/h: the same variables on a coarser grid
+    assert not readable_catalogue("bda1c8ff3b9294aa")  # before the economiser: a variable it lacked
+    assert not readable_catalogue("0123456789abcdef") and not readable_catalogue(None)

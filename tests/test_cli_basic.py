@@ -35,7 +35,7 @@ def test_catalogue_table(capsys):
     assert lines[0] == f"catalogue {cat.catalogue_hash()}"
     assert len(lines) == 2 + len(cat.ALL_VARIABLES)
     row = next(line for line in lines if " ventilation_ach " in line)
-    assert row.split() == ["settings", "ventilation_ach", "1/h", "0.1", "1.7", "0.3", "per_day", "vol_ventilation_day"]
+    assert row.split() == ["settings", "ventilation_ach", "1/h", "0.1", "1.7", "0.05", "per_day", "vol_ventilation_day"]
 
 
 def test_catalogue_unknown_group_is_a_usage_error(capsys):

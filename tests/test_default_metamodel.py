@@ -25,7 +25,8 @@ def _sample_in_domain(group: str, n: int, rng: np.random.Generator, surrogate) -
             columns.append(np.full(n, surrogate.implied[v.name]))
             continue
         lo, hi = surrogate.domain.get(v.name, (v.min, v.max))
-        grid = v.grid()
+        earlier = surrogate.earlier.ranges.get(v.name) if surrogate.earlier else None
+        grid = v.grid() if earlier is None or v.step is None else np.arange(earlier[0], earlier[1] + 1e-9, earlier[2])
         columns.append(rng.choice(grid[(grid >= lo - 1e-9) & (grid <= hi + 1e-9)], n))
     return np.stack(columns, axis=1)
 

@@ -198,8 +198,12 @@ def test_outdoor_air_keeps_to_the_code_minimum_unless_the_site_declares_its_limi
         _site_declaring({"ventilation_ach": (0.1, 1.0)}), {}, env._b.model.historical, occupants
     )
     assert own.lo[j] == cat.SETTINGS[j].min  # the operator's limits stand
-    # the default site, a stand-in, declares the code minimum for its design occupants up to its design
-    assert env.decode(-np.ones(env.action_space.shape))[:, j].min() >= 0.45
+    # the default site, a stand-in, declares the code minimum for its design occupants up to its design: both ends
+    # and the outdoor air between them are settings
+    assert env.decode(-np.ones(env.action_space.shape))[:, j] == pytest.approx(0.45)
+    assert env.decode(np.ones(env.action_space.shape))[:, j] == pytest.approx(0.7)
+    middle = env.decode(np.zeros(env.action_space.shape))[:, j]
+    assert 0.45 < middle.min() and middle.max() < 0.7
 
 
 # ---------------------------------------------------------------------------------------------------------------

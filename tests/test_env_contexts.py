@@ -15,11 +15,12 @@ import pytest
 from vector_info import same_info
 
 import buildenv  # noqa: F401  (registers BuildingWeek-v0)
+from buildenv import catalogue as cat
 from buildenv.cli.main import main
 from buildenv.env.building_week import DEFAULT_SITE, BuildingWeekEnv
-from buildenv.errors import BuildingEnvError
+from buildenv.errors import BuildenvError, BuildingEnvError
 from buildenv.sites import load_site
-from buildenv.sites.library import LIBRARY_FILES, LIBRARY_INDEX, SHIPPED_LIBRARY, read_library
+from buildenv.sites.library import LIBRARY_FILES, LIBRARY_INDEX, SHIPPED_LIBRARY, common_limits, read_library
 from buildenv.sites.suite import write_manifest
 
 N_ACTION = 7 * 11  # the default site's BMS changes 11 of the 12 settings
@@ -295,6 +296,30 @@ def test_the_library_command_copies_calibrated_sites_and_their_split(library, su
     assert main(["suite", "library", "--suite", str(suite), "--out", str(other), "--quiet"]) == 2
     assert "exists and is not a site library" in capsys.readouterr().err
     assert sorted(p.name for p in other.iterdir()) == ["notes.txt"]
+
+
+def test_a_library_of_offices_with_other_outdoor_air_ranges_shares_their_overlap(tmp_path):
+    records = []
+    for name, limits in (("medium_office-usa_il_chicago-heating", None), ("small_office-usa_fl_miami-heating", 0.55)):
+        folder = _copy_default(tmp_path / "suite" / name)
+        if limits is not None:  # a smaller design outdoor air: its BMS goes up to 0.55 1/h only
+            toml = (folder / "site.toml").read_text(encoding="utf-8")
+            (folder / "site.toml").write_text(toml.replace("[0.45, 0.7]", f"[0.45, {limits}]"), encoding="utf-8")
+        building, climate, season = name.split("-")
+        records.append(
+            {"building": building, "climate": climate, "season": season, "part": "development", "site": str(folder)}
+        )
+        records[-1]["status"] = "made"
+    write_manifest(tmp_path / "suite", records)
+    suite, lib = str(tmp_path / "suite"), str(tmp_path / "lib")
+    assert main(["suite", "library", "--suite", suite, "--out", lib, "--quiet"]) == 0
+    for site in read_library(lib):
+        assert load_site(site.folder).setting_limits == {"ventilation_ach": (0.45, 0.55)}
+    env = gym.make("BuildingWeek-v0", site=lib)
+    vent = list(env.unwrapped.decode(np.ones(N_ACTION))[:, cat.SETTING_NAMES.index("ventilation_ach")])
+    assert vent == pytest.approx([0.55] * 7)
+    with pytest.raises(BuildenvError, match="ventilation_ach: site 'b' limits it to \\[0.8, 1\\] and site 'a'"):
+        common_limits({"a": {"ventilation_ach": (0.45, 0.7)}, "b": {"ventilation_ach": (0.8, 1.0)}})
 
 
 def test_a_library_split_runs_only_its_part(library):

@@ -208,6 +208,16 @@ def _regenerate(directory: Path, manifest: dict) -> str:
     return f"regenerate it: rm -r {shlex.quote(str(directory))} && {command}"
 
 
+def readable_catalogue(made_with: object) -> bool:
+    """Whether a dataset made under catalogue ``made_with`` (a :func:`buildenv.catalogue.catalogue_hash`) reads as
+    one of this catalogue: the same, or an earlier one of the same variables
+    (:attr:`buildenv.catalogue.EarlierCatalogue.same_variables`)."""
+    if made_with == cat.catalogue_hash():
+        return True
+    earlier = cat.EARLIER_CATALOGUES.get(made_with) if isinstance(made_with, str) else None
+    return earlier is not None and earlier.same_variables
+
+
 def verify_data_file(path: str | Path, record: dict | None, regenerate: str = "", always: bool = False) -> None:
     """Check a data file against its manifest ``record`` (:func:`data_file_record`; ``None``: nothing recorded,
     nothing checked): the size, then the SHA-256 where the modification time differs (``always``: in any case).
@@ -268,7 +278,7 @@ def open_dataset(directory: str | Path) -> Dataset:
         ) from None
     if not isinstance(manifest, dict):
         raise DatasetError(f"{manifest_path}: not a dataset manifest (a JSON {type(manifest).__name__})")
-    if manifest.get("catalogue_hash") != cat.catalogue_hash():
+    if not readable_catalogue(manifest.get("catalogue_hash")):
         raise DatasetError(
             f"{directory} was made with catalogue {manifest.get('catalogue_hash')}, this buildenv "
             f"has {cat.catalogue_hash()}: re-simulate it"

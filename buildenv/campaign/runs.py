@@ -210,6 +210,12 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
     if campaign_file.exists():
         previous = json.loads(campaign_file.read_text())
         previous["config"].setdefault("zoning", "single")  # campaigns made before zoning was a choice
+        if previous.get("catalogue_hash") != record["catalogue_hash"]:
+            raise DatasetError(
+                f"{out} holds a campaign of catalogue {previous.get('catalogue_hash')} ({campaign_file}), this "
+                f"buildenv has {record['catalogue_hash']}: its remaining weeks would be drawn differently; use another "
+                "--out, or delete it and simulate it again"
+            )
         if previous != record:
             raise DatasetError(
                 f"{out} holds another campaign ({campaign_file}: {previous['config']}); use another --out or delete it"

@@ -8,7 +8,7 @@ historical values. Outdoor air stays at or above what ASHRAE 62.1 requires for t
 linearly onto the setting's range,
 ``min + (a + 1) / 2 * (max - min)`` (the catalogue's, within what the metamodel was trained on: :func:`bounds`),
 then onto the catalogue step (hours are whole hours, setpoints go by
-0.5 K, ventilation by 0.3 air changes per hour), as a BMS accepts them. Components outside [-1, 1] are
+0.5 K, outdoor air by 0.05 air changes per hour), as a BMS accepts them. Components outside [-1, 1] are
 clipped (and counted); NaN or infinite components are an error.
 """
 

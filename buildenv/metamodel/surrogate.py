@@ -452,9 +452,9 @@ class Surrogate:
         read are dropped; the temperature before the week is added as unknown where ``x`` lacks it, and where it
         is unknown (NaN) the model reads the channel's training mean (written into ``x`` itself when
         ``in_place`` and ``x`` already has the model's channels, saving a copy). A checkpoint of an earlier
-        catalogue gets its own channels, picked by name and converted (:attr:`earlier`)."""
+        catalogue of other variables gets its own channels, picked by name and converted (:attr:`earlier`)."""
         wanted = self.checkpoint.inputs
-        if self.earlier is not None:
+        if self.earlier is not None and not self.earlier.same_variables:
             return self._earlier_inputs(x)
         if not self.uses_temperature_before:
             return np.ascontiguousarray(x[..., :wanted], dtype=np.float32)
@@ -569,7 +569,7 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
     found = ck.metadata.get("catalogue_hash")
     earlier = cat.EARLIER_CATALOGUES.get(found)
     channels = ck.metadata.get("input_channels", ())
-    if earlier is not None:
+    if earlier is not None and not earlier.same_variables:
         unknown = [c for c in channels if earlier.renamed.get(c, (c, 1.0))[0] not in ALL_CHANNELS]
         if unknown or ck.metadata.get("output_channels") != list(cat.OUTPUT_NAMES):
             raise CheckpointError(f"{path}: its channels {unknown or 'outputs'} are not this buildenv's; retrain it")
@@ -582,6 +582,8 @@ def load_metamodel(path: str | Path | None = None) -> Surrogate:
         )
     except CheckpointError as exc:
         raise CheckpointError(f"{path}: {exc}") from None
+    if earlier is not None:  # of this catalogue's variables: checked as one of this catalogue
+        expected["catalogue_hash"] = found
     for key, value in expected.items():
         if ck.metadata.get(key) != value:
             if key == "catalogue_hash":

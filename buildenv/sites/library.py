@@ -144,6 +144,42 @@ def _index(rows: list[dict]) -> str:
     return "\n".join(lines) + "\n\n" + tomli_w.dumps(_toml_plain({"sites": rows}, LIBRARY_INDEX))
 
 
+def common_limits(limits: dict[str, dict[str, tuple[float, float]]]) -> dict[str, tuple[float, float]]:
+    """The ``[bms] limits`` sites share: for each setting any of them limits, the overlap of their ranges (a site
+    that does not limit it contributes the catalogue's range). ``limits``: ``{site name: its limits}``.
+
+    Raises:
+        BuildenvError: the ranges of a setting do not overlap, naming the two sites furthest apart.
+    """
+    from buildenv import catalogue as cat
+
+    common: dict[str, tuple[float, float]] = {}
+    for name in sorted({n for site in limits.values() for n in site}):
+        var = cat.get(name)
+        ranges = {site: own.get(name, (var.min, var.max)) for site, own in limits.items()}
+        low, high = max(ranges, key=lambda k: ranges[k][0]), min(ranges, key=lambda k: ranges[k][1])
+        if ranges[low][0] > ranges[high][1] + 1e-9:
+            raise BuildenvError(
+                f"{name}: site {low!r} limits it to [{ranges[low][0]:g}, {ranges[low][1]:g}] and site {high!r} to "
+                f"[{ranges[high][0]:g}, {ranges[high][1]:g}]: no shared range; put them in libraries of their own"
+            )
+        common[name] = (float(ranges[low][0]), float(ranges[high][1]))
+    return common
+
+
+def _write_limits(descriptor: Path, limits: dict[str, tuple[float, float]]) -> None:
+    """Set ``[bms] limits`` of a copied ``site.toml`` to ``limits`` where they differ (the file rewritten)."""
+    import tomli_w
+
+    data = tomllib.loads(descriptor.read_text(encoding="utf-8"))
+    bms = data.setdefault("bms", {})
+    own = {k: tuple(map(float, v)) for k, v in bms.get("limits", {}).items()}
+    if not limits or own == limits:
+        return
+    bms["limits"] = {k: [lo, hi] for k, (lo, hi) in limits.items()}
+    descriptor.write_text(tomli_w.dumps(data), encoding="utf-8")
+
+
 def write_library(
     suite: str | os.PathLike,
     out: str | os.PathLike,
@@ -158,14 +194,15 @@ def write_library(
         out: the library folder; replaced when it holds an earlier library, refused when it holds anything else.
         n_sites: how many sites (:func:`choose`); default every calibrated one.
         buildings: only the sites of these buildings (the suite's names, e.g. ``medium_office``); default all.
-            A context set of ``BuildingWeek-v0`` needs one action space: buildings whose BMS limits differ (the
-            ASHRAE 2019 offices' fixed outdoor air) go in a library of their own.
+            A context set of ``BuildingWeek-v0`` needs one action space: each copied site declares the limits
+            the chosen sites share (:func:`common_limits`; the DOE 2004 offices' outdoor air from the ASHRAE 62.1
+            minimum to the smallest design), rewriting its ``site.toml``.
         progress: a progress bar.
     Returns:
         ``{"library", "sites", "train", "test"}``.
     Raises:
         BuildenvError: no suite manifest, no calibrated site (of ``buildings``), ``out`` not a library, ``n_sites``
-            below 1.
+            below 1, chosen sites whose limits of a setting do not overlap.
         SiteError: a copied site that does not load (nothing is left behind).
     """
     from tqdm import tqdm
@@ -182,6 +219,7 @@ def write_library(
     if not cases:
         raise BuildenvError(f"{suite}: no calibrated site; run buildenv suite calibrate --suite {suite} first")
     chosen = choose(cases, n_sites)
+    limits = common_limits({c["name"]: load_site(c["folder"]).setting_limits for c in chosen})
     out = Path(out).expanduser()
     if out.exists() and (not out.is_dir() or (any(out.iterdir()) and not is_library(out))):
         raise BuildenvError(f"{out}: exists and is not a site library; give a new or empty folder")
@@ -196,6 +234,7 @@ def write_library(
             for name in LIBRARY_FILES:
                 if (case["folder"] / name).is_file():
                     shutil.copy2(case["folder"] / name, folder / name)
+            _write_limits(folder / DESCRIPTOR, limits)
             site = load_site(folder)  # it loads, calibrated, where it now lies
             calibration = site.calibration or {}
             verdict = calibration.get("verdict") or {}

@@ -123,6 +123,10 @@ def suite_cases(
     return [SuiteCase(b, c, s) for b in chosen[0] for c in chosen[1] for s in chosen[2]]
 
 
+#: The ventilation change of a BMS history, 1/h: an outdoor air damper reset by a third or more of an office's design.
+VENTILATION_CHANGE_ACH = 0.3
+
+
 def _step(settings: np.ndarray, names: Iterable[str], delta: float) -> None:
     """Add ``delta`` to the named settings of every day, snapped to their catalogue step and range (in place)."""
     for name in names:
@@ -137,7 +141,8 @@ def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) ->
     Starts from the typical settings (:func:`buildenv.defaults.default_week`) with ``ventilation_ach`` (1/h), then,
     from the second week on, each week may move the heating or cooling comfort setpoint by one step, a setback by
     1 K, or the occupied schedule (heating, cooling and ventilation together) by an hour; one week in the middle
-    lowers the ventilation by one step (raises it where it is at the catalogue's minimum). Each change holds until
+    lowers the ventilation by :data:`VENTILATION_CHANGE_ACH` (raises it where it would fall below the catalogue's
+    minimum). Each change holds until
     the next; every value stays on its catalogue step and range. Weeks >= 3 always hold at least one setpoint,
     one schedule and one ventilation change.
     """
@@ -170,8 +175,8 @@ def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) ->
             _step(settings[w:], names, sign * size)
         if w == vent_week:  # down, as a building can act on it (outdoor air above its design it cannot deliver)
             j = cat.SETTING_NAMES.index("ventilation_ach")
-            down = settings[w, 0, j] - vent.step >= vent.min - 1e-9
-            _step(settings[w:], ("ventilation_ach",), -vent.step if down else vent.step)
+            down = settings[w, 0, j] - VENTILATION_CHANGE_ACH >= vent.min - 1e-9
+            _step(settings[w:], ("ventilation_ach",), -VENTILATION_CHANGE_ACH if down else VENTILATION_CHANGE_ACH)
     cat.check_values("settings", settings, "bms_history")
     return settings
 

@@ -28,6 +28,7 @@ from buildenv.sites.suite import (
     bms_history,
     make_case,
     read_manifest,
+    reference_history,
     suite_cases,
     write_manifest,
 )
@@ -58,6 +59,16 @@ def test_bms_history_changes_setpoints_schedules_and_ventilation_within_the_cata
     assert changed("heating_start_hour", "heating_end_hour", "cooling_start_hour", "cooling_end_hour")
     assert changed("ventilation_ach")
     np.testing.assert_array_equal(settings, bms_history(8, 1.0, np.random.default_rng(3)))
+
+
+def test_a_reference_offices_history_keeps_its_outdoor_air_within_its_bms_limits():
+    j = cat.SETTING_NAMES.index("ventilation_ach")
+    # the DOE medium office: from its design (0.7 1/h) down to its ASHRAE 62.1 minimum (0.45), not 0.3 lower
+    medium = reference_history("medium_office", 8, np.random.default_rng(3))[:, 0, j]
+    assert list(medium) == pytest.approx([0.7] * 4 + [0.45] * 4)
+    # a 2019 office's design is its minimum: no outdoor air change; without limits the full change
+    assert set(reference_history("medium_office_2019", 8, np.random.default_rng(3))[:, 0, j]) == {0.45}
+    assert bms_history(8, 0.7, np.random.default_rng(3))[-1, 0, j] == pytest.approx(0.4)
 
 
 def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path):

@@ -87,12 +87,10 @@ class StandIn:
 
     def history(self) -> np.ndarray:
         """A suite case's BMS history ``(weeks, 7, 12)``, drawn from :attr:`history_seed` as ``buildenv suite make``
-        draws its sites' (:func:`buildenv.sites.suite.bms_history`)."""
-        from buildenv.energyplus.reference import historical_ventilation_ach
-        from buildenv.sites.suite import bms_history
+        draws its sites' (:func:`buildenv.sites.suite.reference_history`)."""
+        from buildenv.sites.suite import reference_history
 
-        rng = np.random.default_rng(self.history_seed)
-        return bms_history(self.weeks, historical_ventilation_ach(self.building), rng)
+        return reference_history(self.building, self.weeks, np.random.default_rng(self.history_seed))
 
     def plan(self, start: dt.date, effects: list | None, effect_seed: int) -> list:
         """The effects' random choices fixed (:func:`buildenv.energyplus.injections.plan_effects`): holidays with one

@@ -135,16 +135,19 @@ def _step(settings: np.ndarray, names: Iterable[str], delta: float) -> None:
         settings[..., j] = var.snap(np.clip(settings[..., j] + delta, var.min, var.max))
 
 
-def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) -> np.ndarray:
+def bms_history(
+    weeks: int, ventilation_ach: float, rng: np.random.Generator, lowest_ach: float | None = None
+) -> np.ndarray:
     """Historical settings ``(weeks, 7, 12)`` that change from week to week as BMS histories do.
 
     Starts from the typical settings (:func:`buildenv.defaults.default_week`) with ``ventilation_ach`` (1/h), then,
     from the second week on, each week may move the heating or cooling comfort setpoint by one step, a setback by
     1 K, or the occupied schedule (heating, cooling and ventilation together) by an hour; one week in the middle
-    lowers the ventilation by :data:`VENTILATION_CHANGE_ACH` (raises it where it would fall below the catalogue's
-    minimum). Each change holds until
-    the next; every value stays on its catalogue step and range. Weeks >= 3 always hold at least one setpoint,
-    one schedule and one ventilation change.
+    lowers the ventilation by :data:`VENTILATION_CHANGE_ACH`, not below ``lowest_ach`` (1/h, the lower limit of the
+    site's BMS, its ASHRAE 62.1 minimum: down to it where the full change would pass it, none where the ventilation
+    is already there); without ``lowest_ach`` it is raised where it would fall below the catalogue's minimum. Each
+    change holds until the next; every value stays on its catalogue step and range. Weeks >= 3 always hold at least
+    one setpoint and one schedule change, and a ventilation change where the BMS range allows one.
     """
     settings = default_week(weeks)[0].copy()
     vent = cat.get("ventilation_ach")
@@ -175,10 +178,25 @@ def bms_history(weeks: int, ventilation_ach: float, rng: np.random.Generator) ->
             _step(settings[w:], names, sign * size)
         if w == vent_week:  # down, as a building can act on it (outdoor air above its design it cannot deliver)
             j = cat.SETTING_NAMES.index("ventilation_ach")
-            down = settings[w, 0, j] - VENTILATION_CHANGE_ACH >= vent.min - 1e-9
-            _step(settings[w:], ("ventilation_ach",), -VENTILATION_CHANGE_ACH if down else VENTILATION_CHANGE_ACH)
+            current = settings[w, 0, j]
+            if lowest_ach is not None:  # down, to the BMS's lowest at most
+                delta = min(0.0, max(-VENTILATION_CHANGE_ACH, lowest_ach - current))
+            else:
+                down = current - VENTILATION_CHANGE_ACH >= vent.min - 1e-9
+                delta = -VENTILATION_CHANGE_ACH if down else VENTILATION_CHANGE_ACH
+            _step(settings[w:], ("ventilation_ach",), delta)
     cat.check_values("settings", settings, "bms_history")
     return settings
+
+
+def reference_history(building: str, weeks: int, rng: np.random.Generator) -> np.ndarray:
+    """The BMS history ``(weeks, 7, 12)`` of a reference office: :func:`bms_history` from its design outdoor air,
+    its ventilation change kept within its BMS limits
+    (:func:`buildenv.energyplus.reference.reference_bms`)."""
+    from buildenv.energyplus.reference import historical_ventilation_ach, reference_bms
+
+    lowest = reference_bms(building)[1]["ventilation_ach"][0]
+    return bms_history(weeks, historical_ventilation_ach(building), rng, lowest_ach=lowest)
 
 
 def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_seed: int = 0) -> dict:
@@ -192,7 +210,6 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
     """
     from buildenv.energyplus.reference import (
         STAND_IN_VERSION,
-        historical_ventilation_ach,
         make_reference_site,
         reference_bms,
         stand_in_version,
@@ -211,14 +228,16 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
     started = time.perf_counter()
     existed = folder.exists()
     try:
+        settings = reference_history(case.building, weeks, np.random.default_rng(case.seed(suite_seed)))
         if (folder / "site.toml").is_file():
             site = load_site(folder)
             same = (site.weeks, site.start, site.consumption_end_uses) == (weeks, case.start(), case.end_uses)
             same = same and stand_in_version(site) == STAND_IN_VERSION  # an earlier stand-in's site is made again
+            # another history is made again (the supply air is what the building recorded)
+            kept = [j for j, name in enumerate(cat.SETTING_NAMES) if name != "supply_air_c"]
+            same = same and np.allclose(site.settings[..., kept], settings[..., kept])
             if same and (site.controllable, site.setting_limits) == reference_bms(case.building):
                 return {**record, "status": "reused", "seconds": 0.0}
-        rng = np.random.default_rng(case.seed(suite_seed))
-        settings = bms_history(weeks, historical_ventilation_ach(case.building), rng)
         make_reference_site(
             folder,
             case.building,

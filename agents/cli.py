@@ -15,15 +15,34 @@ from buildenv.jsonio import dumps
 METHODS = ("nsga2", "cmaes", "ppo", "rules")
 
 
-def make_env(site: str, metamodel: str = "default", comfort_weight: float = 1.0, **kwargs):
-    """``BuildingWeek-v0`` on every week of a site (``"default"`` or a folder)."""
+def make_env(
+    site: str, metamodel: str = "default", comfort_weight: float = 1.0, library_site: str | None = None, **kwargs
+):
+    """``BuildingWeek-v0`` on every week of a site (``"default"`` or a folder), or of one site of a library
+    (``site`` ``"library"`` or a library folder, ``library_site`` the site's name), reset onto that site.
+
+    Raises:
+        SystemExit: a library without ``library_site``, or ``library_site`` with a single site.
+        buildenv.errors.BuildingEnvError: a ``library_site`` the library does not hold.
+    """
     import gymnasium as gym
 
     import buildenv  # noqa: F401  (registers BuildingWeek-v0)
+    from buildenv.env.contexts import listing
 
-    return gym.make(
+    env = gym.make(
         "BuildingWeek-v0", site=site, metamodel=metamodel, comfort_weight=comfort_weight, weeks="all", **kwargs
     )
+    names = env.unwrapped.site_names
+    if len(names) > 1 and library_site is None:
+        raise SystemExit(
+            f"buildenv: --site {site} holds {len(names)} sites; choose one with --library-site NAME ({listing(names)})"
+        )
+    if len(names) == 1 and library_site is not None:
+        raise SystemExit(f"buildenv: --library-site {library_site}: --site {site} is one site, not a library")
+    if library_site is not None:
+        env.reset(options={"site": library_site})
+    return env
 
 
 def default_week(env) -> int:
@@ -44,24 +63,36 @@ def optimise(
     population: int = 100,
     policy: str | None = None,
     progress: bool = False,
+    site: str | int | None = None,
 ) -> dict:
-    """Run one method on one week; returns the chosen action, its scores and the method's figures.
+    """Run one method on one week of one site; returns the chosen action, its scores and the method's figures.
 
     ``nsga2`` picks the front's point of equal comfort to the historical settings (the paper's choice);
     ``cmaes`` maximises the scalarised reward; ``ppo`` applies a trained policy (``policy`` path);
-    ``rules`` is the rule-based schedule of :mod:`agents.rules`.
+    ``rules`` is the rule-based schedule of :mod:`agents.rules`. With several sites (a list or a library) the
+    environment is first reset onto ``site`` (name or index); without it, onto the current episode's site.
 
     Returns:
-        ``{"method", "week", "week_start", "seconds", "action" (A,), "chosen", "historical"
+        ``{"method", "site", "week", "week_start", "seconds", "action" (A,), "chosen", "historical"
         (scalar scores), "predicted_savings_percent", "comfort_historical_predicted",
         "comfort_chosen_predicted"}`` and the method's ``"evaluations"`` (NSGA-II: also ``"hypervolume"``,
         ``"front"``, ``"pareto"``).
     Raises:
         SystemExit: an unknown method, or ``ppo`` without a ``policy``.
+        buildenv.errors.BuildingEnvError: several sites, no ``site`` and no episode yet (or a site not among them).
     """
     from agents.cmaes import scalar_scores
+    from buildenv.env.contexts import listing
+    from buildenv.errors import BuildingEnvError
 
     base = env.unwrapped
+    if site is not None:
+        env.reset(options={"site": site, "week": week})
+    elif len(base.site_names) > 1 and base.week is None:
+        raise BuildingEnvError(
+            f"optimise: the environment has {len(base.site_names)} sites and no episode yet; give site= "
+            f"({listing(base.site_names)}) or reset(options={{'site': ...}}) first"
+        )
     hist = scalar_scores(base.evaluate(base.historical_action[None], week=week), 0)
     started = time.perf_counter()
     extra: dict = {}
@@ -88,7 +119,7 @@ def optimise(
             raise SystemExit(
                 "buildenv optimize --method ppo: give --policy PATH (train a policy with agents.ppo.train_ppo)"
             )
-        obs, _ = env.reset(options={"week": week})
+        obs, _ = env.reset(options={"week": week, "site": base.site_name})
         action, extra = policy_actions(load_policy(policy), obs[None])[0], {"evaluations": 1}
     elif method == "rules":
         from agents.rules import rule_based_action
@@ -100,6 +131,7 @@ def optimise(
     chosen = scalar_scores(base.evaluate(np.asarray(action)[None], week=week), 0)
     return {
         "method": method,
+        "site": base.site_name,
         "week": int(week),
         "week_start": base.week_start(week).isoformat(),
         "seconds": round(seconds, 2),
@@ -123,7 +155,7 @@ def _public(result: dict, env) -> dict:
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
-    env = make_env(args.site, args.metamodel, args.comfort_weight)
+    env = make_env(args.site, args.metamodel, args.comfort_weight, library_site=args.library_site)
     week = default_week(env) if args.week is None else args.week
     result = optimise(
         env,
@@ -173,7 +205,7 @@ def _print_levers(rows: list[dict], week: int) -> None:
 def _cmd_verify(args: argparse.Namespace) -> int:
     from buildenv.env.response import response_check
 
-    env = make_env(args.site, args.metamodel)
+    env = make_env(args.site, args.metamodel, library_site=args.library_site)
     week = default_week(env) if args.week is None else args.week
     if args.levers:
         from buildenv.env.levers import lever_check
@@ -224,11 +256,21 @@ def _cmd_demo(args: argparse.Namespace) -> int:
     return 0
 
 
+def _library_site_argument(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--library-site",
+        default=None,
+        metavar="NAME",
+        help="with --site a library ('library' or a folder holding library.toml): the site of it to use",
+    )
+
+
 def register(sub) -> None:
     """Add ``optimize``, ``verify`` and ``demo`` to the ``buildenv`` subcommands."""
     p = sub.add_parser("optimize", help="find the week's settings that save energy at equal comfort")
     p.add_argument("--method", required=True, choices=METHODS)
-    p.add_argument("--site", default="default", help="calibrated site folder or 'default'")
+    p.add_argument("--site", default="default", help="calibrated site folder, 'default', or a library")
+    _library_site_argument(p)
     p.add_argument(
         "--week",
         type=int,
@@ -252,7 +294,10 @@ def register(sub) -> None:
     p.set_defaults(func=_cmd_optimize)
 
     p = sub.add_parser("verify", help="the response check: random settings on the metamodel and on EnergyPlus")
-    p.add_argument("--site", required=True, help="calibrated site folder made by `buildenv site reference`")
+    p.add_argument(
+        "--site", required=True, help="calibrated site folder made by `buildenv site reference`, or a library"
+    )
+    _library_site_argument(p)
     what = p.add_mutually_exclusive_group()
     what.add_argument("--random", type=positive_int, default=None, help="random settings to check (default 20)")
     p.add_argument("--week", type=int, default=None, help="week of the site's year; default its first held-out week")

@@ -73,6 +73,34 @@ def test_optimize_command_prints_json(capsys):
     assert {"predicted_savings_percent", "comfort_historical_predicted", "comfort_chosen_predicted"} <= set(out)
 
 
+def test_the_optimisers_run_on_the_library_site_they_are_given(capsys):
+    from agents.cli import default_week, optimise
+    from buildenv.cli.main import main
+    from buildenv.errors import BuildingEnvError
+    from buildenv.sites.library import SHIPPED_LIBRARY, read_library
+
+    sites = read_library(SHIPPED_LIBRARY)
+    names = [s.name for s in sites]
+    env = gym.make("BuildingWeek-v0", site="library", weeks="all")
+    with pytest.raises(BuildingEnvError, match="give site="):
+        optimise(env, "rules", 0)  # several sites and no episode: which one is not guessed
+    single = gym.make("BuildingWeek-v0", site=str(sites[-1].folder), weeks="all")
+    week = default_week(single)
+    result = optimise(env, "rules", week, site=names[-1])
+    assert result["site"] == names[-1] == env.unwrapped.site_name
+    alone = optimise(single, "rules", week)
+    assert alone["predicted_savings_percent"] == pytest.approx(result["predicted_savings_percent"], abs=1e-4)
+
+    assert main(["optimize", "--method", "rules", "--site", "library", "--library-site", names[0], "--json"]) == 0
+    assert json.loads(capsys.readouterr().out)["site"] == names[0]
+    with pytest.raises(SystemExit, match="--library-site NAME"):
+        main(["optimize", "--method", "rules", "--site", "library"])
+    with pytest.raises(SystemExit, match="is one site, not a library"):
+        main(["optimize", "--method", "rules", "--library-site", names[0]])
+    assert main(["optimize", "--method", "rules", "--site", "library", "--library-site", "shed"]) != 0
+    assert "'shed' is not one of the environment's sites" in capsys.readouterr().err
+
+
 def test_markdown_table_prints_missing_values_as_dash():
     table = markdown_table([{"a": 1.234, "b": None}], [("A", "a", ".1f"), ("B", "b", "d")])
     assert "| 1.2 | - |" in table

@@ -186,6 +186,22 @@ def test_end_stamped_register_export(tmp_path):
     np.testing.assert_allclose(imported[1:], q[1:], atol=1.5e-3)
 
 
+def test_a_register_export_closed_at_24_00_is_named_a_register_and_cumulative_reads_it(tmp_path):
+    """An hourly register read at each hour's start, the last row its closing reading stamped Sunday 24:00 (not an
+    end-stamped export): named a register, and --cumulative reads every hour of the hand-made site."""
+    start = dt.date(2024, 1, 8)
+    t, q = _truth(7)
+    register = 5000.0 + np.concatenate([[0.0], np.cumsum(q)])
+    rows = [[stamp, temperature, f"{r:.4f}"] for (stamp, temperature, _), r in zip(_hourly_rows(start, t, q), register)]
+    rows.append(["2024-01-21 24:00", "", f"{register[-1]:.4f}"])
+    export = _export(tmp_path / "bms.csv", ["timestamp", "temperature_c", "energy_kwh"], rows)
+    with pytest.raises(SiteError, match=r"bms.csv:2: energy_kwh never falls, .* on line 338: .*; pass --cumulative$"):
+        import_export(export, tmp_path / "refused", **SITE)
+    report = import_export(export, tmp_path / "site", options=ImportOptions(cumulative=True), **SITE)
+    assert report.missing_consumption_hours == report.missing_temperature_hours == 0 and not report.notes
+    _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
+
+
 def test_a_semicolon_export_with_a_bom_blank_lines_and_empty_rows(tmp_path):
     start = dt.date(2024, 1, 8)
     t, q = _truth(6)

@@ -303,9 +303,10 @@ def test_days_to_24_00_are_named_and_stamped_end_reads_them(tmp_path: Path):
     site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
     _end_stamped(site, midnight="24:00")
     assert _error(site) == (
-        f"{site / 'measurements.csv'}:25: timestamp '2024-01-01 24:00' is 24:00, the end of a day: the rows are "
-        "stamped at the end of their hour (24:00 for 23:00-24:00); declare it in site.toml: "
-        '[measurements] stamped = "end"'
+        f"{site / 'measurements.csv'}:25: timestamp '2024-01-01 24:00' is 24:00, the end of a day: if the rows are "
+        "stamped at the end of their hour (24:00 for 23:00-24:00), declare it in site.toml: "
+        '[measurements] stamped = "end"; if the column holds meter register readings (this one the reading at the '
+        "day's end), declare [measurements] cumulative = true"
     )
     _declare(site, 'stamped = "end"')
     _same(site, valid)
@@ -420,6 +421,53 @@ def test_a_heating_or_cooling_meter_in_mwh_is_named_and_the_conversion_reads_it(
     _same(site, valid, rtol=1e-12)
 
 
+def test_a_heating_meter_in_mwh_is_named_in_a_mild_week_and_in_kwh_accepted(tmp_path: Path):
+    """San Francisco in January, outdoors 8-13 degC on average: a heating meter (a passive-house office, 0.3 W/(m2 K),
+    whose free heat covers 2 W/m2 at night and 8 W/m2 when occupied) peaks at a few W/m2; in MWh it is named against
+    the weeks' mean need beyond free heat, in kWh it loads."""
+    from buildenv.sites.consumption import _outdoor_c
+
+    start, weather = dt.date(2024, 1, 8), "usa_ca_san_francisco"
+    site = _valid(tmp_path / "site", start, weather=weather)
+    _meter(site, "heating")
+    header, rows = _rows(site)
+    hour = np.arange(len(rows)) % 168
+    occupied = (hour // 24 < 5) & (hour % 24 >= 8) & (hour % 24 < 18)
+    indoor = np.array([float(row[1]) for row in rows])
+    heating_w_m2 = np.maximum(0.3 * (indoor - _outdoor_c(weather, start, 2)) - np.where(occupied, 8.0, 2.0), 0.0)
+    for row, w_m2 in zip(rows, heating_w_m2):
+        row[2] = repr(float(w_m2) * AREA / 1e6)  # MWh
+    _write_rows(site, header, rows)
+    peak = int(np.argmax(heating_w_m2))
+    assert 2 < heating_w_m2.max() < 5
+    assert re.fullmatch(
+        rf".*measurements\.csv:{peak + 2}: heat_consumption_kwh=[\d.e-]+ is the largest in the 2 week\(s\) that need "
+        r"heating \(.*more than 11\.7 K below it needs 0\.3 W/m2, .*\), 0\.00[2-5]\d* W/m2 for 4982 m2: below the "
+        r"0\.[1-9]\d* W/m2 a heating meter of an office delivers in its busiest hour of such weeks; looks like MWh .*",
+        _error(site),
+    )
+    _scale(site, 1000)
+    np.testing.assert_allclose(load_site(site).consumption_kwh.ravel(), heating_w_m2 * AREA / 1000)
+
+
+def test_a_heating_dominated_meter_in_gj_is_named_by_the_heating_weeks(tmp_path: Path):
+    """Heating and plug loads at up to 120 W/m2, in GJ: above the plug loads' 0.2 W/m2, below the 1 W/m2 of heating
+    that Chicago's January weeks need."""
+    valid = _valid(tmp_path / "valid", dt.date(2024, 1, 1))
+    site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
+    for folder, factor in ((valid, 6.0), (site, 6.0 * 3.6 / 1000)):
+        _meter(folder, "heating", "plug_loads")
+        _scale(folder, factor)
+    peak = int(np.argmax(load_site(valid).consumption_kwh.ravel()))
+    assert re.fullmatch(
+        rf".*measurements\.csv:{peak + 2}: heat_consumption_kwh=[\d.e-]+ is the largest in the 2 week\(s\) that need "
+        r"heating \(.*\), 0\.4\d* W/m2 for 4982 m2: below the 1 W/m2 a heating meter .*; looks like MWh .* or GJ .*",
+        _error(site),
+    )
+    _scale(site, 1000 / 3.6)
+    _same(site, valid, rtol=1e-12)
+
+
 def test_small_heating_or_cooling_is_accepted_in_weeks_that_need_none(tmp_path: Path):
     """A heating meter in summer, a cooling meter in winter, a heating meter that reads nothing in winter (the
     heating off): no smallest peak."""
@@ -472,6 +520,25 @@ def test_a_register_with_its_closing_reading_is_named_and_cumulative_reads_every
         f"{site / 'measurements.csv'}:2: heat_consumption_kwh never falls, from 123456 here to {float(rows[-1][2]):g} "
         "on line 338: a cumulative meter register, not the energy of each hour; give the hourly differences, or "
         "declare it in site.toml: [measurements] cumulative = true"
+    )
+    _declare(site, "cumulative = true")
+    _same(site, valid, rtol=1e-9)
+
+
+def test_a_register_closing_reading_at_24_00_is_named_and_cumulative_reads_it(tmp_path: Path):
+    """A register read at each hour's start whose closing reading is stamped Sunday 24:00: undeclared, the message
+    names the declaration; declared cumulative, 24:00 is the instant the next day starts and every hour reads."""
+    valid = _valid(tmp_path / "valid", dt.date(2024, 1, 1))
+    site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
+    header, _ = _rows(site)
+    total = float(np.nansum(load_site(valid).consumption_kwh))
+    rows = [*_register(site), ["2024-01-14 24:00", "", f"{123456.0 + total:.4f}"]]
+    _write_rows(site, header, rows)
+    assert _error(site).endswith(
+        "measurements.csv:338: timestamp '2024-01-14 24:00' is 24:00, the end of a day: if the rows are stamped at "
+        'the end of their hour (24:00 for 23:00-24:00), declare it in site.toml: [measurements] stamped = "end"; '
+        "if the column holds meter register readings (this one the reading at the day's end), declare "
+        "[measurements] cumulative = true"
     )
     _declare(site, "cumulative = true")
     _same(site, valid, rtol=1e-9)

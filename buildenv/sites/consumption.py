@@ -4,8 +4,8 @@
 register that was not declared); :func:`_consumption` takes the hourly series (after the timestamps): meter
 register readings differenced where ``[measurements] cumulative = true`` (:func:`_register_differences`), then
 each hour checked against :data:`~buildenv.sites.model.MAX_KWH_PER_M2_PER_HOUR` (too large: Wh?) and the peak
-against the least a building's metered lighting and plug loads use, or, for a meter of heating or cooling alone,
-the least such a meter delivers in the weeks whose weather and indoor temperature need it (too small: MWh or GJ?,
+against the least a building's metered lighting and plug loads use and, for a meter that includes heating or
+cooling, the least it delivers in the weeks whose weather and indoor temperature need them (too small: MWh or GJ?,
 :func:`_check_size`). Every problem raises :class:`~buildenv.errors.SiteError` as ``"<file>:<line>: <what is
 wrong>"``. ``buildenv site import`` calls the same checks on an export's columns, with its column names and flags
 in the messages.
@@ -26,29 +26,34 @@ from buildenv.sites.model import MAX_KWH_PER_M2_PER_HOUR, MIN_PEAK_SHARE_OF_LEAS
 #: The energy units a consumption column is found in too small, and the factor to kWh as a hint writes it.
 _SMALL_UNITS = "MWh (multiply by 1000) or GJ (multiply by 1000/3.6 = 277.78)"
 
-# A meter of heating or cooling alone (no lighting or plug loads, whose least power bounds the others' peak) is
-# checked in the weeks that need what it meters, with the week's mean of the measured indoor temperature and the
-# EPW's outdoor dry-bulb temperature (one measured day at least):
-# - heating: indoor 17-24 degC (the catalogue's least heating setback to its highest comfort setpoint: heated,
-#   and not so warm that internal gains alone may hold it) and outdoor 15 K or more colder. The least heat loss of
-#   heated offices in practice is that of passive-house offices, designed to a heating load of 10 W/m2 at about
-#   32 K below indoors: about 0.3 W/(m2 K) of floor area, ventilation with heat recovery included. 15 K colder
-#   on average is about 4.5 W/m2 of loss on average, mostly at nights and weekends, when internal gains are
-#   small: the meter's busiest hour delivers several W/m2.
-# - cooling: outdoor no cooler than indoor. The envelope then carries no heat out on average: the cooling
+# A meter of heating or cooling (alone, or with lighting and plug loads, which only add to its peak) is checked in
+# the weeks that need what it meters, from the week's mean of the measured indoor temperature (one day at least) and
+# the EPW's outdoor dry-bulb temperature in each hour:
+# - heating: indoor 17-24 degC on average (the catalogue's least heating setback to its highest comfort setpoint:
+#   heated, and not so warm that internal gains alone may hold it). The least heat loss of heated offices in practice
+#   is that of passive-house offices, designed to a heating load of 10 W/m2 at about 32 K below indoors: about
+#   0.3 W/(m2 K) of floor area, ventilation with heat recovery included. Free heat (people, lights, plug loads and sun
+#   by day, the heat the building stored by night) covers up to 3.5 W/m2 of it, the loss of the first 11.7 K: an hour
+#   whose outdoor air is colder needs 0.3 W/m2 from the heating for each K beyond. The busiest hour delivers at least
+#   the week's mean need, capped at MIN_THERMAL_PEAK_W_M2 (a week 15 K colder throughout needs 1 W/m2; some offices'
+#   free heat is more). A mild week needs less: a January week in San Francisco about 0.4 W/m2, in Chicago 1.
+# - cooling: outdoor no cooler than indoor on average. The envelope then carries no heat out on average: the cooling
 #   removes the internal gains (people at the catalogue's least density, 0.02/m2 at about 70 W sensible, are
 #   1.4 W/m2; lights and plug loads at least 0.6 W/m2 in their busiest hour, MIN_PEAK_SHARE_OF_LEAST_POWER) and
-#   the sun's.
-# Below MIN_THERMAL_PEAK_W_M2 in its busiest hour of those weeks, such a meter is read in the wrong unit: an office
-# heating or cooling at a typical 30-100 W/m2 peaks at 0.03-0.1 W/m2 in MWh, 0.1-0.4 W/m2 in GJ.
-#: Least energy a meter of heating (cooling) alone delivers in its busiest hour of the weeks that need heating
-#: (cooling), W per m2 of floor area.
+#   the sun's: at least MIN_THERMAL_PEAK_W_M2 in the busiest hour.
+# Below that, such a meter is read in the wrong unit: an office heating or cooling at a typical 30-100 W/m2 peaks at
+# 0.03-0.1 W/m2 in MWh, 0.1-0.4 W/m2 in GJ; in a mild week, heating at 3-15 W/m2 peaks at 0.003-0.05 W/m2.
+#: Least energy a meter of heating (cooling) delivers in its busiest hour of the weeks that need heating (cooling),
+#: W per m2 of floor area; heating: where the weeks' mean need (:data:`LEAST_HEAT_LOSS_W_M2_K`) is less, that.
 MIN_THERMAL_PEAK_W_M2 = 1.0
-#: Weeks that need heating: the measured indoor temperature averages in this range, degC (the catalogue's least
-#: heating setback to its highest heating comfort setpoint)...
+#: Weeks that may need heating: the measured indoor temperature averages in this range, degC (the catalogue's least
+#: heating setback to its highest heating comfort setpoint).
 HEATING_WEEK_INDOOR_C = (cat.get("heating_setback_c").min, cat.get("heating_comfort_c").max)
-#: ...and the EPW's outdoor temperature averages at least this much colder, K.
-HEATING_WEEK_COLDER_K = 15.0
+#: Least heat loss of a heated office, W per m2 of floor area and K of indoor less outdoor temperature.
+LEAST_HEAT_LOSS_W_M2_K = 0.3
+#: Indoor less outdoor temperature, K, whose loss at the least heat loss free heat may cover in an hour: 3.5 W/m2,
+#: so that a week 15 K colder throughout needs :data:`MIN_THERMAL_PEAK_W_M2`.
+FREE_HEAT_K = 15.0 - MIN_THERMAL_PEAK_W_M2 / LEAST_HEAT_LOSS_W_M2_K
 #: Fewest measured indoor temperatures that make a week's mean (one day), hours.
 _MIN_MEASURED_HOURS = cat.HOURS_PER_DAY
 
@@ -104,18 +109,20 @@ def _outdoor_c(weather: str, start: dt.date, weeks: int) -> np.ndarray | None:
     return outdoor[epw_hours(start, weeks).ravel()]
 
 
-def _thermal_weeks(indoor_c: np.ndarray, outdoor_c: np.ndarray, use: str) -> np.ndarray:
-    """Which weeks (rows of ``(weeks, 168)`` indoor and outdoor temperatures, degC, indoor NaN where missing)
-    need ``use`` (``"heating"`` or ``"cooling"``): see :data:`MIN_THERMAL_PEAK_W_M2`."""
+def _least_thermal_peak(indoor_c: np.ndarray, outdoor_c: np.ndarray, use: str) -> np.ndarray:
+    """The least a meter of ``use`` (``"heating"`` or ``"cooling"``) delivers in its busiest hour of each week, W/m2,
+    from ``(weeks, 168)`` indoor (NaN where missing) and outdoor temperatures, degC; 0 where the week needs none or
+    has under a day of indoor temperatures (see :data:`MIN_THERMAL_PEAK_W_M2`). Returns ``(weeks,)``."""
     measured = np.isfinite(indoor_c).sum(axis=1)
     indoor = np.nansum(indoor_c, axis=1) / np.maximum(measured, 1)
-    outdoor = outdoor_c.mean(axis=1)
     if use == "heating":
         low, high = HEATING_WEEK_INDOOR_C
-        needs = (low <= indoor) & (indoor <= high) & (outdoor <= indoor - HEATING_WEEK_COLDER_K)
+        beyond = np.maximum(indoor[:, None] - FREE_HEAT_K - outdoor_c, 0.0).mean(axis=1)
+        least = np.where((low <= indoor) & (indoor <= high), LEAST_HEAT_LOSS_W_M2_K * beyond, 0.0)
+        least = np.minimum(least, MIN_THERMAL_PEAK_W_M2)
     else:
-        needs = outdoor >= indoor
-    return needs & (measured >= _MIN_MEASURED_HOURS)
+        least = np.where(outdoor_c.mean(axis=1) >= indoor, MIN_THERMAL_PEAK_W_M2, 0.0)
+    return np.where(measured >= _MIN_MEASURED_HOURS, least, 0.0)
 
 
 def _check_size(
@@ -133,9 +140,10 @@ def _check_size(
 ) -> None:
     """A SiteError if an hour of ``q`` (kWh in each hour, NaN where missing; ``line_of``: each hour's line) is
     above :data:`MAX_KWH_PER_M2_PER_HOUR` x ``floor_area_m2``, or the largest is below the least power of the
-    metered ``end_uses``; for a meter of heating or cooling without lighting or plug loads, and ``q`` over whole
-    weeks from Monday ``start`` with their measured ``indoor_c`` (degC, NaN where missing) and the EPW
-    ``weather``, if the largest in the weeks that need what it meters is below :data:`MIN_THERMAL_PEAK_W_M2`.
+    metered ``end_uses``; for a meter that includes heating or cooling, and ``q`` over whole weeks from Monday
+    ``start`` with their measured ``indoor_c`` (degC, NaN where missing) and the EPW ``weather``, if the largest
+    in the weeks that need what it meters is below the least the neediest of them needs
+    (:func:`_least_thermal_peak`, W/m2 of ``floor_area_m2``).
     ``what`` names a value in the message (a format taking it); the unit it looks like is named with the
     reader's conversion, or with ``fix_units`` (an import's flag) where given."""
     limit = MAX_KWH_PER_M2_PER_HOUR * floor_area_m2
@@ -167,7 +175,7 @@ def _check_size(
                 f"power); looks like {small}"
             )
     thermal = [use for use in ("heating", "cooling") if use in end_uses]
-    if metered or not thermal or indoor_c is None or weather is None or start is None or not np.isfinite(q).any():
+    if not thermal or indoor_c is None or weather is None or start is None or not np.isfinite(q).any():
         return
     weeks = q.size // cat.HOURS_PER_WEEK
     outdoor_c = _outdoor_c(weather, start, weeks)
@@ -175,25 +183,28 @@ def _check_size(
         return
     shape = (weeks, cat.HOURS_PER_WEEK)
     for use in thermal:
-        needs = _thermal_weeks(indoor_c.reshape(shape), outdoor_c.reshape(shape), use)
-        hours = np.where(np.repeat(needs, cat.HOURS_PER_WEEK), q, np.nan)
-        if not np.isfinite(hours).any():
+        least = _least_thermal_peak(indoor_c.reshape(shape), outdoor_c.reshape(shape), use)
+        needs = (least > 0) & np.isfinite(q.reshape(shape)).any(axis=1)
+        if not needs.any():
             continue
+        hours = np.where(np.repeat(needs, cat.HOURS_PER_WEEK), q, np.nan)
         peak_at = int(np.nanargmax(hours))
         peak = float(q[peak_at])
         peak_w_m2 = peak * 1000.0 / floor_area_m2
-        if 0 < peak_w_m2 < MIN_THERMAL_PEAK_W_M2:
+        bound = float(least[needs].max())
+        if 0 < peak_w_m2 < bound:
             weather_of = (
-                f"the indoor temperature averages {HEATING_WEEK_INDOOR_C[0]:g}-{HEATING_WEEK_INDOOR_C[1]:g} degC "
-                f"and the outdoor air of the weather file at least {HEATING_WEEK_COLDER_K:g} K less"
+                f"the indoor temperature averages {HEATING_WEEK_INDOOR_C[0]:g}-{HEATING_WEEK_INDOOR_C[1]:g} degC, "
+                f"and each K the outdoor air of the weather file falls more than {FREE_HEAT_K:.3g} K below it needs "
+                f"{LEAST_HEAT_LOSS_W_M2_K:g} W/m2, the least heat loss beyond free heat"
                 if use == "heating"
                 else "the outdoor air of the weather file averages no cooler than the indoor temperature"
             )
             raise SiteError(
                 f"{path}:{line_of[peak_at]}: {what.format(peak)} is the largest in the {int(needs.sum())} week(s) "
                 f"that need {use} ({weather_of}), {peak_w_m2:.3g} W/m2 for {floor_area_m2:g} m2: below the "
-                f"{MIN_THERMAL_PEAK_W_M2:g} W/m2 a {use} meter of an office delivers in its busiest hour of such "
-                f"weeks; looks like {small}"
+                f"{bound:.3g} W/m2 a {use} meter of an office delivers in its busiest hour of such weeks; looks like "
+                f"{small}"
             )
 
 

@@ -224,11 +224,12 @@ def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
     return rows[0][1], rows[1:]
 
 
-def _parse_stamp(path: Path, line: int, text: str, options: ImportOptions) -> dt.datetime:
+def _parse_stamp(path: Path, line: int, text: str, options: ImportOptions, last: bool = False) -> dt.datetime:
     """A timestamp cell: by ``options.time_format`` (offset-aware where it has ``%z``), else as
-    :func:`~buildenv.sites.timestamps._parse_timestamp` reads an export's."""
+    :func:`~buildenv.sites.timestamps._parse_timestamp` reads an export's; in the ``last`` row, ``24:00`` is the next
+    day's 00:00 without ``--stamped end`` too (a register's closing reading; a closing midnight row is left out)."""
     if not options.time_format:
-        return _parse_timestamp(path, line, text, stamped_end=options.stamped == "end", export=True)
+        return _parse_timestamp(path, line, text, stamped_end=options.stamped == "end" or last, export=True)
     try:
         return dt.datetime.strptime(text, options.time_format)
     except ValueError as exc:
@@ -405,7 +406,10 @@ def _read_hourly(
         if len(cells) != len(header):
             raise SiteError(f"{path}:{line}: {len(cells)} cells, the header has {len(header)}: fix the row")
     lines = np.array([line for line, _ in rows])
-    stamps = [_parse_stamp(path, line, cells[columns[0][0]], options) for line, cells in rows]
+    stamps = [
+        _parse_stamp(path, line, cells[columns[0][0]], options, last=i == len(rows) - 1)
+        for i, (line, cells) in enumerate(rows)
+    ]
     standard = _standard_stamps(path, list(lines), stamps, zone, weather)
     end = options.stamped == "end"
     monday, step, slots = _grid(path, list(lines), standard, end)

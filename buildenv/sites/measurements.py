@@ -118,7 +118,8 @@ def _read_measurements(
     consumption: list[float] = []
     for line, cells in rows:  # pass 1: every row's cells
         _check_width(path, line, cells, MEASUREMENT_COLUMNS)
-        stamps.append(_parse_timestamp(path, line, cells[0], stamped_end=options.stamped_end))
+        # a register reading is an instant: 24:00 is the next day's 00:00 however its rows are stamped
+        stamps.append(_parse_timestamp(path, line, cells[0], stamped_end=options.stamped_end or options.cumulative))
         t = _parse_value(path, line, MEASUREMENT_COLUMNS[1], cells[1])
         q = _parse_value(path, line, MEASUREMENT_COLUMNS[2], cells[2])
         if not math.isnan(t):

@@ -50,7 +50,8 @@ def _parse_timestamp(
     only for rows stamped at the end of their hour (``stamped_end``). A BMS export (``export=True``, ``buildenv
     site import``): also ``/`` between the date's parts, a one-digit hour and any minute and second; ``24:00``
     only with ``--stamped end``. Raises SiteError ``"<path>:<line>: ..."`` naming the fix (an export's: its
-    flags): unreadable, with a UTC offset, ``24:00`` for rows stamped at their start, not on the hour.
+    flags): unreadable, with a UTC offset, ``24:00`` for rows stamped at their start (the site's: or a register's
+    reading, which ``stamped_end`` reads as the next day's 00:00), not on the hour.
     """
     m = (_EXPORT_TIMESTAMP if export else _TIMESTAMP).fullmatch(text)
     if m is None:
@@ -70,17 +71,23 @@ def _parse_timestamp(
         )
     year, month, day, hour, minute, second = (int(g) if g else 0 for g in m.groups())
     end_of_day = hour == 24 and not minute and not second
-    if end_of_day and not stamped_end:
-        fix = 'their hour (24:00 for 23:00-24:00); declare it in site.toml: [measurements] stamped = "end"'
-        if export:
-            fix = "their interval (24:00 for the one that ends the day); pass --stamped end"
-        raise SiteError(
-            f"{path}:{line}: timestamp {text!r} is 24:00, the end of a day: the rows are stamped at the end of {fix}"
-        )
     try:
         stamp = dt.datetime(year, month, day, 0 if end_of_day else hour, minute, second)
     except ValueError as exc:
         raise SiteError(f"{path}:{line}: cannot read timestamp {text!r}: {exc}") from exc
+    if end_of_day and not stamped_end:
+        if export:
+            fix = (
+                "the rows are stamped at the end of their interval (24:00 for the one that ends the day); "
+                "pass --stamped end"
+            )
+        else:
+            fix = (
+                "if the rows are stamped at the end of their hour (24:00 for 23:00-24:00), declare it in site.toml: "
+                '[measurements] stamped = "end"; if the column holds meter register readings (this one the reading '
+                "at the day's end), declare [measurements] cumulative = true"
+            )
+        raise SiteError(f"{path}:{line}: timestamp {text!r} is 24:00, the end of a day: {fix}")
     if (minute or second) and not export:
         raise SiteError(
             f"{path}:{line}: timestamp {text!r} is not on the hour: each row is the hour starting "

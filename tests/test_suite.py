@@ -14,6 +14,7 @@ import pytest
 from agents.cli import _print_levers
 from buildenv import catalogue as cat
 from buildenv.calibration.calibrate import calibrate_site
+from buildenv.calibration.problem import default_weeks
 from buildenv.cli.main import main
 from buildenv.energyplus.reference import STAND_IN_VERSION
 from buildenv.env.levers import grouping, lever_actions, summarise_levers
@@ -61,11 +62,28 @@ def test_bms_history_changes_setpoints_schedules_and_ventilation_within_the_cata
     np.testing.assert_array_equal(settings, bms_history(8, 1.0, np.random.default_rng(3)))
 
 
+@pytest.mark.parametrize("weeks", [3, 4, 8])
+def test_a_bms_history_changes_each_kind_of_setting_within_the_weeks_a_calibration_fits(weeks):
+    """Whatever the draw, a default calibration (the first half of the weeks) sees a setpoint, a schedule and an
+    outdoor air change: the response it is later asked to predict."""
+    fit = len(default_weeks(weeks)[0])
+    kinds = {
+        "setpoint": ["heating_comfort_c", "cooling_comfort_c"],
+        "schedule": ["heating_start_hour", "heating_end_hour", "cooling_start_hour", "cooling_end_hour"],
+        "outdoor air": ["ventilation_ach"],
+    }
+    for seed in range(20):
+        settings = bms_history(weeks, 1.0, np.random.default_rng(seed))[:fit, 0]
+        for kind, names in kinds.items():
+            idx = [cat.SETTING_NAMES.index(n) for n in names]
+            assert (np.diff(settings[:, idx], axis=0) != 0).any(), f"seed {seed}: no {kind} change in the fit weeks"
+
+
 def test_a_reference_offices_history_keeps_its_outdoor_air_within_its_bms_limits():
     j = cat.SETTING_NAMES.index("ventilation_ach")
     # the DOE medium office: from its design (0.7 1/h) down to its ASHRAE 62.1 minimum (0.45), not 0.3 lower
     medium = reference_history("medium_office", 8, np.random.default_rng(3))[:, 0, j]
-    assert list(medium) == pytest.approx([0.7] * 4 + [0.45] * 4)
+    assert list(medium) == pytest.approx([0.7] * 2 + [0.45] * 6)  # lowered in the second half of the fit weeks
     # a 2019 office's design is its minimum: no outdoor air change; without limits the full change
     assert set(reference_history("medium_office_2019", 8, np.random.default_rng(3))[:, 0, j]) == {0.45}
     assert bms_history(8, 0.7, np.random.default_rng(3))[-1, 0, j] == pytest.approx(0.4)

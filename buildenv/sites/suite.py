@@ -142,13 +142,17 @@ def bms_history(
 
     Starts from the typical settings (:func:`buildenv.defaults.default_week`) with ``ventilation_ach`` (1/h), then,
     from the second week on, each week may move the heating or cooling comfort setpoint by one step, a setback by
-    1 K, or the occupied schedule (heating, cooling and ventilation together) by an hour; one week in the middle
-    lowers the ventilation by :data:`VENTILATION_CHANGE_ACH`, not below ``lowest_ach`` (1/h, the lower limit of the
-    site's BMS, its ASHRAE 62.1 minimum: down to it where the full change would pass it, none where the ventilation
-    is already there); without ``lowest_ach`` it is raised where it would fall below the catalogue's minimum. Each
-    change holds until the next; every value stays on its catalogue step and range. Weeks >= 3 always hold at least
-    one setpoint and one schedule change, and a ventilation change where the BMS range allows one.
+    1 K, or the occupied schedule (heating, cooling and ventilation together) by an hour; one week lowers the
+    ventilation by :data:`VENTILATION_CHANGE_ACH`, not below ``lowest_ach`` (1/h, the lower limit of the site's BMS,
+    its ASHRAE 62.1 minimum: down to it where the full change would pass it, none where the ventilation is already
+    there); without ``lowest_ach`` it is raised where it would fall below the catalogue's minimum. Each change holds
+    until the next; every value stays on its catalogue step and range. Weeks >= 3 always hold at least one setpoint
+    and one schedule change, and a ventilation change where the BMS range allows one, all within the weeks a
+    calibration fits by default (:func:`buildenv.calibration.problem.default_weeks`, from its second week), so that
+    it sees how the building responds to each; the later weeks may hold further setpoint and schedule changes.
     """
+    from buildenv.calibration.problem import default_weeks
+
     settings = default_week(weeks)[0].copy()
     vent = cat.get("ventilation_ach")
     settings[..., cat.SETTING_NAMES.index("ventilation_ach")] = vent.snap(np.clip(ventilation_ach, vent.min, vent.max))
@@ -164,10 +168,11 @@ def bms_history(
     }
     weeks_changed = list(range(1, weeks))
     plan: dict[int, list[str]] = {w: [m for m in moves if rng.random() < 0.25] for w in weeks_changed}
+    fitted = max(len(default_weeks(weeks)[0]), 2)  # the changes that must be seen: weeks 1 .. fitted - 1
     if weeks >= 3:  # at least one setpoint, one schedule and one ventilation change
-        plan[int(rng.integers(1, weeks))].append(str(rng.choice(["heating_comfort", "cooling_comfort"])))
-        plan[int(rng.integers(1, weeks))].append(str(rng.choice(["schedule_start", "schedule_end"])))
-    vent_week = weeks // 2
+        plan[int(rng.integers(1, fitted))].append(str(rng.choice(["heating_comfort", "cooling_comfort"])))
+        plan[int(rng.integers(1, fitted))].append(str(rng.choice(["schedule_start", "schedule_end"])))
+    vent_week = (fitted + 1) // 2  # half the fitted weeks on each side of it
     for w in weeks_changed:
         for move in dict.fromkeys(plan[w]):
             names, size = moves[move]

@@ -194,6 +194,11 @@ def _print_levers(rows: list[dict], week: int) -> None:
             f"{r['predicted_savings_percent']:>20.1f} {r['realised_savings_percent']:>10.1f} "
             f"{'-' if shoebox is None else f'{shoebox:.1f}':>9} {r['savings_error_points']:>6.1f}"
         )
+    if rows[0].get("baseline_shifted"):
+        print(
+            f"historical {', '.join(rows[0]['baseline_shifted'])} outside the BMS range: each lever is measured from "
+            "the historical settings with them at their nearest (percent of the historical energy)"
+        )
     worst = max(rows, key=lambda r: abs(r["savings_error_points"]))
     print(
         f"week {week}: the lever most mispredicted is {worst['setting']} at its {worst['end']} end "

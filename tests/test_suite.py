@@ -255,6 +255,43 @@ def test_each_lever_moves_its_own_setting_only_and_the_suite_writes_them_all(tmp
     assert [e["season"] for e in json.loads(capsys.readouterr().out)["errors"]] == ["cooling"]
 
 
+def test_levers_from_a_history_outside_the_action_range_are_measured_from_the_historical_action(tmp_path, monkeypatch):
+    """The default site's outdoor air (0.7 1/h) under a BMS limited to 0.45-0.55 1/h: every lever holds it at 0.55,
+    so each lever's savings are measured from the historical action (which holds it there too), not from 0.7."""
+    from buildenv.env import levers as lever_module
+    from buildenv.env import response as response_module
+
+    site = tmp_path / "site"
+    shutil.copytree(gym.make("BuildingWeek-v0").unwrapped.site.path, site)
+    toml = (site / "site.toml").read_text(encoding="utf-8")
+    (site / "site.toml").write_text(toml.replace("ventilation_ach = [0.45, 0.7]", "ventilation_ach = [0.45, 0.55]"))
+    env = gym.make("BuildingWeek-v0", site=str(site), weeks="all")
+    assert lever_module.shifted_settings(env) == ["ventilation_ach"]
+    assert lever_module.shifted_settings(gym.make("BuildingWeek-v0")) == []
+    j = cat.SETTING_NAMES.index("ventilation_ach")
+
+    def fake(env, week, n, extra, shoebox):  # savings that count 100 points per 1/h of outdoor air removed
+        saved = (0.7 - env.unwrapped.decode(extra)[:, :, j].mean(axis=1)) * 100.0
+        chosen = [
+            {
+                **response_module.chosen_figures(s, s / 2, 0.5, 0.5),
+                "shoebox_savings_percent": round(float(s) / 4, 2),
+            }
+            for s in saved
+        ]
+        return SimpleNamespace(summary={"chosen": chosen})
+
+    monkeypatch.setattr(response_module, "response_check", fake)
+    rows = {(r["setting"], r["end"]): r for r in lever_module.lever_check(env, 0)}
+    assert all(r["baseline_shifted"] == ["ventilation_ach"] for r in rows.values())
+    low = rows["ventilation_ach", "low"]  # 0.55 -> 0.45: 10 points, not the 25 from 0.7
+    assert low["predicted_savings_percent"] == pytest.approx(10.0, abs=0.01)
+    assert low["realised_savings_percent"] == pytest.approx(5.0, abs=0.01)
+    assert low["shoebox_savings_percent"] == pytest.approx(2.5, abs=0.01)
+    assert low["savings_error_points"] == pytest.approx(5.0, abs=0.01)
+    assert rows["heating_setback_c", "high"]["predicted_savings_percent"] == pytest.approx(0.0, abs=0.01)
+
+
 def test_the_lever_summary_takes_medians_per_group_setting_and_end():
     def row(building, error, shoebox):
         return {

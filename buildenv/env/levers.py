@@ -10,16 +10,12 @@ building).
 
 from __future__ import annotations
 
-import logging
-
 import gymnasium as gym
 import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.errors import BuildenvError
 from buildenv.sites.suite import CASE_FIELDS, check_calibrated_sites
-
-log = logging.getLogger(__name__)
 
 #: the ends a lever is pulled to, with their action value
 ENDS: dict[str, float] = {"low": -1.0, "high": 1.0}
@@ -31,8 +27,8 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     For each controllable setting (in the action's order) the historical action with that setting's seven
     components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the site's historical ones on
     every day (a range of one grid point, or a historical value at that end) is left out. A controllable setting
-    whose historical value no action holds (outside its action range, or off the grid) moves in every lever: it is
-    logged.
+    whose historical value no action holds (outside its action range, or off the grid) is at its nearest action in
+    every lever (:func:`shifted_settings`; :func:`lever_check` measures the levers from there).
 
     Raises:
         BuildenvError: no setting can be moved (none controllable, or each range holds only its historical value).
@@ -43,14 +39,6 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     setting_of = [name.rsplit("_", 1)[0] for name in base.action_names]  # "<setting>_<day>"
     controllable = list(dict.fromkeys(setting_of))
     column = {s: cat.SETTING_NAMES.index(s) for s in controllable}
-    nearest = base.decode(historical)
-    shifted = [s for s in controllable if not np.allclose(nearest[:, column[s]], truth[:, column[s]])]
-    if shifted:
-        log.warning(
-            "site %s: the historical %s lie outside the action range or off the grid; every lever moves them too",
-            base.site_name,
-            ", ".join(shifted),
-        )
     levers, actions = [], []
     for setting in controllable:
         components = [i for i, s in enumerate(setting_of) if s == setting]
@@ -69,6 +57,17 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     return levers, np.stack(actions)
 
 
+def shifted_settings(env) -> list[str]:
+    """The controllable settings whose historical values no action holds (outside the action range, or off its
+    grid): the historical action (:attr:`historical_action`) holds them at their nearest."""
+    base = env.unwrapped
+    truth = np.asarray(base.site_model.historical, float)
+    nearest = base.decode(np.asarray(base.historical_action, np.float32))
+    controllable = dict.fromkeys(name.rsplit("_", 1)[0] for name in base.action_names)
+    column = {s: cat.SETTING_NAMES.index(s) for s in controllable}
+    return [s for s in controllable if not np.allclose(nearest[:, column[s]], truth[:, column[s]])]
+
+
 def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
     """Pull each lever alone (:func:`lever_actions`) on ``week`` of ``env``'s site and compare.
 
@@ -80,19 +79,33 @@ def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
     Returns:
         one row per lever: ``setting``, ``end``, ``historical`` (the site's) and ``value`` (the setting's mean over
         the week's days, catalogue units), then predicted and realised savings (percent) and comfort (K),
-        ``savings_error_points`` (predicted - realised) and, with the shoebox, ``shoebox_savings_percent``.
+        ``savings_error_points`` (predicted - realised) and, with the shoebox, ``shoebox_savings_percent``. Where
+        historical settings lie outside the action range (:func:`shifted_settings`), the savings are the lever's
+        alone: from the historical action, which holds them at their nearest, in percent of the historical
+        settings' energy, and each row names them in ``"baseline_shifted"``.
     Raises:
         BuildingEnvError: the site has no EnergyPlus model.
         BuildenvError: no setting can be moved (:func:`lever_actions`).
     """
-    from buildenv.env.response import response_check
+    from buildenv.env.response import chosen_figures, response_check
 
     levers, actions = lever_actions(env)
+    shifted = shifted_settings(env)
+    if shifted:  # the historical action, at the end: what every lever moves from
+        actions = np.vstack([actions, np.asarray(env.unwrapped.historical_action, np.float32)[None]])
     check = response_check(env, week, n=0, extra=actions, shoebox=shoebox)
+    figures = check.summary["chosen"]
+    if shifted:
+        start = figures.pop()
+        keys = ("predicted_savings_percent", "realised_savings_percent", "shoebox_savings_percent")
+        for f in figures:
+            moved = {k: f[k] - start[k] for k in keys if k in f}
+            shoebox_row = {k: round(moved.pop(k), 2) for k in keys[2:] if k in moved}
+            f.update(chosen_figures(*moved.values(), f["predicted_comfort_k"], f["realised_comfort_k"]), **shoebox_row)
     settings = env.unwrapped.decode(actions)
     historical = np.asarray(env.unwrapped.site_model.historical, float)
     rows = []
-    for i, ((setting, end), figures) in enumerate(zip(levers, check.summary["chosen"])):
+    for i, ((setting, end), row) in enumerate(zip(levers, figures)):
         j = cat.SETTING_NAMES.index(setting)
         rows.append(
             {
@@ -100,7 +113,8 @@ def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
                 "end": end,
                 "historical": round(float(historical[:, j].mean()), 2),
                 "value": round(float(settings[i, :, j].mean()), 2),
-                **figures,
+                **row,
+                **({"baseline_shifted": shifted} if shifted else {}),
             }
         )
     return rows

@@ -22,24 +22,25 @@ def make_env(
     (``site`` ``"library"`` or a library folder, ``library_site`` the site's name), reset onto that site.
 
     Raises:
-        SystemExit: a library without ``library_site``, or ``library_site`` with a single site.
+        buildenv.errors.BuildenvError: a library without ``library_site``, or ``library_site`` with a single site.
         buildenv.errors.BuildingEnvError: a ``library_site`` the library does not hold.
     """
     import gymnasium as gym
 
     import buildenv  # noqa: F401  (registers BuildingWeek-v0)
-    from buildenv.env.contexts import listing
+    from buildenv.env.contexts import is_set, listing
+    from buildenv.errors import BuildenvError
 
+    if not is_set(site) and library_site is not None:
+        raise BuildenvError(f"--library-site {library_site}: --site {site} is one site, not a library")
     env = gym.make(
         "BuildingWeek-v0", site=site, metamodel=metamodel, comfort_weight=comfort_weight, weeks="all", **kwargs
     )
     names = env.unwrapped.site_names
-    if len(names) > 1 and library_site is None:
-        raise SystemExit(
-            f"buildenv: --site {site} holds {len(names)} sites; choose one with --library-site NAME ({listing(names)})"
+    if is_set(site) and library_site is None:
+        raise BuildenvError(
+            f"--site {site} holds {len(names)} site(s); choose one with --library-site NAME ({listing(names)})"
         )
-    if len(names) == 1 and library_site is not None:
-        raise SystemExit(f"buildenv: --library-site {library_site}: --site {site} is one site, not a library")
     if library_site is not None:
         env.reset(options={"site": library_site})
     return env
@@ -86,8 +87,10 @@ def optimise(
     from buildenv.errors import BuildingEnvError
 
     base = env.unwrapped
+    if not hasattr(base, "site_names") or hasattr(base, "num_envs"):
+        raise BuildingEnvError(f"optimise: give a single BuildingWeek-v0 environment, not {type(base).__name__}")
     if site is not None:
-        env.reset(options={"site": site, "week": week})
+        env.reset(options={"site": site})  # the methods score the given week, whatever weeks= lets episodes start on
     elif len(base.site_names) > 1 and base.week is None:
         raise BuildingEnvError(
             f"optimise: the environment has {len(base.site_names)} sites and no episode yet; give site= "
@@ -176,7 +179,8 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if args.out:
         Path(args.out).mkdir(parents=True, exist_ok=True)
         text = dumps(out, where="the optimisation", nonfinite="null", indent=2)
-        (Path(args.out) / f"optimize_{args.method}_week{week}.json").write_text(text)
+        name = env.unwrapped.site_name
+        (Path(args.out) / f"optimize_{args.method}_{name}_week{week}.json").write_text(text)
     print(dumps(out, where="the optimisation", nonfinite="null", indent=None if args.json else 2))
     return 0
 
@@ -196,7 +200,8 @@ def _print_levers(rows: list[dict], week: int) -> None:
         )
     if rows[0].get("baseline_shifted"):
         print(
-            f"historical {', '.join(rows[0]['baseline_shifted'])} outside the BMS range: each lever is measured from "
+            f"historical {', '.join(rows[0]['baseline_shifted'])} outside the BMS range or off its grid: each lever is "
+            "measured from "
             "the historical settings with them at their nearest (percent of the historical energy)"
         )
     worst = max(rows, key=lambda r: abs(r["savings_error_points"]))

@@ -284,6 +284,7 @@ def test_levers_from_a_history_outside_the_action_range_are_measured_from_the_hi
     monkeypatch.setattr(response_module, "response_check", fake)
     rows = {(r["setting"], r["end"]): r for r in lever_module.lever_check(env, 0)}
     assert all(r["baseline_shifted"] == ["ventilation_ach"] for r in rows.values())
+    assert ("ventilation_ach", "high") not in rows  # 0.55 is where the historical action already holds it
     low = rows["ventilation_ach", "low"]  # 0.55 -> 0.45: 10 points, not the 25 from 0.7
     assert low["predicted_savings_percent"] == pytest.approx(10.0, abs=0.01)
     assert low["realised_savings_percent"] == pytest.approx(5.0, abs=0.01)

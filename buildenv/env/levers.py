@@ -25,17 +25,17 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     """The settings of the lever check: ``([(setting, end)], actions (L, A))``.
 
     For each controllable setting (in the action's order) the historical action with that setting's seven
-    components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the site's historical ones on
-    every day (a range of one grid point, or a historical value at that end) is left out. A controllable setting
-    whose historical value no action holds (outside its action range, or off the grid) is at its nearest action in
-    every lever (:func:`shifted_settings`; :func:`lever_check` measures the levers from there).
+    components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the historical action's on every
+    day (a range of one grid point, or a historical value at that end) is left out. A controllable setting whose
+    historical value no action holds (outside its action range, or off the grid) is at its nearest action in every
+    lever (:func:`shifted_settings`; :func:`lever_check` measures the levers from there).
 
     Raises:
         BuildenvError: no setting can be moved (none controllable, or each range holds only its historical value).
     """
     base = env.unwrapped
     historical = np.asarray(base.historical_action, np.float32)
-    truth = np.asarray(base.site_model.historical, float)
+    start = base.decode(historical)  # the site's historical settings, shifted ones at their nearest
     setting_of = [name.rsplit("_", 1)[0] for name in base.action_names]  # "<setting>_<day>"
     controllable = list(dict.fromkeys(setting_of))
     column = {s: cat.SETTING_NAMES.index(s) for s in controllable}
@@ -45,7 +45,7 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
         for end, value in ENDS.items():
             action = historical.copy()
             action[components] = value
-            if np.allclose(base.decode(action)[:, column[setting]], truth[:, column[setting]]):
+            if np.allclose(base.decode(action)[:, column[setting]], start[:, column[setting]]):
                 continue
             levers.append((setting, end))
             actions.append(action)
@@ -99,9 +99,16 @@ def lever_check(env, week: int, shoebox: bool = True) -> list[dict]:
         start = figures.pop()
         keys = ("predicted_savings_percent", "realised_savings_percent", "shoebox_savings_percent")
         for f in figures:
-            moved = {k: f[k] - start[k] for k in keys if k in f}
-            shoebox_row = {k: round(moved.pop(k), 2) for k in keys[2:] if k in moved}
-            f.update(chosen_figures(*moved.values(), f["predicted_comfort_k"], f["realised_comfort_k"]), **shoebox_row)
+            moved = {k: f[k] - start[k] for k in keys if k in f and k in start}
+            f.update(
+                chosen_figures(
+                    moved["predicted_savings_percent"],
+                    moved["realised_savings_percent"],
+                    f["predicted_comfort_k"],
+                    f["realised_comfort_k"],
+                ),
+                **{k: round(v, 2) for k, v in moved.items() if k == "shoebox_savings_percent"},
+            )
     settings = env.unwrapped.decode(actions)
     historical = np.asarray(env.unwrapped.site_model.historical, float)
     rows = []

@@ -109,20 +109,23 @@ def _outdoor_c(weather: str, start: dt.date, weeks: int) -> np.ndarray | None:
     return outdoor[epw_hours(start, weeks).ravel()]
 
 
-def _least_thermal_peak(indoor_c: np.ndarray, outdoor_c: np.ndarray, use: str) -> np.ndarray:
-    """The least a meter of ``use`` (``"heating"`` or ``"cooling"``) delivers in its busiest hour of each week, W/m2,
-    from ``(weeks, 168)`` indoor (NaN where missing) and outdoor temperatures, degC; 0 where the week needs none or
-    has under a day of indoor temperatures (see :data:`MIN_THERMAL_PEAK_W_M2`). Returns ``(weeks,)``."""
+def _least_thermal_peak(indoor_c: np.ndarray, outdoor_c: np.ndarray, metered: np.ndarray, use: str) -> np.ndarray:
+    """The least a meter of ``use`` (``"heating"`` or ``"cooling"``) delivers in its busiest metered hour of each
+    week, W/m2, from ``(weeks, 168)`` indoor (NaN where missing) and outdoor temperatures, degC, over the hours
+    ``metered`` (bool); 0 where the week needs none, or has under a day of indoor temperatures or of metered hours
+    (see :data:`MIN_THERMAL_PEAK_W_M2`). Returns ``(weeks,)``."""
     measured = np.isfinite(indoor_c).sum(axis=1)
     indoor = np.nansum(indoor_c, axis=1) / np.maximum(measured, 1)
+    hours = metered.sum(axis=1)
     if use == "heating":
         low, high = HEATING_WEEK_INDOOR_C
-        beyond = np.maximum(indoor[:, None] - FREE_HEAT_K - outdoor_c, 0.0).mean(axis=1)
+        beyond = np.maximum(indoor[:, None] - FREE_HEAT_K - outdoor_c, 0.0)
+        beyond = np.where(metered, beyond, 0.0).sum(axis=1) / np.maximum(hours, 1)  # over the metered hours
         least = np.where((low <= indoor) & (indoor <= high), LEAST_HEAT_LOSS_W_M2_K * beyond, 0.0)
         least = np.minimum(least, MIN_THERMAL_PEAK_W_M2)
     else:
         least = np.where(outdoor_c.mean(axis=1) >= indoor, MIN_THERMAL_PEAK_W_M2, 0.0)
-    return np.where(measured >= _MIN_MEASURED_HOURS, least, 0.0)
+    return np.where((measured >= _MIN_MEASURED_HOURS) & (hours >= _MIN_MEASURED_HOURS), least, 0.0)
 
 
 def _check_size(
@@ -183,8 +186,9 @@ def _check_size(
         return
     shape = (weeks, cat.HOURS_PER_WEEK)
     for use in thermal:
-        least = _least_thermal_peak(indoor_c.reshape(shape), outdoor_c.reshape(shape), use)
-        needs = (least > 0) & np.isfinite(q.reshape(shape)).any(axis=1)
+        metered = np.isfinite(q.reshape(shape))
+        least = _least_thermal_peak(indoor_c.reshape(shape), outdoor_c.reshape(shape), metered, use)
+        needs = least > 0
         if not needs.any():
             continue
         hours = np.where(np.repeat(needs, cat.HOURS_PER_WEEK), q, np.nan)

@@ -226,10 +226,12 @@ def _read_rows(path: Path) -> tuple[list[str], list[tuple[int, list[str]]]]:
 
 def _parse_stamp(path: Path, line: int, text: str, options: ImportOptions, last: bool = False) -> dt.datetime:
     """A timestamp cell: by ``options.time_format`` (offset-aware where it has ``%z``), else as
-    :func:`~buildenv.sites.timestamps._parse_timestamp` reads an export's; in the ``last`` row, ``24:00`` is the next
-    day's 00:00 without ``--stamped end`` too (a register's closing reading; a closing midnight row is left out)."""
+    :func:`~buildenv.sites.timestamps._parse_timestamp` reads an export's; in the ``last`` row or in register
+    readings (``--cumulative``), ``24:00`` is the next day's 00:00 without ``--stamped end`` too (an instant; a closing
+    midnight row that is not a reading is left out)."""
     if not options.time_format:
-        return _parse_timestamp(path, line, text, stamped_end=options.stamped == "end" or last, export=True)
+        end = options.stamped == "end" or options.cumulative or last  # a register's reading is an instant
+        return _parse_timestamp(path, line, text, stamped_end=end, export=True)
     try:
         return dt.datetime.strptime(text, options.time_format)
     except ValueError as exc:

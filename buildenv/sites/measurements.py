@@ -98,8 +98,8 @@ def _read_measurements(
     The arrays are in local standard time by the start of the hour, consumption in kWh in the hour;
     ``options`` (``[measurements]``) say how the file departs from that, ``end_uses`` (``[meters]``) what the
     consumption sums (for its plausible size) and ``weather`` (the EPW) where the site's clock stands (its
-    standard time must be that of ``options.time_zone``; the hints name zones by it) and, for a meter of heating
-    or cooling alone, which weeks need them (:func:`~buildenv.sites.consumption._check_size`). An undeclared
+    standard time must be that of ``options.time_zone``; the hints name zones by it) and, for a meter that includes
+    heating or cooling, which weeks need them (:func:`~buildenv.sites.consumption._check_size`). An undeclared
     register is named before the timestamps are checked.
 
     Raises:

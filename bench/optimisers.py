@@ -39,7 +39,7 @@ LABELS = {
 
 def evaluation_speed(env, n: int = 4096, repeats: int = 3) -> float:
     """Weeks per second of one batched ``evaluate`` call of ``n`` random actions (best of ``repeats``)."""
-    actions = np.random.default_rng(0).uniform(-1, 1, (n, 84)).astype(np.float32)
+    actions = np.random.default_rng(0).uniform(-1, 1, (n, *env.action_space.shape)).astype(np.float32)
     env.unwrapped.evaluate(actions[:256], week=PAPER_WEEK)
     best = np.inf
     for _ in range(repeats):

@@ -200,9 +200,8 @@ def _print_levers(rows: list[dict], week: int) -> None:
         )
     if rows[0].get("baseline_shifted"):
         print(
-            f"historical {', '.join(rows[0]['baseline_shifted'])} outside the BMS range or off its grid: each lever is "
-            "measured from "
-            "the historical settings with them at their nearest (percent of the historical energy)"
+            f"historical {', '.join(rows[0]['baseline_shifted'])} outside the BMS range or off its grid: each lever "
+            "is measured from the historical settings with them at their nearest (percent of the historical energy)"
         )
     worst = max(rows, key=lambda r: abs(r["savings_error_points"]))
     print(

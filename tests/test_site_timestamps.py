@@ -507,15 +507,22 @@ def test_a_cumulative_register_is_named_and_cumulative_reads_it(tmp_path: Path):
     _same(site, valid, missing_q=(2 * 168 - 1,))  # no reading closes the last hour
 
 
-def test_a_register_with_its_closing_reading_is_named_and_cumulative_reads_every_hour(tmp_path: Path):
-    """A register read at each hour's start and at the end of the last (the Monday 00:00 after the weeks): named
-    as a register, not as a row past whole weeks; declared, the closing reading completes the last hour."""
+def _register_closed_at(tmp_path: Path, stamp: str) -> tuple[Path, Path, list[list[str]]]:
+    """A valid two-week site and a copy whose consumption is a register read at each hour's start, with a last row
+    at ``stamp`` holding the reading that closes the last hour: ``(valid, site, the site's rows)``."""
     valid = _valid(tmp_path / "valid", dt.date(2024, 1, 1))
     site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
     header, _ = _rows(site)
     total = float(np.nansum(load_site(valid).consumption_kwh))
-    rows = [*_register(site), ["2024-01-15 00:00", "", f"{123456.0 + total:.4f}"]]
+    rows = [*_register(site), [stamp, "", f"{123456.0 + total:.4f}"]]
     _write_rows(site, header, rows)
+    return valid, site, rows
+
+
+def test_a_register_with_its_closing_reading_is_named_and_cumulative_reads_every_hour(tmp_path: Path):
+    """A register read at each hour's start and at the end of the last (the Monday 00:00 after the weeks): named
+    as a register, not as a row past whole weeks; declared, the closing reading completes the last hour."""
+    valid, site, rows = _register_closed_at(tmp_path, "2024-01-15 00:00")
     assert _error(site) == (
         f"{site / 'measurements.csv'}:2: heat_consumption_kwh never falls, from 123456 here to {float(rows[-1][2]):g} "
         "on line 338: a cumulative meter register, not the energy of each hour; give the hourly differences, or "
@@ -528,12 +535,7 @@ def test_a_register_with_its_closing_reading_is_named_and_cumulative_reads_every
 def test_a_register_closing_reading_at_24_00_is_named_and_cumulative_reads_it(tmp_path: Path):
     """A register read at each hour's start whose closing reading is stamped Sunday 24:00: undeclared, the message
     names the declaration; declared cumulative, 24:00 is the instant the next day starts and every hour reads."""
-    valid = _valid(tmp_path / "valid", dt.date(2024, 1, 1))
-    site = _valid(tmp_path / "site", dt.date(2024, 1, 1))
-    header, _ = _rows(site)
-    total = float(np.nansum(load_site(valid).consumption_kwh))
-    rows = [*_register(site), ["2024-01-14 24:00", "", f"{123456.0 + total:.4f}"]]
-    _write_rows(site, header, rows)
+    valid, site, _ = _register_closed_at(tmp_path, "2024-01-14 24:00")
     assert _error(site).endswith(
         "measurements.csv:338: timestamp '2024-01-14 24:00' is 24:00, the end of a day: if the rows are stamped at "
         'the end of their hour (24:00 for 23:00-24:00), declare it in site.toml: [measurements] stamped = "end"; '

@@ -477,6 +477,40 @@ def test_a_site_metering_cooling_calibrates_on_its_cooling(tmp_path, surrogate):
     assert wrong["heldout"]["r2_q"] < 0.3
 
 
+def test_a_site_metering_heat_and_electricity_apart_calibrates_on_both(tmp_path, surrogate):
+    """A stand-in whose heat and electricity are metered apart: the two meters read what the one meter reads, and
+    calibration fits and scores each (the cost takes the mean of their 1 - R2, the verdict judges both)."""
+    november = dt.date(2019, 11, 4)
+    split = make_reference_site(
+        tmp_path / "split",
+        "small_office",
+        "usa_il_chicago",
+        november,
+        2,
+        end_uses=("heating",),
+        electricity_end_uses=("lighting", "plug_loads"),
+    )
+    one = load_site(make_reference_site(tmp_path / "one", "small_office", "usa_il_chicago", november, 2))
+    split = load_site(split)
+    assert split.source["electricity_meter"] == "interior lights + interior equipment"
+    np.testing.assert_array_equal(split.temperature_c, one.temperature_c)  # the same run and noise
+    total = split.consumption_kwh + split.electricity_kwh
+    assert np.nansum(total) == pytest.approx(np.nansum(one.consumption_kwh), rel=0.005)
+    for method in ("adam", "cmaes"):
+        result = calibrate_site(split, surrogate, method=method, seed=0, max_evaluations=600, save=False)
+        for part in ("fit", "heldout"):
+            assert {"cv_rmse_e_percent", "nmbe_e_percent", "r2_e", "nmbe_e_monthly_percent"} <= set(result[part])
+        assert "electricity CV(RMSE)" in result["verdict"]["line"]
+    problem = cal.build_problem(
+        split, [0], context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
+    )
+    params = cal.calibrated_parameters(result)[None]
+    off = dataclasses.replace(problem, electricity_wh_m2=problem.electricity_wh_m2 + 5.0)
+    assert cal.evaluate(off, surrogate, params)[0] > cal.evaluate(problem, surrogate, params)[0]
+    with pytest.raises(cal.CalibrationError, match="second meter"):
+        cal.costs(problem, *(series[None] for series in cal.predict(problem, surrogate, params[0])))
+
+
 def test_a_calibration_records_its_metamodel_and_using_it_with_another_is_warned_about(surrogate, caplog):
     from buildenv.env.building_week import DEFAULT_SITE
     from buildenv.sites.week_simulator import SiteModel

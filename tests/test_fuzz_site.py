@@ -39,6 +39,7 @@ import argparse
 import contextlib
 import csv
 import datetime as dt
+import importlib
 import io
 import math
 import re
@@ -717,7 +718,10 @@ def _stub_energyplus(monkeypatch):
     def refuse(*args, **kwargs):
         raise AssertionError("the arguments got as far as an EnergyPlus run")
 
-    for module in ("buildenv.energyplus.runner", "buildenv.energyplus.reference", "buildenv.energyplus.simulate"):
+    modules = ("buildenv.energyplus.runner", "buildenv.energyplus.reference", "buildenv.energyplus.simulate")
+    for module in modules:  # imported before any is patched: one imported after would keep the stub as its own
+        importlib.import_module(module)
+    for module in modules:
         monkeypatch.setattr(f"{module}.run_energyplus", refuse)
 
 

@@ -230,3 +230,26 @@ def test_a_sites_building_runs_again_as_the_stand_in_version_it_was_made_with(tm
         else:
             run_weeks(site, [site.start], site.settings[:1], workers=1)
     assert used == [1, 2]  # the shipped default site predates versions: its infiltration on the model's clock
+
+
+def test_a_data_centres_it_load_runs_steady_at_its_level_of_the_runs_first_day(tmp_path):
+    from buildenv.energyplus.compact_schedules import daily_means
+    from buildenv.energyplus.reference import prepare_model
+
+    settings = historical_settings(1)
+    source = reference_idf("large_office_2019")
+    sawtooth = [o for o in of_type(read_idf(source), "Schedule:Compact") if o[1] == "DataCenter_EQUIP_SCH"][0]
+    assert sorted(set(daily_means(sawtooth, 2019))) == [0.25, 0.5, 0.75, 1.0]  # the prototype's months
+    for first, level in ((dt.date(2019, 1, 7), 0.25), (dt.date(2019, 2, 4), 0.5)):
+        idf, _ = prepare_model(source, settings, first, tmp_path / str(first))
+        objects = read_idf(idf)
+        equipment = {o[1]: o[3] for o in of_type(objects, "ElectricEquipment")}
+        steady = {s for name, s in equipment.items() if serves_24h_space(["ElectricEquipment", name])}
+        assert steady == {"buildenv_steady_DataCenter_EQUIP_SCH"}
+        (schedule,) = [o for o in of_type(objects, "Schedule:Compact") if o[1] in steady]
+        assert set(daily_means(schedule, first.year)) == {level}
+        assert "For: summerdesignday" in schedule  # sized as the model was
+        offices = {s for name, s in equipment.items() if not serves_24h_space(["ElectricEquipment", name])}
+        assert "buildenv_steady_DataCenter_EQUIP_SCH" not in offices
+    idf, _ = prepare_model(source, settings, dt.date(2019, 1, 7), tmp_path / "v2", stand_in=2)
+    assert "DataCenter_EQUIP_SCH" in {o[3] for o in of_type(read_idf(idf), "ElectricEquipment")}

@@ -312,13 +312,64 @@ def test_meters_round_trip_and_default_to_heating_lighting_and_plug_loads(tmp_pa
         ("consumption = []", r"site\.toml:9: \[meters\] consumption: must be a non-empty list of end uses"),
         ('consumption = "heating"', r"site\.toml:9: \[meters\] consumption: must be a non-empty list"),
         ('consumption = ["heating", "heating"]', r"site\.toml:9: \[meters\] consumption: 'heating' given twice"),
-        ('electricity = ["lighting"]', r"site\.toml:9: unknown key 'electricity' in \[meters\]"),
+        ('electricity = ["lighting"]', r"site\.toml:9: \[meters\] electricity: lighting also in consumption; a meter"),
+        ('gas = ["heating"]', r"site\.toml:9: unknown key 'gas' in \[meters\]"),
     ],
 )
 def test_meter_errors_name_the_line(site_dir: Path, line: str, error: str):
     _toml(site_dir, GOOD_TOML + "\n[meters]\n" + line + "\n")
     with pytest.raises(SiteError, match=error):
         load_site(site_dir)
+
+
+def test_heat_and_electricity_metered_apart_round_trip_and_name_their_outputs(tmp_path: Path):
+    arrays = _arrays()
+    electricity = np.round(5 + 10 * np.random.default_rng(1).random((WEEKS, 168)), 4)
+    electricity[0, 3] = np.nan
+    folder = _write(
+        tmp_path / "s",
+        consumption_end_uses=("heating",),
+        electricity_kwh=electricity,
+        electricity_end_uses=("lighting", "plug_loads"),
+        **arrays,
+    )
+    assert _lines(folder / "measurements.csv")[0].endswith(",heat_consumption_kwh,electricity_kwh")
+    site = load_site(folder)
+    np.testing.assert_array_equal(site.electricity_kwh, electricity)
+    np.testing.assert_array_equal(site.consumption_kwh, arrays["consumption_kwh"])
+    assert site.electricity_end_uses == ("lighting", "plug_loads")
+    (heat, q, heat_outputs), (column, e, outputs) = site.meters()
+    assert (heat, column) == ("heat_consumption_kwh", "electricity_kwh")
+    assert heat_outputs == ("Q_HEAT_OFFICE", "Q_AHU_H") and outputs == ("Q_EQP", "Q_LIGHT")
+    np.testing.assert_allclose(e, electricity * 1000 / AREA)
+    assert [m[0] for m in load_site(_write(tmp_path / "one")).meters()] == ["heat_consumption_kwh"]
+    with pytest.raises(SiteError, match="give electricity_kwh and electricity_end_uses together"):
+        _write(tmp_path / "half", electricity_kwh=electricity)
+
+
+def test_a_second_meter_without_its_declaration_or_in_another_unit_is_named(tmp_path: Path):
+    folder = _write(
+        tmp_path / "s",
+        consumption_end_uses=("heating",),
+        electricity_kwh=np.full((WEEKS, 168), 9.0),
+        electricity_end_uses=("lighting", "plug_loads"),
+    )
+    text = (folder / "site.toml").read_text()
+    (folder / "site.toml").write_text(text.replace('electricity = [\n    "lighting",\n    "plug_loads",\n]\n', ""))
+    with pytest.raises(SiteError, match=r"measurements\.csv:1: a column electricity_kwh and \[meters\] electricity go"):
+        load_site(folder)
+    (folder / "site.toml").write_text(text)
+    _edit(
+        folder / "measurements.csv", lambda lines: [lines[0].replace("electricity_kwh", "electricity_wh")] + lines[1:]
+    )
+    with pytest.raises(SiteError, match=r"measurements\.csv:1: wrong unit: column 'electricity_wh' is in Wh"):
+        load_site(folder)
+    _edit(
+        folder / "measurements.csv", lambda lines: [lines[0].replace("electricity_wh", "electricity_kwh")] + lines[1:]
+    )
+    _set_line(folder / "measurements.csv", 5, _stamp(3) + ",21.0,20.0,-1")
+    with pytest.raises(SiteError, match=r"measurements\.csv:5: electricity_kwh=-1 is negative"):
+        load_site(folder)
 
 
 def test_bms_round_trips_and_defaults_to_all_settings_in_their_catalogue_ranges(tmp_path: Path):

@@ -236,15 +236,23 @@ def test_5_minute_end_stamped_export_in_kelvin_and_kw(tmp_path):
     _same(tmp_path / "site", _handmade(tmp_path / "hand", start, t, q))
 
 
-def test_hourly_export_in_mwh_and_gj_with_a_settings_file_through_the_cli(tmp_path, capsys):
-    start = dt.date(2024, 1, 8)
+def _heat_and_power(start: dt.date, stamp: str, cells) -> tuple[np.ndarray, np.ndarray, np.ndarray, list[list[str]]]:
+    """``(temperature, heat kWh, electricity kWh, rows)``: two weeks of hourly rows from ``start``, each a timestamp
+    in the format ``stamp``, the temperature and ``cells(heat, power)``'s energy cells."""
     t, q = _truth(2)
     heat, power = np.round(0.6 * q, 4), np.round(q - np.round(0.6 * q, 4), 4)
+    midnight = dt.datetime.combine(start, dt.time())
     rows = [
-        [f"{dt.datetime.combine(start, dt.time()) + dt.timedelta(hours=h):%Y/%m/%d %H:%M}", f"{t[h]:.3f}"]
-        + [f"{heat[h] / 1000:.7f}", f"{power[h] * 0.0036:.8f}"]
-        for h in range(HOURS)
+        [f"{midnight + dt.timedelta(hours=h):{stamp}}", f"{t[h]:.3f}", *cells(heat[h], power[h])] for h in range(HOURS)
     ]
+    return t, heat, power, rows
+
+
+def test_hourly_export_in_mwh_and_gj_with_a_settings_file_through_the_cli(tmp_path, capsys):
+    start = dt.date(2024, 1, 8)
+    t, heat, power, rows = _heat_and_power(
+        start, "%Y/%m/%d %H:%M", lambda h, p: [f"{h / 1000:.7f}", f"{p * 0.0036:.8f}"]
+    )
     export = _export(tmp_path / "bms.csv", ["Time", "Indoor temp degC", "Heating [MWh]", "Electricity [GJ]"], rows)
     hand = _handmade(tmp_path / "hand", start, t, heat + power)
     argv = ["site", "import", str(export), "--out", str(tmp_path / "site"), "--epw", "usa_il_chicago"]
@@ -254,6 +262,26 @@ def test_hourly_export_in_mwh_and_gj_with_a_settings_file_through_the_cli(tmp_pa
     assert info["columns"] == {"Indoor temp degC": "degC", "Heating [MWh]": "MWh", "Electricity [GJ]": "GJ"}
     assert info["settings"] == str(hand / "settings.csv")
     _same(tmp_path / "site", hand)
+
+
+def test_heat_and_electricity_columns_become_two_meters(tmp_path, capsys):
+    start = dt.date(2024, 1, 8)
+    _, heat, power, rows = _heat_and_power(start, "%Y-%m-%d %H:%M", lambda h, p: [f"{h:.4f}", *[f"{p / 2:.5f}"] * 2])
+    header = ["Time", "Indoor temp degC", "Gas [kWh]", "Lights [kWh]", "Sockets [kWh]"]
+    export = _export(tmp_path / "bms.csv", header, rows)
+    argv = ["site", "import", str(export), "--out", str(tmp_path / "site"), "--epw", "usa_il_chicago"]
+    argv += ["--floor-area", str(AREA), "--floors", "3", "--meter", "heating"]
+    argv += ["--electricity-column", "Lights [kWh]", "--electricity-column", "Sockets [kWh]"]
+    assert main([*argv, "--electricity-meter", "lighting,plug_loads"]) == 0
+    site = load_site(tmp_path / "site")
+    np.testing.assert_allclose(site.consumption_kwh.ravel(), heat, atol=1.5e-4)
+    np.testing.assert_allclose(site.electricity_kwh.ravel(), power, atol=1.5e-4)
+    assert (site.consumption_end_uses, site.electricity_end_uses) == (("heating",), ("lighting", "plug_loads"))
+    capsys.readouterr()
+    assert main(["site", "show", str(tmp_path / "site")]) == 0
+    assert json.loads(capsys.readouterr().out)["electricity_meter"] == ["lighting", "plug_loads"]
+    assert main([*argv[:4], str(tmp_path / "other"), *argv[5:]]) == 2  # columns without their end uses
+    assert "give both" in capsys.readouterr().err and not (tmp_path / "other").exists()
 
 
 def test_temperature_gaps_are_reported_or_filled_when_asked(tmp_path):

@@ -103,6 +103,21 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
     assert truth["stand_in"] == STAND_IN_VERSION
     (tmp_path / case.name / "truth.json").write_text(json.dumps({k: v for k, v in truth.items() if k != "stand_in"}))
     assert make_case(case, tmp_path, weeks=2)["status"] == "made"
+    # heat and electricity metered apart: the chillers on the electricity
+    split = make_case(case, tmp_path, weeks=2, metering="split")
+    assert split["status"] == "made" and split["electricity_meter"] == ["cooling", "lighting", "plug_loads"]
+    site = load_site(split["site"])
+    assert (
+        (site.consumption_end_uses, site.electricity_end_uses)
+        == case.meters("split")
+        == (
+            ("heating",),
+            ("cooling", "lighting", "plug_loads"),
+        )
+    )
+    assert make_case(case, tmp_path, weeks=2, metering="split")["status"] == "reused"
+    with pytest.raises(BuildenvError, match="metering 'three' is not one of one, split"):
+        case.meters("three")
 
     # an EnergyPlus model that cannot run the case: the 2019 large office's data-centre coil
     refused = make_case(SuiteCase("large_office_2019", "usa_ok_oklahoma", "heating"), tmp_path, weeks=1)

@@ -28,6 +28,7 @@ from buildenv.calibration.problem import (
     metamodel_record,
     parameters_at_bounds,
     predict,
+    predict_meters,
     score_series,
     score_weeks,
 )
@@ -200,8 +201,11 @@ def _with_prior(problem, surrogate, best, info, seed, max_evaluations, restarts)
     """CMA-ES again from the fit without the prior (``best``), on the cost plus the prior
     (:mod:`buildenv.calibration.prior`, centred on the ranges), its weight read off that fit's residuals; returns the
     new best, the CMA-ES record (evaluations of both runs) and the prior's record."""
-    t, q = predict(problem, surrogate, best)
-    anchor, record = prior_anchor([problem.temperature_c, problem.consumption_wh_m2], [t, q])
+    t, q, e = predict_meters(problem, surrogate, best)
+    observed, modelled = [problem.temperature_c, problem.consumption_wh_m2], [t, q]
+    if e is not None:
+        observed, modelled = [*observed, problem.electricity_wh_m2], [*modelled, e]
+    anchor, record = prior_anchor(observed, modelled)
     centre = problem.from_unit(np.full(int(problem.free.sum()), 0.5))[0]
     theta = np.array([n in cat.THETA_NAMES for n in problem.names])
     found, second = calibrate_cmaes(

@@ -47,6 +47,7 @@ from buildenv.calibration.problem import (
     cmaes_strategy,
     costs,
     default_weeks,
+    electricity_series,
     model_series,
     score_outputs,
 )
@@ -247,7 +248,8 @@ def evaluate_energyplus(problem, run: SiteRun, pool: ShoeboxPool, params: np.nda
     """Costs ``(pop,)`` (:func:`buildenv.calibration.problem.costs`) of physical parameters ``(pop, dim)``, by
     EnergyPlus."""
     theta, occ = _split(problem, np.atleast_2d(params))
-    return costs(problem, *model_series(problem, pool.simulate(run, theta, occ)))
+    outputs = pool.simulate(run, theta, occ)
+    return costs(problem, *model_series(problem, outputs), electricity_series(problem, outputs))
 
 
 def calibrate_energyplus_cmaes(

@@ -74,6 +74,11 @@ def calibrate_adam(
     m_q = torch.tensor(np.isfinite(problem.consumption_wh_m2))
     t_idx = cat.OUTPUT_NAMES.index("T_INT_OFFICE")
     q_idx = list(problem.consumption_idx)  # the outputs the site's consumption meter sums
+    second = problem.electricity_wh_m2
+    if second is not None:  # a second meter: its outputs and measured hours
+        e_idx = list(problem.electricity_idx)
+        y_e = torch.tensor(np.nan_to_num(second), dtype=torch.float32)
+        m_e = torch.tensor(np.isfinite(second))
     optimiser = torch.optim.Adam([z], lr=lr)
 
     def forward(params: torch.Tensor) -> torch.Tensor:
@@ -88,9 +93,10 @@ def calibrate_adam(
         x[:, :, :ctx, c_occ] = week[:, None, -ctx:]  # context: the last days of the week before (build_problem)
         y = model(((x - in_mean) / in_std).reshape(-1, *x.shape[2:]))[:, ctx:] * out_std + out_mean
         y = y.reshape(len(params), weeks, cat.HOURS_PER_WEEK, -1)
-        return WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t)) + WEIGHTS["consumption"] * (
-            1 - _r2_torch(y_q, y[..., q_idx].sum(-1), m_q)
-        )
+        meters = 1 - _r2_torch(y_q, y[..., q_idx].sum(-1), m_q)
+        if second is not None:
+            meters = (meters + 1 - _r2_torch(y_e, y[..., e_idx].sum(-1), m_e)) / 2
+        return WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t)) + WEIGHTS["consumption"] * meters
 
     from tqdm import tqdm
 

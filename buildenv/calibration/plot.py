@@ -6,7 +6,7 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.calibration.problem import build_problem, calibrated_parameters, predict, problem_occupancy
+from buildenv.calibration.problem import build_problem, calibrated_parameters, predict_meters, problem_occupancy
 from buildenv.metamodel import surrogate as sg
 from buildenv.plotting import save_figure, shade_occupancy
 
@@ -14,7 +14,8 @@ from buildenv.plotting import save_figure, shade_occupancy
 def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) -> Path:
     """Plot every week of the site: measured (black) and calibrated metamodel (colour), held-out weeks marked.
 
-    Top: occupied-zone mean temperature (degC); bottom: the consumption the site meters (Wh/m2 per hour).
+    Top: occupied-zone mean temperature (degC); below: the consumption the site meters (Wh/m2 per hour), and its
+    second meter's where it has one.
     """
     import matplotlib
 
@@ -31,14 +32,19 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
         metamodel=surrogate,
     )
     params = calibrated_parameters(result, problem.effects)
-    t, q = predict(problem, surrogate, params)
+    t, q, e = predict_meters(problem, surrogate, params)
     occupied = problem_occupancy(problem, params).reshape(-1).astype(float)
     hours = np.arange(len(weeks) * 168)
-    fig, (ax_t, ax_q) = plt.subplots(2, 1, figsize=(min(4 + 3 * len(weeks), 24), 6), sharex=True)
-    for ax, measured, model, label in (
-        (ax_t, problem.temperature_c, t, "indoor temperature (degC)"),
-        (ax_q, problem.consumption_wh_m2, q, "consumption (Wh/m2)"),
-    ):
+    panels = [
+        (problem.temperature_c, t, "indoor temperature (degC)"),
+        (problem.consumption_wh_m2, q, "consumption (Wh/m2)"),
+    ]
+    if e is not None:
+        panels.append((problem.electricity_wh_m2, e, "electricity (Wh/m2)"))
+    size = (min(4 + 3 * len(weeks), 24), 3 * len(panels))
+    fig, axes = plt.subplots(len(panels), 1, figsize=size, sharex=True)
+    ax_t = axes[0]
+    for ax, (measured, model, label) in zip(axes, panels):
         shade_occupancy(ax, occupied)
         ax.plot(hours, measured.reshape(-1), color="black", lw=1.0, label="measured")
         ax.plot(hours, model.reshape(-1), color="tab:red", lw=1.0, label="calibrated metamodel")
@@ -60,5 +66,5 @@ def plot_calibration(site, surrogate: sg.Surrogate, result: dict, path: Path) ->
         )
     ax_t.set_title(title, fontsize=9)
     ax_t.legend(loc="upper right", fontsize=8)
-    ax_q.set_xlabel("hour (weeks start Monday 00:00; occupied hours shaded green)")
+    axes[-1].set_xlabel("hour (weeks start Monday 00:00; occupied hours shaded green)")
     return save_figure(fig, path, dpi=110)

@@ -8,7 +8,9 @@ catalogue; the optimisers search ``[0, 1]`` per free parameter, mapped linearly 
 **Cost** (the paper's): ``w_T (1 - R2_T) + w_Q (1 - R2_Q)`` (:data:`WEIGHTS`), R2 pooled over the
 calibration weeks' measured hours; missing hours are left out. The site's consumption (kWh per hour) per floor
 area is compared with the sum of the metamodel outputs of the end uses its meter sums
-(:meth:`buildenv.sites.Site.consumption_outputs`, Wh/m2 per hour; :attr:`Problem.consumption_idx`).
+(:meth:`buildenv.sites.Site.consumption_outputs`, Wh/m2 per hour; :attr:`Problem.consumption_idx`). A site with a
+second meter (``electricity_kwh``) has ``1 - R2_Q`` replaced by the mean of both meters' (its outputs:
+:attr:`Problem.electricity_idx`); its metrics carry ``_e`` keys beside the ``_q`` ones.
 
 **Optimisers.** :func:`calibrate_cmaes` (CMA-ES, each generation one batched metamodel call);
 :func:`buildenv.calibration.gradient.calibrate_adam` (Adam, occupancy switched over a sigmoid ramp of
@@ -72,6 +74,8 @@ class Problem:
     absent: np.ndarray | None = None  # (weeks, 7) absence shares of the days (the holidays effect; 0 = normal)
     # indices into catalogue.OUTPUT_NAMES of the outputs the site's consumption meter sums (Site.consumption_outputs)
     consumption_idx: tuple[int, ...] = tuple(cat.OUTPUT_NAMES.index(n) for n in cat.consumption_outputs())
+    electricity_wh_m2: np.ndarray | None = None  # (weeks, 168) the site's second meter, measured; None: none
+    electricity_idx: tuple[int, ...] = ()  # indices into catalogue.OUTPUT_NAMES of the outputs it sums
 
     @property
     def free(self) -> np.ndarray:
@@ -183,6 +187,7 @@ def build_problem(
     lo = np.array([ranges[v][0] for v in free] + [r[0] for r in occupancy])
     hi = np.array([ranges[v][1] for v in free] + [r[1] for r in occupancy])
     e_lo, e_hi = em.bounds(effects)
+    second = site.meters()[1:]
     return Problem(
         x,
         site.temperature_c[idx],
@@ -194,6 +199,8 @@ def build_problem(
         tuple(effects),
         None if absent is None else np.asarray(absent)[idx],
         consumption_idx=tuple(cat.OUTPUT_NAMES.index(n) for n in site.consumption_outputs()),
+        electricity_wh_m2=second[0][1][idx] if second else None,
+        electricity_idx=tuple(cat.OUTPUT_NAMES.index(n) for n in second[0][2]) if second else (),
     )
 
 
@@ -276,24 +283,45 @@ def model_series(problem: Problem, outputs: np.ndarray) -> tuple[np.ndarray, np.
     return outputs[..., cat.OUTPUT_NAMES.index("T_INT_OFFICE")], outputs[..., q].sum(-1)
 
 
-def costs(problem: Problem, t: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """The paper's cost of each candidate from its temperature and consumption ``(pop, weeks, 168)``."""
+def electricity_series(problem: Problem, outputs: np.ndarray) -> np.ndarray | None:
+    """The second meter's model series (Wh/m2: the outputs of :attr:`Problem.electricity_idx` summed) ``(..., 168)``
+    from metamodel outputs ``(..., 168, 8)``; None for a site with one meter."""
+    if problem.electricity_wh_m2 is None:
+        return None
+    return outputs[..., list(problem.electricity_idx)].sum(-1)
+
+
+def costs(problem: Problem, t: np.ndarray, q: np.ndarray, e: np.ndarray | None = None) -> np.ndarray:
+    """The paper's cost of each candidate from its temperature and consumption ``(pop, weeks, 168)`` (and, for a
+    site with a second meter, that meter's series ``e`` of the same shape)."""
     mt, mq = np.isfinite(problem.temperature_c), np.isfinite(problem.consumption_wh_m2)
-    return WEIGHTS["temperature"] * (1 - r2_masked(problem.temperature_c, t, mt)) + WEIGHTS["consumption"] * (
-        1 - r2_masked(problem.consumption_wh_m2, q, mq)
-    )
+    meters = 1 - r2_masked(problem.consumption_wh_m2, q, mq)
+    if problem.electricity_wh_m2 is not None:
+        if e is None:
+            raise CalibrationError("the site has a second meter (electricity_kwh): give its model series too")
+        me = np.isfinite(problem.electricity_wh_m2)
+        meters = (meters + 1 - r2_masked(problem.electricity_wh_m2, e, me)) / 2
+    return WEIGHTS["temperature"] * (1 - r2_masked(problem.temperature_c, t, mt)) + WEIGHTS["consumption"] * meters
 
 
 def evaluate(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:
     """Costs ``(pop,)`` of physical parameter vectors ``(pop, dim)`` in one batched metamodel call."""
-    _, t, q = simulate(problem, surrogate, params)
-    return costs(problem, t, q)
+    out, t, q = simulate(problem, surrogate, params)
+    return costs(problem, t, q, electricity_series(problem, out))
 
 
 def predict(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Sensor temperature (degC) and consumption (Wh/m2) ``(weeks, 168)`` of one parameter vector."""
-    _, t, q = simulate(problem, surrogate, params[None])
-    return t[0], q[0]
+    return predict_meters(problem, surrogate, params)[:2]
+
+
+def predict_meters(
+    problem: Problem, surrogate: sg.Surrogate, params: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+    """:func:`predict` and the second meter's series (Wh/m2, ``(weeks, 168)``; None for a site with one meter)."""
+    out, t, q = simulate(problem, surrogate, params[None])
+    e = electricity_series(problem, out)
+    return t[0], q[0], None if e is None else e[0]
 
 
 def cmaes_strategy(
@@ -557,11 +585,8 @@ def fit_last_parameters(
 
 
 def _scale(problem: Problem) -> dict[str, tuple[float, float]]:
-    t, q = problem.temperature_c, problem.consumption_wh_m2
-    return {
-        "t": (float(np.nanmean(t)), float(np.nanstd(t)) or 1.0),
-        "q": (float(np.nanmean(q)), float(np.nanstd(q)) or 1.0),
-    }
+    series = {"t": problem.temperature_c, "q": problem.consumption_wh_m2, "e": problem.electricity_wh_m2}
+    return {k: (float(np.nanmean(v)), float(np.nanstd(v)) or 1.0) for k, v in series.items() if v is not None}
 
 
 def score_weeks(
@@ -578,11 +603,13 @@ def score_weeks(
     problem = build_problem(
         site, weeks, effects, absent, surrogate.context_hours, surrogate.uses_temperature_before, surrogate
     )
-    t, q = predict(problem, surrogate, params)
-    return {
-        **score_series(problem, t, q, params, scale),
-        **guideline14_monthly(problem.consumption_wh_m2, q, hour_months(site, weeks)),
-    }
+    t, q, e = predict_meters(problem, surrogate, params)
+    months = hour_months(site, weeks)
+    out = {**score_series(problem, t, q, params, scale, e), **guideline14_monthly(problem.consumption_wh_m2, q, months)}
+    if e is not None:
+        monthly = guideline14_monthly(problem.electricity_wh_m2, e, months)
+        out |= {k.replace("_q_", "_e_"): v for k, v in monthly.items() if k != "months"}
+    return out
 
 
 def hour_months(site, weeks: list[int]) -> np.ndarray:
@@ -597,18 +624,26 @@ def score_outputs(
     problem: Problem, outputs: np.ndarray, params: np.ndarray, scale: dict[str, tuple[float, float]]
 ) -> dict[str, float]:
     """Metrics (:func:`site_metrics`) of simulated outputs ``(weeks, 168, 8)`` of ``params`` on the problem's weeks."""
-    return score_series(problem, *model_series(problem, outputs), params, scale)
+    return score_series(problem, *model_series(problem, outputs), params, scale, electricity_series(problem, outputs))
 
 
 def score_series(
-    problem: Problem, t: np.ndarray, q: np.ndarray, params: np.ndarray, scale: dict[str, tuple[float, float]]
+    problem: Problem,
+    t: np.ndarray,
+    q: np.ndarray,
+    params: np.ndarray,
+    scale: dict[str, tuple[float, float]],
+    e: np.ndarray | None = None,
 ) -> dict[str, float]:
-    """Metrics (:func:`site_metrics`) of a predicted temperature (degC) and consumption (Wh/m2) ``(weeks, 168)``."""
+    """Metrics (:func:`site_metrics`) of a predicted temperature (degC) and consumption (Wh/m2) ``(weeks, 168)``;
+    with the second meter's prediction ``e``, its R2, standardised MSE and Guideline 14 too (``_e`` keys)."""
     occupied = problem_occupancy(problem, params)
-    return {
-        **site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale),
-        "weeks": len(problem.x_base),
-    }
+    out = {**site_metrics(problem.temperature_c, problem.consumption_wh_m2, t, q, occupied, scale)}
+    if e is not None and problem.electricity_wh_m2 is not None:
+        meter_scale = {**scale, "q": scale["e"]}
+        second = site_metrics(problem.temperature_c, problem.electricity_wh_m2, t, e, occupied, meter_scale)
+        out |= {k.replace("_q", "_e"): v for k, v in second.items() if "_q" in k}
+    return {**out, "weeks": len(problem.x_base)}
 
 
 def problem_occupancy(problem: Problem, params: np.ndarray) -> np.ndarray:

@@ -36,14 +36,18 @@ def _within(value: float | None, limit: float) -> bool | None:
 
 
 def _judge(metrics: dict) -> dict:
-    """Hourly and monthly pass/fail of one set of weeks' metrics (``score_weeks``'s keys)."""
+    """Hourly and monthly pass/fail of one set of weeks' metrics (``score_weeks``'s keys); a site with a second meter
+    (``_e`` keys) passes where both meters do."""
+    meters = ["q", "e"] if "cv_rmse_e_percent" in metrics else ["q"]
     hourly = [
-        _within(metrics.get("cv_rmse_q_percent"), GUIDELINE14_HOURLY_CV_PERCENT),
-        _within(metrics.get("nmbe_q_percent"), GUIDELINE14_HOURLY_NMBE_PERCENT),
+        _within(metrics.get(f"{key}_{m}_percent"), limit)
+        for m in meters
+        for key, limit in (("cv_rmse", GUIDELINE14_HOURLY_CV_PERCENT), ("nmbe", GUIDELINE14_HOURLY_NMBE_PERCENT))
     ]
     monthly = [
-        _within(metrics.get("cv_rmse_q_monthly_percent"), GUIDELINE14_MONTHLY_CV_PERCENT),
-        _within(metrics.get("nmbe_q_monthly_percent"), GUIDELINE14_MONTHLY_NMBE_PERCENT),
+        _within(metrics.get(f"{key}_{m}_monthly_percent"), limit)
+        for m in meters
+        for key, limit in (("cv_rmse", GUIDELINE14_MONTHLY_CV_PERCENT), ("nmbe", GUIDELINE14_MONTHLY_NMBE_PERCENT))
     ]
     judged = [m for m in monthly if m is not None]
     # weeks without a measured consumption have no hourly figures: not judged, rather than failed
@@ -76,17 +80,24 @@ def calibration_verdict(result: dict) -> dict:
 
 
 def _part(name: str, metrics: dict, judged: dict) -> str:
-    """``held-out weeks: hourly pass (CV(RMSE) 10.7 %, NMBE 2.0 %), monthly pass (NMBE 1.9 %)``."""
+    """``held-out weeks: hourly pass (CV(RMSE) 10.7 %, NMBE 2.0 %), monthly pass (NMBE 1.9 %)``; a second meter's
+    figures follow the consumption's after ``electricity``."""
     word = {True: "pass", False: "FAIL", None: "not judged"}
-    monthly_cv = metrics.get("cv_rmse_q_monthly_percent")
-    cv = f"CV(RMSE) {monthly_cv:.1f} %, " if monthly_cv is not None and math.isfinite(monthly_cv) else ""
-    monthly = f"monthly {word[judged['monthly']]}"
-    if metrics.get("nmbe_q_monthly_percent") is not None:
-        monthly += f" ({cv}NMBE {metrics['nmbe_q_monthly_percent']:.1f} % of {metrics.get('months', '?')} month(s))"
-    return (
-        f"{name}: hourly {word[judged['hourly']]} (CV(RMSE) {metrics.get('cv_rmse_q_percent', float('nan')):.1f} %, "
-        f"NMBE {metrics.get('nmbe_q_percent', float('nan')):.1f} %), {monthly}"
-    )
+    meters = [("q", "")] + ([("e", "electricity ")] if "cv_rmse_e_percent" in metrics else [])
+    hourly, monthly = [], []
+    for m, label in meters:
+        hourly.append(
+            f"{label}CV(RMSE) {metrics.get(f'cv_rmse_{m}_percent', float('nan')):.1f} %, "
+            f"NMBE {metrics.get(f'nmbe_{m}_percent', float('nan')):.1f} %"
+        )
+        monthly_cv = metrics.get(f"cv_rmse_{m}_monthly_percent")
+        cv = f"CV(RMSE) {monthly_cv:.1f} %, " if monthly_cv is not None and math.isfinite(monthly_cv) else ""
+        if metrics.get(f"nmbe_{m}_monthly_percent") is not None:
+            monthly.append(f"{label}{cv}NMBE {metrics[f'nmbe_{m}_monthly_percent']:.1f} %")
+    text = f"monthly {word[judged['monthly']]}"
+    if monthly:
+        text += f" ({'; '.join(monthly)} of {metrics.get('months', '?')} month(s))"
+    return f"{name}: hourly {word[judged['hourly']]} ({'; '.join(hourly)}), {text}"
 
 
 def verdict_line(result: dict, verdict: dict) -> str:

@@ -82,9 +82,10 @@ def parse_known(items: list[str]) -> dict[str, float]:
     return known
 
 
-def parse_meter(text: str | None) -> tuple[str, ...]:
+def parse_meter(text: str | None, flag: str = "--meter") -> tuple[str, ...]:
     """``--meter USE[,USE...]`` -> the end uses the consumption meter sums (default
-    :data:`buildenv.catalogue.DEFAULT_END_USES`); raises :class:`~buildenv.errors.SiteError` (one line)."""
+    :data:`buildenv.catalogue.DEFAULT_END_USES`); raises :class:`~buildenv.errors.SiteError` (one line naming
+    ``flag``)."""
     from buildenv import catalogue as cat
     from buildenv.errors import SiteError
     from buildenv.sites.reader import check_end_uses
@@ -94,7 +95,7 @@ def parse_meter(text: str | None) -> tuple[str, ...]:
     try:
         return check_end_uses([u.strip() for u in text.split(",") if u.strip()])
     except SiteError as exc:
-        raise SiteError(f"--meter {text!r}: {exc}") from None
+        raise SiteError(f"{flag} {text!r}: {exc}") from None
 
 
 def _cmd_site_reference(args: argparse.Namespace) -> int:
@@ -148,6 +149,7 @@ def _cmd_site_import(args: argparse.Namespace) -> int:
         time_column=args.time_column,
         temperature_column=args.temperature_column,
         consumption_columns=tuple(args.consumption_column),
+        electricity_columns=tuple(args.electricity_column),
         units=parse_units(args.unit),
         time_format=args.time_format,
         time_zone=args.time_zone,
@@ -166,6 +168,9 @@ def _cmd_site_import(args: argparse.Namespace) -> int:
         settings=args.settings,
         known=parse_known(args.known),
         end_uses=parse_meter(args.meter),
+        electricity_end_uses=parse_meter(args.electricity_meter, "--electricity-meter")
+        if args.electricity_meter
+        else (),
     )
     info = report.as_dict()
     notes = info.pop("notes")
@@ -192,6 +197,7 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
         "known": site.known,
         "effects": list(site.effects),
         "meters": list(site.consumption_end_uses),
+        **({"electricity_meter": list(site.electricity_end_uses)} if site.electricity_kwh is not None else {}),
         "temperature_hours": int(site.temperature_mask.sum()),
         "consumption_hours": int(site.consumption_mask.sum()),
         "mean_temperature_c": round(float(np.nanmean(site.temperature_c)), 2),
@@ -323,6 +329,13 @@ def register(sub) -> None:
         help="a consumption column, summed (repeatable; default: each column named with an energy or power unit)",
     )
     p.add_argument(
+        "--electricity-column",
+        action="append",
+        default=[],
+        metavar="COLUMN",
+        help="a column of a second meter, summed (repeatable), where heat and electricity are metered apart",
+    )
+    p.add_argument(
         "--unit",
         action="append",
         default=[],
@@ -355,6 +368,12 @@ def register(sub) -> None:
         default=None,
         metavar="USE[,USE...]",
         help="end uses the consumption sums (default heating,lighting,plug_loads); written to site.toml's [meters]",
+    )
+    p.add_argument(
+        "--electricity-meter",
+        default=None,
+        metavar="USE[,USE...]",
+        help="end uses the --electricity-column meter sums (e.g. lighting,plug_loads,cooling; none of --meter's)",
     )
     p.set_defaults(func=_cmd_site_import)
     p = site_sub.add_parser("show", help="summarise a site folder (validates it)")

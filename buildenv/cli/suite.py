@@ -39,7 +39,13 @@ def _cmd_suite_make(args: argparse.Namespace) -> int:
     from buildenv.sites.suite import make_suite
 
     records = make_suite(
-        args.out, _cases(args), weeks=args.weeks, workers=args.workers, suite_seed=args.seed, progress=not args.quiet
+        args.out,
+        _cases(args),
+        weeks=args.weeks,
+        workers=args.workers,
+        suite_seed=args.seed,
+        progress=not args.quiet,
+        metering=args.meters,
     )
     made = sum(r["status"] in ("made", "reused") for r in records)
     for r in records:
@@ -173,6 +179,12 @@ def register(sub) -> None:
             p.add_argument("--weeks", type=int, default=SUITE_WEEKS, help="measured weeks per site")
             p.add_argument("--workers", type=int, default=None, help="EnergyPlus processes (default: the CPUs)")
             p.add_argument("--seed", type=int, default=0, help="seed of the BMS histories and the sensor noise")
+            p.add_argument(
+                "--meters",
+                default="one",
+                choices=["one", "split"],
+                help="one meter a site (default) or heat and electricity metered apart",
+            )
             p.add_argument("--quiet", action="store_true", help="no progress bar")
     p = suite_sub.add_parser("calibrate", help="calibrate every made site (held-out weeks scored), one table")
     p.add_argument("--suite", required=True, help="suite folder (buildenv suite make --out)")

@@ -12,8 +12,11 @@ while its air handling units ventilate (the pressurised building of the referenc
 :func:`pressurised_infiltration`) follows the site's ventilation hours instead of the model's fixed clock (from
 :data:`STAND_IN_VERSION` 2; a site records the version it was made with, and its building runs again as that
 version). Schedules are re-pointed, not rewritten. Systems of 24/7 spaces keep their own schedules
-(:func:`serves_24h_space`); occupancy, lighting, equipment, constructions and systems are untouched; public
-holidays and daylight-saving time are removed. The run starts ``warmup_weeks`` before the first measured week.
+(:func:`serves_24h_space`); from version 3 their equipment runs steady at its level of the run's first day
+(:func:`steady_24h_equipment`: the ASHRAE 90.1 large office steps its data centre's IT load 0.25, 0.5, 0.75, 1
+from month to month, a change of base load no building parameter describes). Occupancy, lighting, the offices'
+equipment, constructions and systems are untouched; public holidays and daylight-saving time are removed. The run
+starts ``warmup_weeks`` before the first measured week.
 
 Unmodelled effects (:mod:`buildenv.diagnosis.effects`) are put in by :mod:`buildenv.energyplus.injections`:
 model edits after the schedules are re-pointed, sensor effects on the true temperature before the noise.
@@ -45,6 +48,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.defaults import default_week
+from buildenv.energyplus.compact_schedules import daily_means, steady_copy
 from buildenv.energyplus.design_days import climate_design_days
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
 from buildenv.energyplus.injections import (
@@ -76,7 +80,7 @@ SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "
 #: How the stand-in maps a site's settings onto its model, recorded in a site's ``truth.json`` (``stand_in``; none:
 #: 1): 1, the model's infiltration on its own clock; 2, infiltration it cuts while its fans run follows the site's
 #: ventilation hours.
-STAND_IN_VERSION = 2
+STAND_IN_VERSION = 3
 #: Settings the stand-in's schedules do not map: they do not act on the reference model.
 UNMAPPED_SETTINGS: tuple[str, ...] = ("supply_air_c",)
 #: End use (:data:`buildenv.catalogue.END_USE_OUTPUTS`) -> (EnergyPlus meter the stand-in's consumption sums,
@@ -127,6 +131,7 @@ class ReferenceRun:
         None  # (weeks, 168) central air loops' mean supply temperature (None: no such loop)
     )
     effects: list[dict[str, Any]] = field(default_factory=list)  # injected effects, truth.json entries
+    electricity_kwh: np.ndarray | None = None  # (weeks, 168) a second meter's end uses per hour (None: one meter)
 
 
 def reference_idf(building: str | Path) -> Path:
@@ -370,6 +375,8 @@ def prepare_model(
         if not o[0].lower().startswith(kept_kinds) and not serves_24h_space(o, unoccupied):
             o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
         edited.append(o)
+    if stand_in >= 3:
+        edited = steady_24h_equipment(edited, first_day)
     if epw is not None:
         edited = climate_design_days(edited, epw)
     sim = of_type(edited, "SimulationControl")
@@ -409,6 +416,27 @@ def prepare_model(
     idf = workdir / f"{source.stem}_buildenv.idf"
     idf.write_text(format_idf(edited))
     return idf, mapping
+
+
+def steady_24h_equipment(objects: list[IdfObject], day: dt.date) -> list[IdfObject]:
+    """``objects`` with the ``ElectricEquipment`` of 24/7 spaces (:func:`serves_24h_space`) on a steady schedule:
+    on every ordinary day, the value their ``Schedule:Compact`` gives on ``day`` (its mean over the day,
+    :func:`~buildenv.energyplus.compact_schedules.daily_means`); the design days the model is sized with kept.
+
+    A data centre's IT load is steady over weeks; prototypes step it by month to span its utilisation over an
+    annual run. Objects on other kinds of schedule are left as they are.
+    """
+    compact = {o[1].lower(): o for o in of_type(objects, "Schedule:Compact") if len(o) > 1}
+    out, steady = [], {}
+    for o in objects:
+        schedule = o[3].lower() if o[0].lower() == "electricequipment" and len(o) > 3 else ""
+        if schedule in compact and serves_24h_space(o):
+            name = f"buildenv_steady_{compact[schedule][1]}"
+            level = daily_means(compact[schedule], day.year)[day.timetuple().tm_yday - 1]
+            steady[name] = steady_copy(compact[schedule], name, level)
+            o = o[:3] + [name] + o[4:]
+        out.append(o)
+    return out + list(steady.values())
 
 
 @functools.lru_cache(maxsize=32)
@@ -578,12 +606,14 @@ def read_sensors(
     warmup_weeks: int,
     first_day: dt.date | None = None,
     end_uses: Sequence[str] = cat.DEFAULT_END_USES,
+    electricity_end_uses: Sequence[str] = (),
 ) -> ReferenceRun:
     """Aggregate a finished reference run as the two sensors (see the module docstring).
 
     ``first_day`` (the run period's first day): read only the rows stamped with the run period's hours
     (:func:`_run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run period's. ``end_uses``
-    (keys of :data:`END_USE_METERS`): the meters the consumption sums.
+    (keys of :data:`END_USE_METERS`): the meters the consumption sums; ``electricity_end_uses``: those a second
+    meter sums (none: no second meter).
     """
     import pandas as pd
 
@@ -607,6 +637,7 @@ def read_sensors(
         return frame[col[0]].to_numpy(float) / 3.6e6 if col else np.zeros(len(frame))  # J -> kWh
 
     consumption = sum((meter_kwh(END_USE_METERS[use][0]) for use in end_uses), np.zeros(len(frame)))
+    electricity = sum((meter_kwh(END_USE_METERS[use][0]) for use in electricity_end_uses), np.zeros(len(frame)))
     hvac = meter_kwh(END_USE_METERS["heating"][0]) + meter_kwh(END_USE_METERS["cooling"][0])
     hours = (weeks + warmup_weeks) * cat.HOURS_PER_WEEK
     if len(frame) != hours:
@@ -622,6 +653,7 @@ def read_sensors(
         hvac[skip:].reshape(shape),
         warmup_temperature_c=temperature[:skip].copy(),
         supply_air_c=frame[supply].to_numpy(float).mean(axis=1)[skip:].reshape(shape) if supply else None,
+        electricity_kwh=electricity[skip:].reshape(shape) if electricity_end_uses else None,
     )
 
 
@@ -651,6 +683,7 @@ def run_reference(
     effect_seed: int = 0,
     end_uses: Sequence[str] = cat.DEFAULT_END_USES,
     stand_in: int = STAND_IN_VERSION,
+    electricity_end_uses: Sequence[str] = (),
 ) -> ReferenceRun:
     """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
 
@@ -667,6 +700,7 @@ def run_reference(
             noise), ``hvac_kwh`` and ``warmup_temperature_c`` stay true. Recorded in ``ReferenceRun.effects``.
         effect_seed: seed of the effects' random choices (holiday dates).
         end_uses: end uses the consumption sums (keys of :data:`END_USE_METERS`).
+        electricity_end_uses: end uses a second meter sums (none: one meter).
         stand_in: the version of the stand-in's mapping (:data:`STAND_IN_VERSION`; a site's own, to run it again).
     Returns:
         the :class:`ReferenceRun` of the measured weeks (true readings, no noise).
@@ -697,21 +731,25 @@ def run_reference(
             if "FindRootSimpleController" in str(error) and "DATACENTER" in str(error).upper():
                 raise ReferenceBuildingError(_DATA_CENTRE_COIL_ERROR.format(source.stem)) from error
             raise
-        result = read_sensors(work, occupied, len(settings), warmup_weeks, first_day, end_uses)
+        result = read_sensors(work, occupied, len(settings), warmup_weeks, first_day, end_uses, electricity_end_uses)
         clean_outputs(work, keep=("eplusout.err",))
     result.temperature_c = sensor_effect_series(result.temperature_c, result.warmup_temperature_c, planned)
     result.effects = [e.truth() for e in planned]
     return result
 
 
-def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, np.ndarray]:
-    """Measured series: ``(temperature_c, consumption_kwh)`` with seeded noise and meter resolution."""
+def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, ...]:
+    """Measured series: ``(temperature_c, consumption_kwh)`` with seeded noise and meter resolution, and the second
+    meter's ``electricity_kwh`` after them where the run has one (drawn last: the first two do not change)."""
     rng = np.random.default_rng(seed)
     t = run.temperature_c + rng.normal(0.0, TEMPERATURE_NOISE_K, run.temperature_c.shape)
-    q = run.consumption_kwh * (1.0 + rng.normal(0.0, CONSUMPTION_NOISE_FRACTION, run.consumption_kwh.shape))
     t = np.round(t / TEMPERATURE_RESOLUTION_K) * TEMPERATURE_RESOLUTION_K
-    q = np.round(np.maximum(q, 0.0) / CONSUMPTION_RESOLUTION_KWH) * CONSUMPTION_RESOLUTION_KWH
-    return t, q
+    meters = [run.consumption_kwh] + [m for m in [getattr(run, "electricity_kwh", None)] if m is not None]
+    out = [t]
+    for kwh in meters:
+        q = kwh * (1.0 + rng.normal(0.0, CONSUMPTION_NOISE_FRACTION, kwh.shape))
+        out.append(np.round(np.maximum(q, 0.0) / CONSUMPTION_RESOLUTION_KWH) * CONSUMPTION_RESOLUTION_KWH)
+    return tuple(out)
 
 
 def historical_settings(weeks: int, ventilation_ach: float | None = None) -> np.ndarray:
@@ -738,6 +776,7 @@ def make_reference_site(
     known: dict[str, float] | None = None,
     end_uses: Sequence[str] = cat.DEFAULT_END_USES,
     record_supply_air: bool = True,
+    electricity_end_uses: Sequence[str] = (),
 ) -> Path:
     """Run a reference building and write what its sensors read as a site folder (see :mod:`buildenv.sites`).
 
@@ -762,6 +801,8 @@ def make_reference_site(
             ``[meters] consumption``.
         record_supply_air: write the supply air its central air loops delivered into the history
             (:func:`recorded_supply_air`); ``False`` keeps ``settings``' values.
+        electricity_end_uses: end uses a second meter sums (``electricity_kwh``, ``[meters] electricity``), none
+            of ``end_uses``; empty: one meter.
 
     The site's ``[bms]`` declares what the stand-in maps (:func:`reference_bms`).
 
@@ -773,6 +814,7 @@ def make_reference_site(
     from buildenv.sites.reader import check_end_uses
 
     end_uses = check_end_uses(list(end_uses))
+    electricity_end_uses = check_end_uses(list(electricity_end_uses)) if electricity_end_uses else ()
 
     if floors is None:
         if str(building) not in REFERENCE_BUILDINGS:
@@ -790,8 +832,9 @@ def make_reference_site(
         effects=effects,
         effect_seed=effect_seed,
         end_uses=end_uses,
+        electricity_end_uses=electricity_end_uses,
     )
-    temperature, consumption = add_sensor_noise(run, seed)
+    temperature, consumption, *electricity = add_sensor_noise(run, seed)
     if record_supply_air and run.supply_air_c is not None:  # what its BMS logs: its own, not mapped
         settings = recorded_supply_air(settings, run.supply_air_c)
     controllable, setting_limits = reference_bms(building)
@@ -806,6 +849,8 @@ def make_reference_site(
         "consumption_meter": " + ".join(END_USE_METERS[use][1] for use in end_uses)
         + f", noise {CONSUMPTION_NOISE_FRACTION:.0%}, resolution {CONSUMPTION_RESOLUTION_KWH} kWh",
     }
+    if electricity_end_uses:
+        source["electricity_meter"] = " + ".join(END_USE_METERS[use][1] for use in electricity_end_uses)
     return write_site(
         out,
         name=f"{building} in {epw} (reference-building stand-in)",
@@ -827,4 +872,6 @@ def make_reference_site(
         consumption_end_uses=end_uses,
         controllable=controllable,
         setting_limits=setting_limits,
+        electricity_kwh=electricity[0] if electricity else None,
+        electricity_end_uses=electricity_end_uses,
     )

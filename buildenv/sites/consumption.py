@@ -58,10 +58,10 @@ FREE_HEAT_K = 15.0 - MIN_THERMAL_PEAK_W_M2 / LEAST_HEAT_LOSS_W_M2_K
 _MIN_MEASURED_HOURS = cat.HOURS_PER_DAY
 
 
-def _check_not_negative(path: Path, line: int, value: float) -> None:
+def _check_not_negative(path: Path, line: int, value: float, column: str = "heat_consumption_kwh") -> None:
     if value < 0:
         raise SiteError(
-            f"{path}:{line}: heat_consumption_kwh={value:g} is negative: give the energy used "
+            f"{path}:{line}: {column}={value:g} is negative: give the energy used "
             "during the hour (not a meter difference across a reset); leave it empty if unknown"
         )
 
@@ -78,8 +78,9 @@ def _consumption(
     indoor_c: np.ndarray | None = None,
     weather: str | None = None,
     start: dt.date | None = None,
+    column: str = "heat_consumption_kwh",
 ) -> np.ndarray:
-    """The consumption column (hourly over whole weeks, ``line_at``: each hour's CSV line, 0 where none) as kWh
+    """A meter's ``column`` (hourly over whole weeks, ``line_at``: each hour's CSV line, 0 where none) as kWh
     in each hour: register readings differenced where ``options.cumulative`` (``closing``: the reading at the end
     of the last hour and its line, NaN where none); then every hour checked against
     :data:`MAX_KWH_PER_M2_PER_HOUR` and the peak against the smallest plausible one (:func:`_check_size`, with
@@ -92,7 +93,7 @@ def _consumption(
         what = "the register rises by {:g} kWh in the hour to this reading"
     else:
         q, line_of = values, line_at
-        what = "heat_consumption_kwh={:g}"
+        what = column + "={:g}"
     _check_size(path, q, line_of, floor_area_m2, end_uses, what, indoor_c=indoor_c, weather=weather, start=start)
     return q
 

@@ -88,7 +88,9 @@ class ImportOptions:
         time_column, temperature_column: header names; None guesses the one column whose name holds
             ``time``/``date``/``stamp`` (``temp``).
         consumption_columns: header names, summed; empty guesses every other column whose name holds an energy or
-            power unit.
+            power unit (the electricity columns aside).
+        electricity_columns: header names of a second meter (heat and electricity metered apart), summed into
+            the site's ``electricity_kwh``; empty: one meter.
         units: ``{column: unit}`` (degC, degF, K; Wh, kWh, MWh, MJ, GJ; W, kW, MW) where the name does not say it.
         time_format: a ``strptime`` format of the timestamps; None reads ``YYYY-MM-DD HH:MM[:SS]`` (``T`` or
             ``/`` allowed, ``24:00`` read as the next day's 00:00 where ``stamped="end"``). With ``%z`` the
@@ -103,6 +105,7 @@ class ImportOptions:
     time_column: str | None = None
     temperature_column: str | None = None
     consumption_columns: tuple[str, ...] = ()
+    electricity_columns: tuple[str, ...] = ()
     units: Mapping[str, str] = field(default_factory=dict)
     time_format: str | None = None
     time_zone: str | None = None
@@ -172,23 +175,24 @@ def _unit_of(path: Path, name: str, units: Mapping[str, str], kinds: tuple[str, 
 
 
 def _columns(path: Path, header: list[str], options: ImportOptions) -> list[tuple[int, str, _Unit | None]]:
-    """``[(index, name, unit)]`` of the timestamp (unit None), temperature and consumption columns."""
+    """``[(index, name, unit)]`` of the timestamp (unit None), temperature, consumption and electricity columns."""
     for name in options.units:
         _pick(path, header, name, "", "--unit", set())  # a unit for a column the export does not have
     time = _pick(path, header, options.time_column, "time|date|stamp", "--time-column", set())
     temp = _pick(path, header, options.temperature_column, "temp", "--temperature-column", {time})
     energy = ("energy", "power")
     chosen = [_pick(path, header, name, "", "--consumption-column", set()) for name in options.consumption_columns]
+    second = [_pick(path, header, name, "", "--electricity-column", set()) for name in options.electricity_columns]
     if not chosen:
         for i, name in enumerate(header):
             unit = _unit_of(path, name, options.units, energy)
-            if i not in (time, temp) and unit is not None and unit.kind in energy:
+            if i not in (time, temp, *second) and unit is not None and unit.kind in energy:
                 chosen.append(i)
     if not chosen:
         listing = ", ".join(repr(h) for h in header)
         raise SiteError(f"{path}:1: no column names an energy unit: give --consumption-column one of {listing}")
     out: list[tuple[int, str, _Unit | None]] = [(time, header[time], None)]
-    for i, kinds in [(temp, ("temperature",))] + [(i, energy) for i in chosen]:
+    for i, kinds in [(temp, ("temperature",))] + [(i, energy) for i in chosen + second]:
         name = header[i]
         unit = _unit_of(path, name, options.units, kinds)
         if unit is None or unit.kind not in kinds:
@@ -398,10 +402,10 @@ def _gap_note(path: Path, missing: np.ndarray, before: np.ndarray, first: dt.dat
 
 def _read_hourly(
     path: Path, options: ImportOptions, zone: zoneinfo.ZoneInfo | None, weather: str
-) -> tuple[dt.datetime, int, dict[str, str], np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[dt.datetime, int, dict[str, str], np.ndarray, np.ndarray, np.ndarray, np.ndarray | None]:
     """``(Monday 00:00 of the first week, interval minutes, {column: unit read}, temperature degC, consumption kWh,
-    each hour's last export line (0: none))``, hourly in local standard time over whole weeks from that Monday
-    (``zone``: the export's clock, ``options.time_zone``)."""
+    each hour's last export line (0: none), electricity kWh or None)``, hourly in local standard time over whole
+    weeks from that Monday (``zone``: the export's clock, ``options.time_zone``)."""
     header, rows = _read_rows(path)
     columns = _columns(path, header, options)
     for line, cells in rows:
@@ -437,7 +441,9 @@ def _read_hourly(
     slot_line = np.zeros(hours * per_hour, int)
     slot_line[slots] = lines
     hour_line = slot_line.reshape(hours, per_hour).max(axis=1)
-    return monday, step, read, hourly[0], np.sum(hourly[1:], axis=0), hour_line
+    meters = len(columns) - 2 - len(options.electricity_columns)  # the consumption's columns, then the electricity's
+    electricity = np.sum(hourly[1 + meters :], axis=0) if options.electricity_columns else None
+    return monday, step, read, hourly[0], np.sum(hourly[1 : 1 + meters], axis=0), hour_line, electricity
 
 
 def _measured_weeks(measured: np.ndarray) -> tuple[int, int, list[tuple[int, int]]]:
@@ -475,6 +481,7 @@ def import_export(
     settings: str | os.PathLike | None = None,
     known: Mapping[str, float] | None = None,
     end_uses: tuple[str, ...] = cat.DEFAULT_END_USES,
+    electricity_end_uses: tuple[str, ...] = (),
 ) -> ImportReport:
     """Write the site folder ``out`` from the BMS export ``export`` (see the module docstring).
 
@@ -488,6 +495,7 @@ def import_export(
         out: the site folder to write; it must not exist, or be empty.
         name, weather, floor_area_m2, number_of_floors, known, end_uses: as :func:`buildenv.sites.write_site`
             (``weather`` an EPW short name or a path, written absolute).
+        electricity_end_uses: what ``options.electricity_columns`` sum (required with them).
         options: how to read the export (:class:`ImportOptions`; None: the defaults).
         settings: a ``settings.csv`` (site format) for the imported weeks; None writes the typical settings
             (:func:`buildenv.defaults.default_week`).
@@ -513,8 +521,12 @@ def import_export(
     if options.stamped not in ("start", "end"):
         raise SiteError(f"stamped must be 'start' or 'end', got {options.stamped!r}")
     zone = _time_zone(options.time_zone) if options.time_zone else None
+    if bool(options.electricity_columns) != bool(electricity_end_uses):
+        raise SiteError(
+            "a second meter needs its columns (--electricity-column) and its end uses (--electricity-meter): give both"
+        )
 
-    monday, step, read, temperature, consumption, hour_line = _read_hourly(path, options, zone, weather)
+    monday, step, read, temperature, consumption, hour_line, electricity = _read_hourly(path, options, zone, weather)
     measured = np.flatnonzero(np.isfinite(temperature) | np.isfinite(consumption))
     if not measured.size:
         raise SiteError(
@@ -525,22 +537,30 @@ def import_export(
     measured = measured[(measured >= first_week * week) & (measured < (last_week + 1) * week)]
     keep = slice(first_week * week, (last_week + 1) * week)
     temperature, consumption, hour_line = temperature[keep], consumption[keep], hour_line[keep]
+    electricity = None if electricity is None else electricity[keep]
     start = monday + dt.timedelta(weeks=first_week)
     weeks = last_week - first_week + 1
-    sums = ", ".join(repr(c) for c in list(read)[1:]).replace("{", "{{").replace("}", "}}")
-    what, fix = f"the hourly sum of {sums}, {{:g}} kWh,", "check the columns' units, --unit COLUMN=UNIT"
-    _check_size(
-        path,
-        consumption,
-        hour_line,
-        floor_area_m2,
-        tuple(end_uses),
-        what,
-        fix,
-        indoor_c=temperature,
-        weather=weather,
-        start=start.date(),
-    )
+    second = set(options.electricity_columns)
+    for series, uses, names in (
+        (consumption, end_uses, [c for c in list(read)[1:] if c not in second]),
+        (electricity, electricity_end_uses, list(options.electricity_columns)),
+    ):
+        if series is None:
+            continue
+        sums = ", ".join(repr(c) for c in names).replace("{", "{{").replace("}", "}}")
+        what, fix = f"the hourly sum of {sums}, {{:g}} kWh,", "check the columns' units, --unit COLUMN=UNIT"
+        _check_size(
+            path,
+            series,
+            hour_line,
+            floor_area_m2,
+            tuple(uses),
+            what,
+            fix,
+            indoor_c=temperature,
+            weather=weather,
+            start=start.date(),
+        )
 
     filled = 0
     if options.fill_temperature_gaps:
@@ -575,6 +595,8 @@ def import_export(
         source=source,
         known=known,
         consumption_end_uses=tuple(end_uses),
+        electricity_kwh=None if electricity is None else electricity.reshape(weeks, week),
+        electricity_end_uses=tuple(electricity_end_uses),
     )
     return ImportReport(
         site=str(site),

@@ -8,7 +8,8 @@ Holds the file names (:data:`DESCRIPTOR`, ...), the CSV columns (:data:`MEASUREM
     site.toml          descriptor: name, weather (EPW short name or path), [geometry], optional effects, [known],
                        [meters], [bms], [source], measurements (file name, or a table: file, time_zone,
                        stamped, cumulative)
-    measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh   (hourly, whole weeks from a Monday)
+    measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh[,electricity_kwh]
+                       (hourly, whole weeks from a Monday)
     settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
     calibration.json   optional, written by calibration (:func:`buildenv.sites.writer.save_calibration`)
     truth.json         optional, true parameters of a synthetic stand-in site
@@ -25,6 +26,9 @@ Conventions:
   lists (default heating + lighting + plug loads; heating and cooling as energy delivered); it is compared with
   the sum of their outputs (:data:`buildenv.catalogue.END_USE_OUTPUTS`, Wh/m2 in the hour) times floor area /
   1000.
+- ``electricity_kwh`` (optional, with ``[meters] electricity``): a second meter, the energy used during the hour by
+  the end uses it lists (its own, none metered twice); calibration fits each meter (a site that meters heat and
+  electricity apart: ``consumption = ["heating"]``, ``electricity = ["lighting", "plug_loads"]``).
 - Missing rows and empty / ``NaN`` cells are gaps: the hour is NaN and masked, never interpolated.
   Temperature and consumption have separate masks.
 """
@@ -47,6 +51,8 @@ TRUTH_FILE = "truth.json"
 DEFAULT_MEASUREMENTS = "measurements.csv"
 DEFAULT_SETTINGS = "settings.csv"
 MEASUREMENT_COLUMNS: tuple[str, ...] = ("timestamp", "indoor_temperature_c", "heat_consumption_kwh")
+#: The optional second meter's column of ``measurements.csv`` (after :data:`MEASUREMENT_COLUMNS`).
+ELECTRICITY_COLUMN = "electricity_kwh"
 SETTINGS_COLUMNS: tuple[str, ...] = ("date", *cat.SETTING_NAMES)
 TOP_LEVEL_KEYS: tuple[str, ...] = (
     "name",
@@ -63,8 +69,9 @@ TOP_LEVEL_KEYS: tuple[str, ...] = (
 GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
 #: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
 KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
-#: Keys of ``[meters]``: ``consumption``, the end uses the consumption series sums.
-METER_KEYS: tuple[str, ...] = ("consumption",)
+#: Keys of ``[meters]``: ``consumption``, the end uses the consumption series sums; ``electricity``, those of the
+#: optional second meter (:data:`ELECTRICITY_COLUMN`).
+METER_KEYS: tuple[str, ...] = ("consumption", "electricity")
 #: Keys of a ``[measurements]`` table (``measurements`` may instead be the file name alone): ``file``, the CSV;
 #: ``time_zone``, the IANA zone whose clock (daylight saving included) the timestamps keep; ``stamped``,
 #: ``"start"`` (default) or ``"end"`` of the hour a row covers; ``cumulative``, the consumption column holds
@@ -111,6 +118,10 @@ class Site:
         consumption_end_uses: ``[meters] consumption``: the end uses (keys of
             :data:`buildenv.catalogue.END_USE_OUTPUTS`) the consumption series sums; default heating + lighting +
             plug loads.
+        electricity_kwh: the second meter's consumption (:attr:`electricity_end_uses`) in each hour, kWh,
+            ``(weeks, 168)``, NaN where missing; None: the site has one meter.
+        electricity_end_uses: ``[meters] electricity``: the end uses the second meter sums (none of
+            :attr:`consumption_end_uses`); empty without a second meter.
         controllable: ``[bms] controllable``: the settings (names of :data:`buildenv.catalogue.SETTING_NAMES`,
             catalogue order) the building's BMS can change; BuildingWeek-v0 and the optimisers act on these
             only, the others stay at the site's historical values. Default all 12.
@@ -133,6 +144,8 @@ class Site:
     known: dict[str, float] = field(default_factory=dict)
     effects: tuple[str, ...] = ()
     consumption_end_uses: tuple[str, ...] = cat.DEFAULT_END_USES
+    electricity_kwh: np.ndarray | None = None
+    electricity_end_uses: tuple[str, ...] = ()
     controllable: tuple[str, ...] = cat.SETTING_NAMES
     setting_limits: dict[str, tuple[float, float]] = field(default_factory=dict)
     calibration: dict | None = None
@@ -164,6 +177,15 @@ class Site:
         """Catalogue outputs the consumption series sums (those of :attr:`consumption_end_uses`), catalogue
         order."""
         return cat.consumption_outputs(self.consumption_end_uses)
+
+    def meters(self) -> list[tuple[str, np.ndarray, tuple[str, ...]]]:
+        """Every meter of the site, the consumption first: ``[(column, Wh/m2 in each hour (weeks, 168), catalogue
+        outputs it sums)]``."""
+        out = [(MEASUREMENT_COLUMNS[2], self.consumption_wh_m2(), self.consumption_outputs())]
+        if self.electricity_kwh is not None:
+            wh_m2 = self.electricity_kwh * 1000.0 / self.floor_area_m2
+            out.append((ELECTRICITY_COLUMN, wh_m2, cat.consumption_outputs(self.electricity_end_uses)))
+        return out
 
     def setting_ranges(self) -> tuple[np.ndarray, np.ndarray]:
         """``(lo, hi)``, each ``(12,)`` in catalogue order and units: the catalogue's range of every setting,

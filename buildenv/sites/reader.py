@@ -40,6 +40,7 @@ from buildenv.sites.model import (
     DEFAULT_MEASUREMENTS,
     DEFAULT_SETTINGS,
     DESCRIPTOR,
+    ELECTRICITY_COLUMN,
     GEOMETRY_KEYS,
     KNOWN_KEYS,
     MEASUREMENT_COLUMNS,
@@ -93,15 +94,17 @@ def load_site(path: str | os.PathLike) -> Site:
     desc = _read_descriptor(descriptor)
     measurements_path = _data_file(descriptor, desc, "measurements", DEFAULT_MEASUREMENTS)
     settings_path = _data_file(descriptor, desc, "settings", DEFAULT_SETTINGS)
-    start, temperature, consumption = _read_measurements(
+    start, temperature, consumption, electricity = _read_measurements(
         measurements_path,
         desc["floor_area_m2"],
         desc["measurement_options"],
         desc["consumption_end_uses"],
         desc["weather"],
+        desc["electricity_end_uses"],
     )
     settings = _read_settings(settings_path, start, temperature.shape[0])
-    for values, column in ((temperature, MEASUREMENT_COLUMNS[1]), (consumption, MEASUREMENT_COLUMNS[2])):
+    series = [(temperature, MEASUREMENT_COLUMNS[1]), (consumption, MEASUREMENT_COLUMNS[2])]
+    for values, column in series + ([(electricity, ELECTRICITY_COLUMN)] if electricity is not None else []):
         if not np.isfinite(values).any():
             log.warning("%s: column %s has no measured value", measurements_path, column)
     return Site(
@@ -118,6 +121,8 @@ def load_site(path: str | os.PathLike) -> Site:
         known=desc["known"],
         effects=desc["effects"],
         consumption_end_uses=desc["consumption_end_uses"],
+        electricity_kwh=electricity,
+        electricity_end_uses=desc["electricity_end_uses"],
         controllable=desc["controllable"],
         setting_limits=desc["setting_limits"],
         calibration=_upgraded(_read_json(folder / CALIBRATION_FILE)),
@@ -226,6 +231,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
             raise SiteError(f"{loc}: {exc}") from exc
 
     controllable, setting_limits = _read_bms(descriptor, text, data.get("bms", {}))
+    consumption_end_uses, electricity_end_uses = _read_meters(descriptor, text, data.get("meters", {}))
     options = _read_measurement_options(descriptor, text, data.get("measurements", DEFAULT_MEASUREMENTS))
     return {
         "measurement_options": options,
@@ -233,7 +239,8 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
         "setting_limits": setting_limits,
         "known": _read_known(descriptor, text, data.get("known", {})),
         "effects": _read_effects(descriptor, text, data.get("effects", [])),
-        "consumption_end_uses": _read_meters(descriptor, text, data.get("meters", {})),
+        "consumption_end_uses": consumption_end_uses,
+        "electricity_end_uses": electricity_end_uses,
         "name": data["name"].strip(),
         "weather": _resolve_weather(descriptor, text, data["weather"]),
         "floor_area_m2": float(area),
@@ -360,16 +367,27 @@ def check_end_uses(value: Any) -> tuple[str, ...]:
     return tuple(value)
 
 
-def _read_meters(descriptor: Path, text: str, table: Mapping[str, Any]) -> tuple[str, ...]:
-    """Validate ``[meters]`` (:func:`check_end_uses`), errors located at the key's line; without ``consumption``
-    the default :data:`buildenv.catalogue.DEFAULT_END_USES`."""
+def _read_meters(descriptor: Path, text: str, table: Mapping[str, Any]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """Validate ``[meters]`` (:func:`check_end_uses`), errors located at the key's line: ``(consumption end uses,
+    electricity end uses)``; without ``consumption`` the default :data:`buildenv.catalogue.DEFAULT_END_USES`,
+    without ``electricity`` none (one meter). No end use may be metered twice."""
     _reject_unknown_keys(descriptor, text, table, METER_KEYS, "meters")
-    if "consumption" not in table:
-        return cat.DEFAULT_END_USES
-    try:
-        return check_end_uses(table["consumption"])
-    except SiteError as exc:
-        raise SiteError(f"{_where(descriptor, text, 'consumption', 'meters')}: [meters] consumption: {exc}") from None
+    uses = {}
+    for key, default in (("consumption", cat.DEFAULT_END_USES), ("electricity", ())):
+        if key not in table:
+            uses[key] = default
+            continue
+        try:
+            uses[key] = check_end_uses(table[key])
+        except SiteError as exc:
+            raise SiteError(f"{_where(descriptor, text, key, 'meters')}: [meters] {key}: {exc}") from None
+    twice = [use for use in uses["electricity"] if use in uses["consumption"]]
+    if twice:
+        raise SiteError(
+            f"{_where(descriptor, text, 'electricity', 'meters')}: [meters] electricity: {', '.join(twice)} also in "
+            "consumption; a meter's end uses are its own: list each end use under the meter that reads it"
+        )
+    return uses["consumption"], uses["electricity"]
 
 
 def _unknown_setting(name: str) -> str:

@@ -5,7 +5,8 @@ shipped climate over one season (8 weeks by default) under a BMS history whose s
 (:func:`bms_history`), read as sensors into a site folder (:func:`buildenv.energyplus.reference.make_reference_site`).
 The climates run from hot (Miami) to cold (Denver); the seasons are a heating season from mid-January and a
 cooling season from July. A site's consumption meter sums the end uses of its season (:data:`SEASON_END_USES`):
-heating + lighting + plug loads, and cooling too in the cooling season.
+heating + lighting + plug loads, and cooling too in the cooling season; with ``meters="split"``
+(:data:`SPLIT_METERS`) the heat and the electricity are metered apart.
 
 **Held out.** The climates of :data:`HELD_OUT_CLIMATES` (both seasons, every building) are set aside before any
 tuning: figures meant to judge a model are reported on them apart from the development part. Newark is one of
@@ -57,6 +58,14 @@ SEASON_END_USES: dict[str, tuple[str, ...]] = {
     "heating": cat.DEFAULT_END_USES,
     "cooling": ("heating", "cooling", "lighting", "plug_loads"),
 }
+#: ``meters="split"``: season -> (the heat meter's end uses, the electricity meter's): a building that meters its
+#: heat (gas, district heat) apart from its electricity, the chillers on the electricity.
+SPLIT_METERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
+    "heating": (("heating",), ("lighting", "plug_loads")),
+    "cooling": (("heating",), ("cooling", "lighting", "plug_loads")),
+}
+#: How a suite's sites meter: ``one`` meter (:data:`SEASON_END_USES`) or heat and electricity ``split``.
+METERING = ("one", "split")
 SUITE_YEAR = 2019
 SUITE_WEEKS = 8
 MANIFEST = "suite.json"
@@ -85,6 +94,13 @@ class SuiteCase:
     def end_uses(self) -> tuple[str, ...]:
         """End uses the case's consumption meter sums (:data:`SEASON_END_USES`)."""
         return SEASON_END_USES[self.season]
+
+    def meters(self, metering: str = "one") -> tuple[tuple[str, ...], tuple[str, ...]]:
+        """``(the consumption meter's end uses, the electricity meter's)`` under ``metering`` (:data:`METERING`);
+        one meter: the second is empty."""
+        if metering not in METERING:
+            raise BuildenvError(f"metering {metering!r} is not one of {', '.join(METERING)}")
+        return SPLIT_METERS[self.season] if metering == "split" else (self.end_uses, ())
 
     def start(self, year: int = SUITE_YEAR) -> dt.date:
         """The first Monday of the season in ``year``."""
@@ -204,9 +220,11 @@ def reference_history(building: str, weeks: int, rng: np.random.Generator) -> np
     return bms_history(weeks, historical_ventilation_ach(building), rng, lowest_ach=lowest)
 
 
-def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_seed: int = 0) -> dict:
+def make_case(
+    case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_seed: int = 0, metering: str = "one"
+) -> dict:
     """Make one case's site folder ``<out>/<case.name>`` (or reuse it when it already loads with the case's
-    weeks, start and end uses).
+    weeks, start and meters, :meth:`SuiteCase.meters` under ``metering``).
 
     Returns:
         the case's record: its fields, ``part``, ``start``, ``meters`` (end uses), ``site`` (folder), ``status``
@@ -227,7 +245,8 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
         "part": case.part,
         "start": case.start().isoformat(),
         "weeks": weeks,
-        "meters": list(case.end_uses),
+        "meters": list(case.meters(metering)[0]),
+        **({"electricity_meter": list(case.meters(metering)[1])} if metering == "split" else {}),
         "site": str(folder),
     }
     started = time.perf_counter()
@@ -236,7 +255,8 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
         settings = reference_history(case.building, weeks, np.random.default_rng(case.seed(suite_seed)))
         if (folder / "site.toml").is_file():
             site = load_site(folder)
-            same = (site.weeks, site.start, site.consumption_end_uses) == (weeks, case.start(), case.end_uses)
+            metered = (site.consumption_end_uses, site.electricity_end_uses)
+            same = (site.weeks, site.start, metered) == (weeks, case.start(), case.meters(metering))
             same = same and stand_in_version(site) == STAND_IN_VERSION  # an earlier stand-in's site is made again
             # another history is made again (the supply air is what the building recorded)
             kept = [j for j, name in enumerate(cat.SETTING_NAMES) if name != "supply_air_c"]
@@ -251,7 +271,8 @@ def make_case(case: SuiteCase, out: str | Path, weeks: int = SUITE_WEEKS, suite_
             weeks,
             settings=settings,
             seed=case.seed(suite_seed),
-            end_uses=case.end_uses,
+            end_uses=case.meters(metering)[0],
+            electricity_end_uses=case.meters(metering)[1],
         )
         status = {"status": "made"}
     except BuildenvError as error:
@@ -272,6 +293,7 @@ def make_suite(
     workers: int | None = None,
     suite_seed: int = 0,
     progress: bool = True,
+    metering: str = "one",
 ) -> list[dict]:
     """Make the suite's site folders under ``out`` and write ``out/suite.json``.
 
@@ -282,6 +304,7 @@ def make_suite(
         workers: EnergyPlus processes side by side; default the CPU count.
         suite_seed: seed of the BMS histories and the sensor noise (each case draws its own from it).
         progress: a progress bar.
+        metering: ``one`` meter a site or heat and electricity ``split`` (:data:`METERING`).
     Returns:
         one record per case (:func:`make_case`), in the order of ``cases``; the manifest keeps every record,
         earlier ones of cases not in ``cases`` included.
@@ -291,7 +314,9 @@ def make_suite(
     cases = list(suite_cases() if cases is None else cases)
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    jobs = [(case, folder, weeks, suite_seed) for case in cases]
+    if metering not in METERING:
+        raise BuildenvError(f"metering {metering!r} is not one of {', '.join(METERING)}")
+    jobs = [(case, folder, weeks, suite_seed, metering) for case in cases]
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     records: list[dict] = []
     bar = tqdm(total=len(jobs), desc="suite", unit="site", disable=not progress)

@@ -28,6 +28,7 @@ from buildenv.sites.model import (
     DEFAULT_MEASUREMENTS,
     DEFAULT_SETTINGS,
     DESCRIPTOR,
+    ELECTRICITY_COLUMN,
     MEASUREMENT_COLUMNS,
     SETTINGS_COLUMNS,
     TRUTH_FILE,
@@ -111,6 +112,8 @@ def write_site(
     consumption_end_uses: tuple[str, ...] = cat.DEFAULT_END_USES,
     controllable: tuple[str, ...] = cat.SETTING_NAMES,
     setting_limits: Mapping[str, tuple[float, float]] | None = None,
+    electricity_kwh: np.ndarray | None = None,
+    electricity_end_uses: tuple[str, ...] = (),
 ) -> Path:
     """Write a site folder that :func:`buildenv.sites.load_site` reads back, then validate it by loading it.
 
@@ -140,6 +143,9 @@ def write_site(
             controllable`` unless all 12.
         setting_limits: ``{controllable setting: (min, max)}``, catalogue units
             (:attr:`buildenv.sites.Site.setting_limits`); written as ``[bms.limits]`` when given.
+        electricity_kwh: ``(weeks, 168)`` hourly consumption of a second meter, kWh, NaN where missing
+            (:attr:`buildenv.sites.Site.electricity_kwh`); None: one meter.
+        electricity_end_uses: end uses the second meter sums (with ``electricity_kwh``), written as ``[meters]``.
         truth: true parameters of a synthetic site, written as ``truth.json``.
 
     Returns:
@@ -161,6 +167,11 @@ def write_site(
     weeks = temperature.shape[0]
     if consumption.shape != temperature.shape:
         raise SiteError(f"write_site: consumption_kwh has shape {consumption.shape}, expected {temperature.shape}")
+    electricity = None if electricity_kwh is None else np.asarray(electricity_kwh, dtype=float)
+    if electricity is not None and electricity.shape != temperature.shape:
+        raise SiteError(f"write_site: electricity_kwh has shape {electricity.shape}, expected {temperature.shape}")
+    if (electricity is None) != (not electricity_end_uses):
+        raise SiteError("write_site: give electricity_kwh and electricity_end_uses together, or neither")
     if setting_values.shape != (weeks, 7, len(cat.SETTINGS)):
         raise SiteError(
             f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
@@ -174,8 +185,13 @@ def write_site(
     descriptor["geometry"] = {"floor_area_m2": _toml_number(floor_area_m2), "number_of_floors": int(number_of_floors)}
     if known:
         descriptor["known"] = {k: float(v) for k, v in known.items()}
+    meters: dict[str, list[str]] = {}
     if list(consumption_end_uses) != list(cat.DEFAULT_END_USES):
-        descriptor["meters"] = {"consumption": [str(u) for u in consumption_end_uses]}
+        meters["consumption"] = [str(u) for u in consumption_end_uses]
+    if electricity_end_uses:
+        meters["electricity"] = [str(u) for u in electricity_end_uses]
+    if meters:
+        descriptor["meters"] = meters
     bms: dict[str, Any] = {}
     if set(controllable) != set(cat.SETTING_NAMES) or len(controllable) != len(cat.SETTING_NAMES):
         bms["controllable"] = [str(n) for n in controllable]
@@ -187,12 +203,15 @@ def write_site(
         descriptor["source"] = _toml_plain(dict(source), "source")
     files = {DESCRIPTOR: tomli_w.dumps(descriptor)}
 
-    out = [",".join(MEASUREMENT_COLUMNS)]
+    columns = MEASUREMENT_COLUMNS + ((ELECTRICITY_COLUMN,) if electricity is not None else ())
+    out = [",".join(columns)]
     t_flat, q_flat = temperature.ravel(), consumption.ravel()
+    e_flat = None if electricity is None else electricity.ravel()
     first = dt.datetime.combine(start, dt.time())
     for h in range(weeks * cat.HOURS_PER_WEEK):
         stamp = first + dt.timedelta(hours=h)
-        out.append(f"{_fmt(stamp)},{_cell(t_flat[h], 3)},{_cell(q_flat[h], 4)}")
+        second = "" if e_flat is None else f",{_cell(e_flat[h], 4)}"
+        out.append(f"{_fmt(stamp)},{_cell(t_flat[h], 3)},{_cell(q_flat[h], 4)}{second}")
     files[DEFAULT_MEASUREMENTS] = "\n".join(out) + "\n"
 
     out = [",".join(SETTINGS_COLUMNS)]

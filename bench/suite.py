@@ -35,10 +35,9 @@ def _table(rows: list[dict]) -> list[str]:
     for r in rows:
         meters = ""
         if split:
-            meters = (
-                f" {r['cv_rmse_e_percent']:.1f} / {r['nmbe_e_percent']:.1f} |"
-                f" {r['cv_rmse_total_percent']:.1f} / {r['nmbe_total_percent']:.1f} |"
-            )
+            keys = ("cv_rmse_e", "nmbe_e", "cv_rmse_total", "nmbe_total")
+            cells = [r.get(f"{k}_percent", float("nan")) for k in keys]
+            meters = f" {cells[0]:.1f} / {cells[1]:.1f} | {cells[2]:.1f} / {cells[3]:.1f} |"
         lines.append(
             f"| {r['building']} {r['climate']} {r['season']} | {r['cv_rmse_q_percent']:.1f} | "
             f"{r['nmbe_q_percent']:.1f} |{meters} {r['r2_t']:.3f} | {r['rmse_t_celsius']:.2f} | "
@@ -66,7 +65,13 @@ def render(record: dict, random: int) -> list[str]:
         "",
         f"{len(made)} cases, {len(made) - len(refused)} sites made, {len(refused)} refused; held-out climates: "
         f"{', '.join(HELD_OUT_CLIMATES)}. Making took {record['make_seconds'] / 60:.1f} min (EnergyPlus, sites "
-        f"already made reused), calibrating {record['calibrate_seconds'] / 60:.1f} min. Guideline 14 hourly: "
+        f"already made reused), "
+        + (
+            "calibrations read back from an earlier run"
+            if record.get("calibrations_read_back")
+            else f"calibrating {record['calibrate_seconds'] / 60:.1f} min"
+        )
+        + ". Guideline 14 hourly: "
         f"CV(RMSE)_Q <= {GUIDELINE14_HOURLY_CV_PERCENT:.0f} % and |NMBE_Q| <= {GUIDELINE14_HOURLY_NMBE_PERCENT:.0f} %;"
         f" the tighter band: {TIGHT_CV_PERCENT:.0f} % and {TIGHT_NMBE_PERCENT:.0f} %. All figures on held-out weeks."
         + (
@@ -178,6 +183,11 @@ def main() -> None:
     p.add_argument(
         "--meters", default="one", choices=["one", "split"], help="one meter a site, or heat and electricity"
     )
+    p.add_argument(
+        "--calibrated",
+        action="store_true",
+        help="read the calibrations SUITE/calibration.json holds (an earlier run's) instead of calibrating again",
+    )
     p.add_argument("--name", default="suite")
     args = p.parse_args()
     if args.render:
@@ -190,9 +200,12 @@ def main() -> None:
     made = make_suite(args.suite, suite_cases(), workers=args.workers, metering=args.meters)
     make_seconds = time.perf_counter() - started
     started = time.perf_counter()
-    rows = calibrate_suite(
-        args.suite, checkpoint=args.checkpoint, max_evaluations=args.evaluations, prior=not args.no_prior
-    )
+    if args.calibrated:
+        rows = json.loads((Path(args.suite) / "calibration.json").read_text())["rows"]
+    else:
+        rows = calibrate_suite(
+            args.suite, checkpoint=args.checkpoint, max_evaluations=args.evaluations, prior=not args.no_prior
+        )
     calibrate_seconds = time.perf_counter() - started
     started = time.perf_counter()
     chosen = _nsga2_choice(args.generations) if args.generations else None
@@ -214,6 +227,7 @@ def main() -> None:
         "made": made,
         "make_seconds": round(make_seconds, 1),
         "calibrate_seconds": round(calibrate_seconds, 1),
+        "calibrations_read_back": args.calibrated,
         "response_seconds": round(time.perf_counter() - started, 1),
     }
     harness.write_results(args.name, render(record, args.random), record)

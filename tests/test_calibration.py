@@ -511,6 +511,27 @@ def test_a_site_metering_heat_and_electricity_apart_calibrates_on_both(tmp_path,
         cal.costs(problem, *(series[None] for series in cal.predict(problem, surrogate, params[0])))
 
 
+def test_a_meter_that_reads_one_value_throughout_is_refused_in_one_line(tmp_path, surrogate):
+    arrays = {
+        "settings": historical_settings(2),
+        "temperature_c": np.full((2, 168), 22.0),
+        "consumption_kwh": 20.0 + 10.0 * np.sin(np.arange(2 * 168) / 5.0).reshape(2, 168),
+    }
+    common = {"name": "s", "weather": "usa_il_chicago", "start": START, "floor_area_m2": 5000, "number_of_floors": 3}
+    site = write_site(
+        tmp_path / "gas",
+        **common,
+        **arrays,
+        consumption_end_uses=("lighting", "plug_loads"),
+        electricity_kwh=np.zeros((2, 168)),
+        electricity_end_uses=("heating",),
+    )
+    with pytest.raises(
+        cal.CalibrationError, match=r"electricity_kwh reads 0 kWh in every hour of the calibration weeks"
+    ):
+        calibrate_site(load_site(site), surrogate, save=False)
+
+
 def test_a_calibration_records_its_metamodel_and_using_it_with_another_is_warned_about(surrogate, caplog):
     from buildenv.env.building_week import DEFAULT_SITE
     from buildenv.sites.week_simulator import SiteModel

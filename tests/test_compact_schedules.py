@@ -56,5 +56,7 @@ def test_a_schedule_that_leaves_a_day_undefined_or_is_not_compact_is_refused():
     gap = ["Schedule:Compact", "gap", "Fraction", "Through: 6/30", "For: AllDays", "Until: 24:00", "1"]
     with pytest.raises(ReferenceBuildingError, match="gap gives no value for 01 July"):
         daily_means(gap, 2019)
+    with pytest.raises(ReferenceBuildingError, match="cannot read the field 'Through: 12/31/2019'"):
+        daily_means([*gap[:3], "Through: 12/31/2019", *gap[4:]], 2019)
     with pytest.raises(ReferenceBuildingError, match="only a Schedule:Compact"):
         daily_means(["Schedule:Constant", "c", "", "1"], 2019)

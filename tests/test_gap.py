@@ -201,6 +201,41 @@ def test_an_absent_day_is_simulated_without_occupants_and_found_from_both_series
     )
 
 
+def test_a_site_metering_heat_and_electricity_apart_is_diagnosed_on_its_meters_summed(tmp_path, calibrated, surrogate):
+    from buildenv.catalogue import OUTPUT_NAMES
+    from buildenv.diagnosis.refit import make_context, measured_consumption, metrics, predict
+
+    site, params = calibrated
+    problem = cal.build_problem(site, [0, 1], context_hours=surrogate.context_hours)
+    outputs, t, _ = cal.simulate(problem, surrogate, params[None])
+    heat = outputs[0][..., [OUTPUT_NAMES.index(n) for n in ("Q_HEAT_OFFICE", "Q_AHU_H")]].sum(-1)
+    power = outputs[0][..., [OUTPUT_NAMES.index(n) for n in ("Q_EQP", "Q_LIGHT")]].sum(-1)
+    kwh = site.floor_area_m2 / 1000.0
+    write_site(
+        tmp_path,
+        name="two meters",
+        weather=site.weather,
+        start=site.start,
+        floor_area_m2=site.floor_area_m2,
+        number_of_floors=site.number_of_floors,
+        settings=site.settings[:2],
+        temperature_c=t[0],
+        consumption_kwh=np.maximum(heat, 0.0) * kwh,  # a meter reads no negative heat
+        consumption_end_uses=("heating",),
+        electricity_kwh=power * kwh,
+        electricity_end_uses=("lighting", "plug_loads"),
+    )
+    split = load_site(tmp_path)
+    np.testing.assert_allclose(measured_consumption(split), np.maximum(heat, 0.0) + power, rtol=1e-3, atol=1e-3)
+    ctx = make_context(split, surrogate, DiagnosisSettings())
+    base = ModelFit((), params, np.zeros((2, 7)), 0.0, 0)
+    # the first week (the second's context holds the measured temperature, which this site took from the model)
+    t_model, q_model = predict(ctx, base, [0])
+    np.testing.assert_allclose(q_model, (heat + power)[:1], rtol=1e-4, atol=1e-4)
+    scores = metrics(ctx, base, [0], t_model, q_model)
+    assert abs(scores["nmbe_q_percent"]) < 0.5 and scores["r2_q"] > 0.99
+
+
 def test_wind_infiltration_is_a_quarter_while_the_air_handling_unit_runs_centred_on_the_reference_wind():
     # the DOE reference buildings' convention (and the stand-in's): a running air handling unit pressurises
     # the building, so only a quarter of the wind-driven infiltration is left; the term adds nothing where

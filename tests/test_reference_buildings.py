@@ -251,5 +251,9 @@ def test_a_data_centres_it_load_runs_steady_at_its_level_of_the_runs_first_day(t
         assert "For: summerdesignday" in schedule  # sized as the model was
         offices = {s for name, s in equipment.items() if not serves_24h_space(["ElectricEquipment", name])}
         assert "buildenv_steady_DataCenter_EQUIP_SCH" not in offices
+    # a site's building runs again, any week, with the level of the day its own run began
+    idf, _ = prepare_model(source, settings, dt.date(2019, 3, 4), tmp_path / "again", steady_day=dt.date(2019, 1, 7))
+    (schedule,) = [o for o in of_type(read_idf(idf), "Schedule:Compact") if o[1].startswith("buildenv_steady")]
+    assert set(daily_means(schedule, 2019)) == {0.25}
     idf, _ = prepare_model(source, settings, dt.date(2019, 1, 7), tmp_path / "v2", stand_in=2)
     assert "DataCenter_EQUIP_SCH" in {o[3] for o in of_type(read_idf(idf), "ElectricEquipment")}

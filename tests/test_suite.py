@@ -103,16 +103,16 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
     assert truth["stand_in"] == STAND_IN_VERSION
     (tmp_path / case.name / "truth.json").write_text(json.dumps({k: v for k, v in truth.items() if k != "stand_in"}))
     assert make_case(case, tmp_path, weeks=2)["status"] == "made"
-    # heat and electricity metered apart: the chillers on the electricity
+    # the heat and chilled water metered apart from the electricity
     split = make_case(case, tmp_path, weeks=2, metering="split")
-    assert split["status"] == "made" and split["electricity_meter"] == ["cooling", "lighting", "plug_loads"]
+    assert split["status"] == "made" and split["electricity_meter"] == ["lighting", "plug_loads"]
     site = load_site(split["site"])
     assert (
         (site.consumption_end_uses, site.electricity_end_uses)
         == case.meters("split")
         == (
-            ("heating",),
-            ("cooling", "lighting", "plug_loads"),
+            ("heating", "cooling"),
+            ("lighting", "plug_loads"),
         )
     )
     assert make_case(case, tmp_path, weeks=2, metering="split")["status"] == "reused"

@@ -133,6 +133,7 @@ def calibrate_site(
         temperature_before=surrogate.uses_temperature_before,
         metamodel=surrogate,
     )
+    _check_meters_vary(site, problem, fit_weeks)
     prior_record = None
     if method == "cmaes":
         best, info = calibrate_cmaes(problem, surrogate, seed, max_evaluations, progress=progress, restarts=restarts)
@@ -195,6 +196,19 @@ def calibrate_site(
 
         save_calibration(site.path, result)
     return result
+
+
+def _check_meters_vary(site, problem, fit_weeks: list[int]) -> None:
+    """A CalibrationError if a meter reads one value in every measured hour of the calibration weeks (a gas meter
+    in summer): an R2 against it is not defined."""
+    for (column, _, _), measured in zip(site.meters(), (problem.consumption_wh_m2, problem.electricity_wh_m2)):
+        values = measured[np.isfinite(measured)]
+        if values.size and np.ptp(values) == 0:
+            raise CalibrationError(
+                f"{site.path}: {column} reads {values[0] * site.floor_area_m2 / 1000:g} kWh in every hour of the "
+                f"calibration weeks {fit_weeks}: nothing to fit; leave that meter out of the site ([meters]) or "
+                "calibrate on weeks it varies"
+            )
 
 
 def _with_prior(problem, surrogate, best, info, seed, max_evaluations, restarts):

@@ -12,9 +12,10 @@ from a normal distribution centred on its range (the catalogue's within the meta
 channel is ``n / 2 * log(SSE)``, whose slope at the fit is ``n / (2 * cost)`` per unit of the paper's cost
 (``1 - R2``). Hourly residuals are not independent: ``n`` is the effective number of hours, the channel's hours
 divided by the integrated autocorrelation time of its residuals (:func:`effective_hours`). Averaged over the
-two channels, the prior enters the paper's cost as ``anchor * sum(dz ** 2)`` (``dz``: each parameter's distance
-from the centre of its range, as a share of the range) with ``anchor = 1 / (a * sd ** 2)``, ``a`` the mean of
-``n / cost`` over the channels, read off a first fit without the prior; the search under it starts from that fit.
+two channels (a site's meters averaged first), the prior enters the paper's cost as ``anchor * sum(dz ** 2)``
+(``dz``: each parameter's distance from the centre of its range, as a share of the range) with
+``anchor = 1 / (a * sd ** 2)``, ``a`` the mean of ``n / cost`` over the channels, read off a first fit without the
+prior; the search under it starts from that fit.
 """
 
 from __future__ import annotations
@@ -53,7 +54,8 @@ def prior_anchor(
     observed: list[np.ndarray], modelled: list[np.ndarray], sd_share: float = PRIOR_SD_SHARE
 ) -> tuple[float, dict]:
     """The prior's weight in the paper's cost (``anchor``, per squared share of a range) from each channel's
-    observed and modelled series at an unweighted fit (``[(weeks, 168)]``, temperature then consumption).
+    observed and modelled series at an unweighted fit (``[(weeks, 168)]``, temperature then each meter: a site's
+    meters share the consumption's half of the weight, as they share its term of the cost).
 
     Returns:
         ``(anchor, record)``: record holds ``sd_share``, ``anchor`` and per channel ``effective_hours`` and
@@ -69,5 +71,6 @@ def prior_anchor(
         n = effective_hours(residual)
         ratios.append(n / max(cost, 1e-6))
         channels.append({"effective_hours": round(n, 1), "cost": round(cost, 5)})
-    anchor = 1.0 / (float(np.mean(ratios)) * sd_share**2)
+    meters = float(np.mean(ratios[1:])) if len(ratios) > 1 else ratios[0]
+    anchor = 1.0 / (float(np.mean([ratios[0], meters])) * sd_share**2)
     return anchor, {"sd_share": sd_share, "anchor": round(anchor, 6), "channels": channels}

@@ -69,10 +69,11 @@ def _total_guideline14(site, surrogate, result: dict) -> dict[str, float]:
     from buildenv.calibration.problem import build_problem, calibrated_parameters, predict_meters
 
     weeks = result["heldout_weeks"]
+    effects = tuple(result.get("declared_effects", ()))
     problem = build_problem(
-        site, weeks, (), None, surrogate.context_hours, surrogate.uses_temperature_before, surrogate
+        site, weeks, effects, None, surrogate.context_hours, surrogate.uses_temperature_before, surrogate
     )
-    _, q, e = predict_meters(problem, surrogate, calibrated_parameters(result))
+    _, q, e = predict_meters(problem, surrogate, calibrated_parameters(result, effects))
     cv, nmbe = guideline14(problem.consumption_wh_m2 + problem.electricity_wh_m2, q + e)
     return {"cv_rmse_total_percent": round(cv, 2), "nmbe_total_percent": round(nmbe, 2)}
 
@@ -110,7 +111,12 @@ def calibrate_suite(
 
 
 def _tight(row: dict) -> bool:
-    return row["cv_rmse_q_percent"] <= TIGHT_CV_PERCENT and abs(row["nmbe_q_percent"]) <= TIGHT_NMBE_PERCENT
+    """Every meter of the row within the tighter band."""
+    return all(
+        row[f"cv_rmse_{m}_percent"] <= TIGHT_CV_PERCENT and abs(row[f"nmbe_{m}_percent"]) <= TIGHT_NMBE_PERCENT
+        for m in ("q", "e")
+        if f"cv_rmse_{m}_percent" in row
+    )
 
 
 def summarise(rows: Sequence[dict]) -> dict[str, dict]:

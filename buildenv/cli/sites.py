@@ -204,6 +204,9 @@ def _cmd_site_show(args: argparse.Namespace) -> int:
         "consumption_kwh_per_week": np.round(np.nansum(site.consumption_kwh, axis=1), 1).tolist(),
         "calibrated": site.calibration is not None,
     }
+    if site.electricity_kwh is not None:
+        info["electricity_hours"] = int(np.isfinite(site.electricity_kwh).sum())
+        info["electricity_kwh_per_week"] = np.round(np.nansum(site.electricity_kwh, axis=1), 1).tolist()
     print(dumps(info, where="the site summary", nonfinite="null", indent=2))
     return 0
 

@@ -72,11 +72,15 @@ def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
     if args.json:
         print(dumps({"rows": rows, "summary": summarise(rows)}, where="the suite calibration", nonfinite="null"))
         return 0
-    print(f"{'site':<52} {'part':<12} {'CV_Q %':>7} {'NMBE_Q %':>8} {'R2_T':>6} {'G14':>4} {'bounds':>6}")
+    split = any("cv_rmse_e_percent" in r for r in rows)  # a second meter: its columns too
+    second = f" {'CV_E %':>7} {'NMBE_E %':>8}" if split else ""
+    print(f"{'site':<52} {'part':<12} {'CV_Q %':>7} {'NMBE_Q %':>8}{second} {'R2_T':>6} {'G14':>4} {'bounds':>6}")
     for r in rows:
         name = f"{r['building']}-{r['climate']}-{r['season']}"
+        e = [r.get(k, float("nan")) for k in ("cv_rmse_e_percent", "nmbe_e_percent")]
+        second = f" {e[0]:>7.1f} {e[1]:>8.1f}" if split else ""
         print(
-            f"{name:<52} {r['part']:<12} {r['cv_rmse_q_percent']:>7.1f} {r['nmbe_q_percent']:>8.1f} "
+            f"{name:<52} {r['part']:<12} {r['cv_rmse_q_percent']:>7.1f} {r['nmbe_q_percent']:>8.1f}{second} "
             f"{r['r2_t']:>6.3f} {'yes' if r['guideline14'] else 'no':>4} {r['at_bounds']:>6}"
         )
     for part, s in summarise(rows).items():

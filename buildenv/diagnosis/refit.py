@@ -1,6 +1,9 @@
 """The models a diagnosis compares: the base calibration, each candidate's refit and its control, the models
 without a carried effect, and the days found absent.
 
+A site that meters heat and electricity apart is calibrated on both meters; the diagnosis reads its consumption as
+the meters summed (:func:`measured_consumption`), in its residuals, tests and metrics.
+
 A :class:`ModelFit` is a calibrated model, possibly extended with effects (:mod:`buildenv.diagnosis.model_effects`);
 a :class:`Context` holds what every model of one diagnosis shares (the site, the metamodel, the split, the settings
 and the residual scales).
@@ -187,9 +190,24 @@ def carried_trial(ctx: Context, current: ModelFit, control: ModelFit, effect: st
     return dataclasses.replace(best, effects=(*best.effects, effect), carried=(*best.carried, effect))
 
 
+def measured_consumption(site) -> np.ndarray:
+    """The consumption a diagnosis reads, Wh/m2 in each hour ``(weeks, 168)``: the site's meters summed (NaN where
+    one of them was not read)."""
+    return sum(wh_m2 for _, wh_m2, _ in site.meters())
+
+
+def _total(problem: cal.Problem, outputs: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The model's consumption over every meter of the problem's site: ``q`` plus the second meter's series."""
+    e = cal.electricity_series(problem, outputs)
+    return q if e is None else q + e
+
+
 def predict(ctx: Context, fit: ModelFit, weeks: list[int]) -> tuple[np.ndarray, np.ndarray]:
-    """Sensor temperature (degC) and consumption (Wh/m2) ``(weeks, 168)`` of a model on some site weeks."""
-    return cal.predict(problem_for(ctx, fit, weeks), ctx.surrogate, fit.params)
+    """Sensor temperature (degC) and consumption (Wh/m2, every meter summed) ``(weeks, 168)`` of a model on some
+    site weeks."""
+    problem = problem_for(ctx, fit, weeks)
+    out, t, q = cal.simulate(problem, ctx.surrogate, fit.params[None])
+    return t[0], _total(problem, out, q)[0]
 
 
 def standardised_residuals(ctx: Context, weeks: list[int], t: np.ndarray, q: np.ndarray) -> dict[str, np.ndarray]:
@@ -197,7 +215,7 @@ def standardised_residuals(ctx: Context, weeks: list[int], t: np.ndarray, q: np.
     deviation on the fit weeks; NaN where nothing was measured."""
     return {
         "temperature": (ctx.site.temperature_c[weeks] - t) / ctx.sigma[0],
-        "consumption": (ctx.site.consumption_wh_m2()[weeks] - q) / ctx.sigma[1],
+        "consumption": (measured_consumption(ctx.site)[weeks] - q) / ctx.sigma[1],
     }
 
 
@@ -215,9 +233,10 @@ def detect_absent_days(ctx: Context, fit: ModelFit, weeks: list[int]) -> np.ndar
         absent = np.zeros((ctx.site.weeks, 7))
         if d >= 0:
             absent[:, d] = 1.0
-        _, t, q = cal.simulate(problem_for(ctx, fit, weeks, absent), ctx.surrogate, fit.params[None])
-        runs.append((t[0].reshape(shape), q[0].reshape(shape)))
-    measured = (ctx.site.temperature_c[weeks], ctx.site.consumption_wh_m2()[weeks])
+        problem = problem_for(ctx, fit, weeks, absent)
+        out, t, q = cal.simulate(problem, ctx.surrogate, fit.params[None])
+        runs.append((t[0].reshape(shape), _total(problem, out, q)[0].reshape(shape)))
+    measured = (ctx.site.temperature_c[weeks], measured_consumption(ctx.site)[weeks])
     terms = []  # per series: residual and an absent day's change, standardised, (weeks, weekdays, 24)
     for j, (y, sigma) in enumerate(zip(measured, ctx.sigma)):
         y = y.reshape(shape)[:, :n_days]
@@ -348,7 +367,12 @@ def with_heldout_absences(ctx: Context, fit: ModelFit) -> ModelFit:
 
 
 def metrics(ctx: Context, fit: ModelFit, weeks: list[int], t: np.ndarray, q: np.ndarray) -> dict:
+    """:func:`buildenv.calibration.problem.score_series` of a model's temperature and consumption (every meter
+    summed, as :func:`predict` gives it) on some site weeks."""
     problem = problem_for(ctx, fit, weeks)
+    problem = dataclasses.replace(
+        problem, consumption_wh_m2=measured_consumption(ctx.site)[weeks], electricity_wh_m2=None
+    )
     out = cal.score_series(problem, t, q, fit.params, ctx.scale)
     return {k: (round(v, 5) if isinstance(v, float) else v) for k, v in out.items()}
 
@@ -367,7 +391,8 @@ def make_context(site, surrogate: sg.Surrogate, settings: DiagnosisSettings) -> 
             )
     fit_weeks, heldout = split_weeks(site.weeks, settings.split)
     ctx = Context(site, surrogate, fit_weeks, heldout, settings)
-    ctx.scale = cal._scale(cal.build_problem(site, fit_weeks))
+    problem = cal.build_problem(site, fit_weeks)
+    ctx.scale = cal._scale(dataclasses.replace(problem, consumption_wh_m2=measured_consumption(site)[fit_weeks]))
     return ctx
 
 
@@ -376,7 +401,8 @@ def residual_sigma(ctx: Context, fit: ModelFit) -> tuple[float, float]:
     units the diagnosis standardises every residual in (1 where a series has no spread or nothing measured)."""
     t, q = predict(ctx, fit, ctx.fit_weeks)
     out = []
-    for residual in (ctx.site.temperature_c[ctx.fit_weeks] - t, ctx.site.consumption_wh_m2()[ctx.fit_weeks] - q):
+    measured = measured_consumption(ctx.site)[ctx.fit_weeks]
+    for residual in (ctx.site.temperature_c[ctx.fit_weeks] - t, measured - q):
         sd = float(np.nanstd(residual)) if np.isfinite(residual).any() else 0.0
         out.append(sd if sd > 0 else 1.0)
     return out[0], out[1]

@@ -14,7 +14,7 @@ from buildenv.calibration import problem as cal
 from buildenv.calibration.verdict import calibration_verdict
 from buildenv.diagnosis import rules
 from buildenv.diagnosis.effects import get_effect
-from buildenv.diagnosis.refit import Context, ModelFit, predict, problem_for
+from buildenv.diagnosis.refit import Context, ModelFit, measured_consumption, predict, problem_for
 
 #: Keys of ``calibration.json`` that describe the calibrated model's fit, kept only under ``without_effects`` once the
 #: extended model is saved (:func:`save_extended_model`).
@@ -102,7 +102,7 @@ def localise_site(ctx: Context, fit: ModelFit, plot: str | Path | None = None) -
     occupied = np.asarray(occupied)
     result = localise(
         ctx.site.temperature_c,
-        ctx.site.consumption_wh_m2(),
+        measured_consumption(ctx.site),
         t,
         q,
         ctx.site.weather_hours(),
@@ -112,7 +112,7 @@ def localise_site(ctx: Context, fit: ModelFit, plot: str | Path | None = None) -
     )
     if plot is not None:
         result["plot"] = str(
-            plot_localisation(result, plot, ctx.site.temperature_c, ctx.site.consumption_wh_m2(), t, q, occupied)
+            plot_localisation(result, plot, ctx.site.temperature_c, measured_consumption(ctx.site), t, q, occupied)
         )
     return result
 

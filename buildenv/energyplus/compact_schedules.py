@@ -35,25 +35,21 @@ def _periods(schedule: IdfObject) -> list[tuple[tuple[int, int], list[tuple[list
         field = raw.strip()
         keyword = _KEYWORD.match(field)
         kind, rest = (keyword.group(1).lower(), keyword.group(2).strip()) if keyword else ("", field)
-        if kind == "through":
-            month, day = (int(p) for p in rest.split("/"))
-            periods.append(((month, day), []))
-        elif kind == "for":
-            if not periods:
-                raise ReferenceBuildingError(f"Schedule:Compact {schedule[1]}: 'For:' before any 'Through:'")
-            periods[-1][1].append((rest.lower().split(), []))
-        elif kind == "until":
-            hours, minutes = (int(p) for p in rest.split(":"))
-            periods[-1][1][-1][1].append([hours + minutes / 60.0, np.nan])
-        elif kind == "interpolate" or not field:
+        if kind == "interpolate" or not field:
             continue
-        else:
-            try:
+        try:
+            if kind == "through":
+                month, day = (int(p) for p in rest.split("/"))
+                periods.append(((month, day), []))
+            elif kind == "for":
+                periods[-1][1].append((rest.lower().split(), []))
+            elif kind == "until":
+                hours, minutes = (int(p) for p in rest.split(":"))
+                periods[-1][1][-1][1].append([hours + minutes / 60.0, np.nan])
+            else:
                 periods[-1][1][-1][1][-1][1] = float(field)
-            except (IndexError, ValueError) as error:
-                raise ReferenceBuildingError(
-                    f"Schedule:Compact {schedule[1]}: cannot read the field '{field}'"
-                ) from error
+        except (IndexError, ValueError) as error:  # a malformed field, or one before what it belongs to
+            raise ReferenceBuildingError(f"Schedule:Compact {schedule[1]}: cannot read the field '{field}'") from error
     return periods
 
 

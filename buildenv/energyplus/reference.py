@@ -25,7 +25,8 @@ The two sensors (:func:`read_sensors`): the occupied-zone mean air temperature (
 multipliers counted) and the consumption, kWh per hour: the EnergyPlus meters of the site's end uses
 (:data:`END_USE_METERS`; default heating + lighting + plug loads), the counterpart of the model's outputs of
 those end uses (:data:`buildenv.catalogue.END_USE_OUTPUTS`). The HVAC energy (heating + cooling coils, no
-noise), for verifying optimised settings, is the counterpart of :data:`buildenv.catalogue.HVAC_OUTPUTS`.
+noise), for verifying optimised settings, is the counterpart of :data:`buildenv.catalogue.HVAC_OUTPUTS`. A site
+that meters heat and electricity apart has a second consumption series, the meters of its own end uses.
 
 Sensor noise (seeded, :func:`add_sensor_noise`): temperature ``N(0, 0.1 K)`` with a 0.1 K resolution (a
 class-B Pt1000 read by a BMS); consumption ``N(0, 1 %)`` multiplicative with a 0.1 kWh meter resolution.
@@ -79,8 +80,10 @@ REFERENCE_BUILDINGS: dict[str, tuple[str, int]] = {
 SCHEDULE_ROLES = ("heating_setpoint", "cooling_setpoint", "hvac_availability", "outdoor_air")
 #: How the stand-in maps a site's settings onto its model, recorded in a site's ``truth.json`` (``stand_in``; none:
 #: 1): 1, the model's infiltration on its own clock; 2, infiltration it cuts while its fans run follows the site's
-#: ventilation hours.
+#: ventilation hours; 3, the equipment of 24/7 spaces held steady (:func:`steady_24h_equipment`).
 STAND_IN_VERSION = 3
+#: warm-up weeks of the run that makes a stand-in site (:func:`make_reference_site`)
+SITE_WARMUP_WEEKS = 1
 #: Settings the stand-in's schedules do not map: they do not act on the reference model.
 UNMAPPED_SETTINGS: tuple[str, ...] = ("supply_air_c",)
 #: End use (:data:`buildenv.catalogue.END_USE_OUTPUTS`) -> (EnergyPlus meter the stand-in's consumption sums,
@@ -197,6 +200,12 @@ def detect_schedule_map(objects: list[IdfObject]) -> ScheduleMap:
     return found
 
 
+def site_steady_day(site) -> dt.date:
+    """The day whose level a stand-in site's 24/7 equipment holds in every run of its building: the first day of the
+    run that made it (:func:`make_reference_site`: a warm-up week before its first measured week)."""
+    return site.start - dt.timedelta(weeks=SITE_WARMUP_WEEKS)
+
+
 def stand_in_version(site) -> int:
     """The version of the stand-in's mapping a site was made with (``truth.json``'s ``stand_in``; 1 where it names
     none: sites made before versions were recorded), see :data:`STAND_IN_VERSION`.
@@ -299,6 +308,7 @@ def prepare_model(
     effects: Sequence[InjectedEffect] = (),
     epw: Path | None = None,
     stand_in: int = STAND_IN_VERSION,
+    steady_day: dt.date | None = None,
 ) -> tuple[Path, ScheduleMap]:
     """Write the edited IDF and its Schedule:File for a run of ``len(settings)`` weeks from ``first_day``.
 
@@ -306,7 +316,8 @@ def prepare_model(
     are injected into the model (:func:`buildenv.energyplus.injections.inject_energyplus`); none gives the model of
     a run without effects, unchanged. ``epw`` (an EPW path) is needed by ``heating_capacity_limit``, whose
     design capacities come from a sizing run in ``workdir/sizing``. ``stand_in``: the mapping's version
-    (:data:`STAND_IN_VERSION`).
+    (:data:`STAND_IN_VERSION`). ``steady_day``: the day whose level the equipment of 24/7 spaces holds
+    (:func:`steady_24h_equipment`; default ``first_day``).
 
     Returns the IDF path and the schedule map used. Raises :class:`ReferenceBuildingError` if a role has no schedule
     or ``stand_in`` is not a known version.
@@ -376,7 +387,7 @@ def prepare_model(
             o = [o[0]] + [rename.get(f.lower(), f) for f in o[1:]]
         edited.append(o)
     if stand_in >= 3:
-        edited = steady_24h_equipment(edited, first_day)
+        edited = steady_24h_equipment(edited, steady_day or first_day)
     if epw is not None:
         edited = climate_design_days(edited, epw)
     sim = of_type(edited, "SimulationControl")
@@ -684,6 +695,7 @@ def run_reference(
     end_uses: Sequence[str] = cat.DEFAULT_END_USES,
     stand_in: int = STAND_IN_VERSION,
     electricity_end_uses: Sequence[str] = (),
+    steady_day: dt.date | None = None,
 ) -> ReferenceRun:
     """Run a reference building for ``len(settings)`` measured weeks from ``start`` (a Monday).
 
@@ -701,6 +713,8 @@ def run_reference(
         effect_seed: seed of the effects' random choices (holiday dates).
         end_uses: end uses the consumption sums (keys of :data:`END_USE_METERS`).
         electricity_end_uses: end uses a second meter sums (none: one meter).
+        steady_day: the day whose level the equipment of 24/7 spaces holds (version 3; default the run's first
+            day): a site's building runs again with its own, :func:`site_steady_day`.
         stand_in: the version of the stand-in's mapping (:data:`STAND_IN_VERSION`; a site's own, to run it again).
     Returns:
         the :class:`ReferenceRun` of the measured weeks (true readings, no noise).
@@ -720,7 +734,15 @@ def run_reference(
         work = Path(workdir) if workdir else Path(tmp)
         weather = resolve_epw(epw)
         idf, _ = prepare_model(
-            source, full, first_day, work, schedule_map, effects=planned, epw=weather, stand_in=stand_in
+            source,
+            full,
+            first_day,
+            work,
+            schedule_map,
+            effects=planned,
+            epw=weather,
+            stand_in=stand_in,
+            steady_day=steady_day,
         )
         occupied = sorted({o[2] for o in of_type(read_idf(idf), "People")})
         try:
@@ -807,14 +829,19 @@ def make_reference_site(
     The site's ``[bms]`` declares what the stand-in maps (:func:`reference_bms`).
 
     Raises:
-        SiteError: ``end_uses`` is empty, repeats one or names one that is not an end use.
+        SiteError: ``end_uses`` is empty, repeats one or names one that is not an end use, or shares one with
+            ``electricity_end_uses``.
         ReferenceBuildingError: as :func:`run_reference`.
     """
+    from buildenv.errors import SiteError
     from buildenv.sites import write_site
     from buildenv.sites.reader import check_end_uses
 
     end_uses = check_end_uses(list(end_uses))
     electricity_end_uses = check_end_uses(list(electricity_end_uses)) if electricity_end_uses else ()
+    twice = [use for use in electricity_end_uses if use in end_uses]
+    if twice:
+        raise SiteError(f"electricity_end_uses: {', '.join(twice)} also in end_uses: each end use on one meter")
 
     if floors is None:
         if str(building) not in REFERENCE_BUILDINGS:
@@ -833,6 +860,7 @@ def make_reference_site(
         effect_seed=effect_seed,
         end_uses=end_uses,
         electricity_end_uses=electricity_end_uses,
+        warmup_weeks=SITE_WARMUP_WEEKS,
     )
     temperature, consumption, *electricity = add_sensor_noise(run, seed)
     if record_supply_air and run.supply_air_c is not None:  # what its BMS logs: its own, not mapped

@@ -36,7 +36,14 @@ def reference_building(site) -> str:
 
 
 def _run_one(
-    building: str, epw: str, monday: dt.date, settings: np.ndarray, previous: np.ndarray, stand_in: int, schedule_map
+    building: str,
+    epw: str,
+    monday: dt.date,
+    settings: np.ndarray,
+    previous: np.ndarray,
+    stand_in: int,
+    schedule_map,
+    steady_day: dt.date,
 ) -> tuple[np.ndarray, np.ndarray, float]:
     from buildenv.energyplus.reference import run_reference
 
@@ -49,6 +56,7 @@ def _run_one(
         warmup_weeks=1,
         schedule_map=schedule_map,
         stand_in=stand_in,
+        steady_day=steady_day,
     )
     return run.temperature_c[1], run.hvac_kwh[1], run.floor_area_m2
 
@@ -77,11 +85,12 @@ def run_weeks(
     settings = np.asarray(settings, dtype=float)
     hist = np.asarray(site.settings[0] if historical is None else historical, dtype=float)
     prev = np.broadcast_to(hist, settings.shape) if previous is None else np.asarray(previous, dtype=float)
-    from buildenv.energyplus.reference import recorded_schedule_map, stand_in_version
+    from buildenv.energyplus.reference import recorded_schedule_map, site_steady_day, stand_in_version
 
-    version, mapping = stand_in_version(site), recorded_schedule_map(site)
+    version, mapping, steady = stand_in_version(site), recorded_schedule_map(site), site_steady_day(site)
     jobs = [
-        (building, site.weather, monday, settings[i], prev[i], version, mapping) for i, monday in enumerate(week_starts)
+        (building, site.weather, monday, settings[i], prev[i], version, mapping, steady)
+        for i, monday in enumerate(week_starts)
     ]
     workers = max(1, min(len(jobs), workers or os.cpu_count() or 1))
     if workers == 1:

@@ -183,6 +183,9 @@ def _columns(path: Path, header: list[str], options: ImportOptions) -> list[tupl
     energy = ("energy", "power")
     chosen = [_pick(path, header, name, "", "--consumption-column", set()) for name in options.consumption_columns]
     second = [_pick(path, header, name, "", "--electricity-column", set()) for name in options.electricity_columns]
+    both = [header[i] for i in second if i in chosen]
+    if both:
+        raise SiteError(f"{path}:1: column {both[0]!r} given to both meters: name each column once")
     if not chosen:
         for i, name in enumerate(header):
             unit = _unit_of(path, name, options.units, energy)
@@ -525,6 +528,9 @@ def import_export(
         raise SiteError(
             "a second meter needs its columns (--electricity-column) and its end uses (--electricity-meter): give both"
         )
+    twice = [use for use in electricity_end_uses if use in end_uses]
+    if twice:
+        raise SiteError(f"--electricity-meter: {', '.join(twice)} also in --meter: each end use on one meter")
 
     monday, step, read, temperature, consumption, hour_line, electricity = _read_hourly(path, options, zone, weather)
     measured = np.flatnonzero(np.isfinite(temperature) | np.isfinite(consumption))

@@ -120,10 +120,12 @@ def _read_measurements(
     columns = _check_measurement_header(path, first[1])
     meters = columns[2:]
     if bool(electricity_end_uses) != (ELECTRICITY_COLUMN in meters):
-        raise SiteError(
-            f"{path}:1: a column {ELECTRICITY_COLUMN} and [meters] electricity go together: add both (the end uses "
-            "the second meter sums in site.toml) or neither"
+        has, lacks = (
+            (f"a column {ELECTRICITY_COLUMN}", "site.toml has no [meters] electricity (the end uses it sums)")
+            if ELECTRICITY_COLUMN in meters
+            else ("no column " + ELECTRICITY_COLUMN, "site.toml's [meters] electricity names a second meter")
         )
+        raise SiteError(f"{path}:1: {has}, but {lacks}: give both, or neither")
 
     lines: list[int] = []
     stamps: list[dt.datetime] = []

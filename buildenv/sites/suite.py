@@ -6,7 +6,7 @@ shipped climate over one season (8 weeks by default) under a BMS history whose s
 The climates run from hot (Miami) to cold (Denver); the seasons are a heating season from mid-January and a
 cooling season from July. A site's consumption meter sums the end uses of its season (:data:`SEASON_END_USES`):
 heating + lighting + plug loads, and cooling too in the cooling season; with ``meters="split"``
-(:data:`SPLIT_METERS`) the heat and the electricity are metered apart.
+(:data:`SPLIT_METERS`) the heat (and chilled water) and the electricity are metered apart.
 
 **Held out.** The climates of :data:`HELD_OUT_CLIMATES` (both seasons, every building) are set aside before any
 tuning: figures meant to judge a model are reported on them apart from the development part. Newark is one of
@@ -58,11 +58,11 @@ SEASON_END_USES: dict[str, tuple[str, ...]] = {
     "heating": cat.DEFAULT_END_USES,
     "cooling": ("heating", "cooling", "lighting", "plug_loads"),
 }
-#: ``meters="split"``: season -> (the heat meter's end uses, the electricity meter's): a building that meters its
-#: heat (gas, district heat) apart from its electricity, the chillers on the electricity.
+#: ``meters="split"``: season -> (the thermal meter's end uses, the electricity meter's): a building that meters the
+#: heat (and chilled water) its plant delivers apart from the electricity of its lights and plug loads.
 SPLIT_METERS: dict[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
     "heating": (("heating",), ("lighting", "plug_loads")),
-    "cooling": (("heating",), ("cooling", "lighting", "plug_loads")),
+    "cooling": (("heating", "cooling"), ("lighting", "plug_loads")),
 }
 #: How a suite's sites meter: ``one`` meter (:data:`SEASON_END_USES`) or heat and electricity ``split``.
 METERING = ("one", "split")

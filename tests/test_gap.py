@@ -157,6 +157,12 @@ def test_each_effect_moves_the_prediction_the_expected_way(calibrated, surrogate
     assert check({"t": t1 - t0, "q": q1 - q0})
 
 
+def _two_weeks_of(site) -> dict:
+    """``write_site``'s arguments of a site in ``site``'s building and weather over its first two weeks."""
+    keys = ("weather", "start", "floor_area_m2", "number_of_floors")
+    return {**{k: getattr(site, k) for k in keys}, "settings": site.settings[:2]}
+
+
 def test_an_absent_day_is_simulated_without_occupants_and_found_from_both_series(tmp_path, calibrated, surrogate):
     from buildenv.diagnosis.refit import ModelFit, detect_absent_days, make_context
     from buildenv.diagnosis.score import days_lacking
@@ -181,11 +187,7 @@ def test_an_absent_day_is_simulated_without_occupants_and_found_from_both_series
     write_site(
         tmp_path,
         name="absent",
-        weather=site.weather,
-        start=site.start,
-        floor_area_m2=site.floor_area_m2,
-        number_of_floors=site.number_of_floors,
-        settings=site.settings[:2],
+        **_two_weeks_of(site),
         temperature_c=t_abs[0] + 0.1 * rng.standard_normal(t_abs[0].shape),
         consumption_kwh=measured_q * site.floor_area_m2 / 1000.0,
     )
@@ -214,11 +216,7 @@ def test_a_site_metering_heat_and_electricity_apart_is_diagnosed_on_its_meters_s
     write_site(
         tmp_path,
         name="two meters",
-        weather=site.weather,
-        start=site.start,
-        floor_area_m2=site.floor_area_m2,
-        number_of_floors=site.number_of_floors,
-        settings=site.settings[:2],
+        **_two_weeks_of(site),
         temperature_c=t[0],
         consumption_kwh=np.maximum(heat, 0.0) * kwh,  # a meter reads no negative heat
         consumption_end_uses=("heating",),

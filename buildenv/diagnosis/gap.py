@@ -75,7 +75,9 @@ def diagnose(
         weeks cannot tell about (``{effect: why}``, the third answer, per effect); ``effects``
         the first step's candidates, best held-out gain first (:func:`candidate_entry`), ``steps`` every step's;
         ``heldout_before``/``heldout_after``, when an effect is selected, the held-out metrics without and with the
-        selected effects; ``model["at_bounds"]`` the extended model's parameters at a bound.
+        selected effects (a site with two meters: on their sum, and ``heldout_meters`` the extended model's per
+        meter, :func:`buildenv.calibration.problem.score_weeks`); ``model["at_bounds"]`` the extended model's
+        parameters at a bound.
     Raises:
         buildenv.diagnosis.effects.EffectError: an unknown candidate or base effect, or holidays as a base effect.
         buildenv.calibration.problem.CalibrationError: the site has fewer than 2 weeks.
@@ -170,6 +172,11 @@ def diagnose(
                     else without_carried_effect(ctx, before, name)
                 )
         _, result["heldout_before"], result["heldout_after"] = heldout_score(ctx, before, current, 1)
+        if ctx.site.electricity_kwh is not None:  # the saved model is judged meter by meter, as calibration judges it
+            scale = cal._scale(cal.build_problem(ctx.site, ctx.fit_weeks))
+            result["heldout_meters"] = cal.score_weeks(
+                ctx.site, ctx.surrogate, ctx.heldout, current.params, scale, current.model_effects, current.absent
+            )
     if localisation:
         result["localisation"] = localise_site(ctx, base, plot)
     result["seconds"] = round(time.perf_counter() - started, 1)

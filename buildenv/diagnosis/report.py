@@ -154,7 +154,7 @@ def save_extended_model(site, result: dict) -> Path | None:
         "metamodel_id": result.get("metamodel_id"),
         "without_effects": previous,
     }
-    if "heldout_after" in result:
-        extended["heldout"] = result["heldout_after"]
+    if "heldout_after" in result:  # a site with two meters: each meter's figures (the diagnosis read their sum)
+        extended["heldout"] = result.get("heldout_meters", result["heldout_after"])
     extended["verdict"] = calibration_verdict(extended)
     return save_calibration(site.path, extended)

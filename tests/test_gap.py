@@ -34,6 +34,10 @@ from buildenv.sites.week_simulator import SiteModel
 MODEL_EFFECTS = [e for e in EFFECTS if e != "holidays"]
 
 
+#: the outputs a heat meter and an electricity meter read
+HEAT_AND_POWER = (("Q_HEAT_OFFICE", "Q_AHU_H"), ("Q_EQP", "Q_LIGHT"))
+
+
 @pytest.fixture(scope="module")
 def surrogate():
     return load_metamodel("diagnosis")
@@ -210,8 +214,7 @@ def test_a_site_metering_heat_and_electricity_apart_is_diagnosed_on_its_meters_s
     site, params = calibrated
     problem = cal.build_problem(site, [0, 1], context_hours=surrogate.context_hours)
     outputs, t, _ = cal.simulate(problem, surrogate, params[None])
-    heat = outputs[0][..., [OUTPUT_NAMES.index(n) for n in ("Q_HEAT_OFFICE", "Q_AHU_H")]].sum(-1)
-    power = outputs[0][..., [OUTPUT_NAMES.index(n) for n in ("Q_EQP", "Q_LIGHT")]].sum(-1)
+    heat, power = (outputs[0][..., [OUTPUT_NAMES.index(n) for n in names]].sum(-1) for names in HEAT_AND_POWER)
     kwh = site.floor_area_m2 / 1000.0
     write_site(
         tmp_path,
@@ -336,6 +339,39 @@ def test_diagnosis_names_an_injected_sensor_bias_and_saves_the_extended_model(tm
     assert calibration["verdict"]["judged_on"] == "heldout" and {"fit", "run_costs"}.isdisjoint(calibration)
     assert calibration["without_effects"]["fit"] == {"cv_rmse_q_percent": 99.0}
     assert calibration["cost"] == pytest.approx(fit.cost)
+
+
+def test_a_two_meter_site_is_diagnosed_on_their_sum_and_its_extended_model_judged_meter_by_meter(
+    tmp_path, calibrated, surrogate
+):
+    from buildenv.catalogue import OUTPUT_NAMES
+
+    site, params = calibrated
+    weeks = list(range(4))
+    problem = cal.build_problem(site, weeks, context_hours=surrogate.context_hours)
+    outputs, t, _ = cal.simulate(problem, surrogate, params[None])
+    rng = np.random.default_rng(0)
+    kwh = site.floor_area_m2 / 1000.0 * (1 + 0.01 * rng.standard_normal(t[0].shape))
+    meters = [outputs[0][..., [OUTPUT_NAMES.index(n) for n in names]].sum(-1) for names in HEAT_AND_POWER]
+    write_site(
+        tmp_path,
+        name="two meters, a sensor 3 K high",
+        **{**_two_weeks_of(site), "settings": site.settings[:4]},
+        temperature_c=t[0] + 3.0 + 0.1 * rng.standard_normal(t[0].shape),
+        consumption_kwh=np.maximum(meters[0], 0.0) * kwh,
+        consumption_end_uses=("heating",),
+        electricity_kwh=meters[1] * kwh,
+        electricity_end_uses=("lighting", "plug_loads"),
+    )
+    split = load_site(tmp_path)
+    settings = DiagnosisSettings(candidates=("temperature_sensor_bias",), evaluations=300, base_evaluations=800)
+    result = diagnose(split, surrogate, settings)
+    assert result["selected"] == ["temperature_sensor_bias"]
+    assert {"cv_rmse_q_percent", "cv_rmse_e_percent"} <= set(result["heldout_meters"])
+    split.calibration = {"method": "cmaes", "cost": 9.9}
+    calibration = json.loads(save_extended_model(split, result).read_text())
+    assert calibration["heldout"] == pytest.approx(result["heldout_meters"])
+    assert "electricity CV(RMSE)" in calibration["verdict"]["line"]
 
 
 def test_a_candidate_is_credited_only_with_what_its_own_parameters_add():

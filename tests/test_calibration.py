@@ -83,7 +83,9 @@ def _synthetic_site(
     t, q = cal.predict(problem, surrogate, params)
     q_kwh = q * site.floor_area_m2 / 1000.0
     if noise_seed is not None:
-        t, q_kwh = add_sensor_noise(SimpleNamespace(temperature_c=t, consumption_kwh=q_kwh), noise_seed)
+        t, q_kwh = add_sensor_noise(
+            SimpleNamespace(temperature_c=t, consumption_kwh=q_kwh, electricity_kwh=None), noise_seed
+        )
     if gaps is not None:
         t, q_kwh = t.copy(), q_kwh.copy()
         t[gaps], q_kwh[gaps] = np.nan, np.nan

@@ -766,7 +766,7 @@ def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, ...]:
     rng = np.random.default_rng(seed)
     t = run.temperature_c + rng.normal(0.0, TEMPERATURE_NOISE_K, run.temperature_c.shape)
     t = np.round(t / TEMPERATURE_RESOLUTION_K) * TEMPERATURE_RESOLUTION_K
-    meters = [run.consumption_kwh] + [m for m in [getattr(run, "electricity_kwh", None)] if m is not None]
+    meters = [run.consumption_kwh] + ([] if run.electricity_kwh is None else [run.electricity_kwh])
     out = [t]
     for kwh in meters:
         q = kwh * (1.0 + rng.normal(0.0, CONSUMPTION_NOISE_FRACTION, kwh.shape))

@@ -73,6 +73,12 @@ MANIFEST = "suite.json"
 CASE_FIELDS: tuple[str, ...] = ("building", "climate", "season", "part", "site")
 
 
+def _check_metering(metering: str) -> None:
+    """A BuildenvError unless ``metering`` is one of :data:`METERING`."""
+    if metering not in METERING:
+        raise BuildenvError(f"metering {metering!r} is not one of {', '.join(METERING)}")
+
+
 @dataclass(frozen=True)
 class SuiteCase:
     """One site of the suite: a reference office in a climate over a season."""
@@ -98,8 +104,7 @@ class SuiteCase:
     def meters(self, metering: str = "one") -> tuple[tuple[str, ...], tuple[str, ...]]:
         """``(the consumption meter's end uses, the electricity meter's)`` under ``metering`` (:data:`METERING`);
         one meter: the second is empty."""
-        if metering not in METERING:
-            raise BuildenvError(f"metering {metering!r} is not one of {', '.join(METERING)}")
+        _check_metering(metering)
         return SPLIT_METERS[self.season] if metering == "split" else (self.end_uses, ())
 
     def start(self, year: int = SUITE_YEAR) -> dt.date:
@@ -314,8 +319,7 @@ def make_suite(
     cases = list(suite_cases() if cases is None else cases)
     folder = Path(out)
     folder.mkdir(parents=True, exist_ok=True)
-    if metering not in METERING:
-        raise BuildenvError(f"metering {metering!r} is not one of {', '.join(METERING)}")
+    _check_metering(metering)
     jobs = [(case, folder, weeks, suite_seed, metering) for case in cases]
     workers = max(1, min(workers or os.cpu_count() or 1, len(jobs)))
     records: list[dict] = []

@@ -3,8 +3,9 @@
 Occupancy-following periods with deep setbacks: on working days heating comfort (22.5 degC, the comfort
 target) starts one hour before the calibrated arrival and stops one hour before departure (the building
 coasts), cooling comfort (24 degC) and ventilation (1.0 air change per hour, 19 degC supply) cover the
-occupied hours; setbacks are 17 degC (heating) and 30 degC (cooling). On weekends every period is as short
-as the catalogue allows (the BMS has no "off" day), with 22 degC heating comfort and 0.7 air changes per hour.
+occupied hours; setbacks are 17 degC (heating) and 30 degC (cooling). Weekends are set back entirely
+(``hvac_operating`` 0); where the environment cannot act on that (a metamodel that knows operating days only), every
+weekend period is as short as the catalogue allows, with 22 degC heating comfort and 0.7 air changes per hour.
 Every value is snapped into the catalogue range by the action encoding.
 """
 
@@ -21,6 +22,7 @@ WORKDAY = {
     "cooling_setback_c": 30.0,
     "supply_air_c": 19.0,
     "ventilation_ach": 1.0,
+    "hvac_operating": 1.0,
 }
 WEEKEND = {
     "heating_comfort_c": 22.0,
@@ -29,11 +31,12 @@ WEEKEND = {
     "cooling_setback_c": 30.0,
     "supply_air_c": 19.0,
     "ventilation_ach": 0.7,
+    "hvac_operating": 0.0,
 }
 
 
 def rule_based_settings(occupancy: np.ndarray) -> np.ndarray:
-    """Settings ``(7, 12)`` that follow the weekday occupancy ``(5, 2)`` (arrival, departure hours)."""
+    """Settings ``(7, 13)`` that follow the weekday occupancy ``(5, 2)`` (arrival, departure hours)."""
     settings = np.zeros((len(cat.DAYS), len(cat.SETTINGS)))
     col = {name: j for j, name in enumerate(cat.SETTING_NAMES)}
     for d in range(len(cat.DAYS)):

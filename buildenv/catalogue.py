@@ -12,7 +12,7 @@ Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to cal
     extensive quantities are per m2 of floor area, so one model covers offices of any size. Ranges are taken
     from practice (the ASHRAE 90.1 2004-2019 reference offices) and are wide enough for the six shipped
     reference offices.
-``settings`` (I_k, per day of the week: 12 settings x 7 days = 84 values a week)
+``settings`` (I_k, per day of the week: 13 settings x 7 days = 91 values a week)
     Heating, cooling and ventilation schedules and setpoints of the building management system (BMS).
 ``occupancy`` (O_k, per weekday Monday-Friday: 2 x 5 = 10 values a week)
     Arrival and departure hours; weekends are unoccupied.
@@ -518,6 +518,18 @@ SETTINGS: tuple[Variable, ...] = (
         "outdoor air damper or flow set point, which a BMS sets between the ASHRAE 62.1 minimum and the design).",
         "vol_ventilation_day",
     ),
+    _v(
+        "hvac_operating",
+        "settings",
+        "-",
+        0,
+        1,
+        1,
+        D,
+        "1: the day's heating, cooling and ventilation periods run as set; 0: the whole day is held at the setbacks "
+        "with the air handling unit off (a weekend or holiday shutdown).",
+        "(day in occupied mode)",
+    ),
 )
 
 OCCUPANCY: tuple[Variable, ...] = (
@@ -709,7 +721,7 @@ def weekly_names(group: str) -> tuple[str, ...]:
     """Flat names of one week's values of a per-day or per-weekday group, day-major.
 
     ``weekly_names("settings")`` gives ``("cooling_start_hour_monday", ..., "ventilation_ach_sunday")``
-    (84 names); ``weekly_names("occupancy")`` gives the 10 Monday-Friday names.
+    (91 names); ``weekly_names("occupancy")`` gives the 10 Monday-Friday names.
     """
     variables = GROUPS[group]
     if variables[0].granularity is Granularity.PER_DAY:
@@ -809,6 +821,7 @@ _WALLS = ("north", "east", "south", "west")
 _VENTILATION_BY_0_3 = (0.1, 1.6, 0.3)  # the outdoor air grid before the 0.05 1/h step: 0.1, 0.4, ..., 1.6
 _THETA_BEFORE_ECONOMISER = tuple(v.name for v in THETA_BUILD if v.name != "economiser_share")
 _THETA_BEFORE_MINIMUM_SUPPLY = tuple(n for n in _THETA_BEFORE_ECONOMISER if n != "minimum_supply_air_ach")
+_NO_DAY_OFF = {"hvac_operating": (1.0, 1.0, 1.0)}  # every day in occupied mode, before days could be set back
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
 EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     "bf68f6178dc1d1b3": EarlierCatalogue(
@@ -828,6 +841,7 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             *(f"window_to_wall_{w}_percent" for w in _WALLS),
         ),
         ranges={
+            **_NO_DAY_OFF,
             "floor_area_m2": (1000.0, 50000.0, 1000.0),
             "infiltration_ach": (0.1, 0.5, 0.1),
             "capacitance_kj_per_k_m3": (50.0, 300.0, 10.0),
@@ -852,31 +866,33 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     # supply air from 18 degC
     "11c21d55c2939cd8": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
-        ranges={"supply_air_c": (18.0, 26.0, 0.5), "ventilation_ach": _VENTILATION_BY_0_3},
+        ranges={**_NO_DAY_OFF, "supply_air_c": (18.0, 26.0, 0.5), "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
     ),
     # no minimum supply air flow: 100 % outdoor air units only
     "6f2f25c1acea3f20": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
-        ranges={"ventilation_ach": _VENTILATION_BY_0_3},
+        ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
     ),
     # no economiser: the fan coils cool mechanically only
     "bda1c8ff3b9294aa": EarlierCatalogue(
         theta_names=_THETA_BEFORE_ECONOMISER,
-        ranges={"ventilation_ach": _VENTILATION_BY_0_3},
+        ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={"economiser_share": 0.0},
     ),
     # outdoor air by 0.3 air changes per hour
     "88d16120a6d2221f": EarlierCatalogue(
         theta_names=THETA_NAMES,
-        ranges={"ventilation_ach": _VENTILATION_BY_0_3},
+        ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
         implied={},
     ),
+    # no day set back entirely: every day ran its heating, cooling and ventilation periods
+    "d40fb58bb6ff03a6": EarlierCatalogue(theta_names=THETA_NAMES, ranges=dict(_NO_DAY_OFF), renamed={}, implied={}),
 }
 
 
@@ -895,6 +911,23 @@ def upgrade_theta(values: Mapping[str, float]) -> dict[str, float]:
         for name, value in earlier.implied.items():
             out.setdefault(name, value)
     return out
+
+
+def upgrade_settings(settings) -> np.ndarray:
+    """Settings ``(..., 12)`` written before ``hvac_operating`` existed, with every day in occupied mode (1), as
+    ``(..., 13)``; settings of this catalogue pass unchanged (as float arrays).
+
+    Raises:
+        CatalogueError: the last axis is neither length.
+    """
+    arr = np.asarray(settings, dtype=float)
+    n = len(SETTINGS)
+    if arr.shape[-1:] == (n,):
+        return arr
+    if arr.shape[-1:] == (n - 1,) and SETTING_NAMES[-1] == "hvac_operating":
+        return np.concatenate([arr, np.ones((*arr.shape[:-1], 1))], axis=-1)
+    got = arr.shape[-1] if arr.ndim else 0
+    raise CatalogueError(f"settings have {got} values a day; expected {n} ({', '.join(SETTING_NAMES)})")
 
 
 def describe(groups: Iterable[str] | None = None) -> list[dict]:

@@ -55,6 +55,7 @@ DEFAULT_DAY_SETTINGS: dict[str, float] = {
     "ventilation_end_hour": 19,
     "supply_air_c": 19,
     "ventilation_ach": 1.0,
+    "hvac_operating": 1,
 }
 
 DEFAULT_OCCUPANCY_DAY: dict[str, float] = {"occupancy_start_hour": 8, "occupancy_end_hour": 18}
@@ -66,7 +67,7 @@ def default_theta() -> np.ndarray:
 
 
 def default_week(weeks: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Historical settings ``(weeks, 7, 12)`` and occupancy ``(weeks, 5, 2)`` of the default building."""
+    """Historical settings ``(weeks, 7, 13)`` and occupancy ``(weeks, 5, 2)`` of the default building."""
     day = np.array([DEFAULT_DAY_SETTINGS[n] for n in cat.SETTING_NAMES], dtype=float)
     occ = np.array([DEFAULT_OCCUPANCY_DAY[n] for n in cat.OCCUPANCY_NAMES], dtype=float)
     settings = np.tile(day, (weeks, 7, 1))

@@ -4,7 +4,8 @@ The same function feeds EnergyPlus (through Schedule:File columns) and the metam
 so the simulator and the metamodel always see identical hourly schedules.
 
 Conventions: a week starts Monday 00:00; hour ``h`` of a day covers ``[h, h+1)``. A period "from start to
-end" is in force for hours ``start <= h < end``. Weekends are unoccupied. Where a day's heating setpoint
+end" is in force for hours ``start <= h < end``; on a day whose ``hvac_operating`` is 0 no period is in force (the
+setbacks hold all day, the air handling unit is off). Weekends are unoccupied. Where a day's heating setpoint
 in force would not be below its cooling setpoint (the catalogue ranges overlap: heating comfort 22-24 degC,
 cooling comfort 20-24 degC), the cooling setpoint is raised to heating + ``DEADBAND_K``, as a BMS
 interlock does; the encoded cooling setpoint is the one in force.
@@ -45,13 +46,14 @@ def hourly_schedules(settings: np.ndarray, occupancy: np.ndarray) -> dict[str, n
     """Expand daily settings and weekday occupancy into hourly series.
 
     Args:
-        settings: I_k, shape ``(weeks, 7, 12)`` (day, setting in catalogue order), physical units.
+        settings: I_k, shape ``(weeks, 7, 13)`` (day, setting in catalogue order), physical units; ``(weeks, 7, 13)``
+            from before ``hvac_operating`` reads every day as operating.
         occupancy: O_k, shape ``(weeks, 5, 2)`` (weekday, [start hour, end hour]).
 
     Returns:
         ``{channel: array (weeks, 168)}`` for every name in :data:`HOURLY_CHANNELS`.
     """
-    settings = np.asarray(settings, dtype=float)
+    settings = cat.upgrade_settings(settings)
     occupancy = np.asarray(occupancy, dtype=float)
     if settings.ndim == 2:
         settings = settings[None]
@@ -62,9 +64,10 @@ def hourly_schedules(settings: np.ndarray, occupancy: np.ndarray) -> dict[str, n
     def col(name: str) -> np.ndarray:
         return settings[..., _index(name, "settings")]
 
-    heat_on = _period_mask(col("heating_start_hour"), col("heating_end_hour"))
-    cool_on = _period_mask(col("cooling_start_hour"), col("cooling_end_hour"))
-    vent_on = _period_mask(col("ventilation_start_hour"), col("ventilation_end_hour"))
+    day_on = (col("hvac_operating") >= 0.5)[..., None]
+    heat_on = _period_mask(col("heating_start_hour"), col("heating_end_hour")) & day_on
+    cool_on = _period_mask(col("cooling_start_hour"), col("cooling_end_hour")) & day_on
+    vent_on = _period_mask(col("ventilation_start_hour"), col("ventilation_end_hour")) & day_on
     heat_sp = np.where(heat_on, col("heating_comfort_c")[..., None], col("heating_setback_c")[..., None])
     cool_sp = np.where(cool_on, col("cooling_comfort_c")[..., None], col("cooling_setback_c")[..., None])
     cool_sp = np.maximum(cool_sp, heat_sp + DEADBAND_K)

@@ -15,8 +15,8 @@ from agents.report import markdown_table
 from agents.rules import rule_based_action, rule_based_settings
 from buildenv import catalogue as cat
 
-# the default site's BMS changes 11 of the 12 settings (not the supply air), each day of the week
-N_ACTION = 7 * 11
+# the default site's BMS changes 12 of the 13 settings (not the supply air), each day of the week
+N_ACTION = 7 * 12
 
 WEEK = 46
 
@@ -59,6 +59,7 @@ def test_rule_based_schedule_follows_occupancy(env):
     col = cat.SETTING_NAMES.index
     assert (s[:5, col("heating_start_hour")] == 7).all() and (s[:5, col("ventilation_end_hour")] == 18).all()
     assert (s[:, col("heating_setback_c")] == 17).all()
+    assert (s[:5, col("hvac_operating")] == 1).all() and (s[5:, col("hvac_operating")] == 0).all()  # weekends off
     action = rule_based_action(env)
     assert action.shape == (N_ACTION,) and np.abs(action).max() <= 1.0
 

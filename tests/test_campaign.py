@@ -54,7 +54,7 @@ def test_dataset_contents(small_dataset):
         assert ds.outputs.shape == (4, 168, len(cat.OUTPUT_NAMES))
         assert ds.weather.shape == (4, 168, len(cat.WEATHER_NAMES))
         assert (
-            ds.settings.shape == (4, 7, 12)
+            ds.settings.shape == (4, 7, 13)
             and ds.occupancy.shape == (4, 5, 2)
             and ds.theta.shape == (4, len(cat.THETA_BUILD))
         )

@@ -24,11 +24,11 @@ def test_group_sizes_match_the_paper():
     assert len(cat.THETA_BUILD) == 23
     assert {"lighting_power_w_m2", "heat_recovery_effectiveness", "plug_load_w_m2"} <= set(cat.THETA_NAMES)
     assert "pc_density_per_m2" not in cat.THETA_NAMES
-    assert len(cat.SETTINGS) == 12
+    assert len(cat.SETTINGS) == 13 and cat.SETTING_NAMES[-1] == "hvac_operating"  # + a day set back entirely
     assert len(cat.OCCUPANCY) == 2
     assert len(cat.WEATHER) == 9
     assert len(cat.OUTPUTS) == 8
-    assert len(cat.ALL_VARIABLES) == 23 + 12 + 2 + 9 + 8
+    assert len(cat.ALL_VARIABLES) == 23 + 13 + 2 + 9 + 8
     assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
 
 
@@ -184,7 +184,7 @@ def test_check_values_checks_each_column_and_shape():
 
 def test_bounds_follow_catalogue_order():
     lo, hi = cat.bounds("settings")
-    assert lo.shape == hi.shape == (12,)
+    assert lo.shape == hi.shape == (13,)
     assert lo[cat.SETTING_NAMES.index("heating_comfort_c")] == 22.0
     assert hi[cat.SETTING_NAMES.index("ventilation_ach")] == 1.7
 
@@ -290,13 +290,13 @@ def test_from_mapping_rejects_out_of_range():
 def test_weekly_names_sizes_and_order():
     settings = cat.weekly_names("settings")
     occupancy = cat.weekly_names("occupancy")
-    assert len(settings) == 84 and len(set(settings)) == 84
+    assert len(settings) == 91 and len(set(settings)) == 91
     assert len(occupancy) == 10 and len(set(occupancy)) == 10
     # day-major: all of Monday's settings first, in catalogue order, then Tuesday's ...
-    assert settings[:12] == tuple(f"{n}_monday" for n in cat.SETTING_NAMES)
-    assert settings[12] == "cooling_start_hour_tuesday"
+    assert settings[:13] == tuple(f"{n}_monday" for n in cat.SETTING_NAMES)
+    assert settings[13] == "cooling_start_hour_tuesday"
     assert settings[0] == "cooling_start_hour_monday"
-    assert settings[-1] == "ventilation_ach_sunday"
+    assert settings[-1] == "hvac_operating_sunday"
     assert occupancy == (
         "occupancy_start_hour_monday",
         "occupancy_end_hour_monday",
@@ -309,8 +309,8 @@ def test_weekly_names_sizes_and_order():
         "occupancy_start_hour_friday",
         "occupancy_end_hour_friday",
     )
-    # the flat order matches a C-order reshape of (7, 12) arrays
-    idx = np.arange(84).reshape(7, 12)
+    # the flat order matches a C-order reshape of (7, 13) arrays
+    idx = np.arange(91).reshape(7, 13)
     assert settings[idx[3, 7]] == f"{cat.SETTING_NAMES[7]}_{cat.DAYS[3]}"
 
 
@@ -333,8 +333,10 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
     # the catalogue widened: each earlier range lies inside this one's
     for name, (lo, hi, _) in earlier.ranges.items():
         var = cat.get(name)
-        assert var.min <= lo < hi <= var.max, name
+        assert var.min <= lo <= hi <= var.max, name
     assert earlier.ranges["ventilation_ach"] == (0.7, 1.7, 0.3)
+    # no earlier catalogue set a day back entirely: a metamodel of one knows operating days only
+    assert all(e.ranges["hvac_operating"] == (1.0, 1.0, 1.0) for e in cat.EARLIER_CATALOGUES.values())
 
 
 def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
@@ -368,14 +370,13 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
 def test_shipped_checkpoints_read_through_their_earlier_catalogues():
     from buildenv.metamodel.surrogate import load_metamodel
 
-    default = load_metamodel()
-    # trained on outdoor air by 0.3 1/h: the same variables, read as this catalogue's
-    assert default.earlier is cat.EARLIER_CATALOGUES["88d16120a6d2221f"] and default.earlier.same_variables
-    assert default.implied == {} and default.domain["ventilation_ach"] == (0.1, 1.6)  # its grid's last point
+    default = load_metamodel()  # of this catalogue: every range its own, days set back entirely included
+    assert default.earlier is None and default.implied == {}
+    assert default.domain["hvac_operating"] == (0.0, 1.0) and default.domain["ventilation_ach"] == (0.1, 1.7)
     surrogate = load_metamodel("diagnosis")
     assert surrogate.checkpoint.metadata["catalogue_hash"] in cat.EARLIER_CATALOGUES
     assert surrogate.earlier is cat.EARLIER_CATALOGUES[surrogate.checkpoint.metadata["catalogue_hash"]]
-    assert surrogate.domain["ventilation_ach"] == (0.7, 1.7)
+    assert surrogate.domain["ventilation_ach"] == (0.7, 1.7) and surrogate.domain["hvac_operating"] == (1.0, 1.0)
     assert surrogate.domain["floor_area_m2"] == (1000.0, 50000.0)
     assert set(surrogate.domain) == set(cat.THETA_NAMES) | set(cat.SETTING_NAMES)
     assert surrogate.implied == cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"].implied

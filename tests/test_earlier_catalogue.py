@@ -95,6 +95,8 @@ def test_a_limit_outside_the_metamodels_range_is_no_action_and_snapping_stays_in
     historical[:, cat.SETTING_NAMES.index("ventilation_ach")] = 0.4
     actions = act.ActionMap.for_site(_Limited(), shipped.domain, historical)
     assert actions.size == 77 and not any(n.startswith("ventilation_ach") for n in actions.names())
+    # it knows operating days only: a day set back entirely is no action with it either
+    assert not any(n.startswith("hvac_operating") for n in actions.names())
     settings, _ = actions.decode(-np.ones(actions.size))
     assert set(settings[:, cat.SETTING_NAMES.index("ventilation_ach")]) == {0.4}  # held at its history
     assert set(settings[:, cat.SETTING_NAMES.index("heating_comfort_c")]) == {22.5}  # the grid point inside

@@ -166,6 +166,23 @@ def test_ahu_runs_only_in_ventilation_hours(chicago_january):
     assert np.all(out[off, OUT["Q_AHU_H"]] == 0) and np.all(out[off, OUT["Q_AHU_C"]] == 0)
 
 
+def test_a_weekend_set_back_entirely_saves_heating_and_holds_the_setback(chicago_january):
+    operating, _ = chicago_january
+    settings, occupancy = default_week()
+    settings[0, 5:, cat.SETTING_NAMES.index("hvac_operating")] = 0  # Saturday and Sunday off
+    off = simulate_weeks({**DEFAULT_THETA, "heating_power_w_m2": 100}, settings, occupancy, "usa_il_chicago", JANUARY)
+    out = off.outputs[0]
+    weekend = slice(5 * 24, 7 * 24)
+    assert out[weekend, OUT["Q_AHU_H"]].sum() == 0 and out[weekend, OUT["Q_AHU_C"]].sum() == 0
+    heating = (out[:, OUT["Q_HEAT_OFFICE"]] + out[:, OUT["Q_AHU_H"]]).sum()
+    assert heating < 0.95 * (operating[:, OUT["Q_HEAT_OFFICE"]] + operating[:, OUT["Q_AHU_H"]]).sum()
+    # the zone cools towards the heating setback, which holds it
+    setback = cat.get("heating_setback_c").snap(settings[0, 5, cat.SETTING_NAMES.index("heating_setback_c")])
+    assert out[weekend, OUT["T_INT_OFFICE"]].min() >= setback - 0.5
+    midday = [24 * d + h for d in (5, 6) for h in range(10, 17)]  # the heating comfort period, were it operating
+    assert operating[midday, OUT["T_INT_OFFICE"]].min() > 21.9 and out[midday, OUT["T_INT_OFFICE"]].max() < 21.5
+
+
 def test_same_inputs_give_identical_outputs():
     a = _week("usa_ca_san_francisco", 10)[0]
     b = _week("usa_ca_san_francisco", 10)[0]

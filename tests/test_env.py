@@ -14,8 +14,8 @@ from buildenv.env.building_week import BuildingWeekEnv, BuildingWeekVectorEnv, s
 from buildenv.env.observations import observation_size
 from buildenv.errors import BuildingEnvError
 
-# the default site's BMS changes 11 of the 12 settings (not the supply air), each day of the week
-N_ACTION = 7 * 11
+# the default site's BMS changes 12 of the 13 settings (not the supply air), each day of the week
+N_ACTION = 7 * 12
 
 
 @pytest.fixture(scope="module")
@@ -58,12 +58,14 @@ def test_historical_settings_score_one_and_round_trip(env):
 
 
 def test_actions_are_snapped_clipped_and_nan_is_an_error():
-    settings, clipped = act.decode(np.full(84, 3.0))
-    assert clipped == 84
+    settings, clipped = act.decode(np.full(91, 3.0))
+    assert clipped == 91
     assert np.allclose(settings[0, 0], 9.0)  # cooling_start_hour at its maximum
-    settings, _ = act.decode(np.full(84, 0.03))  # between grid points: snapped onto the catalogue step
+    settings, _ = act.decode(np.full(91, 0.03))  # between grid points: snapped onto the catalogue step
     assert set(np.unique(settings[:, 0])) <= {7.0, 8.0, 9.0}
-    bad = np.zeros(84)
+    assert set(np.unique(settings[:, -1])) == {1.0}  # hvac_operating: operating above the middle, else set back
+    assert set(np.unique(act.decode(np.full(91, -0.03))[0][:, -1])) == {0.0}
+    bad = np.zeros(91)
     bad[5] = np.nan
     with pytest.raises(BuildingEnvError, match="heating_end_hour_monday"):
         act.decode(bad)
@@ -164,10 +166,10 @@ def test_only_the_settings_the_building_can_act_on_are_actions():
     limited = dataclasses.replace(site, controllable=controllable, setting_limits={"ventilation_ach": (0.7, 1.0)})
     env = gym.make("BuildingWeek-v0", site=limited)
     base = env.unwrapped
-    assert env.action_space.shape == (77,) and "supply_air_c_monday" not in base.action_names
+    assert env.action_space.shape == (84,) and "supply_air_c_monday" not in base.action_names
     supply, vent = cat.SETTING_NAMES.index("supply_air_c"), cat.SETTING_NAMES.index("ventilation_ach")
     for a in (-1.0, 1.0):
-        settings = base.decode(np.full(77, a, np.float32))
+        settings = base.decode(np.full(84, a, np.float32))
         np.testing.assert_array_equal(settings[:, supply], site.settings[0][:, supply])  # the historical value
         assert set(settings[:, vent]) == {0.7 if a < 0 else 1.0}  # within the site's limits
     np.testing.assert_array_equal(base.decode(base.historical_action), site.settings[0])

@@ -23,7 +23,7 @@ from buildenv.sites import load_site
 from buildenv.sites.library import LIBRARY_FILES, LIBRARY_INDEX, SHIPPED_LIBRARY, common_limits, read_library
 from buildenv.sites.suite import write_manifest
 
-N_ACTION = 7 * 11  # the default site's BMS changes 11 of the 12 settings
+N_ACTION = 7 * 12  # the default site's BMS changes 12 of the 13 settings
 NEWARK = "medium_office-usa_nj_newark-heating"
 TRAIN = ("medium_office-usa_co_denver-cooling", "medium_office-usa_il_chicago-heating")
 
@@ -231,7 +231,7 @@ def test_sites_with_different_action_spaces_are_refused_in_one_line(two_sites, t
         BuildingWeekEnv(site=[two_sites[0], str(fewer)])
     message = str(error.value)
     assert "\n" not in message and "site 'fewer' gives another action space than site 'chicago'" in message
-    assert "acts on 10 settings (70 actions)" in message and "lacks ventilation_ach" in message
+    assert "acts on 11 settings (77 actions)" in message and "lacks ventilation_ach" in message
 
 
 def test_sites_with_different_action_ranges_are_refused_in_one_line(two_sites, tmp_path):

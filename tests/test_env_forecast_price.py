@@ -18,7 +18,7 @@ from buildenv.env import tariff as tar
 from buildenv.env.observations import forecast
 from buildenv.errors import BuildingEnvError
 
-N_ACTION = 7 * 11  # the default site's 11 controllable settings, each day
+N_ACTION = 7 * 12  # the default site's 12 controllable settings, each day
 BOTH = {"forecast_noise": 2.0, "price": "tou"}
 
 

@@ -266,17 +266,19 @@ def _expected_measurements(raw: bytes, desc: dict, settings_days: int) -> tuple[
 
 
 def _expected_settings(rows: list[list[str]], start: dt.date, weeks: int) -> np.ndarray:
-    values = np.empty((weeks * 7, len(cat.SETTINGS)))
+    values = np.ones((weeks * 7, len(cat.SETTINGS)))  # hvac_operating, when left out: every day operates
     for k, cells in enumerate(rows[1:]):
-        m = _DAY.fullmatch(cells[0]) if len(cells) == len(SETTINGS_COLUMNS) else None
+        m = _DAY.fullmatch(cells[0]) if len(cells) == len(rows[0]) else None
         try:
             day = dt.date(*(int(g) for g in m.groups())) if m else None
         except ValueError:
             day = None
         if day != start + dt.timedelta(days=k):
             raise Invalid(f"settings.csv row {k + 1}: width or date")
-        for i, variable in enumerate(cat.SETTINGS):
+        for i, variable in enumerate(cat.SETTINGS[: len(rows[0]) - 1]):
             values[k, i] = _in_range(variable.name, _value(cells[i + 1], gap=False))
+            if variable.name == "hvac_operating" and values[k, i] not in (0.0, 1.0):
+                raise Invalid(f"settings.csv row {k + 1}: hvac_operating neither 0 nor 1")
     return values.reshape(weeks, 7, len(cat.SETTINGS))
 
 
@@ -284,7 +286,7 @@ def _expected(site_dir: Path, files: dict[str, bytes], original: dict[str, Any])
     """The snapshot (:func:`_snapshot`) the files mean; raises :class:`Invalid` where they break a rule."""
     desc = _expected_descriptor(site_dir, files[TOML])
     settings_rows = _csv_rows(files[SETS], SETS)
-    if not settings_rows or tuple(settings_rows[0]) != SETTINGS_COLUMNS:
+    if not settings_rows or tuple(settings_rows[0]) not in (SETTINGS_COLUMNS, SETTINGS_COLUMNS[:-1]):
         raise Invalid("settings.csv: header")
     start, temperature, consumption = _expected_measurements(files[MEAS], desc, len(settings_rows) - 1)
     return {

@@ -11,8 +11,8 @@ import pytest
 import buildenv  # noqa: F401  (registers BuildingWeek-v0 and mo-BuildingWeek-v0)
 from buildenv.env.multi_objective import MOBuildingWeekEnv, MOBuildingWeekVectorEnv
 
-# the default site's BMS changes 11 of the 12 settings (not the supply air), each day of the week
-N_ACTION = 7 * 11
+# the default site's BMS changes 12 of the 13 settings (not the supply air), each day of the week
+N_ACTION = 7 * 12
 
 ID = "mo-BuildingWeek-v0"
 

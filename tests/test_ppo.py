@@ -12,8 +12,8 @@ from agents.ppo import BuildingVecEnv, evaluate_policy_weeks, load_policy, polic
 from buildenv.env.observations import observation_size
 from buildenv.errors import BuildingEnvError
 
-# the default site's BMS changes 11 of the 12 settings (not the supply air), each day of the week
-N_ACTION = 7 * 11
+# the default site's BMS changes 12 of the 13 settings (not the supply air), each day of the week
+N_ACTION = 7 * 12
 
 N_ENVS = 8
 

@@ -63,7 +63,7 @@ def test_the_pull_towards_the_centre_moves_what_the_fit_leaves_free(tmp_path):
     theta = np.array([n in cal.free_theta() for n in problem.names])
     centre = problem.from_unit(np.full(int(problem.free.sum()), 0.5))[0]
     pulled, info = cal.calibrate_cmaes(
-        problem, surrogate, seed=0, max_evaluations=1500, start=fit, anchor=0.05, anchored=theta, towards=centre
+        problem, surrogate, seed=0, max_evaluations=1500, start=fit, anchor=0.2, anchored=theta, towards=centre
     )
 
     def spread(params):

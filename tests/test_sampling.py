@@ -93,7 +93,7 @@ def test_zero_samples():
 @pytest.mark.parametrize("method", METHODS)
 def test_sample_weeks_shapes_and_ranges(method):
     settings, occupancy = sample_weeks(6, np.random.default_rng(9), method)
-    assert settings.shape == (6, 7, 12)
+    assert settings.shape == (6, 7, 13)
     assert occupancy.shape == (6, 5, 2)
     cat.check_values("settings", settings)
     cat.check_values("occupancy", occupancy)

@@ -24,11 +24,12 @@ BASE_DAY = {
     "ventilation_end_hour": 19,
     "supply_air_c": 19,
     "ventilation_ach": 1.0,
+    "hvac_operating": 1,
 }
 
 
 def _week(day_overrides: dict[int, dict[str, float]] | None = None, occ=((8, 18),) * 5):
-    """One week (1, 7, 12) of settings from BASE_DAY with per-day overrides, and (1, 5, 2) occupancy."""
+    """One week (1, 7, 13) of settings from BASE_DAY with per-day overrides, and (1, 5, 2) occupancy."""
     settings = np.tile([BASE_DAY[n] for n in cat.SETTING_NAMES], (1, 7, 1)).astype(float)
     for day, over in (day_overrides or {}).items():
         for name, value in over.items():
@@ -139,6 +140,31 @@ def test_ventilation_ach_zero_when_off_and_supply_all_day():
     np.testing.assert_array_equal(_day(sched["supply_air_c"], 3), np.full(24, 19.0))
 
 
+def test_a_day_set_back_entirely_holds_the_setbacks_with_the_air_handling_unit_off():
+    settings, occupancy = _week({5: {"hvac_operating": 0}, 6: {"hvac_operating": 0}})
+    sched = {k: v.reshape(7, 24) for k, v in hourly_schedules(settings, occupancy).items()}
+    for name in ("heating_comfort_on", "cooling_comfort_on", "ventilation_on", "ventilation_ach"):
+        assert sched[name][5:].sum() == 0, name
+        assert sched[name][:5].sum() > 0, name
+    assert np.all(sched["heating_setpoint_c"][5:] == BASE_DAY["heating_setback_c"])
+    assert np.all(sched["cooling_setpoint_c"][5:] == BASE_DAY["cooling_setback_c"])
+
+
+def test_settings_from_before_hvac_operating_read_every_day_as_operating():
+    settings, occupancy = _week()
+    old = hourly_encoding(settings[..., :-1], occupancy)
+    np.testing.assert_array_equal(old, hourly_encoding(settings, occupancy))
+    with pytest.raises(cat.CatalogueError, match="values a day"):
+        hourly_encoding(settings[..., :-2], occupancy)
+
+
+def test_campaign_weeks_set_weekend_days_back_more_often_than_weekdays():
+    settings, _ = sample_weeks(4000, np.random.default_rng(0))
+    off = 1.0 - settings[..., S["hvac_operating"]].mean(0)
+    assert set(np.unique(settings[..., S["hvac_operating"]])) == {0.0, 1.0}
+    assert np.all(np.abs(off[:5] - 0.15) < 0.03) and np.all(np.abs(off[5:] - 0.5) < 0.04)
+
+
 def test_two_dimensional_inputs_are_one_week():
     settings, occupancy = _week()
     a = hourly_schedules(settings[0], occupancy[0])
@@ -216,7 +242,7 @@ def test_property_setpoints_come_from_the_days_settings(random_weeks):
     np.testing.assert_array_equal(heat[~on], setback[~on])
     # comfort periods are contiguous blocks of end - start hours
     length = settings[..., S["heating_end_hour"]] - settings[..., S["heating_start_hour"]]
-    np.testing.assert_array_equal(on.sum(-1), length)
+    np.testing.assert_array_equal(on.sum(-1), length * settings[..., S["hvac_operating"]])
 
 
 def test_property_cooling_in_force_is_the_setting_or_the_interlock(random_weeks):

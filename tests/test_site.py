@@ -25,6 +25,7 @@ def _arrays(weeks: int = WEEKS, seed: int = 0) -> dict[str, np.ndarray]:
     lo, hi = cat.bounds("settings")
     settings = lo + (hi - lo) * rng.random((weeks, 7, len(lo)))
     settings = np.round(settings, 1).clip(lo, hi)
+    settings[..., cat.SETTING_NAMES.index("hvac_operating")] = np.round(settings[..., -1])  # a day operates or not
     temperature = np.round(21 + 2 * rng.standard_normal((weeks, 168)), 3)
     consumption = np.round(20 + 80 * rng.random((weeks, 168)), 4)
     return {"settings": settings, "temperature_c": temperature, "consumption_kwh": consumption}
@@ -107,7 +108,7 @@ def test_round_trip(tmp_path: Path):
     assert site.weather == "usa_il_chicago"
     assert site.start == START and site.weeks == WEEKS
     assert site.floor_area_m2 == AREA and site.number_of_floors == 3
-    assert site.settings.shape == (WEEKS, 7, 12)
+    assert site.settings.shape == (WEEKS, 7, 13)
     np.testing.assert_array_equal(site.settings, arrays["settings"])
     np.testing.assert_array_equal(site.temperature_c, arrays["temperature_c"])  # on the written 3-decimal grid
     np.testing.assert_array_equal(site.consumption_kwh, arrays["consumption_kwh"])
@@ -889,7 +890,21 @@ def test_settings_must_cover_exactly_the_measured_days(site_dir: Path):
 
 def test_settings_row_width(site_dir: Path):
     _set_line(_settings(site_dir), 3, ",".join(_cells(_settings(site_dir), 3)[:-1]))
-    with pytest.raises(SiteError, match=r"settings\.csv:3: too few columns: 12 instead of 13"):
+    with pytest.raises(SiteError, match=r"settings\.csv:3: too few columns: 13 instead of 14"):
+        load_site(site_dir)
+
+
+def test_settings_without_hvac_operating_operate_every_day(site_dir: Path):
+    path = _settings(site_dir)
+    _edit(path, lambda lines: [line.rsplit(",", 1)[0] for line in lines])
+    site = load_site(site_dir)
+    assert site.settings.shape == (WEEKS, 7, 13) and np.all(site.settings[..., -1] == 1)
+
+
+def test_hvac_operating_is_one_or_zero(site_dir: Path):
+    path = _settings(site_dir)
+    _set_line(path, 4, ",".join([*_cells(path, 4)[:-1], "0.5"]))
+    with pytest.raises(SiteError, match=r"settings\.csv:4: hvac_operating=0\.5: write 1 .* or 0"):
         load_site(site_dir)
 
 

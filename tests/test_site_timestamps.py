@@ -30,6 +30,7 @@ def _valid(path: Path, start: dt.date, weeks: int = 2, seed: int = 0, weather: s
     rng = np.random.default_rng(seed)
     lo, hi = cat.bounds("settings")
     settings = np.round(lo + (hi - lo) * rng.random((weeks, 7, len(lo))), 1).clip(lo, hi)
+    settings[..., -1] = np.round(settings[..., -1])  # hvac_operating: 1 or 0
     return write_site(
         path,
         name="office",

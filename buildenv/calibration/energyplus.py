@@ -67,7 +67,7 @@ class SiteRun:
     Attributes:
         weather: the site's weather (EPW short name or path).
         first_day: EPW day index (0..364) of the run's first day, a Monday.
-        settings: I_k of each simulated week, ``(run weeks, 7, 12)``.
+        settings: I_k of each simulated week, ``(run weeks, 7, 13)``.
         keep: indices of the requested weeks among the run's weeks, in request order.
         zoning: the shoebox's zoning (:data:`buildenv.energyplus.shoebox.ZONINGS`).
     """

@@ -7,7 +7,7 @@ A dataset directory holds ``dataset.h5`` (chunked HDF5, read lazily: nothing is 
 name            shape                      content
 ==============  =========================  ==========================================================
 theta           (weeks, 21)                theta_build of the week's building
-settings        (weeks, 7, 12)             I_k, day x setting
+settings        (weeks, 7, 13)             I_k, day x setting
 occupancy       (weeks, 5, 2)              O_k, weekday x (start hour, end hour)
 weather         (weeks, 168, 9)            W_k, hourly
 outputs         (weeks, 168, 8)            simulated outputs, hourly

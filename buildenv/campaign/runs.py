@@ -99,7 +99,7 @@ class RunTask:
 
     run_id: int
     theta: np.ndarray  # (21,)
-    settings: np.ndarray  # (weeks, 7, 12)
+    settings: np.ndarray  # (weeks, 7, 13)
     occupancy: np.ndarray  # (weeks, 5, 2)
     epw: str
     weather_index: int

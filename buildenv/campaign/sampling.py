@@ -35,8 +35,15 @@ def sample_group(group: str, n: int, rng: np.random.Generator, method: str = "un
     return np.stack(columns, axis=1) if n else np.zeros((0, len(variables)))
 
 
+#: Share of days set back entirely (``hvac_operating`` 0), Monday..Sunday: weekend shutdowns are common, a weekday
+#: off (a holiday) is rarer; the other settings are drawn on every day alike.
+DAY_OFF_SHARE = (0.15, 0.15, 0.15, 0.15, 0.15, 0.5, 0.5)
+
+
 def sample_weeks(n_weeks: int, rng: np.random.Generator, method: str = "uniform") -> tuple[np.ndarray, np.ndarray]:
-    """Weekly settings ``(n_weeks, 7, 12)`` and occupancy ``(n_weeks, 5, 2)``, every day drawn independently."""
+    """Weekly settings ``(n_weeks, 7, 13)`` and occupancy ``(n_weeks, 5, 2)``, every day drawn independently; a
+    day is set back entirely with :data:`DAY_OFF_SHARE` of its weekday."""
     settings = sample_group("settings", n_weeks * 7, rng, method).reshape(n_weeks, 7, -1)
     occupancy = sample_group("occupancy", n_weeks * 5, rng, method).reshape(n_weeks, 5, -1)
+    settings[..., cat.SETTING_NAMES.index("hvac_operating")] = rng.random((n_weeks, 7)) >= np.array(DAY_OFF_SHARE)
     return settings, occupancy

@@ -86,7 +86,7 @@ class StandIn:
         )
 
     def history(self) -> np.ndarray:
-        """A suite case's BMS history ``(weeks, 7, 12)``, drawn from :attr:`history_seed` as ``buildenv suite make``
+        """A suite case's BMS history ``(weeks, 7, 13)``, drawn from :attr:`history_seed` as ``buildenv suite make``
         draws its sites' (:func:`buildenv.sites.suite.reference_history`)."""
         from buildenv.sites.suite import reference_history
 

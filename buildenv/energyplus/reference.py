@@ -279,7 +279,7 @@ def _mapped(mapping: ScheduleMap) -> set[str]:
 
 
 def _schedule_columns(settings: np.ndarray, design_ach: float) -> dict[str, np.ndarray]:
-    """Hourly values of the four roles and ``ventilation_on`` for ``settings`` ``(weeks, 7, 12)`` -> ``{role:
+    """Hourly values of the four roles and ``ventilation_on`` for ``settings`` ``(weeks, 7, 13)`` -> ``{role:
     (weeks*168,)}``, for a model whose design minimum outdoor air is ``design_ach`` (1/h, see
     :func:`design_outdoor_air_ach`).
 
@@ -669,7 +669,7 @@ def read_sensors(
 
 
 def recorded_supply_air(settings: np.ndarray, supply_air_c: np.ndarray) -> np.ndarray:
-    """``settings`` ``(weeks, 7, 12)`` with ``supply_air_c`` replaced by what the building supplied: the mean of
+    """``settings`` ``(weeks, 7, 13)`` with ``supply_air_c`` replaced by what the building supplied: the mean of
     ``supply_air_c`` ``(weeks, 168)`` over each day's ventilation hours, on the catalogue's grid and range (a BMS
     trend of the supply air temperature, read as the day's setting)."""
     out = np.array(settings, float)
@@ -703,7 +703,7 @@ def run_reference(
         building: a name of :data:`REFERENCE_BUILDINGS` or an IDF path.
         epw: weather short name or EPW path.
         start: Monday of the first measured week.
-        settings: I_k per measured week ``(weeks, 7, 12)``; the warm-up weeks repeat the first week's.
+        settings: I_k per measured week ``(weeks, 7, 13)``; the warm-up weeks repeat the first week's.
         warmup_weeks: weeks simulated before ``start`` and discarded.
         workdir: where EnergyPlus runs (temporary if ``None``); its outputs are deleted afterwards.
         schedule_map: schedules to replace (detected from the model if ``None``).
@@ -775,7 +775,7 @@ def add_sensor_noise(run: ReferenceRun, seed: int) -> tuple[np.ndarray, ...]:
 
 
 def historical_settings(weeks: int, ventilation_ach: float | None = None) -> np.ndarray:
-    """The default building's typical historical settings on every day, ``(weeks, 7, 12)``; ``ventilation_ach``
+    """The default building's typical historical settings on every day, ``(weeks, 7, 13)``; ``ventilation_ach``
     (1/h) replaces the default ventilation (a reference building's: :func:`historical_ventilation_ach`)."""
     settings = default_week(weeks)[0]
     if ventilation_ach is not None:
@@ -808,7 +808,7 @@ def make_reference_site(
         epw: weather short name or EPW path.
         start: Monday of the first measured week.
         weeks: measured weeks.
-        settings: I_k per week ``(weeks, 7, 12)``; default :func:`historical_settings` with the building's
+        settings: I_k per week ``(weeks, 7, 13)``; default :func:`historical_settings` with the building's
             design ventilation (:func:`historical_ventilation_ach`).
         seed: seed of the sensor noise.
         floors: storeys (known geometry); taken from :data:`REFERENCE_BUILDINGS` for shipped buildings.

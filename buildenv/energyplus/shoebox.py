@@ -291,7 +291,7 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
 
     Args:
         theta: theta_build values.
-        settings: I_k of each simulated week, ``(weeks, 7, 12)``.
+        settings: I_k of each simulated week, ``(weeks, 7, 13)``.
         occupancy: O_k of each simulated week, ``(weeks, 5, 2)``.
         start_week: week of year (0 = the week starting January 1st) of the first simulated week.
     Hours outside the simulated weeks repeat the first week (EnergyPlus never uses them).

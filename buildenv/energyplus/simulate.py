@@ -58,7 +58,7 @@ def simulate_weeks(
 
     Args:
         theta: theta_build (catalogue order or ``{name: value}``).
-        settings: I_k per week, ``(weeks, 7, 12)``; validated against the catalogue.
+        settings: I_k per week, ``(weeks, 7, 13)``; validated against the catalogue.
         occupancy: O_k per week, ``(weeks, 5, 2)``; validated against the catalogue.
         epw: weather short name or EPW path.
         start_week: week of year of the first week (0 = the week starting Monday January 1st).

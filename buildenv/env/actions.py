@@ -1,8 +1,8 @@
 """A week of BMS settings as a vector in [-1, 1]: the action of BuildingWeek-v0 and what optimisers search.
 
 The components are the settings of :data:`buildenv.catalogue.SETTINGS` the site's BMS can change
-(:class:`ActionMap`; all 12, 84 components, unless its ``[bms]`` says otherwise) for each day Monday..Sunday,
-day-major (names: :meth:`ActionMap.names`; all 12: :func:`action_names`); the others stay at the site's
+(:class:`ActionMap`; all 13, 91 components, unless its ``[bms]`` says otherwise) for each day Monday..Sunday,
+day-major (names: :meth:`ActionMap.names`; all 13: :func:`action_names`); the others stay at the site's
 historical values. Outdoor air stays at or above what ASHRAE 62.1 requires for the site's occupants
 (:func:`code_minimum_ventilation_ach`) unless the site's ``[bms]`` limits say otherwise. Component ``a`` maps
 linearly onto the setting's range,
@@ -26,12 +26,12 @@ ACTION_SIZE = len(cat.DAYS) * len(cat.SETTINGS)
 
 
 def action_names() -> tuple[str, ...]:
-    """Names of the 84 action components (``cooling_start_hour_monday``, ...)."""
+    """Names of the 91 action components (``cooling_start_hour_monday``, ...)."""
     return cat.weekly_names("settings")
 
 
 def bounds(domain: dict[str, tuple[float, float]] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper bounds ``(12,)`` of the settings: the catalogue's ranges, narrowed to ``domain``
+    """Lower and upper bounds ``(13,)`` of the settings: the catalogue's ranges, narrowed to ``domain``
     (``{name: (min, max)}``, a metamodel's :attr:`~buildenv.metamodel.surrogate.Surrogate.domain`) where given."""
     lo, hi = cat.bounds("settings")
     for j, name in enumerate(cat.SETTING_NAMES):
@@ -47,8 +47,8 @@ class ActionMap:
 
     Attributes:
         controllable: indices into :data:`buildenv.catalogue.SETTING_NAMES` of the settings the action sets.
-        lo, hi: ``(12,)`` range of each setting (:func:`bounds`, narrowed by the site's limits).
-        base: ``(7, 12)`` settings of the week where the action does not set them (the historical ones).
+        lo, hi: ``(13,)`` range of each setting (:func:`bounds`, narrowed by the site's limits).
+        base: ``(7, 13)`` settings of the week where the action does not set them (the historical ones).
     """
 
     controllable: tuple[int, ...]
@@ -58,7 +58,7 @@ class ActionMap:
 
     @classmethod
     def everything(cls, ranges: tuple[np.ndarray, np.ndarray] | None = None) -> ActionMap:
-        """Every setting controllable on ``ranges`` (the catalogue's where ``None``): the 84 components."""
+        """Every setting controllable on ``ranges`` (the catalogue's where ``None``): the 91 components."""
         lo, hi = ranges or cat.bounds("settings")
         base = np.tile((np.asarray(lo) + np.asarray(hi)) / 2.0, (len(cat.DAYS), 1))
         return cls(tuple(range(len(cat.SETTINGS))), np.asarray(lo, float), np.asarray(hi, float), base)
@@ -68,17 +68,19 @@ class ActionMap:
         cls, site, domain: dict[str, tuple[float, float]], historical: np.ndarray, occupants_per_m2: float = 0.0
     ) -> ActionMap:
         """The actions of a :class:`buildenv.sites.Site`: its controllable settings within its limits and the
-        metamodel's ``domain`` (:func:`bounds`; one whose limits lie outside the domain is not an action), the others
-        at ``historical`` ``(7, 12)``. Where the site gives no ``ventilation_ach`` limits, outdoor air keeps to the
+        metamodel's ``domain`` (:func:`bounds`; one whose limits lie outside the domain, or that the metamodel learnt at
+        one value only, is not an action), the others
+        at ``historical`` ``(7, 13)``. Where the site gives no ``ventilation_ach`` limits, outdoor air keeps to the
         code minimum for ``occupants_per_m2`` (:func:`code_minimum_ventilation_ach`)."""
         lo, hi = bounds(domain)
+        learnt = hi > lo  # a setting the metamodel learnt at one value only cannot be acted on with it
         site_lo, site_hi = site.setting_ranges()
         if "ventilation_ach" not in site.setting_limits:
             j = cat.SETTING_NAMES.index("ventilation_ach")
             site_lo[j] = max(site_lo[j], code_minimum_ventilation_ach(occupants_per_m2))
         lo, hi = np.maximum(lo, site_lo), np.minimum(hi, site_hi)
         # a setting whose limits lie outside what the metamodel learnt cannot be acted on with it: held historical
-        controllable = tuple(j for j in map(cat.SETTING_NAMES.index, site.controllable) if lo[j] <= hi[j])
+        controllable = tuple(j for j in map(cat.SETTING_NAMES.index, site.controllable) if lo[j] <= hi[j] and learnt[j])
         return cls(controllable, lo, np.maximum(lo, hi), np.asarray(historical, float).reshape(len(cat.DAYS), -1))
 
     @property
@@ -91,7 +93,7 @@ class ActionMap:
         return tuple(f"{cat.SETTING_NAMES[j]}_{day}" for day in cat.DAYS for j in self.controllable)
 
     def decode(self, action: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Physical settings ``(..., 7, 12)`` and the number of clipped components ``(...)`` of actions
+        """Physical settings ``(..., 7, 13)`` and the number of clipped components ``(...)`` of actions
         ``(..., size)``.
 
         Raises:
@@ -123,12 +125,12 @@ class ActionMap:
         return settings, clipped
 
     def encode(self, settings: np.ndarray) -> np.ndarray:
-        """Actions ``(..., size)`` of physical settings ``(..., 7, 12)`` (validated against the catalogue; the
+        """Actions ``(..., size)`` of physical settings ``(..., 7, 13)`` (validated against the catalogue; the
         settings not controllable are ignored; a value outside its range gets the nearest end, -1 or 1).
         ``decode(encode(s))`` gives back ``s`` for controllable settings on the catalogue grid within the ranges."""
         settings = np.asarray(settings, dtype=float)
         if settings.shape[-2:] != (len(cat.DAYS), len(cat.SETTINGS)):
-            raise BuildingEnvError(f"settings have shape (..., 7, 12) (day, setting), got {settings.shape}")
+            raise BuildingEnvError(f"settings have shape (..., 7, 13) (day, setting), got {settings.shape}")
         cat.check_values("settings", settings, "settings")
         c = list(self.controllable)
         span = self.hi[c] - self.lo[c]
@@ -137,22 +139,22 @@ class ActionMap:
 
 
 def decode(action: np.ndarray, ranges: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
-    """Physical settings ``(..., 7, 12)`` and the number of clipped components ``(...)`` of actions ``(..., 84)``,
+    """Physical settings ``(..., 7, 13)`` and the number of clipped components ``(...)`` of actions ``(..., 91)``,
     every setting controllable on ``ranges`` (:func:`bounds`; the catalogue's where ``None``).
 
     Raises:
-        BuildingEnvError: a component is NaN or infinite, or the last axis is not 84 long.
+        BuildingEnvError: a component is NaN or infinite, or the last axis is not 91 long.
     """
     return ActionMap.everything(ranges).decode(action)
 
 
 def encode(settings: np.ndarray, ranges: tuple[np.ndarray, np.ndarray] | None = None) -> np.ndarray:
-    """Actions ``(..., 84)`` of physical settings ``(..., 7, 12)`` (validated against the catalogue), for
+    """Actions ``(..., 91)`` of physical settings ``(..., 7, 13)`` (validated against the catalogue), for
     ``ranges`` as in :func:`decode`. ``decode(encode(s))`` gives back ``s`` for settings on the catalogue grid."""
     return ActionMap.everything(ranges).encode(settings)
 
 
 def settings_table(settings: np.ndarray) -> dict[str, dict[str, float]]:
-    """``{day: {setting name: value}}`` of one week's settings ``(7, 12)`` (for JSON and reports)."""
+    """``{day: {setting name: value}}`` of one week's settings ``(7, 13)`` (for JSON and reports)."""
     s = np.asarray(settings, dtype=float).reshape(len(cat.DAYS), len(cat.SETTINGS))
     return {day: {name: float(s[d, j]) for j, name in enumerate(cat.SETTING_NAMES)} for d, day in enumerate(cat.DAYS)}

@@ -48,12 +48,12 @@ class BuildingWeekEnv(gym.Env):
 
     ## Action Space
     ``Box(-1, 1, (7 x k,), float32)``: the k settings of :data:`buildenv.catalogue.SETTINGS` the site's BMS can
-    change (``[bms] controllable`` in ``site.toml``; all 12, ``(84,)``, when a site says nothing; 11 on the default
+    change (``[bms] controllable`` in ``site.toml``; all 13, ``(91,)``, when a site says nothing; 11 on the default
     site, whose supply air temperature the BMS cannot set) for
     each day Monday..Sunday, day-major (``env.unwrapped.action_names``), each mapped linearly onto its catalogue
     range within the site's limits and what the metamodel was trained on (:class:`buildenv.env.actions.ActionMap`)
     and snapped to its step; the other settings stay at the site's historical values.
-    ``env.unwrapped.decode(action)`` gives the physical ``(7, 12)`` settings, ``encode(settings)``
+    ``env.unwrapped.decode(action)`` gives the physical ``(7, 13)`` settings, ``encode(settings)``
     the action. Components outside [-1, 1] are clipped and counted in ``info["clipped_components"]``; NaN or
     infinite ones raise :class:`buildenv.errors.BuildingEnvError`.
 
@@ -218,7 +218,7 @@ class BuildingWeekEnv(gym.Env):
         Returns:
             ``{"reward", "energy_term", "comfort_k", "energy_kwh", "energy_historical_kwh", "savings_percent",
             "comfort_historical_k", "mean_temperature_occupied_c", "energy_wh_m2", "clipped_components"}``,
-            each ``(N,)``; ``"settings"`` ``(N, 7, 12)``; the hourly ``"temperature_c"`` (degC) and
+            each ``(N,)``; ``"settings"`` ``(N, 7, 13)``; the hourly ``"temperature_c"`` (degC) and
             ``"hvac_wh_m2"`` (Wh/m2 in the hour) ``(N, 168)``; with ``price=``, also ``"cost"`` and
             ``"cost_historical"`` (currency) ``(N,)``, and ``"energy_term"`` is the cost ratio.
         """
@@ -242,11 +242,11 @@ class BuildingWeekEnv(gym.Env):
         return self._b.contexts[here].score(actions, np.full(len(actions), int(week)), prev)
 
     def decode(self, action: np.ndarray) -> np.ndarray:
-        """Physical settings ``(..., 7, 12)`` of actions ``(..., 7 x k)`` (:meth:`.ActionMap.decode`)."""
+        """Physical settings ``(..., 7, 13)`` of actions ``(..., 7 x k)`` (:meth:`.ActionMap.decode`)."""
         return self._here.actions.decode(action)[0]
 
     def encode(self, settings: np.ndarray) -> np.ndarray:
-        """Actions ``(..., 7 x k)`` of physical settings ``(..., 7, 12)`` (the controllable ones)."""
+        """Actions ``(..., 7 x k)`` of physical settings ``(..., 7, 13)`` (the controllable ones)."""
         return self._here.actions.encode(settings)
 
     @property

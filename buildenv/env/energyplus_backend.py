@@ -74,9 +74,9 @@ def run_weeks(
     Args:
         site: a :class:`buildenv.sites.Site` made by ``buildenv site reference``.
         week_starts: the Monday of each week ``(N)``.
-        settings: settings of each week ``(N, 7, 12)``.
-        previous: settings of each preceding week ``(N, 7, 12)``; default ``historical``.
-        historical: the site's historical settings ``(7, 12)`` (default: its first measured week's).
+        settings: settings of each week ``(N, 7, 13)``.
+        previous: settings of each preceding week ``(N, 7, 13)``; default ``historical``.
+        historical: the site's historical settings ``(7, 13)`` (default: its first measured week's).
         workers: parallel EnergyPlus processes (default: the CPU count).
     Returns:
         occupied-zone mean temperature ``(N, 168)`` degC and HVAC energy ``(N, 168)`` Wh/m2 per hour.

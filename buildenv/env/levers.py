@@ -2,10 +2,10 @@
 
 A random setting moves every lever at once: when its savings are mispredicted, the response check
 (:mod:`buildenv.env.response`) cannot say which lever the model gets wrong. Here each controllable setting is
-pulled, on all seven days, to either end of its action range with every other setting historical, and run through
-the calibrated metamodel, the site's EnergyPlus model and the EnergyPlus shoebox at the calibrated parameters: the
-savings error of each lever, and where it arises (the metamodel against its shoebox, the shoebox against the
-building).
+pulled, on all seven days (a day set back entirely: on the weekend), to either end of its action range with every
+other setting historical, and run through the calibrated metamodel, the site's EnergyPlus model and the EnergyPlus
+shoebox at the calibrated parameters: the savings error of each lever, and where it arises (the metamodel against
+its shoebox, the shoebox against the building).
 """
 
 from __future__ import annotations
@@ -19,13 +19,17 @@ from buildenv.sites.suite import CASE_FIELDS, check_calibrated_sites
 
 #: the ends a lever is pulled to, with their action value
 ENDS: dict[str, float] = {"low": -1.0, "high": 1.0}
+#: the days a lever pulls where not all seven: a day set back entirely is tried on the weekend (no building is
+#: shut down all week)
+LEVER_DAYS: dict[str, tuple[str, ...]] = {"hvac_operating": cat.DAYS[5:]}
 
 
 def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     """The settings of the lever check: ``([(setting, end)], actions (L, A))``.
 
     For each controllable setting (in the action's order) the historical action with that setting's seven
-    components at -1 (``"low"``) and at 1 (``"high"``); an end whose settings are the historical action's on every
+    components (those of :data:`LEVER_DAYS` where it names the setting) at -1 (``"low"``) and at 1 (``"high"``);
+    an end whose settings are the historical action's on every
     day (a range of one grid point, or a historical value at that end) is left out. A controllable setting whose
     historical value no action holds (outside its action range, or off the grid) is at its nearest action in every
     lever (:func:`shifted_settings`; :func:`lever_check` measures the levers from there).
@@ -36,12 +40,13 @@ def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:
     base = env.unwrapped
     historical = np.asarray(base.historical_action, np.float32)
     start = base.decode(historical)  # the site's historical settings, shifted ones at their nearest
-    setting_of = [name.rsplit("_", 1)[0] for name in base.action_names]  # "<setting>_<day>"
+    setting_of, day_of = zip(*(name.rsplit("_", 1) for name in base.action_names))  # "<setting>_<day>"
     controllable = list(dict.fromkeys(setting_of))
     column = {s: cat.SETTING_NAMES.index(s) for s in controllable}
     levers, actions = [], []
     for setting in controllable:
-        components = [i for i, s in enumerate(setting_of) if s == setting]
+        days = LEVER_DAYS.get(setting, cat.DAYS)
+        components = [i for i, (s, d) in enumerate(zip(setting_of, day_of)) if s == setting and d in days]
         for end, value in ENDS.items():
             action = historical.copy()
             action[components] = value

@@ -125,7 +125,7 @@ def split_error(predicted, shoebox, realised) -> dict[str, float]:
 
 
 def shoebox_savings(env, week: int, settings: np.ndarray, workers: int | None = None) -> np.ndarray | None:
-    """Savings (percent, against the historical settings, as the environment scores them) of settings ``(N, 7, 12)``
+    """Savings (percent, against the historical settings, as the environment scores them) of settings ``(N, 7, 13)``
     on the EnergyPlus shoebox at the site's calibrated parameters in ``week`` (the week before under the historical
     settings, as the environment simulates it); declared effects are left out. ``None`` when the week is not one of
     the site's measured weeks after its first (the week before runs as warm-up) or a run cannot stay inside one

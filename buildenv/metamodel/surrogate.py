@@ -146,7 +146,7 @@ def encode_weeks(
     """Model inputs of weeks, physical units (not yet standardised).
 
     Args:
-        theta: ``(N, 21)``; settings: ``(N, 7, 12)``; occupancy: ``(N, 5, 2)``; weather: ``(N, 168, 9)``.
+        theta: ``(N, 21)``; settings: ``(N, 7, 13)``; occupancy: ``(N, 5, 2)``; weather: ``(N, 168, 9)``.
         previous: settings, occupancy and weather of each week's preceding week (same shapes), or ``None``.
         has_previous: ``(N,)`` booleans, False where ``previous`` holds no real preceding week.
         context_hours: hours before the week, a whole number of days (the checkpoint's:

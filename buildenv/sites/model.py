@@ -10,7 +10,7 @@ Holds the file names (:data:`DESCRIPTOR`, ...), the CSV columns (:data:`MEASUREM
                        stamped, cumulative)
     measurements.csv   timestamp,indoor_temperature_c,heat_consumption_kwh[,electricity_kwh]
                        (hourly, whole weeks from a Monday)
-    settings.csv       date + the 12 catalogue settings                      (one row per day of those weeks)
+    settings.csv       date + the 13 catalogue settings                      (one row per day of those weeks)
     calibration.json   optional, written by calibration (:func:`buildenv.sites.writer.save_calibration`)
     truth.json         optional, true parameters of a synthetic stand-in site
 
@@ -103,7 +103,7 @@ class Site:
         start: Monday of the first measured week (local standard time).
         floor_area_m2: conditioned floor area, m2 (known, fixed during calibration).
         number_of_floors: number of storeys (known, fixed during calibration).
-        settings: BMS settings in force, ``(weeks, 7, 12)``, Monday..Sunday, catalogue order of the
+        settings: BMS settings in force, ``(weeks, 7, 13)``, Monday..Sunday, catalogue order of the
             ``settings`` group (units of :data:`buildenv.catalogue.SETTINGS`: h, degC, 1/h).
         temperature_c: occupied-zone mean air temperature of each hour, degC, ``(weeks, 168)``, NaN where
             missing.
@@ -124,7 +124,7 @@ class Site:
             :attr:`consumption_end_uses`); empty without a second meter.
         controllable: ``[bms] controllable``: the settings (names of :data:`buildenv.catalogue.SETTING_NAMES`,
             catalogue order) the building's BMS can change; BuildingWeek-v0 and the optimisers act on these
-            only, the others stay at the site's historical values. Default all 12.
+            only, the others stay at the site's historical values. Default all 13.
         setting_limits: ``[bms] limits``: ``{controllable setting: (min, max)}`` in catalogue units, the range
             operators may use, inside the catalogue's; a setting without one has the catalogue's range.
         calibration: parsed ``calibration.json`` or None.
@@ -188,7 +188,7 @@ class Site:
         return out
 
     def setting_ranges(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(lo, hi)``, each ``(12,)`` in catalogue order and units: the catalogue's range of every setting,
+        """``(lo, hi)``, each ``(13,)`` in catalogue order and units: the catalogue's range of every setting,
         narrowed to :attr:`setting_limits` where the site gives one."""
         lo = np.array([v.min for v in cat.SETTINGS])
         hi = np.array([v.max for v in cat.SETTINGS])

@@ -403,7 +403,7 @@ def check_controllable(value: Any) -> tuple[str, ...]:
     if not isinstance(value, (list, tuple)) or not all(isinstance(v, str) for v in value):
         raise SiteError(f"must be a list of setting names ({_allowed(cat.SETTING_NAMES)}), got {value!r}")
     if not value:
-        raise SiteError("empty list: name the settings the BMS can change (leave the key out for all 12)")
+        raise SiteError("empty list: name the settings the BMS can change (leave the key out for all 13)")
     for i, name in enumerate(value):
         if name in value[:i]:
             raise SiteError(f"{name!r} given twice")
@@ -506,15 +506,18 @@ def _data_file(descriptor: Path, desc: dict[str, Any], key: str, default: str) -
 
 
 def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
-    """Parse ``settings.csv`` into ``(weeks, 7, 12)``: one row per day from ``start``, catalogue ranges checked."""
+    """Parse ``settings.csv`` into ``(weeks, 7, 13)``: one row per day from ``start``, catalogue ranges checked; a
+    file without the last column, ``hvac_operating``, has every day operating."""
     rows = _rows(path)
     first = next(rows, None)
     expected = ",".join(SETTINGS_COLUMNS)
     if first is None:
         raise SiteError(f"{path}:1: empty file: expected the header {expected}")
     header = first[1]
-    if tuple(header) != SETTINGS_COLUMNS:
-        missing = [c for c in SETTINGS_COLUMNS if c not in header]
+    optional = SETTINGS_COLUMNS[-1]  # hvac_operating: every day operating when left out
+    columns = SETTINGS_COLUMNS if tuple(header) == SETTINGS_COLUMNS else SETTINGS_COLUMNS[:-1]
+    if tuple(header) != columns:
+        missing = [c for c in SETTINGS_COLUMNS if c not in header and c != optional]
         unknown = [c for c in header if c not in SETTINGS_COLUMNS]
         parts = []
         if missing:
@@ -531,7 +534,7 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
 
     days = weeks * 7
     last_day = start + dt.timedelta(days=days - 1)
-    values = np.empty((days, len(cat.SETTINGS)))
+    values = np.ones((days, len(cat.SETTINGS)))
     count = 0
     last_line = 1
     for line, cells in rows:
@@ -540,7 +543,7 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
                 f"{path}:{line}: one row too many: the measurements end on Sunday {last_day} "
                 f"({weeks} week(s) from {start}); settings need one row per day of those weeks"
             )
-        _check_width(path, line, cells, SETTINGS_COLUMNS)
+        _check_width(path, line, cells, columns)
         m = _DATE.fullmatch(cells[0])
         try:
             day = dt.date(*(int(g) for g in m.groups())) if m else None
@@ -555,12 +558,14 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
                 f"{path}:{line}: date {day} should be {wanted} ({what}): one row per day, "
                 f"consecutive, from {start} to {last_day}"
             )
-        for i, var in enumerate(cat.SETTINGS):
+        for i, var in enumerate(cat.SETTINGS[: len(columns) - 1]):
             value = _parse_value(path, line, var.name, cells[i + 1], missing_ok=False)
             try:
                 var.check(value)  # range only: a BMS may use values between grid steps
             except CatalogueError as exc:
                 raise SiteError(f"{path}:{line}: {exc}") from exc
+            if var.name == optional and value not in (0.0, 1.0):
+                raise SiteError(f"{path}:{line}: {var.name}={value:g}: write 1 (a day operating) or 0 (set back)")
             values[count, i] = value
         count += 1
         last_line = line

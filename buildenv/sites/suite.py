@@ -159,7 +159,7 @@ def _step(settings: np.ndarray, names: Iterable[str], delta: float) -> None:
 def bms_history(
     weeks: int, ventilation_ach: float, rng: np.random.Generator, lowest_ach: float | None = None
 ) -> np.ndarray:
-    """Historical settings ``(weeks, 7, 12)`` that change from week to week as BMS histories do.
+    """Historical settings ``(weeks, 7, 13)`` that change from week to week as BMS histories do.
 
     Starts from the typical settings (:func:`buildenv.defaults.default_week`) with ``ventilation_ach`` (1/h), then,
     from the second week on, each week may move the heating or cooling comfort setpoint by one step, a setback by
@@ -216,7 +216,7 @@ def bms_history(
 
 
 def reference_history(building: str, weeks: int, rng: np.random.Generator) -> np.ndarray:
-    """The BMS history ``(weeks, 7, 12)`` of a reference office: :func:`bms_history` from its design outdoor air,
+    """The BMS history ``(weeks, 7, 13)`` of a reference office: :func:`bms_history` from its design outdoor air,
     its ventilation change kept within its BMS limits
     (:func:`buildenv.energyplus.reference.reference_bms`)."""
     from buildenv.energyplus.reference import historical_ventilation_ach, reference_bms

@@ -72,7 +72,7 @@ class SiteModel:
         surrogate: the metamodel (:class:`buildenv.metamodel.surrogate.Surrogate`).
         theta: calibrated theta_build, catalogue order, ``(23,)``.
         occupancy: calibrated weekday occupancy ``(5, 2)`` (arrival, departure hour).
-        historical: the site's historical settings ``(7, 12)``.
+        historical: the site's historical settings ``(7, 13)``.
         week_starts: the Monday of every week of the year.
         weather_days: weather of every day of the year plus the week before, ``(days, 24, 9)``, catalogue
             units.
@@ -191,9 +191,9 @@ class SiteModel:
         return self.ground_days[days].reshape(len(days), -1)
 
     def simulate(self, settings: np.ndarray, weeks: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
-        """Hourly outputs ``(N, 168, 8)`` (Wh/m2 per hour, degC) of settings ``(N, 7, 12)`` in weeks ``(N,)``.
+        """Hourly outputs ``(N, 168, 8)`` (Wh/m2 per hour, degC) of settings ``(N, 7, 13)`` in weeks ``(N,)``.
 
-        ``previous`` is the settings of each preceding week ``(N, 7, 12)``; ``None`` means the historical ones.
+        ``previous`` is the settings of each preceding week ``(N, 7, 13)``; ``None`` means the historical ones.
         """
         settings = np.asarray(settings, dtype=float)
         n = len(settings)

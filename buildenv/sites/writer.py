@@ -131,7 +131,7 @@ def write_site(
         start: Monday of the first week (a ``datetime`` is reduced to its date).
         floor_area_m2: floor area, m2, within the catalogue range.
         number_of_floors: storeys, within the catalogue range.
-        settings: ``(weeks, 7, 12)`` BMS settings, catalogue order, in catalogue units.
+        settings: ``(weeks, 7, 13)`` BMS settings, catalogue order, in catalogue units.
         temperature_c: ``(weeks, 168)`` hourly indoor temperature, degC, NaN where missing.
         consumption_kwh: ``(weeks, 168)`` hourly consumption of ``consumption_end_uses``, kWh, NaN where missing.
         source: free ``[source]`` table (strings, numbers, booleans, lists, nested tables).
@@ -140,7 +140,7 @@ def write_site(
         consumption_end_uses: end uses the consumption sums (:attr:`buildenv.sites.Site.consumption_end_uses`);
             written as ``[meters]`` unless they are the default.
         controllable: settings the BMS can change (:attr:`buildenv.sites.Site.controllable`); written as ``[bms]
-            controllable`` unless all 12.
+            controllable`` unless all 13.
         setting_limits: ``{controllable setting: (min, max)}``, catalogue units
             (:attr:`buildenv.sites.Site.setting_limits`); written as ``[bms.limits]`` when given.
         electricity_kwh: ``(weeks, 168)`` hourly consumption of a second meter, kWh, NaN where missing
@@ -172,10 +172,15 @@ def write_site(
         raise SiteError(f"write_site: electricity_kwh has shape {electricity.shape}, expected {temperature.shape}")
     if (electricity is None) != (not electricity_end_uses):
         raise SiteError("write_site: give electricity_kwh and electricity_end_uses together, or neither")
+    if setting_values.shape[-1:] == (len(cat.SETTINGS) - 1,):  # written before hvac_operating: every day operates
+        setting_values = cat.upgrade_settings(setting_values)
     if setting_values.shape != (weeks, 7, len(cat.SETTINGS)):
         raise SiteError(
             f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
         )
+    operating = setting_values[..., cat.SETTING_NAMES.index("hvac_operating")]
+    if not np.isin(operating, (0.0, 1.0)).all():
+        raise SiteError("write_site: hvac_operating must be 1 (a day operating) or 0 (set back) on every day")
 
     if folder.exists() and not folder.is_dir():
         raise SiteError(f"write_site: {folder} exists and is not a folder")

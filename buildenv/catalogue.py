@@ -924,7 +924,7 @@ def upgrade_settings(settings) -> np.ndarray:
     n = len(SETTINGS)
     if arr.shape[-1:] == (n,):
         return arr
-    if arr.shape[-1:] == (n - 1,) and SETTING_NAMES[-1] == "hvac_operating":
+    if arr.shape[-1:] == (n - 1,):  # hvac_operating, the last setting, was not there: every day operated
         return np.concatenate([arr, np.ones((*arr.shape[:-1], 1))], axis=-1)
     got = arr.shape[-1] if arr.ndim else 0
     raise CatalogueError(f"settings have {got} values a day; expected {n} ({', '.join(SETTING_NAMES)})")

@@ -100,6 +100,24 @@ class Variable:
         index = np.clip(np.rint((value - self.min) / self.step), 0, len(grid) - 1).astype(int)
         return grid[index]
 
+    @property
+    def is_switch(self) -> bool:
+        """Whether the variable is on (its maximum) or off (its minimum) and nothing between: one step spans its
+        range."""
+        return self.step is not None and self.max > self.min and abs(self.max - self.min - self.step) < 1e-9
+
+    def check_switch(self, value: np.ndarray | float, where: str = "") -> None:
+        """Raise :class:`CatalogueError` if a switch (:attr:`is_switch`) holds a value other than its minimum or
+        maximum; other variables pass."""
+        arr = np.asarray(value, dtype=float)
+        bad = ~(np.isclose(arr, self.min) | np.isclose(arr, self.max))
+        if self.is_switch and bad.any():
+            first = arr.flat[int(np.flatnonzero(bad.ravel())[0])]
+            loc = f" in {where}" if where else ""
+            raise CatalogueError(
+                f"{self.name}={first:g}{loc}: write {self.max:g} (on) or {self.min:g} (off), nothing between"
+            )
+
     def check(self, value: np.ndarray | float, where: str = "") -> None:
         """Raise :class:`CatalogueError` if any value is NaN or outside ``[min, max]``."""
         arr = np.asarray(value, dtype=float)

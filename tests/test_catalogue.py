@@ -339,6 +339,16 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
     assert all(e.ranges["hvac_operating"] == (1.0, 1.0, 1.0) for e in cat.EARLIER_CATALOGUES.values())
 
 
+def test_a_switch_is_on_or_off_and_nothing_between():
+    switches = [v.name for v in cat.ALL_VARIABLES if v.is_switch]
+    assert switches == ["hvac_operating"]  # a day operates or is set back; no other variable is on/off
+    day = cat.get("hvac_operating")
+    day.check_switch(np.array([0.0, 1.0, 1.0]))
+    with pytest.raises(CatalogueError, match=r"hvac_operating=0\.5: write 1 \(on\) or 0 \(off\)"):
+        day.check_switch(np.array([1.0, 0.5]))
+    cat.get("heating_comfort_c").check_switch(21.3)  # not a switch: values between its ends pass
+
+
 def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     old = {"pc_density_per_m2": 0.055, "infiltration_ach": 0.3, "floor_area_m2": 5000.0}
     new = cat.upgrade_theta(old)

@@ -277,8 +277,8 @@ def _expected_settings(rows: list[list[str]], start: dt.date, weeks: int) -> np.
             raise Invalid(f"settings.csv row {k + 1}: width or date")
         for i, variable in enumerate(cat.SETTINGS[: len(rows[0]) - 1]):
             values[k, i] = _in_range(variable.name, _value(cells[i + 1], gap=False))
-            if variable.name == "hvac_operating" and values[k, i] not in (0.0, 1.0):
-                raise Invalid(f"settings.csv row {k + 1}: hvac_operating neither 0 nor 1")
+            if variable.is_switch and values[k, i] not in (variable.min, variable.max):
+                raise Invalid(f"settings.csv row {k + 1}: {variable.name} neither on nor off")
     return values.reshape(weeks, 7, len(cat.SETTINGS))
 
 

@@ -169,6 +169,11 @@ def test_write_site_rejects_bad_shapes_and_start(tmp_path: Path):
         _write(tmp_path / "b", settings=np.zeros((WEEKS, 7, 11)))
     with pytest.raises(SiteError, match=r"temperature_c has shape"):
         _write(tmp_path / "c", temperature_c=np.zeros((WEEKS, 24)))
+    half_on = _arrays()["settings"]
+    half_on[1, 3, cat.SETTING_NAMES.index("hvac_operating")] = 0.5
+    with pytest.raises(SiteError, match=r"write_site: hvac_operating=0\.5 in .*: write 1 \(on\) or 0 \(off\)"):
+        _write(tmp_path / "d", settings=half_on)
+    assert not (tmp_path / "d").exists()  # refused before anything is written
 
 
 def test_site_error_is_a_buildenv_error():

@@ -19,9 +19,9 @@ from buildenv.sites.suite import CASE_FIELDS, check_calibrated_sites
 
 #: the ends a lever is pulled to, with their action value
 ENDS: dict[str, float] = {"low": -1.0, "high": 1.0}
-#: the days a lever pulls where not all seven: a day set back entirely is tried on the weekend (no building is
-#: shut down all week)
-LEVER_DAYS: dict[str, tuple[str, ...]] = {"hvac_operating": cat.DAYS[5:]}
+#: the days a lever pulls where not all seven: a switch (a day set back entirely) is tried on the weekend (no
+#: building is shut down all week)
+LEVER_DAYS: dict[str, tuple[str, ...]] = {v.name: cat.DAYS[5:] for v in cat.SETTINGS if v.is_switch}
 
 
 def lever_actions(env) -> tuple[list[tuple[str, str]], np.ndarray]:

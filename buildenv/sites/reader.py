@@ -561,11 +561,10 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
         for i, var in enumerate(cat.SETTINGS[: len(columns) - 1]):
             value = _parse_value(path, line, var.name, cells[i + 1], missing_ok=False)
             try:
-                var.check(value)  # range only: a BMS may use values between grid steps
+                var.check(value)  # range only: a BMS may use values between grid steps, but a switch is on or off
+                var.check_switch(value)
             except CatalogueError as exc:
                 raise SiteError(f"{path}:{line}: {exc}") from exc
-            if var.name == optional and value not in (0.0, 1.0):
-                raise SiteError(f"{path}:{line}: {var.name}={value:g}: write 1 (a day operating) or 0 (set back)")
             values[count, i] = value
         count += 1
         last_line = line

@@ -178,9 +178,11 @@ def write_site(
         raise SiteError(
             f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
         )
-    operating = setting_values[..., cat.SETTING_NAMES.index("hvac_operating")]
-    if not np.isin(operating, (0.0, 1.0)).all():
-        raise SiteError("write_site: hvac_operating must be 1 (a day operating) or 0 (set back) on every day")
+    for j, var in enumerate(cat.SETTINGS):
+        try:
+            var.check_switch(setting_values[..., j], "write_site's settings")
+        except cat.CatalogueError as exc:
+            raise SiteError(f"write_site: {exc}") from exc
 
     if folder.exists() and not folder.is_dir():
         raise SiteError(f"write_site: {folder} exists and is not a folder")

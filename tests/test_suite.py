@@ -89,6 +89,18 @@ def test_a_reference_offices_history_keeps_its_outdoor_air_within_its_bms_limits
     assert bms_history(8, 0.7, np.random.default_rng(3))[-1, 0, j] == pytest.approx(0.4)
 
 
+def test_a_reference_offices_history_shuts_down_on_the_days_its_own_schedules_do():
+    from buildenv.energyplus.reference import operating_days
+
+    j = cat.SETTING_NAMES.index("hvac_operating")
+    # the prototypes' HVAC availability: off on Sunday; the 2019 small office off all weekend
+    assert operating_days("medium_office") == (1, 1, 1, 1, 1, 1, 0)
+    assert operating_days("small_office_2019") == (1, 1, 1, 1, 1, 0, 0)
+    history = reference_history("small_office_2019", 4, np.random.default_rng(0))
+    assert (history[..., :5, j] == 1).all() and (history[..., 5:, j] == 0).all()
+    assert (bms_history(4, 0.7, np.random.default_rng(0))[..., j] == 1).all()  # a generic history operates daily
+
+
 def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path):
     case = SuiteCase("medium_office", "usa_ca_san_francisco", "cooling")
     record = make_case(case, tmp_path, weeks=2)
@@ -120,9 +132,9 @@ def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path)
         case.meters("three")
 
     # an EnergyPlus model that cannot run the case: the 2019 large office's data-centre coil
-    refused = make_case(SuiteCase("large_office_2019", "usa_ok_oklahoma", "heating"), tmp_path, weeks=1)
+    refused = make_case(SuiteCase("large_office_2019", "usa_il_chicago", "heating"), tmp_path, weeks=8)
     assert refused["status"] == "refused" and "EnergyPlus failed" in refused["reason"]
-    assert not (tmp_path / "large_office_2019-usa_ok_oklahoma-heating").exists()
+    assert not (tmp_path / "large_office_2019-usa_il_chicago-heating").exists()
 
 
 def test_a_small_office_site_builds_and_calibrates(tmp_path, caplog):

@@ -474,6 +474,34 @@ def design_outdoor_air_ach(source: Path, epw: Path | None) -> float:
     return total * 3600.0 / (sum(areas[z] for z in zones) * FLOOR_HEIGHT_M)
 
 
+#: a week of ordinary days (no holiday in the prototypes' calendars) on which a model's weekly operation is read
+_ORDINARY_WEEK = dt.date(2019, 3, 4)
+
+
+@functools.lru_cache(maxsize=32)
+def operating_days(building: str | Path) -> tuple[int, ...]:
+    """The days a model runs its HVAC, Monday to Sunday (1: on at some hour, 0: its availability schedules off all
+    day, its building shut down): read from the ``Schedule:Compact`` availability schedules its schedule map
+    replaces (:func:`detect_schedule_map`) on a week of ordinary days. Every day is on where it has no such
+    schedule, or one that is not compact.
+    """
+    from buildenv.energyplus.compact_schedules import daily_means
+
+    objects = read_idf(reference_idf(building))
+    compact = {o[1].lower(): o for o in of_type(objects, "Schedule:Compact") if len(o) > 1}
+    names = detect_schedule_map(objects).hvac_availability
+    if not names or any(n.lower() not in compact for n in names):
+        return (1,) * 7
+    first = _ORDINARY_WEEK.timetuple().tm_yday - 1
+    on = np.zeros(7, bool)
+    for name in names:
+        try:
+            on |= daily_means(compact[name.lower()], _ORDINARY_WEEK.year)[first : first + 7] > 0.0
+        except ReferenceBuildingError:
+            return (1,) * 7
+    return tuple(int(d) for d in on)
+
+
 def historical_ventilation_ach(building: str | Path) -> float:
     """The ventilation a reference building's site records as its historical setting: its design minimum
     outdoor air (:func:`design_outdoor_air_ach`) on the catalogue's grid of ``ventilation_ach`` (1/h)."""

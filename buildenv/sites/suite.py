@@ -218,11 +218,14 @@ def bms_history(
 def reference_history(building: str, weeks: int, rng: np.random.Generator) -> np.ndarray:
     """The BMS history ``(weeks, 7, 13)`` of a reference office: :func:`bms_history` from its design outdoor air,
     its ventilation change kept within its BMS limits
-    (:func:`buildenv.energyplus.reference.reference_bms`)."""
-    from buildenv.energyplus.reference import historical_ventilation_ach, reference_bms
+    (:func:`buildenv.energyplus.reference.reference_bms`), shut down on the days the office's own schedules shut
+    it down (:func:`buildenv.energyplus.reference.operating_days`: Sunday, or the weekend)."""
+    from buildenv.energyplus.reference import historical_ventilation_ach, operating_days, reference_bms
 
     lowest = reference_bms(building)[1]["ventilation_ach"][0]
-    return bms_history(weeks, historical_ventilation_ach(building), rng, lowest_ach=lowest)
+    settings = bms_history(weeks, historical_ventilation_ach(building), rng, lowest_ach=lowest)
+    settings[..., cat.SETTING_NAMES.index("hvac_operating")] = np.asarray(operating_days(building), float)
+    return settings
 
 
 def make_case(

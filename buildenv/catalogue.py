@@ -110,7 +110,7 @@ class Variable:
         """Raise :class:`CatalogueError` if a switch (:attr:`is_switch`) holds a value other than its minimum or
         maximum; other variables pass."""
         arr = np.asarray(value, dtype=float)
-        bad = ~(np.isclose(arr, self.min) | np.isclose(arr, self.max))
+        bad = ~np.isin(arr, (self.min, self.max))
         if self.is_switch and bad.any():
             first = arr.flat[int(np.flatnonzero(bad.ravel())[0])]
             loc = f" in {where}" if where else ""

@@ -101,6 +101,24 @@ def test_a_reference_offices_history_shuts_down_on_the_days_its_own_schedules_do
     assert (bms_history(4, 0.7, np.random.default_rng(0))[..., j] == 1).all()  # a generic history operates daily
 
 
+def test_days_off_not_read_leave_every_day_operating_with_a_warning(tmp_path, caplog):
+    from buildenv.energyplus.idf import format_idf, read_idf
+    from buildenv.energyplus.reference import operating_days, reference_idf
+
+    idf = tmp_path / "office.idf"
+    objects = read_idf(reference_idf("small_office_2019"))
+    idf.write_text(format_idf(objects))
+    assert operating_days(idf) == (1, 1, 1, 1, 1, 0, 0)
+    off = [
+        o[:3] + ["Through: 12/31", "For: AllDays", "Until: 24:00", "0"] if o[1].lower() == "hvacoperationschd" else o
+        for o in objects
+    ]
+    idf.write_text(format_idf(off))  # edited in place: read again, not from the cache
+    with caplog.at_level("WARNING"):
+        assert operating_days(idf) == (1,) * 7
+    assert "office.idf: its HVAC availability is off all the week" in caplog.text
+
+
 def test_a_case_is_made_reused_and_a_refused_one_leaves_nothing_behind(tmp_path):
     case = SuiteCase("medium_office", "usa_ca_san_francisco", "cooling")
     record = make_case(case, tmp_path, weeks=2)

@@ -478,27 +478,42 @@ def design_outdoor_air_ach(source: Path, epw: Path | None) -> float:
 _ORDINARY_WEEK = dt.date(2019, 3, 4)
 
 
-@functools.lru_cache(maxsize=32)
 def operating_days(building: str | Path) -> tuple[int, ...]:
     """The days a model runs its HVAC, Monday to Sunday (1: on at some hour, 0: its availability schedules off all
     day, its building shut down): read from the ``Schedule:Compact`` availability schedules its schedule map
-    replaces (:func:`detect_schedule_map`) on a week of ordinary days. Every day is on where it has no such
-    schedule, or one that is not compact.
+    replaces (:func:`detect_schedule_map`) on a week of ordinary days. Every day is on, with a warning naming the
+    file, where it has no such schedule, one that is not compact or cannot be read, or one off all that week.
     """
-    from buildenv.energyplus.compact_schedules import daily_means
+    path = reference_idf(building)
+    return _operating_days(path, path.stat().st_mtime_ns)
 
-    objects = read_idf(reference_idf(building))
+
+@functools.lru_cache(maxsize=32)
+def _operating_days(path: Path, mtime_ns: int) -> tuple[int, ...]:
+    """:func:`operating_days` of the model file ``path`` as it was at ``mtime_ns`` (cached)."""
+    objects = read_idf(path)
     compact = {o[1].lower(): o for o in of_type(objects, "Schedule:Compact") if len(o) > 1}
     names = detect_schedule_map(objects).hvac_availability
-    if not names or any(n.lower() not in compact for n in names):
-        return (1,) * 7
+    every_day = (1,) * 7
+    if not names:
+        return every_day
     first = _ORDINARY_WEEK.timetuple().tm_yday - 1
     on = np.zeros(7, bool)
     for name in names:
         try:
+            if name.lower() not in compact:
+                raise ReferenceBuildingError(f"{name} is not a Schedule:Compact")
             on |= daily_means(compact[name.lower()], _ORDINARY_WEEK.year)[first : first + 7] > 0.0
-        except ReferenceBuildingError:
-            return (1,) * 7
+        except ReferenceBuildingError as error:
+            log.warning("%s: days off not read (%s); its history operates every day", path.name, error)
+            return every_day
+    if not on.any():
+        log.warning(
+            "%s: its HVAC availability is off all the week of %s; its history operates every day",
+            path.name,
+            _ORDINARY_WEEK,
+        )
+        return every_day
     return tuple(int(d) for d in on)
 
 

@@ -21,7 +21,7 @@ import numpy as np
 import tomli_w
 
 from buildenv import catalogue as cat
-from buildenv.errors import SiteError
+from buildenv.errors import CatalogueError, SiteError
 from buildenv.jsonio import dumps
 from buildenv.sites.model import (
     CALIBRATION_FILE,
@@ -178,11 +178,14 @@ def write_site(
         raise SiteError(
             f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
         )
-    for j, var in enumerate(cat.SETTINGS):
-        try:
-            var.check_switch(setting_values[..., j], "write_site's settings")
-        except cat.CatalogueError as exc:
-            raise SiteError(f"write_site: {exc}") from exc
+    for j, var in enumerate(cat.SETTINGS):  # a switch is on or off: the first day that is neither is named
+        between = np.argwhere(~np.isin(setting_values[..., j], (var.min, var.max))) if var.is_switch else []
+        if len(between):
+            w, d = between[0]
+            try:
+                var.check_switch(setting_values[w, d, j], f"the settings of week {w}, {cat.DAYS[d]}")
+            except CatalogueError as exc:
+                raise SiteError(f"write_site: {exc}") from exc
 
     if folder.exists() and not folder.is_dir():
         raise SiteError(f"write_site: {folder} exists and is not a folder")

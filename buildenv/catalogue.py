@@ -106,12 +106,18 @@ class Variable:
         range."""
         return self.step is not None and self.max > self.min and abs(self.max - self.min - self.step) < 1e-9
 
+    def between_ends(self, value: np.ndarray | float) -> np.ndarray:
+        """Boolean mask, the shape of ``value``: True where a switch (:attr:`is_switch`) is neither on nor off
+        (NaN included); all False for other variables."""
+        arr = np.asarray(value, dtype=float)
+        return ~np.isin(arr, (self.min, self.max)) if self.is_switch else np.zeros(arr.shape, bool)
+
     def check_switch(self, value: np.ndarray | float, where: str = "") -> None:
         """Raise :class:`CatalogueError` if a switch (:attr:`is_switch`) holds a value other than its minimum or
         maximum; other variables pass."""
         arr = np.asarray(value, dtype=float)
-        bad = ~np.isin(arr, (self.min, self.max))
-        if self.is_switch and bad.any():
+        bad = self.between_ends(arr)
+        if bad.any():
             first = arr.flat[int(np.flatnonzero(bad.ravel())[0])]
             loc = f" in {where}" if where else ""
             raise CatalogueError(

@@ -179,7 +179,7 @@ def write_site(
             f"write_site: settings has shape {setting_values.shape}, expected ({weeks}, 7, {len(cat.SETTINGS)})"
         )
     for j, var in enumerate(cat.SETTINGS):  # a switch is on or off: the first day that is neither is named
-        between = np.argwhere(~np.isin(setting_values[..., j], (var.min, var.max))) if var.is_switch else []
+        between = np.argwhere(var.between_ends(setting_values[..., j]))
         if len(between):
             w, d = between[0]
             try:

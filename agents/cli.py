@@ -9,7 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from buildenv.cli.argtypes import positive_int
+from buildenv.cli.argtypes import positive_int, strict_calibration_argument
 from buildenv.jsonio import dumps
 
 METHODS = ("nsga2", "cmaes", "ppo", "rules")
@@ -158,7 +158,13 @@ def _public(result: dict, env) -> dict:
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
-    env = make_env(args.site, args.metamodel, args.comfort_weight, library_site=args.library_site)
+    env = make_env(
+        args.site,
+        args.metamodel,
+        args.comfort_weight,
+        library_site=args.library_site,
+        strict_calibration=args.strict_calibration,
+    )
     week = default_week(env) if args.week is None else args.week
     result = optimise(
         env,
@@ -214,7 +220,9 @@ def _print_levers(rows: list[dict], week: int) -> None:
 def _cmd_verify(args: argparse.Namespace) -> int:
     from buildenv.env.response import response_check
 
-    env = make_env(args.site, args.metamodel, library_site=args.library_site)
+    env = make_env(
+        args.site, args.metamodel, library_site=args.library_site, strict_calibration=args.strict_calibration
+    )
     week = default_week(env) if args.week is None else args.week
     if args.levers:
         from buildenv.env.levers import lever_check
@@ -300,6 +308,7 @@ def register(sub) -> None:
     )
     p.add_argument("--out", default=None, help="also write the JSON into this folder")
     p.add_argument("--json", action="store_true", help="one-line JSON, no progress bar")
+    strict_calibration_argument(p)
     p.set_defaults(func=_cmd_optimize)
 
     p = sub.add_parser("verify", help="the response check: random settings on the metamodel and on EnergyPlus")
@@ -318,6 +327,7 @@ def register(sub) -> None:
         help="instead of random settings, each setting the BMS can change moved alone to either end of its range",
     )
     p.add_argument("--json", action="store_true", help="the summary as one JSON line")
+    strict_calibration_argument(p)
     p.set_defaults(func=_cmd_verify)
 
     p = sub.add_parser("demo", help="the end-to-end pipeline on the default site: calibrate, optimise, verify, report")

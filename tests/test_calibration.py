@@ -5,6 +5,8 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import json
+import shutil
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -598,6 +600,31 @@ def test_the_verdict_passes_or_fails_a_calibration_and_the_site_is_warned_about_
     assert caplog.text.count("site /sites/a: calibration Guideline 14: FAILS") == 1 and "/sites/b" not in caplog.text
     with pytest.raises(CalibrationFailed, match="recalibrate it or check its data"):
         check_calibration({"fit": good, "heldout": older}, "/sites/a", strict=True)
+
+
+def test_a_failing_calibration_is_refused_where_asked_and_used_with_a_warning_otherwise(tmp_path, caplog):
+    import gymnasium as gym
+
+    import buildenv  # noqa: F401  (registers BuildingWeek-v0)
+    from buildenv.calibration.verdict import CalibrationFailed
+    from buildenv.cli.main import main
+    from buildenv.errors import BuildingEnvError
+
+    site = tmp_path / "site"
+    shutil.copytree(Path(buildenv.__file__).parent / "data" / "sites" / "default", site)
+    calibration = json.loads((site / "calibration.json").read_text())
+    calibration["heldout"].update(cv_rmse_q_percent=58.6, nmbe_q_percent=-20.0)
+    (site / "calibration.json").write_text(json.dumps(calibration))
+    with caplog.at_level("WARNING"):
+        gym.make("BuildingWeek-v0", site=str(site)).reset(seed=0)
+    assert f"site {site}: calibration Guideline 14: FAILS" in caplog.text
+    with pytest.raises(CalibrationFailed, match="recalibrate it or check its data"):
+        gym.make("BuildingWeek-v0", site=str(site), strict_calibration=True).reset(seed=0)
+    with pytest.raises(BuildingEnvError, match="strict_calibration='yes'; pass True or False"):
+        gym.make("BuildingWeek-v0", site=str(site), strict_calibration="yes")
+    # the commands: one line and exit status 2
+    assert main(["optimize", "--method", "rules", "--site", str(site), "--json", "--strict-calibration"]) == 2
+    assert main(["diagnose", "--site", str(site), "--strict-calibration", "--quiet"]) == 2
 
 
 def test_a_week_given_twice_is_refused_not_counted_twice(surrogate):

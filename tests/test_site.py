@@ -144,11 +144,16 @@ def test_load_site_accepts_the_descriptor_path(site_dir: Path):
 
 
 def test_save_calibration_is_read_back(site_dir: Path):
-    target = save_calibration(site_dir, {"theta": np.array([0.1, 0.2]), "loss": np.float32(0.5), "ok": True})
+    from buildenv.defaults import DEFAULT_THETA
+
+    occupancy = np.array([[8.0, 18.0]] * 5)
+    calibration = {"theta": dict(DEFAULT_THETA), "occupancy": occupancy, "loss": np.float32(0.5), "ok": True}
+    target = save_calibration(site_dir, calibration)
     assert target == site_dir / "calibration.json"
-    assert json.loads(target.read_text()) == {"theta": [0.1, 0.2], "loss": 0.5, "ok": True}
+    written = {**calibration, "occupancy": occupancy.tolist(), "loss": 0.5}
+    assert json.loads(target.read_text()) == written
     assert [p.name for p in site_dir.iterdir() if p.name.startswith(".")] == []  # no temporary file left
-    assert load_site(site_dir).calibration == {"theta": [0.1, 0.2], "loss": 0.5, "ok": True}
+    assert load_site(site_dir).calibration == written
 
 
 def test_save_calibration_needs_a_site_folder(tmp_path: Path):
@@ -237,7 +242,11 @@ def test_known_parameters_round_trip_and_join_the_fixed_theta(tmp_path: Path):
 
 
 def test_calibration_of_an_earlier_catalogue_is_read_in_this_ones_names(site_dir: Path):
-    save_calibration(site_dir, {"theta": {"pc_density_per_m2": 0.06, "infiltration_ach": 0.3}, "loss": 0.5})
+    from buildenv.defaults import DEFAULT_THETA
+
+    names = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"].theta_names  # the catalogue of workstations
+    theta = {n: 0.06 if n == "pc_density_per_m2" else DEFAULT_THETA[n] for n in names}
+    save_calibration(site_dir, {"theta": theta, "occupancy": [[8.0, 18.0]] * 5, "loss": 0.5})
     theta = load_site(site_dir).calibration["theta"]
     assert theta["plug_load_w_m2"] == pytest.approx(150 * 0.06) and "pc_density_per_m2" not in theta
     assert theta["lighting_power_w_m2"] == 10.0 and theta["heat_recovery_effectiveness"] == 0.0
@@ -914,6 +923,37 @@ def test_hvac_operating_is_one_or_zero(site_dir: Path):
 
 
 # --------------------------------------------------------------------------- json files
+@pytest.mark.parametrize(
+    "edit, message",
+    [
+        (lambda c: c.pop("theta"), r"'theta' is missing or not an object"),
+        (lambda c: c["theta"].pop("roof_insulation_m"), r"theta has no 'roof_insulation_m'"),
+        (lambda c: c["theta"].update(roof_insulation_m="0.1"), r"theta 'roof_insulation_m' is '0\.1', not a finite"),
+        (lambda c: c["theta"].update(roof_insulation_m=None), r"theta 'roof_insulation_m' is None, not a finite"),
+        (lambda c: c.update(occupancy=[[8, 18]] * 7), r"'occupancy' must be 5 pairs of hours"),
+        (lambda c: c.update(occupancy=[[8, 18]] * 4 + [[8]]), r"'occupancy' must be 5 pairs of hours"),
+        (lambda c: c.update(heldout=[1, 2]), r"'heldout' is list, not an object"),
+    ],
+)
+def test_a_damaged_calibration_is_named_in_one_line(site_dir: Path, edit, message):
+    from buildenv.defaults import DEFAULT_THETA
+
+    calibration = {"theta": dict(DEFAULT_THETA), "occupancy": [[8.0, 18.0]] * 5, "fit": {}, "heldout": {}}
+    edit(calibration)
+    (site_dir / "calibration.json").write_text(json.dumps(calibration))
+    with pytest.raises(SiteError, match=r"calibration\.json: " + message) as caught:
+        load_site(site_dir)
+    assert "\n" not in str(caught.value) and "buildenv calibrate --site" in str(caught.value)
+
+
+def test_a_whole_calibration_loads(site_dir: Path):
+    from buildenv.defaults import DEFAULT_THETA
+
+    calibration = {"theta": dict(DEFAULT_THETA), "occupancy": [[8.0, 18.0]] * 5}
+    (site_dir / "calibration.json").write_text(json.dumps(calibration))
+    assert load_site(site_dir).calibration["theta"] == pytest.approx(DEFAULT_THETA)
+
+
 def test_invalid_truth_json(site_dir: Path):
     (site_dir / "truth.json").write_text('{\n  "a": 1,\n}\n')
     with pytest.raises(SiteError, match=r"truth\.json:3: invalid JSON"):

@@ -36,3 +36,12 @@ def positive_minutes(text: str) -> float:
     if not value > 0:
         raise argparse.ArgumentTypeError(f"expected a positive number of minutes, got {text!r}")
     return value
+
+
+def strict_calibration_argument(p: argparse.ArgumentParser) -> None:
+    """Add ``--strict-calibration``: refuse a site whose calibration fails ASHRAE Guideline 14 (else a warning)."""
+    p.add_argument(
+        "--strict-calibration",
+        action="store_true",
+        help="refuse a site whose calibration fails ASHRAE Guideline 14 (by default: a warning, once)",
+    )

@@ -6,7 +6,7 @@ import argparse
 import sys
 from pathlib import Path
 
-from buildenv.cli.argtypes import positive_int
+from buildenv.cli.argtypes import positive_int, strict_calibration_argument
 from buildenv.diagnosis.effects import CHECKED_DIAGNOSIS, DIAGNOSIS_SPLITS
 from buildenv.jsonio import dumps
 
@@ -48,7 +48,9 @@ def _cmd_diagnose(args: argparse.Namespace) -> int:
     plot = Path(args.plot) if args.plot else (Path(args.site) / "diagnosis.png" if args.save else None)
     settings = _settings(args)
     surrogate = load_metamodel(args.checkpoint)
-    result = diagnose(site, surrogate, settings, progress=not args.quiet, plot=plot)
+    result = diagnose(
+        site, surrogate, settings, progress=not args.quiet, plot=plot, strict_calibration=args.strict_calibration
+    )
     saved = save_extended_model(site, result) if args.save else None
     result.pop("_fit")
     result["saved"] = str(saved) if saved else None
@@ -197,6 +199,7 @@ def register(sub) -> None:
         "without it nothing is written into the site folder",
     )
     p.add_argument("--no-save", dest="save", action="store_false", help="the default: the site folder left as it is")
+    strict_calibration_argument(p)
     _common(p)
     p.set_defaults(func=_cmd_diagnose)
 

@@ -57,6 +57,7 @@ def diagnose(
     localisation: bool = True,
     progress: bool = False,
     plot: str | Path | None = None,
+    strict_calibration: bool = False,
 ) -> dict:
     """Diagnose the gap between a site's measurements and its calibrated metamodel.
 
@@ -67,6 +68,7 @@ def diagnose(
         localisation: include the residual localisation (:mod:`buildenv.diagnosis.localise`).
         progress: progress bar over the candidates.
         plot: PNG path of the localisation heatmaps (none if ``None``).
+        strict_calibration: refuse a site whose calibration fails ASHRAE Guideline 14 (by default a warning).
     Returns:
         ``{"site", "verdict", "answer", "selected", "not_enough_data", "effects", "steps", "model", "fit_weeks",
         "heldout_weeks", "base_effects", "heldout_base", "residual_sigma", "base_at_bounds", "hours_showing",
@@ -81,6 +83,7 @@ def diagnose(
     Raises:
         buildenv.diagnosis.effects.EffectError: an unknown candidate or base effect, or holidays as a base effect.
         buildenv.calibration.problem.CalibrationError: the site has fewer than 2 weeks.
+        buildenv.calibration.verdict.CalibrationFailed: its calibration fails Guideline 14 and ``strict_calibration``.
     """
     from tqdm import tqdm
 
@@ -93,7 +96,7 @@ def diagnose(
     if site.calibration:
         from buildenv.calibration.verdict import check_calibration
 
-        check_calibration(site.calibration, str(site.path))
+        check_calibration(site.calibration, str(site.path), strict_calibration)
     ctx = make_context(site, surrogate, settings)
     current = base_fit(ctx, progress)
     ctx.sigma = residual_sigma(ctx, current)

@@ -37,6 +37,7 @@ ARGUMENTS: dict[str, Any] = {
     "forecast_noise": 0.0,
     "weather_years": 1,
     "price": None,
+    "strict_calibration": False,
     "render_mode": None,
 }
 RENDER_MODES = ("rgb_array", "ansi")
@@ -45,8 +46,8 @@ VECTOR_ARGUMENTS = ("num_envs", "autoreset_mode", "max_episode_steps")
 
 def checked_arguments(kwargs: dict[str, Any], extra: tuple[str, ...] = ()) -> dict[str, Any]:
     """``kwargs`` with the defaults of :data:`ARGUMENTS` filled in; an argument neither there nor in ``extra`` (the
-    vector env's own), or a ``comfort``, ``observation``, ``backend`` or ``render_mode`` not among its choices,
-    raises one clear :class:`BuildingEnvError`."""
+    vector env's own), a ``comfort``, ``observation``, ``backend`` or ``render_mode`` not among its choices, or a
+    ``strict_calibration`` that is not a bool raises one clear :class:`BuildingEnvError`."""
     unknown = sorted(set(kwargs) - set(ARGUMENTS))
     if unknown:
         raise BuildingEnvError(
@@ -56,6 +57,8 @@ def checked_arguments(kwargs: dict[str, Any], extra: tuple[str, ...] = ()) -> di
     for key, allowed in (("comfort", obj.COMFORT_KINDS), ("observation", OBSERVATION_KINDS), ("backend", BACKENDS)):
         if args[key] not in allowed:
             raise BuildingEnvError(f"{ENV_ID}: {key}={args[key]!r}; choose one of {', '.join(allowed)}")
+    if not isinstance(args["strict_calibration"], bool):
+        raise BuildingEnvError(f"{ENV_ID}: strict_calibration={args['strict_calibration']!r}; pass True or False")
     if args["render_mode"] is not None and args["render_mode"] not in RENDER_MODES:
         raise BuildingEnvError(
             f"{ENV_ID}: render_mode={args['render_mode']!r}; choose None or one of {', '.join(RENDER_MODES)} "

@@ -170,7 +170,7 @@ class SiteScorer:
             mismatch = metamodel_mismatch(self.site.calibration or {}, shared.surrogate)
             if mismatch:
                 raise BuildingEnvError(f"{ENV_ID}: site {self.name!r} of the context set: {mismatch}")
-        self.model = SiteModel.from_site(self.site, shared.surrogate)
+        self.model = SiteModel.from_site(self.site, shared.surrogate, strict_calibration=args["strict_calibration"])
         occupants = float(self.model.theta[cat.THETA_NAMES.index("occupant_density_per_m2")])
         self.actions = act.ActionMap.for_site(self.site, shared.surrogate.domain, self.model.historical, occupants)
         self.occupied = self.model.occupied_hours()

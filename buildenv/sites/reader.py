@@ -125,7 +125,7 @@ def load_site(path: str | os.PathLike) -> Site:
         electricity_end_uses=desc["electricity_end_uses"],
         controllable=desc["controllable"],
         setting_limits=desc["setting_limits"],
-        calibration=_upgraded(_read_json(folder / CALIBRATION_FILE)),
+        calibration=_upgraded(_read_json(folder / CALIBRATION_FILE), folder / CALIBRATION_FILE),
         truth=_read_json(folder / TRUTH_FILE),
     )
 
@@ -577,11 +577,49 @@ def _read_settings(path: Path, start: dt.date, weeks: int) -> np.ndarray:
     return values.reshape(weeks, 7, len(cat.SETTINGS))
 
 
-def _upgraded(calibration: dict | None) -> dict | None:
-    """A calibration with its theta in this catalogue's names (:func:`buildenv.catalogue.upgrade_theta`)."""
-    if calibration and isinstance(calibration.get("theta"), dict):
-        calibration["theta"] = cat.upgrade_theta(calibration["theta"])
+def _upgraded(calibration: dict | None, path: Path) -> dict | None:
+    """A calibration read from ``path`` with its theta in this catalogue's names
+    (:func:`buildenv.catalogue.upgrade_theta`), checked as :func:`_check_calibration` does."""
+    if calibration is None:
+        return None
+    theta = calibration.get("theta")
+    if isinstance(theta, dict):
+        wrong = next((k for k, v in theta.items() if not _is_number(v)), None)
+        if wrong is not None:
+            raise SiteError(f"{path}: theta {wrong!r} is {theta[wrong]!r}, not a finite number{_AGAIN}")
+        calibration["theta"] = cat.upgrade_theta(theta)
+    _check_calibration(calibration, path)
     return calibration
+
+
+_AGAIN = "; calibrate the site again (buildenv calibrate --site FOLDER) or restore the file"
+
+
+def _is_number(value) -> bool:
+    """Whether a JSON value is a finite number (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def _check_calibration(calibration: dict, path: Path) -> None:
+    """Raise :class:`SiteError` naming ``path`` and the key unless the calibration holds what its users read: every
+    theta_build variable (their values checked by :func:`_upgraded`), the weekday occupancy as 5 pairs of hours,
+    and its metrics (``fit``, ``heldout``), declared effects (``effects``) and verdict as objects where present."""
+    theta = calibration.get("theta")
+    if not isinstance(theta, dict):
+        raise SiteError(f"{path}: 'theta' is missing or not an object of building parameters{_AGAIN}")
+    missing = next((n for n in cat.THETA_NAMES if n not in theta), None)
+    if missing is not None:
+        raise SiteError(f"{path}: theta has no {missing!r}{_AGAIN}")
+    occupancy = calibration.get("occupancy")
+    pairs = isinstance(occupancy, list) and len(occupancy) == len(cat.WEEKDAYS)
+    if not pairs or not all(isinstance(d, list) and len(d) == 2 and all(map(_is_number, d)) for d in occupancy):
+        raise SiteError(
+            f"{path}: 'occupancy' must be {len(cat.WEEKDAYS)} pairs of hours [arrival, departure], "
+            f"Monday to Friday; got {occupancy!r}{_AGAIN}"
+        )
+    for key in ("fit", "heldout", "effects", "verdict"):
+        if key in calibration and calibration[key] is not None and not isinstance(calibration[key], dict):
+            raise SiteError(f"{path}: {key!r} is {type(calibration[key]).__name__}, not an object{_AGAIN}")
 
 
 def _read_json(path: Path) -> dict | None:

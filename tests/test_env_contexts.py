@@ -346,6 +346,21 @@ def test_the_shipped_library_trains_on_the_development_climates_and_tests_on_the
     test = gym.make("BuildingWeek-v0", site="library", sites="test")  # made with the default metamodel
     assert set(test.unwrapped.site_names) == {s.name for s in sites if s.part == "test"}
     check_env(test.unwrapped, skip_render_check=True)
+    # its training sites drawn under a seed: the same sites, weeks and observations again, native as sync
+    kwargs = {"site": "library", "sites": "train", "num_envs": 2}
+    native = gym.make_vec("BuildingWeek-v0", **kwargs)
+    sync = gym.make_vec("BuildingWeek-v0", vectorization_mode="sync", **kwargs)
+    drawn = set()
+    for seed in (0, 1, 2, 3):
+        obs, info = native.reset(seed=seed)
+        again_obs, again = native.reset(seed=seed)
+        expected_obs, expected = sync.reset(seed=seed)
+        same_info(info, again)
+        same_info(info, expected)
+        np.testing.assert_array_equal(obs, again_obs)
+        np.testing.assert_allclose(obs, expected_obs, atol=1e-6)
+        drawn |= {(site, int(week)) for site, week in zip(info["site"], info["week"])}
+    assert len({site for site, _ in drawn}) > 2 and {site for site, _ in drawn} <= {s.name for s in sites}
 
 
 @pytest.mark.parametrize(

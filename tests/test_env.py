@@ -322,17 +322,33 @@ def test_disabled_autoreset_needs_a_masked_reset():
         venv.step(np.zeros((2, N_ACTION)))
 
 
-@pytest.mark.parametrize(
-    "name", ["NormalizeObservation", "FlattenObservation", "NormalizeReward", "RecordEpisodeStatistics"]
-)
+#: gymnasium's vector wrappers, each with the arguments it needs beyond the env
+VECTOR_WRAPPERS = {
+    "NormalizeObservation": {},
+    "FlattenObservation": {},
+    "NormalizeReward": {},
+    "RecordEpisodeStatistics": {},
+    "ClipReward": {"min_reward": -2.0, "max_reward": 0.0},
+    "DtypeObservation": {"dtype": np.float64},
+    "RescaleObservation": {"min_obs": -1.0, "max_obs": 1.0},
+    "TransformObservation": {"func": lambda obs: 2.0 * obs, "observation_space": None},
+    "TransformReward": {"func": lambda reward: 0.5 * reward},
+    "ClipAction": {},
+    "RescaleAction": {"min_action": 0.0, "max_action": 1.0},
+    "DictInfoToList": {},
+}
+
+
+@pytest.mark.parametrize("name", sorted(VECTOR_WRAPPERS))
 def test_gymnasium_vector_wrappers_accept_the_native_env(native_and_sync, name):
     from gymnasium.wrappers import vector as wrappers
 
-    wrapped = getattr(wrappers, name)(native_and_sync[0])
-    obs, _ = wrapped.reset(seed=0)
+    wrapped = getattr(wrappers, name)(native_and_sync[0], **VECTOR_WRAPPERS[name])
+    obs, info = wrapped.reset(seed=0)
     for _ in range(3):
-        obs, reward, *_ = wrapped.step(wrapped.action_space.sample())
-    assert obs.shape == (3, observation_size("compact")) and np.isfinite(reward).all()
+        obs, reward, terminated, truncated, info = wrapped.step(wrapped.action_space.sample())
+    assert obs.shape == (3, observation_size("compact")) and np.isfinite(obs).all() and np.isfinite(reward).all()
+    assert isinstance(info, list if name == "DictInfoToList" else dict) and len(terminated) == 3
 
 
 def test_pickle_and_deepcopy_after_a_step_predict_the_same():
@@ -362,6 +378,20 @@ def test_native_vector_env_pickles_after_a_step(native_and_sync):
     got, expected = twin.step(actions), native.step(actions)
     np.testing.assert_array_equal(got[0], expected[0])
     np.testing.assert_array_equal(got[1], expected[1])
+
+
+def test_sb3_subprocess_vector_env_makes_the_env_by_its_module_qualified_id():
+    from stable_baselines3.common.env_util import make_vec_env
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    # a fresh process imports nothing: "buildenv:" registers the env there (docs/environment.md)
+    venv = make_vec_env("buildenv:BuildingWeek-v0", n_envs=2, seed=0, vec_env_cls=SubprocVecEnv)
+    try:
+        obs = venv.reset()
+        obs, reward, done, _ = venv.step(np.zeros((2, N_ACTION), np.float32))
+        assert obs.shape == (2, observation_size("compact")) and np.isfinite(reward).all() and done.all()
+    finally:
+        venv.close()
 
 
 def test_async_vector_env_steps():

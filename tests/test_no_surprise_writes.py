@@ -37,8 +37,8 @@ def diagnosed_site(tmp_path, monkeypatch):
     shutil.copytree(SHIPPED_SITE, site)
     calls = {}
 
-    def fake_diagnose(site_, surrogate_, settings, progress=True, plot=None):
-        calls["plot"] = plot
+    def fake_diagnose(site_, surrogate_, settings, progress=True, plot=None, strict_calibration=False):
+        calls["plot"], calls["strict"] = plot, strict_calibration
         return {"_fit": object(), "selected": ["temperature_sensor_bias"], "verdict": "unmodelled effect(s) found"}
 
     def fake_save(site_, result):
@@ -212,6 +212,24 @@ def test_next_campaign_removes_the_temporary_folders_a_killed_one_left(tmp_path,
     assert seen and not seen[0].exists()  # a stopped campaign removes its own folder
     assert runs._shard_path(out, 0).is_file() and not runs._shard_path(out, 1).exists()
     assert sorted(p.name for p in system_tmp.iterdir()) == sorted([alive.name, other.name])
+
+
+def test_a_run_without_a_campaign_folder_works_in_one_the_next_campaign_can_sweep(tmp_path, monkeypatch):
+    from buildenv.energyplus import simulate
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    seen = []
+
+    def fake_simulate(*args, workdir, **kwargs):
+        seen.append(workdir)
+        raise KeyboardInterrupt  # a Dask worker killed during its run
+
+    monkeypatch.setattr(simulate, "simulate_weeks", fake_simulate)
+    task = runs.plan_campaign(runs.CampaignConfig(weeks=1, weeks_per_run=1, epw=["usa_il_chicago"]))[0]
+    with pytest.raises(KeyboardInterrupt):
+        runs.run_task(task)  # as _execute_dask calls it: no tmp_root
+    assert runs._CAMPAIGN_TMP.fullmatch(seen[0].name) and seen[0].parent == tmp_path
+    assert seen[0].name.startswith(f"{runs.CAMPAIGN_TMP_PREFIX}{os.getpid()}-")
 
 
 def test_remove_stale_run_folders_keeps_running_and_foreign_ones(tmp_path):

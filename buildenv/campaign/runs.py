@@ -143,11 +143,13 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
 def run_task(task: RunTask, tmp_root: str | None = None) -> tuple[int, np.ndarray | None, str]:
     """Simulate one run (in a worker process); returns ``(run_id, outputs (weeks, 168, 8), "")``, or
     ``(run_id, None, message)`` when EnergyPlus refused the building (a :class:`SimulationError`). EnergyPlus
-    runs in a temporary folder inside ``tmp_root`` (default: the system's temporary folder), removed after."""
+    runs in a temporary folder inside ``tmp_root``, removed after; without one (a Dask worker), a folder of the
+    system's named as a campaign's of this process, which the next campaign removes if the worker is killed."""
     from buildenv.energyplus.simulate import simulate_weeks
 
+    prefix = f"buildenv-run{task.run_id}-" if tmp_root else f"{CAMPAIGN_TMP_PREFIX}{os.getpid()}-"
     try:
-        with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-", dir=tmp_root) as tmp:
+        with tempfile.TemporaryDirectory(prefix=prefix, dir=tmp_root) as tmp:
             result = simulate_weeks(
                 task.theta,
                 task.settings,

@@ -7,8 +7,9 @@ The single source of truth for names, units, ranges, steps and granularity: samp
 Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize energy loads"):
 
 ``theta_build`` (static, one value per building)
-    23 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
-    floor area, number of floors, lighting power, heat recovery, the minimum supply air flow and the economiser;
+    24 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
+    floor area, number of floors, lighting power, heat recovery, the minimum supply air flow, the economiser and
+    the share of infiltration left while the fans pressurise the building;
     extensive quantities are per m2 of floor area, so one model covers offices of any size. Ranges are taken
     from practice (the ASHRAE 90.1 2004-2019 reference offices) and are wide enough for the six shipped
     reference offices.
@@ -175,8 +176,22 @@ THETA_BUILD: tuple[Variable, ...] = (
         1.0,
         0.05,
         S,
-        "Infiltration air changes per hour of the zone volume (constant, wind-independent).",
+        "Infiltration air changes per hour of the zone volume while the air handling unit's fans are off "
+        "(wind-independent).",
         "airchange_infiltration_vol_per_h",
+    ),
+    _v(
+        "infiltration_fans_on_share",
+        "theta_build",
+        "-",
+        0,
+        1,
+        0.25,
+        S,
+        "Share of that infiltration left while the air handling unit ventilates, its supply exceeding its exhaust "
+        "and pressurising the building: 1 unpressurised (infiltration the same day and night), 0.25 the DOE and "
+        "ASHRAE 90.1 reference offices' convention.",
+        "(infiltration with fans on)",
     ),
     _v(
         "heat_recovery_effectiveness",
@@ -843,9 +858,11 @@ class EarlierCatalogue:
 
 _WALLS = ("north", "east", "south", "west")
 _VENTILATION_BY_0_3 = (0.1, 1.6, 0.3)  # the outdoor air grid before the 0.05 1/h step: 0.1, 0.4, ..., 1.6
-_THETA_BEFORE_ECONOMISER = tuple(v.name for v in THETA_BUILD if v.name != "economiser_share")
+_THETA_BEFORE_PRESSURISATION = tuple(v.name for v in THETA_BUILD if v.name != "infiltration_fans_on_share")
+_THETA_BEFORE_ECONOMISER = tuple(n for n in _THETA_BEFORE_PRESSURISATION if n != "economiser_share")
 _THETA_BEFORE_MINIMUM_SUPPLY = tuple(n for n in _THETA_BEFORE_ECONOMISER if n != "minimum_supply_air_ach")
 _NO_DAY_OFF = {"hvac_operating": (1.0, 1.0, 1.0)}  # every day in occupied mode, before days could be set back
+_UNPRESSURISED = {"infiltration_fans_on_share": 1.0}  # infiltration the same with the fans on as off
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
 EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     "bf68f6178dc1d1b3": EarlierCatalogue(
@@ -885,6 +902,7 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             "heat_recovery_effectiveness": 0.0,
             "minimum_supply_air_ach": 0.0,
             "economiser_share": 0.0,
+            "infiltration_fans_on_share": 1.0,
         },
     ),
     # supply air from 18 degC
@@ -892,31 +910,37 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={**_NO_DAY_OFF, "supply_air_c": (18.0, 26.0, 0.5), "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
+        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0, **_UNPRESSURISED},
     ),
     # no minimum supply air flow: 100 % outdoor air units only
     "6f2f25c1acea3f20": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0},
+        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0, **_UNPRESSURISED},
     ),
     # no economiser: the fan coils cool mechanically only
     "bda1c8ff3b9294aa": EarlierCatalogue(
         theta_names=_THETA_BEFORE_ECONOMISER,
         ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={"economiser_share": 0.0},
+        implied={"economiser_share": 0.0, **_UNPRESSURISED},
     ),
     # outdoor air by 0.3 air changes per hour
     "88d16120a6d2221f": EarlierCatalogue(
-        theta_names=THETA_NAMES,
+        theta_names=_THETA_BEFORE_PRESSURISATION,
         ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={},
+        implied=dict(_UNPRESSURISED),
     ),
     # no day set back entirely: every day ran its heating, cooling and ventilation periods
-    "d40fb58bb6ff03a6": EarlierCatalogue(theta_names=THETA_NAMES, ranges=dict(_NO_DAY_OFF), renamed={}, implied={}),
+    "d40fb58bb6ff03a6": EarlierCatalogue(
+        theta_names=_THETA_BEFORE_PRESSURISATION, ranges=dict(_NO_DAY_OFF), renamed={}, implied=dict(_UNPRESSURISED)
+    ),
+    # infiltration the same whether the fans ran or not
+    "bf2a5f1cabb2a9f8": EarlierCatalogue(
+        theta_names=_THETA_BEFORE_PRESSURISATION, ranges={}, renamed={}, implied=dict(_UNPRESSURISED)
+    ),
 }
 
 

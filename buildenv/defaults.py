@@ -20,6 +20,7 @@ DEFAULT_THETA: dict[str, float] = {
     "floor_area_m2": 5000,
     "number_of_floors": 3,
     "infiltration_ach": 0.3,
+    "infiltration_fans_on_share": 1.0,
     "heat_recovery_effectiveness": 0.0,
     "minimum_supply_air_ach": 0.0,
     "economiser_share": 0.0,

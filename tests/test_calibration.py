@@ -119,6 +119,7 @@ def _truth() -> np.ndarray:
         "heat_recovery_effectiveness": 0.0,
         "minimum_supply_air_ach": 0.0,
         "economiser_share": 0.0,
+        "infiltration_fans_on_share": 1.0,
         "light_night_percent": 20,
         "pc_night_percent": 25,
         "wall_insulation_north_m": 0.1,
@@ -185,7 +186,7 @@ def test_parameters_at_a_bound_of_the_catalogue_are_reported(surrogate):
     note = cal.at_bounds_note(
         {"at_bounds": found, "known": ["light_night_percent"], "not_read": sorted(surrogate.implied)}
     )
-    assert "\n" not in note and note.startswith("note: 2 of 20 estimated building parameters")
+    assert "\n" not in note and note.startswith("note: 2 of 21 estimated building parameters")
     assert "capacitance_kj_per_k_m3 at its min 20" in note and "pc_night_percent at its max 70" in note
     assert cal.at_bounds_note({"at_bounds": [], "known": []}) is None
 

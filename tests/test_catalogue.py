@@ -20,15 +20,15 @@ STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
 # --------------------------------------------------------------------------- group sizes
 def test_group_sizes_match_the_paper():
     # theta_build: the paper's 17 (nb_PCs as plug-load power) + floor area, floors, lighting power, heat recovery,
-    # minimum supply air, economiser share
-    assert len(cat.THETA_BUILD) == 23
+    # minimum supply air, economiser share, infiltration left while the fans pressurise the building
+    assert len(cat.THETA_BUILD) == 24
     assert {"lighting_power_w_m2", "heat_recovery_effectiveness", "plug_load_w_m2"} <= set(cat.THETA_NAMES)
     assert "pc_density_per_m2" not in cat.THETA_NAMES
     assert len(cat.SETTINGS) == 13 and cat.SETTING_NAMES[-1] == "hvac_operating"  # + a day set back entirely
     assert len(cat.OCCUPANCY) == 2
     assert len(cat.WEATHER) == 9
     assert len(cat.OUTPUTS) == 8
-    assert len(cat.ALL_VARIABLES) == 23 + 13 + 2 + 9 + 8
+    assert len(cat.ALL_VARIABLES) == 24 + 13 + 2 + 9 + 8
     assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
 
 
@@ -327,6 +327,7 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
         "heat_recovery_effectiveness": 0.0,
         "minimum_supply_air_ach": 0.0,
         "economiser_share": 0.0,
+        "infiltration_fans_on_share": 1.0,
     }
     for name, value in earlier.implied.items():
         cat.get(name).check(value)
@@ -335,8 +336,9 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
         var = cat.get(name)
         assert var.min <= lo <= hi <= var.max, name
     assert earlier.ranges["ventilation_ach"] == (0.7, 1.7, 0.3)
-    # no earlier catalogue set a day back entirely: a metamodel of one knows operating days only
-    assert all(e.ranges["hvac_operating"] == (1.0, 1.0, 1.0) for e in cat.EARLIER_CATALOGUES.values())
+    # no catalogue before the last one set a day back entirely: a metamodel of one knows operating days only
+    *before, last = cat.EARLIER_CATALOGUES.values()
+    assert all(e.ranges["hvac_operating"] == (1.0, 1.0, 1.0) for e in before) and "hvac_operating" not in last.ranges
 
 
 def test_a_switch_is_on_or_off_and_nothing_between():
@@ -363,11 +365,21 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     # a full theta of the catalogue before the minimum supply flow: its 100 % outdoor air units
     before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["6f2f25c1acea3f20"].theta_names}
     assert "minimum_supply_air_ach" not in before
-    assert cat.upgrade_theta(before) == {**before, "minimum_supply_air_ach": 0.0, "economiser_share": 0.0}
+    unpressurised = {"infiltration_fans_on_share": 1.0}
+    assert cat.upgrade_theta(before) == {
+        **before,
+        "minimum_supply_air_ach": 0.0,
+        "economiser_share": 0.0,
+        **unpressurised,
+    }
     # a full theta of the catalogue before the economiser: mechanical cooling only
     before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["bda1c8ff3b9294aa"].theta_names}
     assert "economiser_share" not in before and "minimum_supply_air_ach" in before
-    assert cat.upgrade_theta(before) == {**before, "economiser_share": 0.0}
+    assert cat.upgrade_theta(before) == {**before, "economiser_share": 0.0, **unpressurised}
+    # a full theta of the catalogue before the fans pressurised: the same infiltration day and night
+    before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["bf2a5f1cabb2a9f8"].theta_names}
+    assert "infiltration_fans_on_share" not in before and "economiser_share" in before
+    assert cat.upgrade_theta(before) == {**before, **unpressurised}
     # an earlier full theta becomes a vector of this catalogue
     earlier = cat.EARLIER_CATALOGUES["bf68f6178dc1d1b3"]
     mid = {n: float(np.mean(earlier.ranges.get(n, (cat.get(n).min, cat.get(n).max))[:2])) for n in cat.THETA_NAMES}
@@ -442,10 +454,10 @@ def test_describe_selected_groups():
     json.dumps(rows)
 
 
-def test_datasets_of_the_coarser_outdoor_air_grid_read_as_this_catalogues():
+def test_datasets_of_a_catalogue_that_lacked_a_variable_are_not_read():
     from buildenv.campaign.dataset import readable_catalogue
 
     assert readable_catalogue(cat.catalogue_hash())
-    assert readable_catalogue("88d16120a6d2221f")  # outdoor air by 0.3 1/h: the same variables on a coarser grid
-    assert not readable_catalogue("bda1c8ff3b9294aa")  # before the economiser: a variable it lacked
+    assert not readable_catalogue("bf2a5f1cabb2a9f8")  # before the infiltration with fans on: a variable it lacked
+    assert not readable_catalogue("bda1c8ff3b9294aa")  # before the economiser
     assert not readable_catalogue("0123456789abcdef") and not readable_catalogue(None)

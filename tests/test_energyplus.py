@@ -311,3 +311,16 @@ def test_an_economiser_cools_with_outdoor_air_while_it_is_cooler(zoning):
     # in July outdoor air is warmer than the zones in the afternoon: the economiser cannot replace most cooling
     july = [_week("usa_il_chicago", JULY, {**cold, "economiser_share": s})[0] for s in (0.0, 1.0)]
     assert july[1][:, OUT["Q_AC_OFFICE"]].sum() > 0.5 * july[0][:, OUT["Q_AC_OFFICE"]].sum()
+
+
+def test_infiltration_falls_while_the_fans_pressurise_the_building():
+    # a Chicago January at 0.6 air changes: a quarter of them while the air handling unit runs, all while it is off
+    leaky = {"heating_power_w_m2": 100, "infiltration_ach": 0.6}
+    same, _ = _week("usa_il_chicago", JANUARY, leaky)
+    pressurised, series = _week("usa_il_chicago", JANUARY, {**leaky, "infiltration_fans_on_share": 0.25})
+    on = series["ventilation_on"][0] > 0
+    heat = [out[:, OUT["Q_HEAT_OFFICE"]] for out in (same, pressurised)]
+    # less zone heating while the fans run, about the same while they are off (the night's store differs a little)
+    assert heat[1][on].sum() < 0.9 * heat[0][on].sum()
+    assert heat[1][~on].sum() == pytest.approx(heat[0][~on].sum(), rel=0.1)
+    assert heat[1][~on].sum() > 0.0

@@ -11,7 +11,9 @@ Modelling choices (each a constant below, so that a reader can find and change i
   floor insulation under a slab, on ground at the annual mean + ``GROUND_SWING`` x (previous month's mean -
   annual mean) of the weather file; simple glazing (``GLAZING_U``, ``GLAZING_SHGC``).
 - Capacitance: an InternalMass of concrete (both faces exposed) whose thickness gives ``capacitance x volume``.
-- Infiltration: constant air changes per hour of the volume (no wind or stack dependence).
+- Infiltration: theta's air changes per hour of the volume while the air handling unit is off, its
+  ``infiltration_fans_on_share`` of them while it ventilates (the fans pressurise the building); no wind or stack
+  dependence.
 - Internal gains: ``PERSON_ACTIVITY_W`` per occupant, theta's plug loads (``ElectricEquipment``) and lighting
   power (``Lights``) per m2, following the hourly occupancy; lights and equipment at theta's night percentage
   outside it.
@@ -111,6 +113,7 @@ SCHEDULE_COLUMNS: tuple[str, ...] = (
     "lighting_fraction",
     "equipment_fraction",
     "ventilation_on",
+    "infiltration_fraction",
     "supply_fraction",
     "exhaust_fraction",
     "supply_air_c",
@@ -305,6 +308,7 @@ def schedule_table(theta: dict[str, float], settings: np.ndarray, occupancy: np.
         "lighting_fraction": usage_fraction(series["occupancy_fraction"], theta["light_night_percent"]),
         "equipment_fraction": usage_fraction(series["occupancy_fraction"], theta["pc_night_percent"]),
         "ventilation_on": series["ventilation_on"],
+        "infiltration_fraction": 1.0 - (1.0 - theta["infiltration_fans_on_share"]) * series["ventilation_on"],
         **dict(zip(("supply_fraction", "exhaust_fraction"), air_unit_flows(theta, series["ventilation_ach"]))),
         "supply_air_c": series["supply_air_c"],
     }
@@ -722,7 +726,7 @@ def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geomet
             "ZoneInfiltration:DesignFlowRate",
             f"{zone} infiltration",
             zone_or_zonelist_or_space_or_spacelist_name=zone,
-            schedule_name="Always on",
+            schedule_name="infiltration_fraction",
             design_flow_rate_calculation_method="Flow/Zone",
             design_flow_rate=round(t["infiltration_ach"] * g.volume_m3 / 3600.0, 6),
             constant_term_coefficient=1.0,

@@ -178,6 +178,11 @@ def _as_float(value: int | float) -> float:
         return math.inf if value > 0 else -math.inf
 
 
+def _is_number(value) -> bool:
+    """Whether a TOML or JSON value is a finite number (not a bool)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(_as_float(value))
+
+
 def _read_descriptor(descriptor: Path) -> dict[str, Any]:
     """Parse and validate ``site.toml`` into plain values (weather resolved)."""
     try:
@@ -216,7 +221,7 @@ def _read_descriptor(descriptor: Path) -> dict[str, Any]:
             raise SiteError(f"{descriptor}: [geometry] is missing {key!r} ({cat.get(key).description})")
     area = geometry["floor_area_m2"]
     where = _where(descriptor, text, "floor_area_m2", "geometry")
-    if isinstance(area, bool) or not isinstance(area, (int, float)) or not math.isfinite(_as_float(area)):
+    if not _is_number(area):
         raise SiteError(f"{where}: floor_area_m2 must be a number (m2), got {area!r}")
     floors = geometry["number_of_floors"]
     where_floors = _where(descriptor, text, "number_of_floors", "geometry")
@@ -313,7 +318,7 @@ def known_parameter(name: str, value: Any) -> float:
         hint = f" (did you mean {close[0]!r}?)" if close else ""
         raise SiteError(f"unknown key {name!r} in [known]{hint}; allowed: {_allowed(KNOWN_KEYS)}")
     variable = cat.get(name)
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(_as_float(value)):
+    if not _is_number(value):
         raise SiteError(f"{name} must be a number ({variable.unit}), got {value!r}")
     try:
         variable.check(float(value))
@@ -423,11 +428,7 @@ def check_setting_limit(
     if name not in controllable:
         raise SiteError(f"{name!r} is not in [bms] controllable: add it there or remove its limit")
     variable = cat.get(name)
-    numbers = (
-        isinstance(value, (list, tuple))
-        and len(value) == 2
-        and all(isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(_as_float(v)) for v in value)
-    )
+    numbers = isinstance(value, (list, tuple)) and len(value) == 2 and all(map(_is_number, value))
     if not numbers:
         raise SiteError(f"{name} must be a list [min, max] of two numbers ({variable.unit}), got {value!r}")
     low, high = float(value[0]), float(value[1])
@@ -593,11 +594,6 @@ def _upgraded(calibration: dict | None, path: Path) -> dict | None:
 
 
 _AGAIN = "; calibrate the site again (buildenv calibrate --site FOLDER) or restore the file"
-
-
-def _is_number(value) -> bool:
-    """Whether a JSON value is a finite number (not a bool)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _check_calibration(calibration: dict, path: Path) -> None:

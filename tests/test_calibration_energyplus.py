@@ -7,6 +7,7 @@ import datetime as dt
 import numpy as np
 import pytest
 
+from buildenv import catalogue as cat
 from buildenv.calibration import energyplus as ce
 from buildenv.calibration import problem as cal
 from buildenv.energyplus.reference import historical_settings
@@ -55,10 +56,18 @@ def test_plan_adds_the_week_before_as_warm_up(tmp_path):
         ce.plan_site_run(site, [4])
 
 
-def test_plan_refuses_a_run_across_new_year(tmp_path):
-    site = _site(tmp_path, 2, start=dt.date(2018, 12, 24))
-    with pytest.raises(cal.CalibrationError, match="Dec 31"):
-        ce.plan_site_run(site, [0, 1])
+def test_a_run_across_new_year_goes_on_in_january_in_the_sites_order(tmp_path):
+    site = _site(tmp_path, 3, start=dt.date(2018, 12, 17))  # weeks 1-2 (Dec 24 - Jan 6) past Dec 31
+    problem = cal.build_problem(site, [0])
+    theta, occ = cal._split(problem, _params(problem)[None])
+    across = ce.simulate_site_run(ce.plan_site_run(site, [0, 1, 2]), theta[0], occ[0])
+    before = ce.simulate_site_run(ce.plan_site_run(site, [0, 1]), theta[0], occ[0])
+    np.testing.assert_allclose(across[:2], before, atol=0.1)  # December as a run that stops before it
+    people = across[2, :, cat.OUTPUT_NAMES.index("Q_PEOPLE")].reshape(7, 24).sum(axis=1)
+    assert (people[:5] > 0).all() and (people[5:] == 0).all()  # the week after Dec 31: Monday first
+    assert (across[2, :, cat.OUTPUT_NAMES.index("Q_HEAT_OFFICE")] > 0).any()
+    with pytest.raises(cal.CalibrationError, match="more than a year"):
+        ce.plan_site_run(_site(tmp_path / "year", 54), [1, 53])
 
 
 def test_schedules_land_on_the_sites_day(tmp_path):

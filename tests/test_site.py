@@ -933,6 +933,8 @@ def test_hvac_operating_is_one_or_zero(site_dir: Path):
         (lambda c: c.update(occupancy=[[8, 18]] * 7), r"'occupancy' must be 5 pairs of hours"),
         (lambda c: c.update(occupancy=[[8, 18]] * 4 + [[8]]), r"'occupancy' must be 5 pairs of hours"),
         (lambda c: c.update(heldout=[1, 2]), r"'heldout' is list, not an object"),
+        (lambda c: c["theta"].update(plug_load_w_m2=500.0), r"theta: plug_load_w_m2=500 is outside its range"),
+        (lambda c: c["occupancy"].__setitem__(4, [8.0, 2.0]), r"occupancy of friday: occupancy_end_hour=2 is outside"),
     ],
 )
 def test_a_damaged_calibration_is_named_in_one_line(site_dir: Path, edit, message):

@@ -10,7 +10,8 @@ from the week before the first requested one (a warm-up week, discarded, when th
 too reads context hours before each week) to the last, contiguously, so later weeks start from the state the
 earlier ones left. Runs are placed on the site's calendar day by day
 (:func:`buildenv.weather.epw.epw_day_of_year`), so EnergyPlus reads the weather hours the metamodel sees
-(:meth:`buildenv.sites.Site.weather_hours`); weeks that would need Feb 29 or cross Dec 31 are refused.
+(:meth:`buildenv.sites.Site.weather_hours`); a run past Dec 31 goes on at the start of the EPW
+year as the metamodel's weeks do; weeks that would need Feb 29 are refused.
 
 **Parallelism.** The candidates of a generation run in worker processes (:class:`ShoeboxPool`, one
 EnergyPlus run each, spawned and warmed before the clock starts). A short run is dominated by EnergyPlus's
@@ -58,6 +59,8 @@ from buildenv.metrics import GUIDELINE14_P
 METHOD = "cmaes-energyplus"
 HOURS_PER_YEAR = 8760
 _EPW_YEAR = 2001  # the shoebox's calendar: a non-leap year that starts on a Monday, like the EPW rows
+#: Longest run, weeks: one EnergyPlus run holds each calendar day once (its CSV has no year).
+_MAX_RUN_WEEKS = 52
 
 
 @dataclass(frozen=True)
@@ -89,7 +92,7 @@ def plan_site_run(site, weeks: list[int], zoning: str = DEFAULT_ZONING) -> SiteR
     the shoebox of ``zoning``.
 
     Raises:
-        CalibrationError: no weeks, a week the site lacks, or a run that would cross Dec 31 or Feb 29.
+        CalibrationError: no weeks, a week the site lacks, a run longer than 52 weeks or one that would need Feb 29.
     """
     if not weeks:
         raise CalibrationError("no weeks to simulate")
@@ -98,12 +101,16 @@ def plan_site_run(site, weeks: list[int], zoning: str = DEFAULT_ZONING) -> SiteR
         raise CalibrationError(f"week(s) {bad} not in {site.path} (it has weeks 0..{site.weeks - 1})")
     first = max(min(weeks) - 1, 0)
     last = max(weeks)
-    hours = site.epw_hours()[first : last + 1].reshape(-1)
-    expected = hours[0] + np.arange(len(hours))
-    if not np.array_equal(hours, expected) or hours[-1] >= HOURS_PER_YEAR:
+    if last - first + 1 > _MAX_RUN_WEEKS:
         raise CalibrationError(
-            f"site weeks {first}..{last} of {site.path} cross Dec 31 or Feb 29; the EnergyPlus "
-            "calibration runs inside one 365-day year: choose other --weeks"
+            f"site weeks {first}..{last} of {site.path} span more than a year ({_MAX_RUN_WEEKS} weeks at most, "
+            "warm-up week included): choose fewer --weeks"
+        )
+    hours = site.epw_hours()[first : last + 1].reshape(-1)
+    if not np.array_equal(hours, (hours[0] + np.arange(len(hours))) % HOURS_PER_YEAR):
+        raise CalibrationError(
+            f"site weeks {first}..{last} of {site.path} hold Feb 29, which the 365-day EPW year lacks (the "
+            "metamodel reads Feb 28 twice, EnergyPlus cannot): choose other --weeks"
         )
     return SiteRun(
         str(site.weather),
@@ -175,9 +182,26 @@ def simulate_site_run(
         model["RunPeriod"]["weeks"].update(
             begin_month=first.month, begin_day_of_month=first.day, end_month=last.month, end_day_of_month=last.day
         )
+        if last.year > first.year:  # past Dec 31: the same EPW year again, the schedules' rows wrapped alike
+            model["RunPeriod"]["weeks"].update(begin_year=first.year, end_year=last.year)
         run_energyplus(model, weather.path, work, label="shoebox", accepted_severe=ACCEPTED_SEVERE)
+        if last.year > first.year:
+            _rows_in_run_order(work / "eplusout.csv", first)
         outputs = read_outputs(work / "eplusout.csv", t, run.weeks, run.zoning)
     return outputs[list(run.keep)]
+
+
+def _rows_in_run_order(csv_path: Path, first: dt.date) -> None:
+    """Put the rows of a run past Dec 31 back in the order they were simulated: EnergyPlus's CSV lists the hours
+    by month and day (no year), the new year's first. The run holds each calendar day once (:func:`plan_site_run`).
+    """
+    header, *rows = csv_path.read_text(encoding="utf-8").splitlines(keepends=True)
+
+    def days_from_first(row: str) -> int:
+        month, day = (int(x) for x in row.split(None, 1)[0].split("/"))
+        return (dt.date(first.year, month, day) - first).days % 365
+
+    csv_path.write_text(header + "".join(sorted(rows, key=days_from_first)), encoding="utf-8")
 
 
 def _simulate_task(task: tuple[SiteRun, np.ndarray, np.ndarray, bool]) -> np.ndarray:

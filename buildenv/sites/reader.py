@@ -593,13 +593,15 @@ def _upgraded(calibration: dict | None, path: Path) -> dict | None:
     return calibration
 
 
+_OCC = cat.GROUPS["occupancy"]  # arrival, departure
 _AGAIN = "; calibrate the site again (buildenv calibrate --site FOLDER) or restore the file"
 
 
 def _check_calibration(calibration: dict, path: Path) -> None:
     """Raise :class:`SiteError` naming ``path`` and the key unless the calibration holds what its users read: every
-    theta_build variable (their values checked by :func:`_upgraded`), the weekday occupancy as 5 pairs of hours,
-    and its metrics (``fit``, ``heldout``), declared effects (``effects``) and verdict as objects where present."""
+    theta_build variable (finite: :func:`_upgraded`; in its catalogue range), the weekday occupancy as 5 pairs of
+    hours in the catalogue's ranges, and its metrics (``fit``, ``heldout``), declared effects (``effects``) and
+    verdict as objects where present."""
     theta = calibration.get("theta")
     if not isinstance(theta, dict):
         raise SiteError(f"{path}: 'theta' is missing or not an object of building parameters{_AGAIN}")
@@ -613,6 +615,13 @@ def _check_calibration(calibration: dict, path: Path) -> None:
             f"{path}: 'occupancy' must be {len(cat.WEEKDAYS)} pairs of hours [arrival, departure], "
             f"Monday to Friday; got {occupancy!r}{_AGAIN}"
         )
+    values = [("theta", cat.get(n), theta[n]) for n in cat.THETA_NAMES]
+    values += [(f"occupancy of {day}", v, h) for day, d in zip(cat.WEEKDAYS, occupancy) for v, h in zip(_OCC, d)]
+    for where, variable, value in values:  # a calibration is searched within the catalogue's ranges
+        try:
+            variable.check(value)
+        except cat.CatalogueError as error:
+            raise SiteError(f"{path}: {where}: {error}{_AGAIN}") from None
     for key in ("fit", "heldout", "effects", "verdict"):
         if key in calibration and calibration[key] is not None and not isinstance(calibration[key], dict):
             raise SiteError(f"{path}: {key!r} is {type(calibration[key]).__name__}, not an object{_AGAIN}")

@@ -15,6 +15,7 @@ import pytest
 import buildenv.campaign.runs as runs
 import buildenv.diagnosis.gap as gap
 import buildenv.energyplus.reference as reference
+import buildenv.energyplus.workdirs as workdirs
 import buildenv.metamodel.surrogate as surrogate
 from buildenv import catalogue as cat
 from buildenv.cli.main import main
@@ -184,10 +185,10 @@ def test_next_campaign_removes_the_temporary_folders_a_killed_one_left(tmp_path,
     system_tmp = tmp_path / "tmp"
     system_tmp.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(system_tmp))
-    stale = Path(tempfile.mkdtemp(prefix=f"{runs.CAMPAIGN_TMP_PREFIX}{_dead_pid()}-"))
+    stale = Path(tempfile.mkdtemp(prefix=f"buildenv-campaign-{_dead_pid()}-"))
     (stale / "buildenv-run3-abcdefgh").mkdir()  # what a killed run left
     (stale / "buildenv-run3-abcdefgh" / "eplusout.err").write_text("...")
-    alive = Path(tempfile.mkdtemp(prefix=f"{runs.CAMPAIGN_TMP_PREFIX}{os.getppid()}-"))  # a campaign running now
+    alive = Path(tempfile.mkdtemp(prefix=f"buildenv-campaign-{os.getppid()}-"))  # a campaign running now
     other = system_tmp / "buildenv-run7-abcdefgh"  # not a campaign folder of this pattern: not ours to judge
     other.mkdir()
     seen = []
@@ -195,7 +196,7 @@ def test_next_campaign_removes_the_temporary_folders_a_killed_one_left(tmp_path,
     def fake_run(task, tmp_root=None):
         assert not stale.exists()
         root = Path(tmp_root)
-        assert root.parent == system_tmp and root.name.startswith(f"{runs.CAMPAIGN_TMP_PREFIX}{os.getpid()}-")
+        assert root.parent == system_tmp and root.name.startswith(workdirs.prefix("campaign"))
         seen.append(root)
         with tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-", dir=tmp_root) as work:
             (Path(work) / "eplusout.csv").write_text("")
@@ -228,16 +229,39 @@ def test_a_run_without_a_campaign_folder_works_in_one_the_next_campaign_can_swee
     task = runs.plan_campaign(runs.CampaignConfig(weeks=1, weeks_per_run=1, epw=["usa_il_chicago"]))[0]
     with pytest.raises(KeyboardInterrupt):
         runs.run_task(task)  # as _execute_dask calls it: no tmp_root
-    assert runs._CAMPAIGN_TMP.fullmatch(seen[0].name) and seen[0].parent == tmp_path
-    assert seen[0].name.startswith(f"{runs.CAMPAIGN_TMP_PREFIX}{os.getpid()}-")
+    assert workdirs._FOLDER.fullmatch(seen[0].name) and seen[0].parent == tmp_path
+    assert seen[0].name.startswith(workdirs.prefix("campaign"))
 
 
 def test_remove_stale_run_folders_keeps_running_and_foreign_ones(tmp_path):
-    dead = tmp_path / f"{runs.CAMPAIGN_TMP_PREFIX}{_dead_pid()}-abc_1234"
-    mine = tmp_path / f"{runs.CAMPAIGN_TMP_PREFIX}{os.getpid()}-abcd1234"
-    running = tmp_path / f"{runs.CAMPAIGN_TMP_PREFIX}{os.getppid()}-abcd1234"
-    unlike = tmp_path / f"{runs.CAMPAIGN_TMP_PREFIX}{_dead_pid()}-abc"  # not a mkdtemp name
-    for folder in (dead, mine, running, unlike):
+    dead = [tmp_path / f"buildenv-{kind}-{_dead_pid()}-abc_1234" for kind in workdirs.KINDS]
+    mine = tmp_path / f"{workdirs.prefix('calib')}abcd1234"
+    running = tmp_path / f"buildenv-ref-{os.getppid()}-abcd1234"
+    unlike = tmp_path / f"buildenv-campaign-{_dead_pid()}-abc"  # not a mkdtemp name
+    other = tmp_path / f"buildenv-run-{_dead_pid()}-abcd1234"  # not a kind of ours
+    for folder in (*dead, mine, running, unlike, other):
         folder.mkdir()
-    assert runs.remove_stale_run_folders(tmp_path) == [dead]
-    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in (mine, running, unlike))
+    assert sorted(workdirs.remove_stale_run_folders(tmp_path)) == sorted(dead)
+    assert sorted(p.name for p in tmp_path.iterdir()) == sorted(p.name for p in (mine, running, unlike, other))
+
+
+@pytest.mark.skipif(not Path("/proc/sys/kernel/pid_max").is_file(), reason="needs Linux's pid_max")
+def test_a_killed_shoebox_run_s_folder_goes_with_the_next_process_s_first_run(tmp_path, monkeypatch):
+    from buildenv.defaults import default_theta, default_week
+    from buildenv.energyplus import simulate
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(workdirs, "_swept", False)  # a new process
+    stale = Path(tempfile.mkdtemp(prefix=f"buildenv-calib-{_dead_pid()}-"))
+    (stale / "eplusout.err").write_text("...")
+    made = []
+
+    def fake_run(model, epw, workdir, **kwargs):
+        made.append(Path(workdir))
+        assert not stale.exists()
+        raise KeyboardInterrupt  # killed during its run
+
+    monkeypatch.setattr(simulate, "run_energyplus", fake_run)
+    with pytest.raises(KeyboardInterrupt):
+        simulate.simulate_weeks(default_theta(), *default_week(), "usa_il_chicago", 1)
+    assert made[0].name.startswith(workdirs.prefix("eplus")) and not made[0].exists()

@@ -28,7 +28,6 @@ from __future__ import annotations
 import dataclasses
 import datetime as dt
 import os
-import tempfile
 import time
 from collections.abc import Mapping
 from contextlib import nullcontext
@@ -53,6 +52,7 @@ from buildenv.calibration.problem import (
     score_outputs,
 )
 from buildenv.campaign.runs import TASKS_PER_WORKER
+from buildenv.energyplus import workdirs
 from buildenv.energyplus.shoebox import ACCEPTED_SEVERE, DEFAULT_ZONING
 from buildenv.metrics import GUIDELINE14_P
 
@@ -164,7 +164,7 @@ def simulate_site_run(
     t = theta_dict(np.asarray(theta, float), check=within_catalogue)
     cat.check_values("occupancy", np.asarray(occupancy, float), "occupancy")
     weather = load_weather(run.weather)
-    with tempfile.TemporaryDirectory(prefix="buildenv-calib-") as tmp:
+    with workdirs.temporary_folder("calib") as tmp:
         work = Path(workdir) if workdir is not None else Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         csv = work / "schedules.csv"

@@ -16,7 +16,7 @@ Runs execute in worker processes (EnergyPlus states are not thread-safe; workers
 run leaves a few MB behind) or, with ``scheduler``, on a Dask cluster. Local runs work in one temporary folder
 per campaign, named after its process (``buildenv-campaign-<pid>-*`` in the system's temporary folder) and
 removed when the campaign ends or fails; one left by a killed campaign is removed when the next starts
-(:func:`remove_stale_run_folders`).
+(:mod:`buildenv.energyplus.workdirs`).
 """
 
 from __future__ import annotations
@@ -25,7 +25,6 @@ import json
 import logging
 import math
 import os
-import re
 import shutil
 import tempfile
 import time
@@ -40,6 +39,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import DATA_FILE, data_file_record, simulate_command
 from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
+from buildenv.energyplus import workdirs
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError, DatasetError, SimulationError
 from buildenv.weather.epw import resolve_epw, shipped_weather
@@ -51,9 +51,6 @@ log = logging.getLogger(__name__)
 MAX_FAILED_SHARE = 0.01
 TASKS_PER_WORKER = 50  # recycle worker processes after this many EnergyPlus runs (each leaves ~3 MB behind)
 DEFAULT_CLIMATES: tuple[str, ...] = tuple(shipped_weather())
-#: a campaign's temporary folder: ``tempfile.mkdtemp(prefix=f"{CAMPAIGN_TMP_PREFIX}{pid}-")``, its runs' inside
-CAMPAIGN_TMP_PREFIX = "buildenv-campaign-"
-_CAMPAIGN_TMP = re.compile(re.escape(CAMPAIGN_TMP_PREFIX) + r"(\d+)-[a-z0-9_]{8}")  # mkdtemp: 8 random characters
 
 
 @dataclass
@@ -144,12 +141,17 @@ def run_task(task: RunTask, tmp_root: str | None = None) -> tuple[int, np.ndarra
     """Simulate one run (in a worker process); returns ``(run_id, outputs (weeks, 168, 8), "")``, or
     ``(run_id, None, message)`` when EnergyPlus refused the building (a :class:`SimulationError`). EnergyPlus
     runs in a temporary folder inside ``tmp_root``, removed after; without one (a Dask worker), a folder of the
-    system's named as a campaign's of this process, which the next campaign removes if the worker is killed."""
+    system's named as a campaign's of this process, which the next campaign removes if the worker is killed
+    (:mod:`buildenv.energyplus.workdirs`)."""
     from buildenv.energyplus.simulate import simulate_weeks
 
-    prefix = f"buildenv-run{task.run_id}-" if tmp_root else f"{CAMPAIGN_TMP_PREFIX}{os.getpid()}-"
+    folder = (
+        tempfile.TemporaryDirectory(prefix=f"buildenv-run{task.run_id}-", dir=tmp_root)
+        if tmp_root
+        else workdirs.temporary_folder("campaign")
+    )
     try:
-        with tempfile.TemporaryDirectory(prefix=prefix, dir=tmp_root) as tmp:
+        with folder as tmp:
             result = simulate_weeks(
                 task.theta,
                 task.settings,
@@ -230,47 +232,6 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
     (out / "shards").mkdir(exist_ok=True)
 
 
-def _process_alive(pid: int) -> bool:
-    """Whether process ``pid`` exists (POSIX; another user's counts)."""
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    except PermissionError:
-        return True
-    return True
-
-
-def remove_stale_run_folders(root: str | Path | None = None) -> list[Path]:
-    """Remove the temporary folders that campaigns killed before cleaning up left in ``root`` (default: the
-    system's temporary folder): only this project's (``buildenv-campaign-<pid>-*``), only this user's, and only
-    those whose process is gone, so that a campaign running beside this one keeps its own. Does nothing where
-    processes cannot be looked up (not POSIX). Returns the folders removed."""
-    if os.name != "posix":
-        return []
-    root = Path(tempfile.gettempdir() if root is None else root)
-    try:
-        entries = list(os.scandir(root))
-    except OSError:
-        return []
-    removed = []
-    for entry in entries:
-        match = _CAMPAIGN_TMP.fullmatch(entry.name)
-        try:
-            if not match or not entry.is_dir(follow_symlinks=False):
-                continue
-            if entry.stat(follow_symlinks=False).st_uid != os.getuid():
-                continue
-            pid = int(match.group(1))
-            if pid == os.getpid() or _process_alive(pid):
-                continue
-        except (OSError, OverflowError):
-            continue
-        shutil.rmtree(entry.path, ignore_errors=True)
-        removed.append(Path(entry.path))
-    return removed
-
-
 def _execute_local(
     tasks: list[RunTask], workers: int, tmp_root: str | None = None
 ) -> Iterator[tuple[int, np.ndarray | None, str]]:
@@ -327,7 +288,7 @@ def run_campaign(
             settles, say): those are left out of the dataset and listed in the manifest's ``failed_runs``.
 
     Local runs work in a temporary folder of this campaign's, removed when it ends or fails; folders left by
-    killed campaigns are removed first (:func:`remove_stale_run_folders`).
+    killed processes are removed first (:func:`buildenv.energyplus.workdirs.remove_stale_run_folders`).
 
     Raises:
         DatasetError: ``out`` holds a different campaign.
@@ -339,8 +300,8 @@ def run_campaign(
     out = Path(out)
     tasks = plan_campaign(config)
     _prepare_directory(out, config)
-    for stale in remove_stale_run_folders():
-        log.info("removed %s, left by a killed campaign", stale)
+    for stale in workdirs.remove_stale_run_folders():
+        log.info("removed %s, left by a killed run", stale)
     if (out / "manifest.json").exists():
         log.info("%s is already complete", out)
         return out / "dataset.h5"
@@ -349,7 +310,7 @@ def run_campaign(
     by_id = {t.run_id: t for t in tasks}
     started = time.perf_counter()
     workers = workers or os.cpu_count() or 1
-    tmp_root = None if scheduler else tempfile.mkdtemp(prefix=f"{CAMPAIGN_TMP_PREFIX}{os.getpid()}-")
+    tmp_root = None if scheduler else str(workdirs.make_folder("campaign"))
     results = _execute_dask(todo, scheduler) if scheduler else _execute_local(todo, workers, tmp_root)
     failed: dict[int, dict] = {}
     try:

@@ -39,7 +39,6 @@ import functools
 import logging
 import math
 import re
-import tempfile
 from collections.abc import Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -49,6 +48,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.defaults import default_week
+from buildenv.energyplus import workdirs
 from buildenv.energyplus.compact_schedules import daily_means, steady_copy
 from buildenv.energyplus.design_days import climate_design_days
 from buildenv.energyplus.idf import IdfObject, format_idf, of_type, read_idf, without
@@ -463,7 +463,7 @@ def design_outdoor_air_ach(source: Path, epw: Path | None) -> float:
         raise ReferenceBuildingError(f"{source.stem}: the design outdoor air needs a sizing run with a weather file")
     objects = read_idf(source)
     occupied = {o[2].upper() for o in of_type(objects, "People")}
-    with tempfile.TemporaryDirectory(prefix="buildenv-oa-") as tmp:
+    with workdirs.temporary_folder("oa") as tmp:
         eio = _sizing_run(source, Path(tmp), Path(epw))(sizing_objects(objects))
         flows = zone_outdoor_air_m3_s(eio)
         areas = zone_areas(eio)
@@ -773,7 +773,7 @@ def run_reference(
     full = np.concatenate([np.repeat(settings[:1], warmup_weeks, axis=0), settings])
     first_day = start - dt.timedelta(weeks=warmup_weeks)
     planned = plan_effects(effects, start, len(settings), effect_seed)
-    with tempfile.TemporaryDirectory(prefix="buildenv-ref-") as tmp:
+    with workdirs.temporary_folder("ref") as tmp:
         work = Path(workdir) if workdir else Path(tmp)
         weather = resolve_epw(epw)
         idf, _ = prepare_model(

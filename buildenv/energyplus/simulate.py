@@ -4,13 +4,13 @@ from __future__ import annotations
 
 import json
 import shutil
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from buildenv import catalogue as cat
+from buildenv.energyplus import workdirs
 from buildenv.energyplus.runner import read_hourly_csv, run_energyplus
 from buildenv.energyplus.shoebox import (
     ACCEPTED_SEVERE,
@@ -81,7 +81,7 @@ def simulate_weeks(
     weather = load_weather(epw)
     tmp = None
     if workdir is None:
-        tmp = tempfile.mkdtemp(prefix="buildenv-eplus-")
+        tmp = workdirs.make_folder("eplus")
         workdir = Path(tmp)
     workdir = Path(workdir)
     workdir.mkdir(parents=True, exist_ok=True)

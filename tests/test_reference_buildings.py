@@ -12,7 +12,6 @@ import pytest
 from buildenv import catalogue as cat
 from buildenv.energyplus.idf import of_type, read_idf
 from buildenv.energyplus.reference import (
-    _run_period_rows,
     design_occupants_per_m2,
     detect_schedule_map,
     historical_settings,
@@ -20,6 +19,7 @@ from buildenv.energyplus.reference import (
     run_reference,
     serves_24h_space,
 )
+from buildenv.energyplus.runner import run_period_rows
 from buildenv.energyplus.ventilation_code import code_minimum_ventilation_ach
 from buildenv.errors import ReferenceBuildingError
 
@@ -43,10 +43,10 @@ def test_run_period_rows_drop_design_days_by_stamp():
     frame = pd.DataFrame(
         {"Date/Time": [" 01/01  01:00:00", *stamps[:30], " 07/21  01:00:00", *stamps[30:]], "x": np.arange(50)}
     )
-    rows = _run_period_rows(frame, first, 48, "eplusout.csv")
+    rows = run_period_rows(frame, first, 48, "eplusout.csv")
     assert list(rows["Date/Time"]) == stamps
     with pytest.raises(Exception, match="expected 24 consecutive hours"):
-        _run_period_rows(frame, dt.date(2019, 1, 16), 24, "eplusout.csv")
+        run_period_rows(frame, dt.date(2019, 1, 16), 24, "eplusout.csv")
 
 
 def test_data_centre_keeps_its_schedules():
@@ -95,7 +95,7 @@ def test_run_period_rows_put_a_run_across_a_new_year_in_order():
     december = [f" 12/31  {h:02d}:00:00" for h in range(1, 25)]
     january = [f" 01/01  {h:02d}:00:00" for h in range(1, 25)]
     frame = pd.DataFrame({"Date/Time": january + december, "x": np.arange(48)})
-    rows = _run_period_rows(frame, dt.date(2019, 12, 31), 48, "eplusout.csv")
+    rows = run_period_rows(frame, dt.date(2019, 12, 31), 48, "eplusout.csv")
     assert list(rows["Date/Time"]) == december + january and list(rows["x"]) == [*range(24, 48), *range(24)]
 
 

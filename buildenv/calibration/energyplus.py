@@ -152,7 +152,9 @@ def simulate_site_run(
     Raises:
         SimulationError: EnergyPlus failed.
     """
-    from buildenv.energyplus.runner import run_energyplus
+    import pandas as pd
+
+    from buildenv.energyplus.runner import run_energyplus, run_period_rows
     from buildenv.energyplus.shoebox import (
         SCHEDULE_COLUMNS,
         build_epjson,
@@ -164,8 +166,8 @@ def simulate_site_run(
     t = theta_dict(np.asarray(theta, float), check=within_catalogue)
     cat.check_values("occupancy", np.asarray(occupancy, float), "occupancy")
     weather = load_weather(run.weather)
-    with workdirs.temporary_folder("calib") as tmp:
-        work = Path(workdir) if workdir is not None else Path(tmp)
+    with nullcontext(workdir) if workdir is not None else workdirs.temporary_folder("calib") as tmp:
+        work = Path(tmp)
         work.mkdir(parents=True, exist_ok=True)
         csv = work / "schedules.csv"
         np.savetxt(
@@ -185,23 +187,13 @@ def simulate_site_run(
         if last.year > first.year:  # past Dec 31: the same EPW year again, the schedules' rows wrapped alike
             model["RunPeriod"]["weeks"].update(begin_year=first.year, end_year=last.year)
         run_energyplus(model, weather.path, work, label="shoebox", accepted_severe=ACCEPTED_SEVERE)
-        if last.year > first.year:
-            _rows_in_run_order(work / "eplusout.csv", first)
+        if last.year > first.year:  # EnergyPlus lists the new year's hours first
+            csv_path = work / "eplusout.csv"
+            run_period_rows(pd.read_csv(csv_path), first, run.weeks * cat.HOURS_PER_WEEK, csv_path).to_csv(
+                csv_path, index=False
+            )
         outputs = read_outputs(work / "eplusout.csv", t, run.weeks, run.zoning)
     return outputs[list(run.keep)]
-
-
-def _rows_in_run_order(csv_path: Path, first: dt.date) -> None:
-    """Put the rows of a run past Dec 31 back in the order they were simulated: EnergyPlus's CSV lists the hours
-    by month and day (no year), the new year's first. The run holds each calendar day once (:func:`plan_site_run`).
-    """
-    header, *rows = csv_path.read_text(encoding="utf-8").splitlines(keepends=True)
-
-    def days_from_first(row: str) -> int:
-        month, day = (int(x) for x in row.split(None, 1)[0].split("/"))
-        return (dt.date(first.year, month, day) - first).days % 365
-
-    csv_path.write_text(header + "".join(sorted(rows, key=days_from_first)), encoding="utf-8")
 
 
 def _simulate_task(task: tuple[SiteRun, np.ndarray, np.ndarray, bool]) -> np.ndarray:

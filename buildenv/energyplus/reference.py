@@ -40,6 +40,7 @@ import logging
 import math
 import re
 from collections.abc import Sequence
+from contextlib import nullcontext
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,7 +62,7 @@ from buildenv.energyplus.injections import (
     weekday_profile,
 )
 from buildenv.energyplus.model_files import user_model
-from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, clean_outputs, run_energyplus
+from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, clean_outputs, run_energyplus, run_period_rows
 from buildenv.energyplus.shoebox import FLOOR_HEIGHT_M
 from buildenv.energyplus.ventilation_code import code_minimum_ventilation_ach
 from buildenv.errors import ReferenceBuildingError, SimulationError
@@ -632,27 +633,6 @@ def central_supply_nodes(objects: list[IdfObject]) -> list[str]:
     ]
 
 
-def _run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
-    """The rows of ``frame`` (an ``eplusout.csv``) stamped with the run period's ``hours`` hours from ``first_day``.
-
-    Models with "Do HVAC Sizing Simulation for Sizing Periods" (the DOE large office: coincident plant
-    sizing) also report their design days. EnergyPlus's CSV keys rows by their ``MM/DD  HH:MM:SS`` stamp:
-    the design days' rows come on top of the run's, and on a date the run shares with a design day the
-    run period (simulated last) has overwritten them (checked against ``eplusout.eso``, EnergyPlus 25.2).
-    """
-    day0 = dt.datetime(first_day.year, first_day.month, first_day.day)
-    expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00" for h in range(hours)]
-    stamps = frame["Date/Time"].astype(str).str.strip()
-    row_of = {stamp: i for i, stamp in enumerate(stamps)}  # a run across a new year is listed January first
-    found = [row_of[e] for e in expected if e in row_of]
-    if len(found) != hours or len(set(expected)) != hours:
-        raise ReferenceBuildingError(
-            f"{csv}: {len(found)} hourly rows stamped {first_day} and after ({len(frame)} "
-            f"in all), expected {hours} consecutive hours"
-        )
-    return frame.iloc[found].reset_index(drop=True)
-
-
 def read_sensors(
     out: Path,
     occupied: list[str],
@@ -665,15 +645,15 @@ def read_sensors(
     """Aggregate a finished reference run as the two sensors (see the module docstring).
 
     ``first_day`` (the run period's first day): read only the rows stamped with the run period's hours
-    (:func:`_run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run period's. ``end_uses``
-    (keys of :data:`END_USE_METERS`): the meters the consumption sums; ``electricity_end_uses``: those a second
-    meter sums (none: no second meter).
+    (:func:`buildenv.energyplus.runner.run_period_rows`); ``None`` takes every row of ``eplusout.csv`` as the run
+    period's. ``end_uses`` (keys of :data:`END_USE_METERS`): the meters the consumption sums;
+    ``electricity_end_uses``: those a second meter sums (none: no second meter).
     """
     import pandas as pd
 
     frame = pd.read_csv(out / "eplusout.csv")
     if first_day is not None:
-        frame = _run_period_rows(frame, first_day, (weeks + warmup_weeks) * cat.HOURS_PER_WEEK, out / "eplusout.csv")
+        frame = run_period_rows(frame, first_day, (weeks + warmup_weeks) * cat.HOURS_PER_WEEK, out / "eplusout.csv")
     areas = zone_areas(out / "eplusout.eio")
     zones = [z for z in occupied if z.upper() in areas]
     temps, weights = [], []
@@ -773,8 +753,8 @@ def run_reference(
     full = np.concatenate([np.repeat(settings[:1], warmup_weeks, axis=0), settings])
     first_day = start - dt.timedelta(weeks=warmup_weeks)
     planned = plan_effects(effects, start, len(settings), effect_seed)
-    with workdirs.temporary_folder("ref") as tmp:
-        work = Path(workdir) if workdir else Path(tmp)
+    with nullcontext(workdir) if workdir else workdirs.temporary_folder("ref") as tmp:
+        work = Path(tmp)
         weather = resolve_epw(epw)
         idf, _ = prepare_model(
             source,

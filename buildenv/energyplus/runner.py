@@ -7,6 +7,7 @@ processes that are recycled (see :mod:`buildenv.campaign.runs`).
 
 from __future__ import annotations
 
+import datetime as dt
 import json
 import logging
 import os
@@ -146,6 +147,31 @@ def read_hourly_csv(csv_path: Path, columns: dict[str, tuple[str, str]]) -> dict
             raise SimulationError(f"{csv_path}: no column for {key}:{variable} (is the Output:Variable present?)")
         out[name] = frame[match[0]].to_numpy(dtype=float)
     return out
+
+
+def run_period_rows(frame, first_day: dt.date, hours: int, csv: Path):
+    """The rows of ``frame`` (an ``eplusout.csv``) stamped with the run period's ``hours`` hours from ``first_day``.
+
+    Models with "Do HVAC Sizing Simulation for Sizing Periods" (the DOE large office: coincident plant
+    sizing) also report their design days. EnergyPlus's CSV keys rows by their ``MM/DD  HH:MM:SS`` stamp:
+    the design days' rows come on top of the run's, and on a date the run shares with a design day the
+    run period (simulated last) has overwritten them. A run past Dec 31 is listed January first; the rows come
+    back in the run's order.
+
+    Raises:
+        SimulationError: the frame lacks some of those hours (or the run holds a calendar day twice).
+    """
+    day0 = dt.datetime(first_day.year, first_day.month, first_day.day)
+    expected = [(day0 + dt.timedelta(hours=h)).strftime("%m/%d") + f"  {h % 24 + 1:02d}:00:00" for h in range(hours)]
+    stamps = frame["Date/Time"].astype(str).str.strip()
+    row_of = {stamp: i for i, stamp in enumerate(stamps)}  # a run across a new year is listed January first
+    found = [row_of[e] for e in expected if e in row_of]
+    if len(found) != hours or len(set(expected)) != hours:
+        raise SimulationError(
+            f"{csv}: {len(found)} hourly rows stamped {first_day} and after ({len(frame)} "
+            f"in all), expected {hours} consecutive hours"
+        )
+    return frame.iloc[found].reset_index(drop=True)
 
 
 def clean_outputs(workdir: Path, keep: tuple[str, ...] = ("eplusout.err",)) -> None:

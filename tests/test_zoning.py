@@ -1,4 +1,5 @@
-"""The shoebox's zoning (single zone, or core + perimeter) and the stand-in's ventilation in physical units."""
+"""The shoebox's zoning (one zone, core + perimeter ring, core + four perimeter zones) and the stand-in's ventilation
+in physical units."""
 
 from __future__ import annotations
 
@@ -26,14 +27,18 @@ from buildenv.energyplus.shoebox import (
     PERIMETER_DEPTH_M,
     Geometry,
     build_epjson,
+    night_cycling,
+    perimeter_zone,
+    zone_names,
     zone_shares,
 )
 from buildenv.energyplus.simulate import simulate_weeks
 from buildenv.errors import BuildenvError
+from buildenv.schedules import hourly_schedules
 from buildenv.weather.epw import load_weather, resolve_epw
 
 OUT = {name: i for i, name in enumerate(cat.OUTPUT_NAMES)}
-JANUARY = 2
+JANUARY, JULY = 2, 28
 
 
 def test_zone_shares_follow_the_footprint():
@@ -50,22 +55,57 @@ def test_zone_shares_follow_the_footprint():
         zone_shares(office, "two")
 
 
-def test_core_perimeter_model_is_closed_and_paired(tmp_path):
+def _centroid(surface: dict) -> np.ndarray:
+    return np.mean([[v[f"vertex_{a}_coordinate"] for a in "xyz"] for v in surface["vertices"]], axis=0)
+
+
+def _inside(point: np.ndarray, floor: dict) -> bool:
+    """Whether a point (x, y) lies inside a floor's outline (ray casting)."""
+    xy = [(v["vertex_x_coordinate"], v["vertex_y_coordinate"]) for v in floor["vertices"]]
+    inside = False
+    for (x0, y0), (x1, y1) in zip(xy, xy[1:] + xy[:1]):
+        if (y0 > point[1]) != (y1 > point[1]) and point[0] < x0 + (point[1] - y0) * (x1 - x0) / (y1 - y0):
+            inside = not inside
+    return inside
+
+
+def _normal(surface: dict) -> np.ndarray:
+    """Outward normal of a surface whose vertices run counter-clockwise seen from outside (Newell's method)."""
+    p = np.array([[v[f"vertex_{a}_coordinate"] for a in "xyz"] for v in surface["vertices"]])
+    n = np.sum(np.cross(p, np.roll(p, -1, axis=0)), axis=0)
+    return n / np.linalg.norm(n)
+
+
+@pytest.mark.parametrize("zoning", ["core_perimeter", "five_zone"])
+def test_zoned_model_is_closed_and_paired(tmp_path, zoning):
     weather = load_weather("usa_il_chicago")
-    model = build_epjson(DEFAULT_THETA, weather, tmp_path / "s.csv", 0, 1, zoning="core_perimeter")
-    assert set(model["Zone"]) == {PERIMETER, CORE}
+    model = build_epjson(DEFAULT_THETA, weather, tmp_path / "s.csv", 0, 1, zoning=zoning)
+    assert set(model["Zone"]) == set(zone_names(zoning))
     area = sum(z["floor_area"] for z in model["Zone"].values())
     assert area == pytest.approx(DEFAULT_THETA["floor_area_m2"], rel=1e-6)
     surfaces = model["BuildingSurface:Detailed"]
+    floors = [(s["zone_name"], s) for s in surfaces.values() if s["surface_type"] == "Floor"]
+
+    def zone_at(point: np.ndarray) -> set[str]:  # the zones whose ground floor holds a point (x, y)
+        return {zone for zone, floor in floors if _inside(point, floor)}
+
     for name, s in surfaces.items():
         if s["outside_boundary_condition"] == "Surface":  # each partition faces its twin, vertices reversed
             twin = surfaces[s["outside_boundary_condition_object"]]
             assert twin["outside_boundary_condition_object"] == name and twin["zone_name"] != s["zone_name"]
             assert twin["vertices"] == s["vertices"][::-1]
+            # its normal points out of its zone, into the zone beyond
+            step = 0.1 * _normal(s)[:2]
+            assert zone_at(_centroid(s)[:2] - step) == {s["zone_name"]}, name
+            assert zone_at(_centroid(s)[:2] + step) == {twin["zone_name"]}, name
     walls = [
         s for s in surfaces.values() if s["outside_boundary_condition"] == "Outdoors" and s["surface_type"] == "Wall"
     ]
-    assert {s["zone_name"] for s in walls} == {PERIMETER}  # the core has no facade
+    for wall in walls:  # each facade in its perimeter zone, facing away from the building
+        facade = wall["construction_name"].split()[-1]
+        assert wall["zone_name"] == perimeter_zone(zoning, facade)
+        centre = Geometry.from_theta(DEFAULT_THETA).side_m / 2
+        assert np.dot(_normal(wall)[:2], _centroid(wall)[:2] - centre) > 0
     for kind in ("Roof", "Floor"):  # roof and ground cover the footprint once
         pieces = [s for s in surfaces.values() if s["surface_type"] == kind]
         total = 0.0
@@ -74,7 +114,20 @@ def test_core_perimeter_model_is_closed_and_paired(tmp_path):
             total += 0.5 * abs(np.dot(xy[:, 0], np.roll(xy[:, 1], 1)) - np.dot(xy[:, 1], np.roll(xy[:, 0], 1)))
         side = Geometry.from_theta(DEFAULT_THETA).side_m
         assert total == pytest.approx(side**2, rel=1e-3)
+    infiltration = model["ZoneInfiltration:DesignFlowRate"].values()  # the whole building's, through its facades
+    volume = Geometry.from_theta(DEFAULT_THETA).volume_m3
+    assert sum(i["design_flow_rate"] for i in infiltration) == pytest.approx(
+        DEFAULT_THETA["infiltration_ach"] * volume / 3600.0, rel=1e-4
+    )
     assert len(build_epjson(DEFAULT_THETA, weather, tmp_path / "s.csv", 0, 1, zoning="single")["Zone"]) == 1
+
+
+def test_five_zone_perimeters_share_the_ring():
+    office = Geometry.from_theta({"floor_area_m2": 4982.2, "number_of_floors": 3})
+    five, two = zone_shares(office, "five_zone"), zone_shares(office, "core_perimeter")
+    assert sum(five.values()) == pytest.approx(1.0) and five[CORE] == pytest.approx(two[CORE])
+    for facade in ("north", "east", "south", "west"):
+        assert five[perimeter_zone("five_zone", facade)] == pytest.approx(two[PERIMETER] / 4)
 
 
 @pytest.fixture(scope="module")
@@ -151,3 +204,21 @@ def test_campaign_zoning_is_validated_and_old_campaigns_resume_as_single(tmp_pat
     run_campaign(config, out, workers=1, progress=False)
     manifest = json.loads((out / "manifest.json").read_text())
     assert manifest["config"]["zoning"] == "single"
+
+
+def test_five_zone_vav_night_cycles_the_whole_building_on_its_warmest_zone():
+    settings, occupancy = default_week()
+    off = hourly_schedules(settings, occupancy)["ventilation_on"][0] == 0
+    vav = {**DEFAULT_THETA, "minimum_supply_air_ach": 1.5, "cooling_power_w_m2": 100}
+
+    def july(theta, zoning):
+        return simulate_weeks(theta, settings, occupancy, "usa_il_chicago", JULY, zoning=zoning).outputs[0]
+
+    cycled, ring = july(vav, "five_zone"), july(vav, "core_perimeter")
+    outdoor_air_only = july({**vav, "minimum_supply_air_ach": 0.0}, "five_zone")
+    # out of hours the air handling units cool return air whenever the warmest perimeter reaches the setback
+    assert cycled[off, OUT["Q_AHU_C"]].sum() > 10 * cycled[off, OUT["Q_AC_OFFICE"]].sum() > 0
+    assert cycled[off, OUT["T_INT_OFFICE"]].mean() < ring[off, OUT["T_INT_OFFICE"]].mean() - 0.2
+    # a 100 % outdoor air unit does not night-cycle: its fan coils hold each zone at the setback
+    assert outdoor_air_only[off, OUT["Q_AHU_C"]].sum() == 0 and outdoor_air_only[off, OUT["Q_AC_OFFICE"]].sum() > 0
+    assert not night_cycling("core_perimeter", vav) and night_cycling("five_zone", vav)

@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime as dt
+import math
 import os
 import time
 from collections.abc import Mapping
@@ -154,7 +155,7 @@ def simulate_site_run(
     """
     import pandas as pd
 
-    from buildenv.energyplus.runner import run_energyplus, run_period_rows
+    from buildenv.energyplus.runner import WARMUP_TEMPERATURE_LIMIT_K, run_energyplus, run_period_rows
     from buildenv.energyplus.shoebox import (
         SCHEDULE_COLUMNS,
         build_epjson,
@@ -186,7 +187,11 @@ def simulate_site_run(
         )
         if last.year > first.year:  # past Dec 31: the same EPW year again, the schedules' rows wrapped alike
             model["RunPeriod"]["weeks"].update(begin_year=first.year, end_year=last.year)
-        run_energyplus(model, weather.path, work, label="shoebox", accepted_severe=ACCEPTED_SEVERE)
+        # a run that discards a warm-up week may start from any warm-up that settled (runner.warmup_settled)
+        limit = math.inf if min(run.keep) > 0 else WARMUP_TEMPERATURE_LIMIT_K
+        run_energyplus(
+            model, weather.path, work, label="shoebox", accepted_severe=ACCEPTED_SEVERE, warmup_limit_k=limit
+        )
         if last.year > first.year:  # EnergyPlus lists the new year's hours first
             csv_path = work / "eplusout.csv"
             run_period_rows(pd.read_csv(csv_path), first, run.weeks * cat.HOURS_PER_WEEK, csv_path).to_csv(

@@ -344,7 +344,8 @@ def build_parser() -> argparse.ArgumentParser:
         "--zoning",
         choices=list(ZONINGS),
         default=DEFAULT_ZONING,
-        help="the simulated building: a core and a perimeter zone, or the paper's single zone",
+        help="the simulated building: a core and four perimeter zones whose VAV systems night-cycle on the most "
+        "extreme one (five_zone), a core and a perimeter ring, or the paper's single zone",
     )
     p.add_argument(
         "--max-failed-share",

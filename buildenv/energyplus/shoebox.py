@@ -6,7 +6,9 @@ Modelling choices (each a constant below, so that a reader can find and change i
   face north, east, south and west (catalogue order 1-4), each with one centred window band of its ratio.
 - Zoning (``zoning=``): ``single`` is one thermal zone (the paper's); ``core_perimeter`` a perimeter ring
   ``PERIMETER_DEPTH_M`` deep with the facades, windows and infiltration around a core that meets only the
-  perimeter, roof and ground. Gains, mass and HVAC are split by floor area; both follow one thermostat.
+  perimeter, roof and ground; ``five_zone`` that ring cut on its diagonals into one perimeter zone per facade, as
+  the DOE reference offices are zoned. Gains, mass and HVAC are split by floor area, infiltration among the zones
+  with facades; every zone follows one thermostat schedule.
 - Envelope: walls concrete / insulation (theta) / plasterboard; roof membrane / insulation / slab; ground
   floor insulation under a slab, on ground at the annual mean + ``GROUND_SWING`` x (previous month's mean -
   annual mean) of the weather file; simple glazing (``GLAZING_U``, ``GLAZING_SHGC``).
@@ -28,6 +30,11 @@ Modelling choices (each a constant below, so that a reader can find and change i
   effectiveness above 0, a sensible plate exchanger (``HeatExchanger:AirToAir:SensibleAndLatent``, no latent
   transfer) first passes the exhaust stream's heat (leaving the exhaust fan) to the outdoor air, bypassed where
   it would carry that air past, or away from, the supply temperature; at 0 there is no exchanger.
+- Night cycling (``five_zone`` with a minimum supply flow, a VAV system): outside the ventilation period every
+  zone's air handling unit supplies return air brought to the supply temperature as the warmest zone nears the
+  cooling setback or the coldest the heating setback (an EMS program), up to the minimum supply flow at the
+  setback, as the reference offices' VAV systems start on their most extreme zone (their on/off cycles averaged
+  over a proportional band); a 100 % outdoor air unit does not night-cycle.
 - Mixed air: with ``minimum_supply_air_ach`` above the outdoor air the unit supplies that minimum, the rest
   return air, as VAV systems at their boxes' minimum flow do (the zones reheat it). The exchanger then has
   effectiveness 1 on an exhaust stream of the return air plus the heat-recovered share of the outdoor air, so
@@ -81,8 +88,8 @@ PLASTERBOARD = {"conductivity": 0.25, "density": 900.0, "specific_heat": 1000.0}
 MEMBRANE = {"conductivity": 0.17, "density": 1100.0, "specific_heat": 1000.0}
 
 ZONE = "Office"  # the single zone
-PERIMETER, CORE = "Perimeter", "Core"  # the two zones of core_perimeter
-ZONINGS = ("single", "core_perimeter")
+PERIMETER, CORE = "Perimeter", "Core"  # the two zones of core_perimeter; five_zone's are "Perimeter <facade>"
+ZONINGS = ("single", "core_perimeter", "five_zone")
 DEFAULT_ZONING = "core_perimeter"
 # HVAC objects of each zone are named f"{zone} {part}" (see zone_hvac_names)
 FAN_COILS, AHU_HEATING_COIL, AHU_COOLING_COIL = "Fan Coils", "AHU Heating Coil", "AHU Cooling Coil"
@@ -121,6 +128,15 @@ SCHEDULE_COLUMNS: tuple[str, ...] = (
 
 FACADES = ("north", "east", "south", "west")
 
+#: The schedules an air handling unit runs on: the Schedule:File's columns, or under night cycling
+#: (:func:`_add_night_cycle`) constants an EMS program sets every timestep.
+FILE_AIR_SCHEDULES = {"on": "ventilation_on", "supply": "supply_fraction", "exhaust": "exhaust_fraction"}
+NIGHT_CYCLE_AIR_SCHEDULES = {"on": "AHU on", "supply": "AHU supply fraction", "exhaust": "AHU exhaust fraction"}
+#: Night cycling's proportional band (K): the air handling units' flow rises from none to the minimum supply flow as
+#: the most extreme zone comes this close to its setback (the fan coils hold it there), the hourly mean of on/off
+#: cycles on a thermostat tolerance of that width (the DOE prototypes': 1 K)
+NIGHT_CYCLE_BAND_K = 1.0
+
 
 @dataclass(frozen=True)
 class Geometry:
@@ -154,6 +170,19 @@ class Geometry:
             "west": (np.array([p, q, 0.0]), np.array([0.0, -1.0, 0.0])),
         }[name]
 
+    def corner_partitions(self) -> list[tuple[str, tuple[np.ndarray, np.ndarray], str]]:
+        """``[(facade, (corner, unit vector), next facade)]``: the diagonal wall from each outer corner to the
+        core's corner between a facade's perimeter zone and the next one counter-clockwise seen from above
+        (five_zone zoning), its corner and direction as :meth:`facade` gives them, seen from the next zone."""
+        s = self.side_m
+        d = 1.0 / math.sqrt(2.0)
+        return [
+            ("south", (np.array([s, 0.0, 0.0]), np.array([-d, d, 0.0])), "east"),
+            ("east", (np.array([s, s, 0.0]), np.array([-d, -d, 0.0])), "north"),
+            ("north", (np.array([0.0, s, 0.0]), np.array([d, -d, 0.0])), "west"),
+            ("west", (np.array([0.0, 0.0, 0.0]), np.array([d, d, 0.0])), "south"),
+        ]
+
     def facade(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Bottom-left corner seen from outside and the unit vector along the facade, for a facade name."""
         s = self.side_m
@@ -177,7 +206,8 @@ def zone_shares(g: Geometry, zoning: str) -> dict[str, float]:
     if check_zoning(zoning) == "single":
         return dict(zip(zone_names(zoning), (1.0,)))
     core = (g.side_m - 2.0 * g.perimeter_depth_m) ** 2 / g.side_m**2
-    return dict(zip(zone_names(zoning), (1.0 - core, core)))
+    perimeters = len(zone_names(zoning)) - 1
+    return dict(zip(zone_names(zoning), (*[(1.0 - core) / perimeters] * perimeters, core)))
 
 
 def zone_hvac_names(zone: str) -> dict[str, str]:
@@ -201,7 +231,19 @@ def output_keys(name: str, zoning: str) -> dict[str, list[tuple[str, str]]]:
 
 def zone_names(zoning: str) -> tuple[str, ...]:
     """Zone names of a zoning."""
-    return (ZONE,) if check_zoning(zoning) == "single" else (PERIMETER, CORE)
+    if check_zoning(zoning) == "single":
+        return (ZONE,)
+    if zoning == "five_zone":
+        return (*(perimeter_zone(zoning, facade) for facade in FACADES), CORE)
+    return (PERIMETER, CORE)
+
+
+def perimeter_zone(zoning: str, facade: str) -> str:
+    """The zone holding ``facade``'s wall and windows: the single zone, the perimeter ring, or (``five_zone``)
+    the perimeter zone of that orientation."""
+    if zoning == "single":
+        return ZONE
+    return f"{PERIMETER} {facade}" if zoning == "five_zone" else PERIMETER
 
 
 def output_variables(zoning: str) -> list[tuple[str, str]]:
@@ -222,7 +264,7 @@ def _horizontal_outlines(g: Geometry, zoning: str) -> dict[str, tuple[str, list[
         piece = south
         for _ in range(turn):
             piece = [(c - (y - c), c + (x - c)) for x, y in piece]
-        outlines[facade] = (PERIMETER, [(round(x, 4), round(y, 4)) for x, y in piece])
+        outlines[facade] = (perimeter_zone(zoning, facade), [(round(x, 4), round(y, 4)) for x, y in piece])
     return outlines
 
 
@@ -541,7 +583,6 @@ def build_epjson(
             floor_area=round(share * g.floor_area_m2, 3),
             part_of_total_floor_area="Yes",
         )
-    envelope = PERIMETER if zoning == "core_perimeter" else ZONE
     s, h = g.side_m, g.height_m
     for facade in FACADES:
         origin, along = g.facade(facade)
@@ -550,7 +591,7 @@ def build_epjson(
             f"Wall {facade}",
             surface_type="Wall",
             construction_name=f"Wall {facade}",
-            zone_name=envelope,
+            zone_name=perimeter_zone(zoning, facade),
             outside_boundary_condition="Outdoors",
             sun_exposure="SunExposed",
             wind_exposure="WindExposed",
@@ -591,23 +632,32 @@ def build_epjson(
             wind_exposure="NoWind",
             vertices=_xyz([(x, y, 0.0) for x, y in outline[::-1]]),
         )
-    if zoning == "core_perimeter":
+    if zoning != "single":
         inner = s - 2.0 * g.perimeter_depth_m
+        partitions = []  # (name, zone facing outwards, zone on the other side, vertices seen from the other side)
         for facade in FACADES:  # the core's walls face the perimeter; the perimeter's face the core
             origin, along = g.core_facade(facade)
-            core_side = _rect(origin, along, 0.0, inner, 0.0, h)
-            for zone, other, vertices in ((CORE, PERIMETER, core_side), (PERIMETER, CORE, core_side[::-1])):
+            partitions.append((facade, CORE, perimeter_zone(zoning, facade), _rect(origin, along, 0.0, inner, 0.0, h)))
+        if zoning == "five_zone":  # the perimeter zones meet on the diagonals from the corners
+            for facade, corner, other in g.corner_partitions():
+                origin, along = corner
+                vertices = _rect(origin, along, 0.0, g.perimeter_depth_m * math.sqrt(2.0), 0.0, h)
+                partitions.append(
+                    (f"corner {facade}", perimeter_zone(zoning, facade), perimeter_zone(zoning, other), vertices)
+                )
+        for name, zone, other, vertices in partitions:
+            for a, b, v in ((zone, other, vertices), (other, zone, vertices[::-1])):
                 add(
                     "BuildingSurface:Detailed",
-                    f"Partition {facade} {zone}",
+                    f"Partition {name} {a}",
                     surface_type="Wall",
                     construction_name="Partition",
-                    zone_name=zone,
+                    zone_name=a,
                     outside_boundary_condition="Surface",
-                    outside_boundary_condition_object=f"Partition {facade} {other}",
+                    outside_boundary_condition_object=f"Partition {name} {b}",
                     sun_exposure="NoSun",
                     wind_exposure="NoWind",
-                    vertices=vertices,
+                    vertices=v,
                 )
 
     # Schedules: constants and one Schedule:File column per hourly series.
@@ -671,18 +721,25 @@ def build_epjson(
     mass_thickness = capacity_j_per_k / (CONCRETE["density"] * CONCRETE["specific_heat"] * 2.0 * g.floor_area_m2)
     add("Material", "Internal mass concrete", **_material(mass_thickness, CONCRETE, "Smooth"))
     add("Construction", "Internal mass", outside_layer="Internal mass concrete")
+    envelope = {perimeter_zone(zoning, facade) for facade in FACADES}
+    night_cycle = night_cycling(zoning, t)
+    air_schedules = NIGHT_CYCLE_AIR_SCHEDULES if night_cycle else FILE_AIR_SCHEDULES
     for zone, share in shares.items():
-        _add_zone_loads(add, zone, share, t, g, infiltration=zone == envelope)
-        _add_zone_hvac(add, zone, share, t, g)
+        _add_zone_loads(
+            add, zone, share, t, g, infiltration=share / sum(shares[z] for z in envelope) if zone in envelope else 0.0
+        )
+        _add_zone_hvac(add, zone, share, t, g, air_schedules)
+    if night_cycle:
+        _add_night_cycle(add, tuple(shares), t["minimum_supply_air_ach"] / air_unit_largest_ach(t))
 
     for i, (key, variable) in enumerate(output_variables(zoning)):
         add("Output:Variable", f"Output {i}", key_value=key, variable_name=variable, reporting_frequency="Hourly")
     return m
 
 
-def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geometry, infiltration: bool) -> None:
-    """Internal mass, people, lighting, plug loads (each ``share`` of the building's) and infiltration (the
-    whole building's, in the zone with the envelope) of one zone."""
+def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geometry, infiltration: float) -> None:
+    """Internal mass, people, lighting, plug loads (each ``share`` of the building's) and ``infiltration`` (a share
+    of the whole building's: the zones with the envelope divide it by floor area) of one zone."""
     area = share * g.floor_area_m2
     add(
         "InternalMass",
@@ -721,14 +778,14 @@ def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geomet
         design_level=round(t["plug_load_w_m2"] * area, 3),
         fraction_radiant=0.3,
     )
-    if infiltration:  # air changes of the whole building's volume, through the envelope
+    if infiltration > 0.0:  # air changes of the whole building's volume, through the envelope
         add(
             "ZoneInfiltration:DesignFlowRate",
             f"{zone} infiltration",
             zone_or_zonelist_or_space_or_spacelist_name=zone,
             schedule_name="infiltration_fraction",
             design_flow_rate_calculation_method="Flow/Zone",
-            design_flow_rate=round(t["infiltration_ach"] * g.volume_m3 / 3600.0, 6),
+            design_flow_rate=round(infiltration * t["infiltration_ach"] * g.volume_m3 / 3600.0, 6),
             constant_term_coefficient=1.0,
             temperature_term_coefficient=0.0,
             velocity_term_coefficient=0.0,
@@ -736,8 +793,82 @@ def _add_zone_loads(add, zone: str, share: float, t: dict[str, float], g: Geomet
         )
 
 
-def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometry) -> None:
-    """Thermostat, fan coils (ideal loads) and air handling unit of one zone, each ``share`` of the building's."""
+def night_cycling(zoning: str, t: dict[str, float]) -> bool:
+    """Whether the shoebox night-cycles its air handling units: ``five_zone`` zoning with a minimum supply flow
+    (a VAV system with mixed air)."""
+    return zoning == "five_zone" and t["minimum_supply_air_ach"] > 0.0
+
+
+def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
+    """Night cycling as VAV systems do it: outside the ventilation period, as the warmest zone comes within
+    :data:`NIGHT_CYCLE_BAND_K` of the cooling setback or the coldest of the heating setback, every zone's air
+    handling unit supplies return air brought to the supply temperature, its flow rising in proportion up to
+    ``fraction`` of its largest flow (the minimum supply flow) at the setback, where the fan coils hold the extreme
+    zone. Within the ventilation period the units follow the Schedule:File."""
+    for name in NIGHT_CYCLE_AIR_SCHEDULES.values():
+        add("Schedule:Constant", name, schedule_type_limits_name="Any Number", hourly_value=0.0)
+    sensors = {
+        "vent_on": ("ventilation_on", "Schedule Value"),
+        "supply_file": ("supply_fraction", "Schedule Value"),
+        "exhaust_file": ("exhaust_fraction", "Schedule Value"),
+        "heating_sp": ("heating_setpoint_c", "Schedule Value"),
+        "cooling_sp": ("cooling_setpoint_c", "Schedule Value"),
+        **{f"zone_t_{i}": (zone, "Zone Mean Air Temperature") for i, zone in enumerate(zones)},
+    }
+    for name, (key, variable) in sensors.items():
+        add(
+            "EnergyManagementSystem:Sensor",
+            name,
+            output_variable_or_output_meter_index_key_name=key,
+            output_variable_or_output_meter_name=variable,
+        )
+    actuators = dict(zip(("ahu_on", "ahu_supply", "ahu_exhaust"), NIGHT_CYCLE_AIR_SCHEDULES.values()))
+    for name, schedule in actuators.items():
+        add(
+            "EnergyManagementSystem:Actuator",
+            name,
+            actuated_component_unique_name=schedule,
+            actuated_component_type="Schedule:Constant",
+            actuated_component_control_type="Schedule Value",
+        )
+    extremes = ["SET warmest = zone_t_0", "SET coldest = zone_t_0"]
+    for i in range(1, len(zones)):
+        extremes += [f"SET warmest = @Max warmest zone_t_{i}", f"SET coldest = @Min coldest zone_t_{i}"]
+    band = NIGHT_CYCLE_BAND_K
+    lines = [
+        "IF vent_on > 0.5",
+        "SET ahu_on = 1",
+        "SET ahu_supply = supply_file",
+        "SET ahu_exhaust = exhaust_file",
+        "ELSE",
+        *extremes,
+        f"SET cooling_call = (warmest - cooling_sp + {band}) / {band}",
+        f"SET heating_call = (heating_sp + {band} - coldest) / {band}",
+        "SET call = @Min (@Max cooling_call heating_call) 1",
+        "SET call = @Max call 0",
+        "IF call > 0",
+        "SET ahu_on = 1",
+        "ELSE",
+        "SET ahu_on = 0",
+        "ENDIF",
+        f"SET ahu_supply = {fraction:.6g} * call",
+        f"SET ahu_exhaust = {fraction:.6g} * call",
+        "ENDIF",
+    ]
+    add("EnergyManagementSystem:Program", "night_cycle", lines=[{"program_line": line} for line in lines])
+    add(
+        "EnergyManagementSystem:ProgramCallingManager",
+        "night cycle",
+        energyplus_model_calling_point="BeginTimestepBeforePredictor",
+        programs=[{"program_name": "night_cycle"}],
+    )
+
+
+def _add_zone_hvac(
+    add, zone: str, share: float, t: dict[str, float], g: Geometry, air_schedules: dict[str, str]
+) -> None:
+    """Thermostat, fan coils (ideal loads) and air handling unit of one zone, each ``share`` of the building's;
+    the unit runs on ``air_schedules`` (:data:`FILE_AIR_SCHEDULES` or :data:`NIGHT_CYCLE_AIR_SCHEDULES`)."""
     area = share * g.floor_area_m2
     names = zone_hvac_names(zone)
     add(
@@ -823,7 +954,7 @@ def _add_zone_hvac(add, zone: str, share: float, t: dict[str, float], g: Geometr
         sensible, latent = 1.0, 1.0
     else:
         sensible, latent = t["heat_recovery_effectiveness"], 0.0
-    _add_air_unit(add, zone, names, flow, sensible, latent)
+    _add_air_unit(add, zone, names, flow, sensible, latent, air_schedules)
 
 
 def _add_economiser_fan_coils(add, zone: str, name: str, cooling_w: float) -> None:
@@ -866,10 +997,18 @@ def _add_fan_coils(
     )
 
 
-def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effectiveness: float, latent: float) -> None:
+def _add_air_unit(
+    add,
+    zone: str,
+    names: dict[str, str],
+    flow_m3_s: float,
+    effectiveness: float,
+    latent: float,
+    schedules: dict[str, str] = FILE_AIR_SCHEDULES,
+) -> None:
     """A zone's air handling unit (``ZoneHVAC:OutdoorAirUnit``) bringing air to the day's supply temperature,
-    on while ``ventilation_on``, its supply and exhaust flows following ``supply_fraction`` and
-    ``exhaust_fraction``.
+    on while ``schedules["on"]`` (by default ``ventilation_on``), its supply and exhaust flows following
+    ``schedules["supply"]`` and ``schedules["exhaust"]``.
 
     Args:
         add: the epJSON builder's ``add(kind, name, **fields)``.
@@ -878,22 +1017,23 @@ def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effec
         flow_m3_s: its largest supply (and exhaust) air flow (m3/s).
         effectiveness: sensible effectiveness of the heat exchanger between exhaust and outdoor air (0: none).
         latent: its latent effectiveness (0-1).
+        schedules: the schedules it runs on (:data:`FILE_AIR_SCHEDULES`, :data:`NIGHT_CYCLE_AIR_SCHEDULES`).
     """
-    unit = names["ahu"]
+    unit, on = names["ahu"], schedules["on"]
     recovery = effectiveness > 0.0
     cooling_inlet = f"{unit} recovered air" if recovery else f"{unit} outdoor air"
     add(
         "ZoneHVAC:OutdoorAirUnit",
         unit,
-        availability_schedule_name="ventilation_on",
+        availability_schedule_name=on,
         zone_name=zone,
         outdoor_air_flow_rate=round(flow_m3_s, 5),
-        outdoor_air_schedule_name="supply_fraction",
+        outdoor_air_schedule_name=schedules["supply"],
         supply_fan_name=f"{unit} supply fan",
         supply_fan_placement="DrawThrough",
         exhaust_fan_name=f"{unit} exhaust fan",
         exhaust_air_flow_rate=round(flow_m3_s, 5),
-        exhaust_air_schedule_name="exhaust_fraction",
+        exhaust_air_schedule_name=schedules["exhaust"],
         unit_control_type="TemperatureControl",
         high_air_control_temperature_schedule_name="supply_air_c",
         low_air_control_temperature_schedule_name="supply_air_c",
@@ -909,7 +1049,7 @@ def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effec
     ]
     if recovery:
         components.insert(0, ("HeatExchanger:AirToAir:SensibleAndLatent", names["heat_recovery"]))
-        _add_heat_recovery(add, unit, names["heat_recovery"], effectiveness, latent, flow_m3_s)
+        _add_heat_recovery(add, unit, names["heat_recovery"], effectiveness, latent, flow_m3_s, on)
     add(
         "ZoneHVAC:OutdoorAirUnit:EquipmentList",
         f"{unit} components",
@@ -922,7 +1062,7 @@ def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effec
     add(
         "CoilSystem:Cooling:DX",
         f"{unit} cooling system",
-        availability_schedule_name="ventilation_on",
+        availability_schedule_name=on,
         dx_cooling_coil_system_inlet_node_name=cooling_inlet,
         dx_cooling_coil_system_outlet_node_name=f"{unit} cooled air",
         dx_cooling_coil_system_sensor_node_name=f"{unit} cooled air",
@@ -932,7 +1072,7 @@ def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effec
     add(
         "Coil:Cooling:DX:SingleSpeed",
         names["cooling_coil"],
-        availability_schedule_name="ventilation_on",
+        availability_schedule_name=on,
         gross_rated_total_cooling_capacity=round(DX_RATED_FLOW_FACTOR * flow_m3_s / DX_FLOW_PER_CAPACITY, 2),
         gross_rated_sensible_heat_ratio=0.75,
         gross_rated_cooling_cop=3.0,
@@ -948,22 +1088,22 @@ def _add_air_unit(add, zone: str, names: dict[str, str], flow_m3_s: float, effec
     add(
         "Coil:Heating:Electric",
         names["heating_coil"],
-        availability_schedule_name="ventilation_on",
+        availability_schedule_name=on,
         efficiency=1.0,
         nominal_capacity=round(flow_m3_s * 1.2 * 1005.0 * AHU_MAX_SUPPLY_DELTA_K, 1),
         air_inlet_node_name=f"{unit} cooled air",
         air_outlet_node_name=f"{unit} heated air",
     )
-    _add_fan(add, f"{unit} supply fan", flow_m3_s, f"{unit} heated air", f"{unit} supply")
-    _add_fan(add, f"{unit} exhaust fan", flow_m3_s, f"{unit} exhaust", f"{unit} relief")
+    _add_fan(add, f"{unit} supply fan", flow_m3_s, f"{unit} heated air", f"{unit} supply", on)
+    _add_fan(add, f"{unit} exhaust fan", flow_m3_s, f"{unit} exhaust", f"{unit} relief", on)
 
 
-def _add_fan(add, name: str, flow_m3_s: float, inlet: str, outlet: str) -> None:
-    """One constant-volume fan of the air handling unit (``AHU_FAN_PRESSURE_PA``), on while ``ventilation_on``."""
+def _add_fan(add, name: str, flow_m3_s: float, inlet: str, outlet: str, on: str) -> None:
+    """One constant-volume fan of the air handling unit (``AHU_FAN_PRESSURE_PA``), on while schedule ``on``."""
     add(
         "Fan:ConstantVolume",
         name,
-        availability_schedule_name="ventilation_on",
+        availability_schedule_name=on,
         fan_total_efficiency=0.6,
         pressure_rise=AHU_FAN_PRESSURE_PA,
         maximum_flow_rate=round(flow_m3_s, 5),
@@ -974,10 +1114,12 @@ def _add_fan(add, name: str, flow_m3_s: float, inlet: str, outlet: str) -> None:
     )
 
 
-def _add_heat_recovery(add, unit: str, name: str, effectiveness: float, latent: float, flow_m3_s: float) -> None:
+def _add_heat_recovery(
+    add, unit: str, name: str, effectiveness: float, latent: float, flow_m3_s: float, on: str
+) -> None:
     """A plate heat exchanger of an air handling unit: outdoor air (supply side) against the exhaust fan's
     outlet (exhaust side), at ``effectiveness`` whatever the flow (no effectiveness curves), available while
-    ``ventilation_on``. A setpoint manager puts the day's supply temperature on its supply outlet, so it bypasses
+    schedule ``on``. A setpoint manager puts the day's supply temperature on its supply outlet, so it bypasses
     outdoor air rather than heat or cool it past that temperature, or away from it.
 
     Args:
@@ -987,11 +1129,12 @@ def _add_heat_recovery(add, unit: str, name: str, effectiveness: float, latent: 
         effectiveness: sensible effectiveness, heating and cooling (0-1).
         latent: latent effectiveness, heating and cooling (0-1).
         flow_m3_s: the unit's maximum air flow, the exchanger's nominal flow (m3/s).
+        on: its availability schedule.
     """
     add(
         "HeatExchanger:AirToAir:SensibleAndLatent",
         name,
-        availability_schedule_name="ventilation_on",
+        availability_schedule_name=on,
         nominal_supply_air_flow_rate=round(flow_m3_s, 5),
         sensible_effectiveness_at_100_heating_air_flow=effectiveness,
         latent_effectiveness_at_100_heating_air_flow=latent,

@@ -126,10 +126,10 @@ def split_error(predicted, shoebox, realised) -> dict[str, float]:
 
 def shoebox_savings(env, week: int, settings: np.ndarray, workers: int | None = None) -> np.ndarray | None:
     """Savings (percent, against the historical settings, as the environment scores them) of settings ``(N, 7, 13)``
-    on the EnergyPlus shoebox at the site's calibrated parameters in ``week`` (the week before under the historical
-    settings, as the environment simulates it); declared effects are left out. ``None`` when the week is not one of
-    the site's measured weeks after its first (the week before runs as warm-up) or a run cannot stay inside one
-    year."""
+    on the EnergyPlus shoebox the metamodel was trained on (its zoning) at the site's calibrated parameters in
+    ``week`` (the week before under the historical settings, as the environment simulates it); declared effects are
+    left out. ``None`` when the week is not one of the site's measured weeks after its first (the week before runs
+    as warm-up) or a run cannot stay inside one year."""
     import dataclasses
 
     from buildenv import catalogue as cat
@@ -143,7 +143,7 @@ def shoebox_savings(env, week: int, settings: np.ndarray, workers: int | None = 
     if w < 1:
         return None
     try:
-        run = plan_site_run(site, [w])
+        run = plan_site_run(site, [w], model.surrogate.zoning)
     except CalibrationError:
         return None
     historical = np.asarray(model.historical, float)

@@ -91,7 +91,8 @@ def train_metamodel(
         progress: progress bars.
         context_hours: hours before each week the model sees (a whole number of days; recorded in the checkpoint).
         init: a checkpoint (or ``"default"``) to fine-tune: the same ``model``, configuration, split and held-out
-            climates (so the test weeks stay unseen); inputs it lacks are added with zero weights.
+            climates (so the test weeks stay unseen); inputs it lacks are added with zero weights. It may come from
+            shoeboxes of another zoning (the outputs are the same building totals); its zoning is recorded.
         ground_temperature: give the model the ground temperature under the slab (:mod:`buildenv.metamodel.surrogate`);
             ``False`` trains on the other channels only, as checkpoints made before it existed.
         temperature_before: give the model the previous week's ``T_INT_OFFICE`` over the context hours
@@ -170,12 +171,13 @@ def train_metamodel(
         "zoning": ds_zoning,
     }
     if init is not None:
-        start = _initial_checkpoint(init, model, model_config, split, seed, holdout_climates, ds_zoning)
+        start = _initial_checkpoint(init, model, model_config, split, seed, holdout_climates)
         metadata["initialised_from"] = {
             "checkpoint": str(init),
             "dataset": start.metadata.get("dataset"),
             "train_weeks": start.metadata.get("train_weeks"),
             "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS),
+            "zoning": start.metadata.get("zoning", "core_perimeter"),
         }
         ck = Checkpoint(model, dict(start.config), start.model, start.input_norm, start.output_norm, metadata)
         had = tuple(start.metadata.get("input_channels", sg.NO_GROUND_CHANNELS))
@@ -300,7 +302,6 @@ def _initial_checkpoint(
     split: str,
     seed: int,
     holdout_climates: list[str] | None,
-    zoning: str,
 ):
     """The checkpoint a fine-tuning run starts from, refused where it would not fit the run (see ``init``)."""
     start = sg.load_metamodel(init).checkpoint
@@ -310,8 +311,6 @@ def _initial_checkpoint(
         raise BuildenvError(f"--init {init} is a {start.name}, not a {model}: pass --model {start.name}")
     if model_config and dict(model_config) != start.config:
         raise BuildenvError(f"--init {init} has --model-config {start.config}; leave --model-config out")
-    if meta.get("zoning", "core_perimeter") != zoning:
-        raise BuildenvError(f"--init {init} was trained on {meta.get('zoning')} buildings, this dataset is {zoning}")
     if (meta.get("split"), meta.get("split_seed"), held) != (split, seed, sorted(holdout_climates or [])):
         raise BuildenvError(
             f"--init {init} was trained with --split {meta.get('split')} --seed "

@@ -153,3 +153,22 @@ def test_warm_start_past_the_catalogue_range(tmp_path):
     ):
         with pytest.raises(cal.CalibrationError, match=match):
             ce.calibrate_energyplus_cmaes(site, weeks=[0], wall_seconds=1, **kwargs)
+
+
+def test_a_run_with_a_warm_up_week_starts_from_any_settled_warm_up(tmp_path, monkeypatch):
+    from buildenv.energyplus import runner
+
+    site = _site(tmp_path, 2)
+    problem = cal.build_problem(site, [0])
+    theta, occ = cal._split(problem, _params(problem)[None])
+    limits = []
+    original = runner.run_energyplus
+
+    def recording(*args, warmup_limit_k=runner.WARMUP_TEMPERATURE_LIMIT_K, **kwargs):
+        limits.append(warmup_limit_k)
+        return original(*args, warmup_limit_k=warmup_limit_k, **kwargs)
+
+    monkeypatch.setattr(runner, "run_energyplus", recording)
+    ce.simulate_site_run(ce.plan_site_run(site, [1]), theta[0], occ[0])  # week 0 runs first, discarded
+    ce.simulate_site_run(ce.plan_site_run(site, [0]), theta[0], occ[0])  # week 0 measured: its warm-up must hold
+    assert limits == [np.inf, runner.WARMUP_TEMPERATURE_LIMIT_K]

@@ -664,3 +664,20 @@ def test_attention_paths_agree():
         finally:
             mm.DENSE_MATMUL_MAX_TOKENS = old
     torch.testing.assert_close(fused, explicit, rtol=1e-4, atol=1e-5)
+
+
+def test_a_fine_tune_may_start_from_shoeboxes_of_another_zoning(tiny_dataset, tmp_path):
+    five = tmp_path / "five"
+    run_campaign(
+        CampaignConfig(weeks=12, seed=3, epw=["usa_il_chicago"], weeks_per_run=3, zoning="five_zone"),
+        five,
+        workers=2,
+        progress=False,
+    )
+    base = tmp_path / "ring.pt"
+    train_metamodel(tiny_dataset, "ffn", base, split="random", epochs=1, batch_size=4, progress=False)
+    tuned = tmp_path / "five.pt"
+    train_metamodel(five, "ffn", tuned, split="random", epochs=1, batch_size=4, progress=False, init=base)
+    meta = sg.load_metamodel(tuned).checkpoint.metadata
+    assert sg.load_metamodel(tuned).zoning == "five_zone"
+    assert meta["initialised_from"]["zoning"] == "core_perimeter"

@@ -484,6 +484,7 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
         "dataset": start.metadata["dataset"],
         "train_weeks": start.metadata["train_weeks"],
         "context_hours": 24,
+        "zoning": "core_perimeter",
     }
     np.testing.assert_array_equal(ck.input_norm.mean, start.input_norm.mean)
     np.testing.assert_array_equal(ck.output_norm.std, start.output_norm.std)

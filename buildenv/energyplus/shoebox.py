@@ -722,12 +722,11 @@ def build_epjson(
     add("Material", "Internal mass concrete", **_material(mass_thickness, CONCRETE, "Smooth"))
     add("Construction", "Internal mass", outside_layer="Internal mass concrete")
     envelope = {perimeter_zone(zoning, facade) for facade in FACADES}
+    envelope_share = sum(shares[z] for z in envelope)
     night_cycle = night_cycling(zoning, t)
     air_schedules = NIGHT_CYCLE_AIR_SCHEDULES if night_cycle else FILE_AIR_SCHEDULES
     for zone, share in shares.items():
-        _add_zone_loads(
-            add, zone, share, t, g, infiltration=share / sum(shares[z] for z in envelope) if zone in envelope else 0.0
-        )
+        _add_zone_loads(add, zone, share, t, g, infiltration=share / envelope_share if zone in envelope else 0.0)
         _add_zone_hvac(add, zone, share, t, g, air_schedules)
     if night_cycle:
         _add_night_cycle(add, tuple(shares), t["minimum_supply_air_ach"] / air_unit_largest_ach(t))

@@ -14,9 +14,9 @@ import numpy as np
 import pytest
 
 from buildenv import catalogue as cat
-from buildenv.campaign.dataset import ARRAYS, open_dataset
+from buildenv.campaign.dataset import ARRAYS, Dataset, open_dataset
 from buildenv.campaign.runs import CampaignConfig, plan_campaign, run_campaign
-from buildenv.errors import DatasetError
+from buildenv.errors import BuildenvError, DatasetError
 
 SMALL = dict(weeks=4, seed=3, epw=["usa_il_chicago", "usa_fl_miami"], weeks_per_run=2)
 
@@ -186,6 +186,47 @@ def test_splits(small_dataset, tmp_path):
         assert miami not in set(ds.weather_index[:][held["train"]])
         with pytest.raises(DatasetError, match="not in"):
             ds.split("climate", test_climates=["usa_xx_nowhere"])
+
+
+def _weather_weeks(names: list[str], climate: list[int], week: list[int]) -> Dataset:
+    """A dataset holding only the arrays a weather-week split reads."""
+    h5 = {"weather_index": np.array(climate), "week_of_year": np.array(week), "outputs": np.zeros((len(week), 1))}
+    return Dataset(Path("memory"), {}, names, h5)
+
+
+def test_weather_weeks_are_split_alike_in_every_campaign():
+    rng = np.random.default_rng(0)
+    one = _weather_weeks(["chicago", "miami"], rng.integers(0, 2, 400).tolist(), rng.integers(0, 52, 400).tolist())
+    # another campaign: other weeks present, the climates listed in another order
+    other = _weather_weeks(["miami", "chicago"], rng.integers(0, 2, 150).tolist(), rng.integers(0, 30, 150).tolist())
+
+    def parts(ds: Dataset, version: int) -> dict[tuple[str, int], str]:
+        split = ds.split("weather_weeks", seed=3, version=version)
+        week, climate = ds.week_of_year[:], ds.weather_index[:]
+        return {(ds.weather_names[climate[i]], int(week[i])): name for name, idx in split.items() for i in idx}
+
+    a, b = parts(one, 2), parts(other, 2)
+    shared = set(a) & set(b)
+    assert len(shared) > 40 and all(a[k] == b[k] for k in shared)
+    assert {"train", "val", "test"} <= set(a.values())
+    # the first assignment permuted the weather weeks a dataset held: campaigns disagreed
+    a1, b1 = parts(one, 1), parts(other, 1)
+    assert any(a1[k] != b1[k] for k in shared)
+
+
+def test_floor_area_drawn_evenly_in_its_logarithm():
+    area = cat.THETA_NAMES.index("floor_area_m2")
+
+    def areas(scale: str) -> np.ndarray:
+        config = CampaignConfig(weeks=2000, seed=5, weeks_per_run=1, floor_area_scale=scale)
+        return np.array([task.theta[area] for task in plan_campaign(config)])
+
+    linear, log = areas("linear"), areas("log")
+    small = cat.get("floor_area_m2").min * 10  # the range's first decade: 45 % of its logarithm, 5 % of its width
+    assert (linear < small).mean() < 0.1 and 0.35 < (log < small).mean() < 0.55
+    assert np.all(log == cat.get("floor_area_m2").snap(log))  # on the catalogue's grid
+    with pytest.raises(BuildenvError, match="--floor-area-scale"):
+        CampaignConfig(weeks=1, floor_area_scale="sqrt").validate()
 
 
 class _RefusingSimulator:

@@ -7,6 +7,7 @@ import pytest
 import torch
 
 from buildenv import catalogue as cat
+from buildenv.campaign.dataset import SPLIT_VERSION
 from buildenv.campaign.runs import CampaignConfig, run_campaign
 from buildenv.errors import BuildenvError
 from buildenv.metamodel import surrogate as sg
@@ -682,3 +683,4 @@ def test_a_fine_tune_may_start_from_shoeboxes_of_another_zoning(tiny_dataset, tm
     meta = sg.load_metamodel(tuned).checkpoint.metadata
     assert sg.load_metamodel(tuned).zoning == "five_zone"
     assert meta["initialised_from"]["zoning"] == "core_perimeter"
+    assert meta["split_version"] == SPLIT_VERSION  # weather weeks split alike in every campaign

@@ -211,14 +211,17 @@ def test_five_zone_vav_night_cycles_the_whole_building_on_its_warmest_zone():
     off = hourly_schedules(settings, occupancy)["ventilation_on"][0] == 0
     vav = {**DEFAULT_THETA, "minimum_supply_air_ach": 1.5, "cooling_power_w_m2": 100}
 
-    def july(theta, zoning):
-        return simulate_weeks(theta, settings, occupancy, "usa_il_chicago", JULY, zoning=zoning).outputs[0]
+    def run(theta, zoning, week=JULY):
+        return simulate_weeks(theta, settings, occupancy, "usa_il_chicago", week, zoning=zoning).outputs[0]
 
-    cycled, ring = july(vav, "five_zone"), july(vav, "core_perimeter")
-    outdoor_air_only = july({**vav, "minimum_supply_air_ach": 0.0}, "five_zone")
+    cycled, ring = run(vav, "five_zone"), run(vav, "core_perimeter")
+    outdoor_air_only = run({**vav, "minimum_supply_air_ach": 0.0}, "five_zone")
     # out of hours the air handling units cool return air whenever the warmest perimeter reaches the setback
     assert cycled[off, OUT["Q_AHU_C"]].sum() > 10 * cycled[off, OUT["Q_AC_OFFICE"]].sum() > 0
     assert cycled[off, OUT["T_INT_OFFICE"]].mean() < ring[off, OUT["T_INT_OFFICE"]].mean() - 0.2
     # a 100 % outdoor air unit does not night-cycle: its fan coils hold each zone at the setback
     assert outdoor_air_only[off, OUT["Q_AHU_C"]].sum() == 0 and outdoor_air_only[off, OUT["Q_AC_OFFICE"]].sum() > 0
     assert not night_cycling("core_perimeter", vav) and night_cycling("five_zone", vav)
+    # in winter the fan coils hold the heating setback zone by zone; the air handling units stay off
+    winter = run(vav, "five_zone", JANUARY)
+    assert winter[off, OUT["Q_AHU_H"]].sum() == 0 and winter[off, OUT["Q_HEAT_OFFICE"]].sum() > 0

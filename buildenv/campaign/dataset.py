@@ -30,6 +30,7 @@ from __future__ import annotations
 import hashlib
 import json
 import shlex
+import zlib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -41,6 +42,10 @@ from buildenv.errors import DatasetError
 DATA_FILE = "dataset.h5"
 MANIFEST_FILE = "manifest.json"
 SPLITS = ("random", "weather_weeks", "buildings", "climate")
+#: How :meth:`Dataset.split` assigns weather weeks: 1 permuted the weather weeks a dataset holds, so two campaigns
+#: split them differently; 2 draws each (weather name, week of year) from the seed alone, the same in every
+#: campaign, so a fine-tune on another campaign keeps its starting checkpoint's test weather weeks unseen.
+SPLIT_VERSION = 2
 ARRAYS = (
     "theta",
     "settings",
@@ -110,6 +115,7 @@ class Dataset:
         seed: int = 0,
         test_climates: list[str] | None = None,
         holdout_climates: list[str] | None = None,
+        version: int = SPLIT_VERSION,
     ) -> dict[str, np.ndarray]:
         """Indices of train / validation / test weeks.
 
@@ -122,6 +128,7 @@ class Dataset:
             test_climates: weather names held out as test set (``climate`` split only).
             holdout_climates: weather names whose weeks are taken out of all three parts and returned apart
                 as ``"holdout_climate"`` (``random`` or ``weather_weeks`` only).
+            version: the weather-week assignment (:data:`SPLIT_VERSION`; 1 for checkpoints trained before it).
         Returns:
             ``{"train": idx, "val": idx, "test": idx}`` (plus ``"holdout_climate"``), sorted int arrays.
         Raises:
@@ -132,13 +139,15 @@ class Dataset:
                 raise DatasetError("holdout_climates goes with the random or weather_weeks split, not climate")
             ids = self._climate_ids(holdout_climates)
             apart = np.isin(self._h5["weather_index"][:], ids)
-            parts = self.split(kind, fractions, seed)
+            parts = self.split(kind, fractions, seed, version=version)
             parts = {name: idx[~apart[idx]] for name, idx in parts.items()}
             return {**parts, "holdout_climate": np.flatnonzero(apart)}
         if kind not in SPLITS:
             raise DatasetError(f"unknown split {kind!r}; choose one of {', '.join(SPLITS)}")
         if not np.isclose(sum(fractions), 1.0) or min(fractions) < 0:
             raise DatasetError(f"split fractions must be >= 0 and sum to 1 (got {fractions})")
+        if kind == "weather_weeks" and version >= 2:
+            return self._weather_week_parts(fractions, seed)
         rng = np.random.default_rng(seed)
         n = len(self)
         climate = self._h5["weather_index"][:].astype(np.int64)
@@ -168,6 +177,18 @@ class Dataset:
         parts = np.split(unique, cuts)
         return {name: np.flatnonzero(np.isin(groups, part)) for name, part in zip(("train", "val", "test"), parts)}
 
+    def _weather_week_parts(self, fractions: tuple[float, float, float], seed: int) -> dict[str, np.ndarray]:
+        """Train / validation / test by weather week, each (weather name, week of year) drawn from ``seed`` alone."""
+        climate = self._h5["weather_index"][:].astype(np.int64)
+        week = self._h5["week_of_year"][:].astype(np.int64)
+        groups = np.unique(np.stack([climate, week], axis=1), axis=0)
+        crc = [zlib.crc32(name.encode("utf-8")) for name in self.weather_names]
+        draw = np.array([np.random.default_rng([seed, crc[c], w]).random() for c, w in groups])
+        part = np.searchsorted(np.cumsum(fractions)[:2], draw, side="right")
+        lookup = {(int(c), int(w)): int(p) for (c, w), p in zip(groups, part)}
+        of_week = np.array([lookup[(int(c), int(w))] for c, w in zip(climate, week)], dtype=np.int64)
+        return {name: np.flatnonzero(of_week == i) for i, name in enumerate(("train", "val", "test"))}
+
 
 def data_file_record(path: str | Path) -> dict:
     """What a manifest records of a data file: ``{"bytes": size, "mtime_ns": modification time (ns),
@@ -194,7 +215,10 @@ def simulate_command(directory: str | Path, config: dict) -> str:
             words += [flag, str(config[key])]
     if config.get("epw"):
         words += ["--epw", *map(str, config["epw"])]
-    words += ["--zoning", str(config.get("zoning", "single")), "--out", str(directory)]
+    words += ["--zoning", str(config.get("zoning", "single"))]
+    if config.get("floor_area_scale", "linear") != "linear":
+        words += ["--floor-area-scale", str(config["floor_area_scale"])]
+    words += ["--out", str(directory)]
     return shlex.join(words)
 
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import DATA_FILE, data_file_record, simulate_command
-from buildenv.campaign.sampling import METHODS, sample_group, sample_weeks
+from buildenv.campaign.sampling import FLOOR_AREA_SCALES, METHODS, sample_group, sample_weeks
 from buildenv.energyplus import workdirs
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError, DatasetError, SimulationError
@@ -63,8 +63,10 @@ class CampaignConfig:
         epw: weather short names or EPW paths; runs are spread evenly over them.
         weeks_per_run: consecutive weeks simulated per EnergyPlus run (1-52).
         sampling: ``uniform`` (paper) or ``lhs``.
-        zoning: the shoebox's zoning, ``core_perimeter`` or ``single`` (the paper's single zone; see
-            :mod:`buildenv.energyplus.shoebox`).
+        zoning: the shoebox's zoning, ``core_perimeter``, ``five_zone`` or ``single`` (the paper's single zone;
+            see :mod:`buildenv.energyplus.shoebox`).
+        floor_area_scale: ``linear`` (each floor area of the catalogue's grid equally likely) or ``log`` (uniform
+            in its logarithm: small offices as well represented as large ones).
     """
 
     weeks: int
@@ -73,6 +75,7 @@ class CampaignConfig:
     weeks_per_run: int = cat.WEEKS_PER_YEAR
     sampling: str = "uniform"
     zoning: str = DEFAULT_ZONING
+    floor_area_scale: str = "linear"
 
     def validate(self) -> None:
         """Raise :class:`BuildenvError` on a value no campaign can use."""
@@ -84,6 +87,10 @@ class CampaignConfig:
             raise BuildenvError(f"--sampling must be one of {', '.join(METHODS)} (got {self.sampling!r})")
         if self.zoning not in ZONINGS:
             raise BuildenvError(f"--zoning must be one of {', '.join(ZONINGS)} (got {self.zoning!r})")
+        if self.floor_area_scale not in FLOOR_AREA_SCALES:
+            raise BuildenvError(
+                f"--floor-area-scale must be one of {', '.join(FLOOR_AREA_SCALES)} (got {self.floor_area_scale!r})"
+            )
         if not self.epw:
             raise BuildenvError("--epw: give at least one weather file")
         for epw in self.epw:
@@ -114,7 +121,8 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     rng = np.random.default_rng(config.seed)
     n_runs = math.ceil(config.weeks / config.weeks_per_run)
     lengths = [min(config.weeks_per_run, config.weeks - r * config.weeks_per_run) for r in range(n_runs)]
-    thetas = sample_group("theta_build", n_runs, rng, config.sampling)
+    log_scaled = ("floor_area_m2",) if config.floor_area_scale == "log" else ()
+    thetas = sample_group("theta_build", n_runs, rng, config.sampling, log_scaled)
     settings, occupancy = sample_weeks(config.weeks, rng, config.sampling)
     order = np.resize(rng.permutation(len(config.epw)), n_runs)
     climates = rng.permutation(order)
@@ -214,6 +222,7 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
     if campaign_file.exists():
         previous = json.loads(campaign_file.read_text())
         previous["config"].setdefault("zoning", "single")  # campaigns made before zoning was a choice
+        previous["config"].setdefault("floor_area_scale", "linear")
         if previous.get("catalogue_hash") != record["catalogue_hash"]:
             raise DatasetError(
                 f"{out} holds a campaign of catalogue {previous.get('catalogue_hash')} ({campaign_file}), this "

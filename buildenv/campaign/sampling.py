@@ -9,7 +9,14 @@ from buildenv import catalogue as cat
 METHODS = ("uniform", "lhs")
 
 
-def sample_group(group: str, n: int, rng: np.random.Generator, method: str = "uniform") -> np.ndarray:
+#: Scales a campaign may draw the floor area on: ``linear`` (each grid value equally likely) or ``log`` (uniform in
+#: its logarithm, so a 500 m2 office is drawn as often as a 50,000 m2 one relative to its size).
+FLOOR_AREA_SCALES = ("linear", "log")
+
+
+def sample_group(
+    group: str, n: int, rng: np.random.Generator, method: str = "uniform", log_scaled: tuple[str, ...] = ()
+) -> np.ndarray:
     """Draw ``n`` vectors of a group's variables on their catalogue grids.
 
     Args:
@@ -18,6 +25,8 @@ def sample_group(group: str, n: int, rng: np.random.Generator, method: str = "un
         rng: random generator (the only source of randomness).
         method: ``uniform`` (each grid value equally likely, independently) or ``lhs`` (Latin hypercube over
             the unit cube, mapped onto the grids, so each variable's grid values appear in near-equal shares).
+        log_scaled: names of the group's variables drawn uniformly in their logarithm between their bounds, then
+            rounded to their grid (their minimum must be above 0).
     Returns:
         ``(n, len(group))`` array in catalogue order and physical units.
     """
@@ -31,7 +40,12 @@ def sample_group(group: str, n: int, rng: np.random.Generator, method: str = "un
         u = qmc.LatinHypercube(d=len(variables), seed=rng).random(n) if n > 0 else np.zeros((0, len(variables)))
     else:
         raise ValueError(f"unknown sampling method {method!r}; choose one of {', '.join(METHODS)}")
-    columns = [grid[np.minimum((u[:, i] * len(grid)).astype(int), len(grid) - 1)] for i, grid in enumerate(grids)]
+    columns = []
+    for i, (variable, grid) in enumerate(zip(variables, grids)):
+        if variable.name in log_scaled:
+            columns.append(variable.snap(variable.min * (variable.max / variable.min) ** u[:, i]))
+        else:
+            columns.append(grid[np.minimum((u[:, i] * len(grid)).astype(int), len(grid) - 1)])
     return np.stack(columns, axis=1) if n else np.zeros((0, len(variables)))
 
 

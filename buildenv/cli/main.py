@@ -203,6 +203,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         weeks_per_run=args.weeks_per_run,
         sampling=args.sampling,
         zoning=args.zoning,
+        floor_area_scale=args.floor_area_scale,
     )
     path = run_campaign(
         config,
@@ -344,8 +345,15 @@ def build_parser() -> argparse.ArgumentParser:
         "--zoning",
         choices=list(ZONINGS),
         default=DEFAULT_ZONING,
-        help="the simulated building: a core and four perimeter zones whose VAV systems night-cycle on the most "
-        "extreme one (five_zone), a core and a perimeter ring, or the paper's single zone",
+        help="the simulated building: a core and four perimeter zones whose VAV systems night-cycle on the "
+        "warmest one (five_zone), a core and a perimeter ring, or the paper's single zone",
+    )
+    p.add_argument(
+        "--floor-area-scale",
+        choices=["linear", "log"],
+        default="linear",
+        help="draw the floor area evenly on the catalogue's grid (linear) or evenly in its logarithm (log: small "
+        "offices as often as large ones)",
     )
     p.add_argument(
         "--max-failed-share",

@@ -32,9 +32,9 @@ Modelling choices (each a constant below, so that a reader can find and change i
   it would carry that air past, or away from, the supply temperature; at 0 there is no exchanger.
 - Night cycling (``five_zone`` with a minimum supply flow, a VAV system): outside the ventilation period every
   zone's air handling unit supplies return air brought to the supply temperature as the warmest zone nears the
-  cooling setback or the coldest the heating setback (an EMS program), up to the minimum supply flow at the
-  setback, as the reference offices' VAV systems start on their most extreme zone (their on/off cycles averaged
-  over a proportional band); a 100 % outdoor air unit does not night-cycle.
+  cooling setback (an EMS program), up to the minimum supply flow at the setback, as the reference offices' VAV
+  systems start on their warmest zone (their on/off cycles averaged over a proportional band); the heating
+  setback is held zone by zone; a 100 % outdoor air unit does not night-cycle.
 - Mixed air: with ``minimum_supply_air_ach`` above the outdoor air the unit supplies that minimum, the rest
   return air, as VAV systems at their boxes' minimum flow do (the zones reheat it). The exchanger then has
   effectiveness 1 on an exhaust stream of the return air plus the heat-recovered share of the outdoor air, so
@@ -799,18 +799,17 @@ def night_cycling(zoning: str, t: dict[str, float]) -> bool:
 
 
 def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
-    """Night cycling as VAV systems do it: outside the ventilation period, as the warmest zone comes within
-    :data:`NIGHT_CYCLE_BAND_K` of the cooling setback or the coldest of the heating setback, every zone's air
-    handling unit supplies return air brought to the supply temperature, its flow rising in proportion up to
-    ``fraction`` of its largest flow (the minimum supply flow) at the setback, where the fan coils hold the extreme
-    zone. Within the ventilation period the units follow the Schedule:File."""
+    """Night cycling as VAV systems do it in summer: outside the ventilation period, as the warmest zone comes
+    within :data:`NIGHT_CYCLE_BAND_K` of the cooling setback, every zone's air handling unit supplies return air
+    brought to the supply temperature, its flow rising in proportion up to ``fraction`` of its largest flow (the
+    minimum supply flow) at the setback, where the fan coils hold the warmest zone. The heating setback is held
+    zone by zone by the fan coils. Within the ventilation period the units follow the Schedule:File."""
     for name in NIGHT_CYCLE_AIR_SCHEDULES.values():
         add("Schedule:Constant", name, schedule_type_limits_name="Any Number", hourly_value=0.0)
     sensors = {
         "vent_on": ("ventilation_on", "Schedule Value"),
         "supply_file": ("supply_fraction", "Schedule Value"),
         "exhaust_file": ("exhaust_fraction", "Schedule Value"),
-        "heating_sp": ("heating_setpoint_c", "Schedule Value"),
         "cooling_sp": ("cooling_setpoint_c", "Schedule Value"),
         **{f"zone_t_{i}": (zone, "Zone Mean Air Temperature") for i, zone in enumerate(zones)},
     }
@@ -830,9 +829,7 @@ def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
             actuated_component_type="Schedule:Constant",
             actuated_component_control_type="Schedule Value",
         )
-    extremes = ["SET warmest = zone_t_0", "SET coldest = zone_t_0"]
-    for i in range(1, len(zones)):
-        extremes += [f"SET warmest = @Max warmest zone_t_{i}", f"SET coldest = @Min coldest zone_t_{i}"]
+    extremes = ["SET warmest = zone_t_0"] + [f"SET warmest = @Max warmest zone_t_{i}" for i in range(1, len(zones))]
     band = NIGHT_CYCLE_BAND_K
     lines = [
         "IF vent_on > 0.5",
@@ -841,9 +838,8 @@ def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
         "SET ahu_exhaust = exhaust_file",
         "ELSE",
         *extremes,
-        f"SET cooling_call = (warmest - cooling_sp + {band}) / {band}",
-        f"SET heating_call = (heating_sp + {band} - coldest) / {band}",
-        "SET call = @Min (@Max cooling_call heating_call) 1",
+        f"SET call = (warmest - cooling_sp + {band}) / {band}",
+        "SET call = @Min call 1",
         "SET call = @Max call 0",
         "IF call > 0",
         "SET ahu_on = 1",

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.campaign.dataset import open_dataset
+from buildenv.campaign.dataset import SPLIT_VERSION, open_dataset
 from buildenv.errors import BuildenvError
 from buildenv.metamodel import surrogate as sg
 from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
@@ -116,11 +116,13 @@ def train_metamodel(
     started = time.perf_counter()
     ctx = sg.check_context_hours(context_hours)
     last = Path(out).with_name(Path(out).name + ".last")
-    if last.exists():  # a resumed run keeps the encoding it started with
+    split_version = SPLIT_VERSION
+    if last.exists():  # a resumed run keeps the encoding and the split it started with
         from metamodels.checkpoint import load_checkpoint
 
         with _checkpoint_errors():
             was = load_checkpoint(last).metadata
+        split_version = int(was.get("split_version", 1))
         if was.get("context_hours", sg.CONTEXT_HOURS) != ctx:
             raise BuildenvError(
                 f"{last} was trained with --context-hours {was.get('context_hours')}, not {ctx}: "
@@ -137,7 +139,7 @@ def train_metamodel(
                 "temperature before the week: rerun as it was to resume it, or remove it to start over"
             )
     with open_dataset(data) as ds:
-        parts = training_split(ds, split, seed, holdout_climates, max_weeks)
+        parts = training_split(ds, split, seed, holdout_climates, max_weeks, split_version)
         ds_zoning = ds.zoning
         train_idx = parts["train"]
         x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx, temperature_before=temperature_before)
@@ -166,6 +168,7 @@ def train_metamodel(
         "dataset": str(Path(data).resolve()),
         "split": split,
         "split_seed": seed,
+        "split_version": split_version,
         "holdout_climates": list(holdout_climates or []),
         "train_weeks": int(len(train_idx)),
         "zoning": ds_zoning,
@@ -284,11 +287,16 @@ def _onto_catalogue(ck, earlier: cat.EarlierCatalogue, had: tuple[str, ...], wan
 
 
 def training_split(
-    ds, split: str, seed: int, holdout_climates: list[str] | None = None, max_weeks: int | None = None
+    ds,
+    split: str,
+    seed: int,
+    holdout_climates: list[str] | None = None,
+    max_weeks: int | None = None,
+    version: int = SPLIT_VERSION,
 ) -> dict[str, np.ndarray]:
-    """The weeks a training run uses: :meth:`buildenv.campaign.dataset.Dataset.split`, its training part cut to a
-    seeded random ``max_weeks`` subset when given (the subset :func:`train_metamodel` draws)."""
-    parts = ds.split(split, seed=seed, holdout_climates=holdout_climates)
+    """The weeks a training run uses: :meth:`buildenv.campaign.dataset.Dataset.split` (of split ``version``), its
+    training part cut to a seeded random ``max_weeks`` subset when given (the subset :func:`train_metamodel` draws)."""
+    parts = ds.split(split, seed=seed, holdout_climates=holdout_climates, version=version)
     if max_weeks is not None and max_weeks < len(parts["train"]):
         rng = np.random.default_rng(seed)
         parts["train"] = np.sort(rng.choice(parts["train"], size=max_weeks, replace=False))
@@ -323,7 +331,12 @@ def _initial_checkpoint(
 def checkpoint_split(ds, meta: dict) -> dict[str, np.ndarray]:
     """The split a checkpoint was trained with (its metadata's split kind, seed and held-out climates), drawn
     again on ``ds``: its test weeks when ``ds`` is its dataset or a copy of it."""
-    return ds.split(meta["split"], seed=meta["split_seed"], holdout_climates=meta.get("holdout_climates") or None)
+    return ds.split(
+        meta["split"],
+        seed=meta["split_seed"],
+        holdout_climates=meta.get("holdout_climates") or None,
+        version=int(meta.get("split_version", 1)),
+    )
 
 
 def week_scores(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray, pred: np.ndarray) -> dict[str, np.ndarray]:

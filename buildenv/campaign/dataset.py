@@ -181,12 +181,10 @@ class Dataset:
         """Train / validation / test by weather week, each (weather name, week of year) drawn from ``seed`` alone."""
         climate = self._h5["weather_index"][:].astype(np.int64)
         week = self._h5["week_of_year"][:].astype(np.int64)
-        groups = np.unique(np.stack([climate, week], axis=1), axis=0)
+        groups, of_group = np.unique(np.stack([climate, week], axis=1), axis=0, return_inverse=True)
         crc = [zlib.crc32(name.encode("utf-8")) for name in self.weather_names]
         draw = np.array([np.random.default_rng([seed, crc[c], w]).random() for c, w in groups])
-        part = np.searchsorted(np.cumsum(fractions)[:2], draw, side="right")
-        lookup = {(int(c), int(w)): int(p) for (c, w), p in zip(groups, part)}
-        of_week = np.array([lookup[(int(c), int(w))] for c, w in zip(climate, week)], dtype=np.int64)
+        of_week = np.searchsorted(np.cumsum(fractions)[:2], draw, side="right")[of_group.ravel()]
         return {name: np.flatnonzero(of_week == i) for i, name in enumerate(("train", "val", "test"))}
 
 

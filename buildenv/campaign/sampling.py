@@ -10,7 +10,7 @@ METHODS = ("uniform", "lhs")
 
 
 #: Scales a campaign may draw the floor area on: ``linear`` (each grid value equally likely) or ``log`` (uniform in
-#: its logarithm, so a 500 m2 office is drawn as often as a 50,000 m2 one relative to its size).
+#: its logarithm: each decade of floor area, 300-3,000 m2 as 3,000-30,000 m2, in equal shares).
 FLOOR_AREA_SCALES = ("linear", "log")
 
 

@@ -32,6 +32,7 @@ import numpy as np
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLITS
 from buildenv.campaign.runs import MAX_FAILED_SHARE
+from buildenv.campaign.sampling import FLOOR_AREA_SCALES
 from buildenv.cli.argtypes import positive_minutes, share
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
@@ -350,7 +351,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument(
         "--floor-area-scale",
-        choices=["linear", "log"],
+        choices=list(FLOOR_AREA_SCALES),
         default="linear",
         help="draw the floor area evenly on the catalogue's grid (linear) or evenly in its logarithm (log: small "
         "offices as often as large ones)",

@@ -684,3 +684,36 @@ def test_a_fine_tune_may_start_from_shoeboxes_of_another_zoning(tiny_dataset, tm
     assert sg.load_metamodel(tuned).zoning == "five_zone"
     assert meta["initialised_from"]["zoning"] == "core_perimeter"
     assert meta["split_version"] == SPLIT_VERSION  # weather weeks split alike in every campaign
+    with pytest.raises(BuildenvError, match="zonings"):
+        train_metamodel([tiny_dataset, five], "ffn", tmp_path / "mixed.pt", split="random", epochs=1, progress=False)
+
+
+def test_several_campaigns_train_one_metamodel_each_scored_on_its_own_test_weeks(tiny_dataset, tmp_path):
+    from buildenv.campaign.dataset import open_dataset
+    from buildenv.metamodel.training import training_split, training_splits
+
+    other = tmp_path / "other"
+    run_campaign(
+        CampaignConfig(weeks=12, seed=4, epw=["usa_il_chicago"], weeks_per_run=3), other, workers=2, progress=False
+    )
+    with open_dataset(tiny_dataset) as a, open_dataset(other) as b:
+        alone = [training_split(ds, "random", 0) for ds in (a, b)]
+        subset = training_splits([a, b], "random", 0, max_weeks=10)
+        assert training_split(a, "random", 0, max_weeks=5)["train"].tolist() == (
+            training_splits([a], "random", 0, max_weeks=5)[0]["train"].tolist()
+        )
+    assert sum(len(p["train"]) for p in subset) == 10
+    for mine, whole in zip(subset, alone):
+        assert set(mine["train"]) <= set(whole["train"])
+        assert mine["test"].tolist() == whole["test"].tolist()  # the subset cuts training weeks only
+    ckpt = tmp_path / "both.pt"
+    result = train_metamodel([tiny_dataset, other], "ffn", ckpt, split="random", epochs=1, batch_size=4, progress=False)
+    assert result["train_weeks"] == sum(len(p["train"]) for p in alone)
+    assert result["test_weeks"] == sum(len(p["test"]) for p in alone)
+    meta = sg.load_metamodel(ckpt).checkpoint.metadata
+    assert meta["datasets"] == [str(tiny_dataset.resolve()), str(other.resolve())]
+    for data, part in zip((tiny_dataset, other), alone):
+        scored = evaluate_metamodel(ckpt, data)
+        assert scored["subset"] == "test" and scored["weeks"] == len(part["test"])
+    with pytest.raises(BuildenvError, match="given twice"):
+        train_metamodel([other, str(other)], "ffn", tmp_path / "twice.pt", split="random", epochs=1, progress=False)

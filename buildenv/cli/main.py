@@ -367,7 +367,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     p = sub.add_parser("train", help="train a metamodel on a dataset")
     p.add_argument("--model", required=True, choices=["transformer", "bigru", "lstm", "convgru", "ffn"])
-    p.add_argument("--data", required=True, help="dataset directory")
+    p.add_argument(
+        "--data",
+        required=True,
+        action="append",
+        metavar="DIR",
+        help="dataset directory; repeat it to train on several campaigns of one zoning together",
+    )
     p.add_argument("--out", required=True, help="checkpoint path (rerun to resume from CKPT.last)")
     p.add_argument(
         "--split",

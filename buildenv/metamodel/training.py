@@ -138,39 +138,30 @@ def train_metamodel(
                 f"{last} was trained {'with' if not temperature_before else 'without'} the "
                 "temperature before the week: rerun as it was to resume it, or remove it to start over"
             )
-    with open_dataset(data) as ds:
-        parts = training_split(ds, split, seed, holdout_climates, max_weeks, split_version)
-        ds_zoning = ds.zoning
-        train_idx = parts["train"]
-        x_tr, y_tr = sg.encode_dataset(ds, train_idx, context_hours=ctx, temperature_before=temperature_before)
-        x_va, y_va = sg.encode_dataset(ds, parts["val"], context_hours=ctx, temperature_before=temperature_before)
-        if temperature_before:
-            hide_temperature_before(x_tr, TEMPERATURE_BEFORE_HIDDEN, seed)
-            hide_temperature_before(x_va, TEMPERATURE_BEFORE_HIDDEN, seed + 1)
-        for name, y in (("training", y_tr), ("validation", y_va)):
-            missing = ~np.isfinite(y).all(axis=(1, 2))
-            if missing.any():
-                raise BuildenvError(
-                    f"{data}: {int(missing.sum())} of the {len(y)} {name} weeks have outputs that "
-                    "are not finite (NaN or inf): the dataset lacks them or is damaged; simulate it "
-                    "again or train on a subset that has them (--max-weeks of a carried pack)"
-                )
-        x_te, y_te = sg.encode_dataset(ds, parts["test"], context_hours=ctx, temperature_before=temperature_before)
-        apart = (
-            sg.encode_dataset(ds, parts["holdout_climate"], context_hours=ctx, temperature_before=temperature_before)
-            if holdout_climates
-            else None
+    paths = _dataset_paths(data)
+    if len(paths) > 1 and split_version < 2:
+        raise BuildenvError(
+            f"{last} splits weather weeks per campaign (split version {split_version}): resume it on its one "
+            "dataset, or remove it to train on several"
         )
+    encoded = _encode_campaigns(paths, split, seed, holdout_climates, max_weeks, split_version, ctx, temperature_before)
+    ds_zoning = encoded.pop("zoning")
+    (x_tr, y_tr), (x_va, y_va), (x_te, y_te) = encoded["train"], encoded["val"], encoded["test"]
+    apart = encoded.get("holdout_climate")
+    if temperature_before:
+        hide_temperature_before(x_tr, TEMPERATURE_BEFORE_HIDDEN, seed)
+        hide_temperature_before(x_va, TEMPERATURE_BEFORE_HIDDEN, seed + 1)
     torch.manual_seed(seed)
     config = dict(model_config or {})
     metadata = {
         **sg.metadata(ctx, ground_temperature, temperature_before),
-        "dataset": str(Path(data).resolve()),
+        "dataset": str(paths[0]),
+        "datasets": [str(p) for p in paths],
         "split": split,
         "split_seed": seed,
         "split_version": split_version,
         "holdout_climates": list(holdout_climates or []),
-        "train_weeks": int(len(train_idx)),
+        "train_weeks": int(len(x_tr)),
         "zoning": ds_zoning,
     }
     if init is not None:
@@ -232,9 +223,9 @@ def train_metamodel(
         "model": model,
         "config": ck.config,
         "train": asdict(cfg),
-        "train_weeks": int(len(train_idx)),
-        "val_weeks": int(len(parts["val"])),
-        "test_weeks": int(len(parts["test"])),
+        "train_weeks": int(len(x_tr)),
+        "val_weeks": int(len(x_va)),
+        "test_weeks": int(len(x_te)),
         "seconds": round(time.perf_counter() - started, 1),
         "fit": {k: v for k, v in history.items() if k != "history"},
         "test": test,
@@ -296,11 +287,90 @@ def training_split(
 ) -> dict[str, np.ndarray]:
     """The weeks a training run uses: :meth:`buildenv.campaign.dataset.Dataset.split` (of split ``version``), its
     training part cut to a seeded random ``max_weeks`` subset when given (the subset :func:`train_metamodel` draws)."""
-    parts = ds.split(split, seed=seed, holdout_climates=holdout_climates, version=version)
-    if max_weeks is not None and max_weeks < len(parts["train"]):
+    return training_splits([ds], split, seed, holdout_climates, max_weeks, version)[0]
+
+
+def training_splits(
+    datasets: list,
+    split: str,
+    seed: int,
+    holdout_climates: list[str] | None = None,
+    max_weeks: int | None = None,
+    version: int = SPLIT_VERSION,
+) -> list[dict[str, np.ndarray]]:
+    """:func:`training_split` of several open datasets trained on together: each split on its own (split version 2
+    draws the same weather weeks into each part in every campaign), the ``max_weeks`` subset drawn over their
+    training weeks together. Returns one dict of index arrays per dataset, in order."""
+    parts = [ds.split(split, seed=seed, holdout_climates=holdout_climates, version=version) for ds in datasets]
+    sizes = [len(p["train"]) for p in parts]
+    if max_weeks is not None and max_weeks < sum(sizes):
         rng = np.random.default_rng(seed)
-        parts["train"] = np.sort(rng.choice(parts["train"], size=max_weeks, replace=False))
+        chosen = np.sort(rng.choice(sum(sizes), size=max_weeks, replace=False))
+        edges = np.cumsum([0, *sizes])
+        for i, p in enumerate(parts):
+            mine = chosen[(chosen >= edges[i]) & (chosen < edges[i + 1])] - edges[i]
+            p["train"] = p["train"][mine]
     return parts
+
+
+def _dataset_paths(data: str | Path | list) -> list[Path]:
+    """The dataset directories of ``data`` (one path or several), resolved; refused when none or repeated."""
+    paths = [Path(d).resolve() for d in ([data] if isinstance(data, (str, Path)) else data)]
+    if not paths:
+        raise BuildenvError("no dataset given: pass --data DIR (repeatable)")
+    repeated = sorted({str(p) for p in paths if paths.count(p) > 1})
+    if repeated:
+        raise BuildenvError(f"--data {repeated[0]} is given twice: give each dataset once")
+    return paths
+
+
+def _encode_campaigns(
+    paths: list[Path],
+    split: str,
+    seed: int,
+    holdout_climates: list[str] | None,
+    max_weeks: int | None,
+    version: int,
+    ctx: int,
+    temperature_before: bool,
+) -> dict:
+    """Encoded ``(x, y)`` of each part (``train``, ``val``, ``test``, and ``holdout_climate`` when climates are held
+    out) over the datasets at ``paths``, concatenated in order, and their ``zoning``.
+
+    Raises:
+        BuildenvError: the datasets' shoeboxes are of different zonings, or training or validation weeks have
+            outputs that are not finite.
+    """
+    from contextlib import ExitStack
+
+    with ExitStack() as stack:
+        datasets = [stack.enter_context(open_dataset(p)) for p in paths]
+        zonings = {ds.zoning for ds in datasets}
+        if len(zonings) > 1:
+            raise BuildenvError(
+                f"--data {paths[0]} and the others simulate shoeboxes of zonings {sorted(zonings)}: train on "
+                "campaigns of one zoning"
+            )
+        parts = training_splits(datasets, split, seed, holdout_climates, max_weeks, version)
+        names = ["train", "val", "test"] + (["holdout_climate"] if holdout_climates else [])
+        encoded: dict = {"zoning": zonings.pop()}
+        for name in names:
+            pieces = []
+            for ds, path, part in zip(datasets, paths, parts):
+                x, y = sg.encode_dataset(ds, part[name], context_hours=ctx, temperature_before=temperature_before)
+                missing = ~np.isfinite(y).all(axis=(1, 2))
+                if name in ("train", "val") and missing.any():
+                    raise BuildenvError(
+                        f"{path}: {int(missing.sum())} of the {len(y)} {_PART_WORDS[name]} weeks have outputs "
+                        "that are not finite (NaN or inf): the dataset lacks them or is damaged; simulate it "
+                        "again or train on a subset that has them (--max-weeks of a carried pack)"
+                    )
+                pieces.append((x, y))
+            encoded[name] = tuple(np.concatenate(arrays) if len(pieces) > 1 else arrays[0] for arrays in zip(*pieces))
+    return encoded
+
+
+_PART_WORDS = {"train": "training", "val": "validation"}
 
 
 def _initial_checkpoint(
@@ -368,7 +438,7 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
     surrogate = sg.load_metamodel(checkpoint)
     meta = surrogate.checkpoint.metadata
     with open_dataset(data) as ds:
-        same = meta.get("dataset") == str(Path(data).resolve())
+        same = str(Path(data).resolve()) in meta.get("datasets", [meta.get("dataset")])
         holdout = meta.get("holdout_climates") or None
         if subset == "holdout_climate":
             if not holdout:

@@ -62,7 +62,7 @@ def hide_temperature_before(x: np.ndarray, share: float, seed: int) -> np.ndarra
 
 
 def train_metamodel(
-    data: str | Path,
+    data: str | Path | list,
     model: str,
     out: str | Path,
     split: str = "weather_weeks",
@@ -80,7 +80,8 @@ def train_metamodel(
     """Train one metamodel on a dataset and score it on the held-out test weeks.
 
     Args:
-        data: dataset directory (``buildenv simulate --out``).
+        data: dataset directory (``buildenv simulate --out``), or a list of them of one zoning, trained on together
+            (:func:`training_splits`).
         model: ``transformer``, ``bigru``, ``lstm``, ``convgru`` or ``ffn``.
         out: checkpoint path (``out.last`` and ``out.csv`` are written beside it; a rerun resumes).
         split: ``weather_weeks``, ``buildings``, ``random`` or ``climate`` (:meth:`.Dataset.split`).
@@ -102,7 +103,8 @@ def train_metamodel(
     Returns:
         ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
     Raises:
-        BuildenvError: a resumed or ``init`` checkpoint does not fit the run, or the dataset lacks outputs.
+        BuildenvError: a resumed or ``init`` checkpoint does not fit the run, a dataset lacks outputs, or the datasets
+            are repeated or of different zonings.
     """
     import torch
 

@@ -9,7 +9,7 @@ import torch
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLIT_VERSION
 from buildenv.campaign.runs import CampaignConfig, run_campaign
-from buildenv.errors import BuildenvError
+from buildenv.errors import BuildenvError, DatasetError
 from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
@@ -483,6 +483,7 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
     assert ck.metadata["initialised_from"] == {
         "checkpoint": str(base),
         "dataset": start.metadata["dataset"],
+        "datasets": start.metadata["datasets"],
         "train_weeks": start.metadata["train_weeks"],
         "context_hours": 24,
         "zoning": "core_perimeter",
@@ -684,7 +685,7 @@ def test_a_fine_tune_may_start_from_shoeboxes_of_another_zoning(tiny_dataset, tm
     assert sg.load_metamodel(tuned).zoning == "five_zone"
     assert meta["initialised_from"]["zoning"] == "core_perimeter"
     assert meta["split_version"] == SPLIT_VERSION  # weather weeks split alike in every campaign
-    with pytest.raises(BuildenvError, match="zonings"):
+    with pytest.raises(BuildenvError, match="is five_zone: train on campaigns of one zoning"):
         train_metamodel([tiny_dataset, five], "ffn", tmp_path / "mixed.pt", split="random", epochs=1, progress=False)
 
 
@@ -717,3 +718,31 @@ def test_several_campaigns_train_one_metamodel_each_scored_on_its_own_test_weeks
         assert scored["subset"] == "test" and scored["weeks"] == len(part["test"])
     with pytest.raises(BuildenvError, match="given twice"):
         train_metamodel([other, str(other)], "ffn", tmp_path / "twice.pt", split="random", epochs=1, progress=False)
+    with pytest.raises(BuildenvError, match="rerun with those, in that order"):
+        train_metamodel([other, tiny_dataset], "ffn", ckpt, split="random", epochs=2, batch_size=4, progress=False)
+    with pytest.raises(BuildenvError, match="split climate"):
+        train_metamodel([tiny_dataset, other], "ffn", tmp_path / "c.pt", split="climate", epochs=1, progress=False)
+    # a climate one campaign lacks is held out of the one that has it
+    apart = train_metamodel(
+        [tiny_dataset, other],
+        "ffn",
+        tmp_path / "golden.pt",
+        split="random",
+        holdout_climates=["usa_co_golden"],
+        epochs=1,
+        batch_size=4,
+        progress=False,
+    )
+    with open_dataset(tiny_dataset) as a:
+        golden = int((a.weather_index[:] == a.weather_names.index("usa_co_golden")).sum())
+    assert apart["holdout_climate"]["weeks"] == golden > 0
+    with pytest.raises(DatasetError, match="usa_fl_miami"):
+        train_metamodel(
+            [tiny_dataset, other],
+            "ffn",
+            tmp_path / "m.pt",
+            split="random",
+            holdout_climates=["usa_fl_miami"],
+            epochs=1,
+            progress=False,
+        )

@@ -6,7 +6,7 @@ Subcommands:
     morph-weather  write EPW files with shifted / stretched temperature, scaled solar and wind
     week        simulate one week of a building with EnergyPlus, print a summary and plot it
     simulate    run a simulation campaign into a dataset directory (parallel, resumable, Dask-capable)
-    train       train a metamodel on a campaign's dataset
+    train       train a metamodel on campaigns' datasets
     evaluate    score a metamodel checkpoint on a dataset
     site        make a site from a reference building (`site reference`) or inspect one (`site show`)
     calibrate   calibrate the metamodel's building and occupancy to a site's measurements
@@ -365,7 +365,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_simulate)
 
-    p = sub.add_parser("train", help="train a metamodel on a dataset")
+    p = sub.add_parser("train", help="train a metamodel on one or more datasets")
     p.add_argument("--model", required=True, choices=["transformer", "bigru", "lstm", "convgru", "ffn"])
     p.add_argument(
         "--data",

@@ -6,6 +6,7 @@ the weeks held out of training. Normalisation statistics come from the training 
 
 from __future__ import annotations
 
+import os
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
@@ -15,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from buildenv import catalogue as cat
-from buildenv.campaign.dataset import SPLIT_VERSION, open_dataset
+from buildenv.campaign.dataset import SPLIT_VERSION, Dataset, open_dataset
 from buildenv.errors import BuildenvError
 from buildenv.metamodel import surrogate as sg
 from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
@@ -62,7 +63,7 @@ def hide_temperature_before(x: np.ndarray, share: float, seed: int) -> np.ndarra
 
 
 def train_metamodel(
-    data: str | Path | list,
+    data: str | os.PathLike | list[str | os.PathLike],
     model: str,
     out: str | Path,
     split: str = "weather_weeks",
@@ -141,10 +142,17 @@ def train_metamodel(
                 "temperature before the week: rerun as it was to resume it, or remove it to start over"
             )
     paths = _dataset_paths(data)
-    if len(paths) > 1 and split_version < 2:
+    if last.exists():
+        trained_on = was.get("datasets", [was.get("dataset")])
+        if trained_on != [str(p) for p in paths]:
+            given = " ".join(f"--data {d}" for d in trained_on)
+            raise BuildenvError(
+                f"{last} was trained with {given}: rerun with those, in that order, or remove it to start over"
+            )
+    if len(paths) > 1 and split == "climate":
         raise BuildenvError(
-            f"{last} splits weather weeks per campaign (split version {split_version}): resume it on its one "
-            "dataset, or remove it to train on several"
+            "--split climate draws test climates per campaign, so one campaign's could be another's training: "
+            "train on several campaigns with --split weather_weeks (and --holdout-climate for a climate left out)"
         )
     encoded = _encode_campaigns(paths, split, seed, holdout_climates, max_weeks, split_version, ctx, temperature_before)
     ds_zoning = encoded.pop("zoning")
@@ -171,6 +179,7 @@ def train_metamodel(
         metadata["initialised_from"] = {
             "checkpoint": str(init),
             "dataset": start.metadata.get("dataset"),
+            "datasets": start.metadata.get("datasets", [start.metadata.get("dataset")]),
             "train_weeks": start.metadata.get("train_weeks"),
             "context_hours": start.metadata.get("context_hours", sg.CONTEXT_HOURS),
             "zoning": start.metadata.get("zoning", "core_perimeter"),
@@ -293,17 +302,33 @@ def training_split(
 
 
 def training_splits(
-    datasets: list,
+    datasets: list[Dataset],
     split: str,
     seed: int,
     holdout_climates: list[str] | None = None,
     max_weeks: int | None = None,
     version: int = SPLIT_VERSION,
 ) -> list[dict[str, np.ndarray]]:
-    """:func:`training_split` of several open datasets trained on together: each split on its own (split version 2
-    draws the same weather weeks into each part in every campaign), the ``max_weeks`` subset drawn over their
-    training weeks together. Returns one dict of index arrays per dataset, in order."""
-    parts = [ds.split(split, seed=seed, holdout_climates=holdout_climates, version=version) for ds in datasets]
+    """:func:`training_split` of several open datasets trained on together: each split on its own (the weather_weeks
+    split of version 2 puts a (weather file, week) in the same part in every campaign), each holding out those of
+    ``holdout_climates`` it has, the ``max_weeks`` subset drawn over their training weeks together.
+
+    Returns:
+        one dict of index arrays per dataset, in order (``"holdout_climate"`` empty where a dataset has none of them).
+    Raises:
+        DatasetError: a held-out climate no dataset has, or a split :meth:`.Dataset.split` refuses.
+    """
+    held = list(holdout_climates or [])
+    missing = [c for c in held if not any(c in ds.weather_names for ds in datasets)]
+    if missing:
+        datasets[0]._climate_ids(missing)  # the dataset's own one-line refusal, naming its climates
+    parts = []
+    for ds in datasets:
+        mine = [c for c in held if c in ds.weather_names]
+        part = ds.split(split, seed=seed, holdout_climates=mine or None, version=version)
+        parts.append(
+            {**part, "holdout_climate": part.get("holdout_climate", np.array([], dtype=np.int64))} if held else part
+        )
     sizes = [len(p["train"]) for p in parts]
     if max_weeks is not None and max_weeks < sum(sizes):
         rng = np.random.default_rng(seed)
@@ -315,9 +340,9 @@ def training_splits(
     return parts
 
 
-def _dataset_paths(data: str | Path | list) -> list[Path]:
+def _dataset_paths(data: str | os.PathLike | list[str | os.PathLike]) -> list[Path]:
     """The dataset directories of ``data`` (one path or several), resolved; refused when none or repeated."""
-    paths = [Path(d).resolve() for d in ([data] if isinstance(data, (str, Path)) else data)]
+    paths = [Path(d).resolve() for d in ([data] if isinstance(data, (str, os.PathLike)) else data)]
     if not paths:
         raise BuildenvError("no dataset given: pass --data DIR (repeatable)")
     repeated = sorted({str(p) for p in paths if paths.count(p) > 1})
@@ -349,16 +374,16 @@ def _encode_campaigns(
         datasets = [stack.enter_context(open_dataset(p)) for p in paths]
         zonings = {ds.zoning for ds in datasets}
         if len(zonings) > 1:
-            raise BuildenvError(
-                f"--data {paths[0]} and the others simulate shoeboxes of zonings {sorted(zonings)}: train on "
-                "campaigns of one zoning"
-            )
+            each = ", ".join(f"{p} is {ds.zoning}" for p, ds in zip(paths, datasets))
+            raise BuildenvError(f"--data: {each}: train on campaigns of one zoning")
         parts = training_splits(datasets, split, seed, holdout_climates, max_weeks, version)
         names = ["train", "val", "test"] + (["holdout_climate"] if holdout_climates else [])
         encoded: dict = {"zoning": zonings.pop()}
         for name in names:
             pieces = []
             for ds, path, part in zip(datasets, paths, parts):
+                if name == "holdout_climate" and not len(part[name]):
+                    continue
                 x, y = sg.encode_dataset(ds, part[name], context_hours=ctx, temperature_before=temperature_before)
                 missing = ~np.isfinite(y).all(axis=(1, 2))
                 if name in ("train", "val") and missing.any():
@@ -402,7 +427,7 @@ def _initial_checkpoint(
 
 def checkpoint_split(ds, meta: dict) -> dict[str, np.ndarray]:
     """The split a checkpoint was trained with (its metadata's split kind, seed and held-out climates), drawn
-    again on ``ds``: its test weeks when ``ds`` is its dataset or a copy of it."""
+    again on ``ds``: its test weeks when ``ds`` is one of its datasets or a copy of one."""
     return ds.split(
         meta["split"],
         seed=meta["split_seed"],
@@ -433,8 +458,8 @@ def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, fl
 def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: str = "test") -> dict:
     """Score a checkpoint on a dataset.
 
-    ``subset="test"`` scores the checkpoint's own held-out weeks when ``data`` is the dataset it was trained
-    on (same split kind and seed), and every week otherwise; ``subset="holdout_climate"`` the weeks of the
+    ``subset="test"`` scores the checkpoint's own held-out weeks when ``data`` is one of the datasets it was
+    trained on (same split kind and seed), and every week otherwise; ``subset="holdout_climate"`` the weeks of the
     climates kept out of its training; ``subset="all"`` scores every week.
     """
     surrogate = sg.load_metamodel(checkpoint)

@@ -722,27 +722,16 @@ def test_several_campaigns_train_one_metamodel_each_scored_on_its_own_test_weeks
         train_metamodel([other, tiny_dataset], "ffn", ckpt, split="random", epochs=2, batch_size=4, progress=False)
     with pytest.raises(BuildenvError, match="split climate"):
         train_metamodel([tiny_dataset, other], "ffn", tmp_path / "c.pt", split="climate", epochs=1, progress=False)
+
     # a climate one campaign lacks is held out of the one that has it
-    apart = train_metamodel(
-        [tiny_dataset, other],
-        "ffn",
-        tmp_path / "golden.pt",
-        split="random",
-        holdout_climates=["usa_co_golden"],
-        epochs=1,
-        batch_size=4,
-        progress=False,
-    )
+    def holding_out(climate: str) -> dict:
+        out = tmp_path / f"{climate}.pt"
+        both = [tiny_dataset, other]
+        return train_metamodel(both, "ffn", out, split="random", holdout_climates=[climate], epochs=1, progress=False)
+
+    apart = holding_out("usa_co_golden")
     with open_dataset(tiny_dataset) as a:
         golden = int((a.weather_index[:] == a.weather_names.index("usa_co_golden")).sum())
     assert apart["holdout_climate"]["weeks"] == golden > 0
     with pytest.raises(DatasetError, match="usa_fl_miami"):
-        train_metamodel(
-            [tiny_dataset, other],
-            "ffn",
-            tmp_path / "m.pt",
-            split="random",
-            holdout_climates=["usa_fl_miami"],
-            epochs=1,
-            progress=False,
-        )
+        holding_out("usa_fl_miami")

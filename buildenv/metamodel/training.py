@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Iterator
-from contextlib import contextmanager
+from contextlib import ExitStack, contextmanager
 from dataclasses import asdict
 from pathlib import Path
 
@@ -17,7 +17,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLIT_VERSION, Dataset, open_dataset
-from buildenv.errors import BuildenvError
+from buildenv.errors import BuildenvError, DatasetError
 from buildenv.metamodel import surrogate as sg
 from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
 
@@ -120,12 +120,19 @@ def train_metamodel(
     ctx = sg.check_context_hours(context_hours)
     last = Path(out).with_name(Path(out).name + ".last")
     split_version = SPLIT_VERSION
-    if last.exists():  # a resumed run keeps the encoding and the split it started with
+    paths = _dataset_paths(data)
+    if last.exists():  # a resumed run keeps the datasets, the encoding and the split it started with
         from metamodels.checkpoint import load_checkpoint
 
         with _checkpoint_errors():
             was = load_checkpoint(last).metadata
         split_version = int(was.get("split_version", 1))
+        trained_on = was.get("datasets", [was.get("dataset")])
+        if trained_on != [str(p) for p in paths]:
+            given = " ".join(f"--data {d}" for d in trained_on)
+            raise BuildenvError(
+                f"{last} was trained with {given}: rerun with those, in that order, or remove it to start over"
+            )
         if was.get("context_hours", sg.CONTEXT_HOURS) != ctx:
             raise BuildenvError(
                 f"{last} was trained with --context-hours {was.get('context_hours')}, not {ctx}: "
@@ -140,14 +147,6 @@ def train_metamodel(
             raise BuildenvError(
                 f"{last} was trained {'with' if not temperature_before else 'without'} the "
                 "temperature before the week: rerun as it was to resume it, or remove it to start over"
-            )
-    paths = _dataset_paths(data)
-    if last.exists():
-        trained_on = was.get("datasets", [was.get("dataset")])
-        if trained_on != [str(p) for p in paths]:
-            given = " ".join(f"--data {d}" for d in trained_on)
-            raise BuildenvError(
-                f"{last} was trained with {given}: rerun with those, in that order, or remove it to start over"
             )
     if len(paths) > 1 and split == "climate":
         raise BuildenvError(
@@ -321,7 +320,7 @@ def training_splits(
     held = list(holdout_climates or [])
     missing = [c for c in held if not any(c in ds.weather_names for ds in datasets)]
     if missing:
-        datasets[0]._climate_ids(missing)  # the dataset's own one-line refusal, naming its climates
+        raise DatasetError(f"climate(s) {missing} in none of {', '.join(str(ds.path) for ds in datasets)}")
     parts = []
     for ds in datasets:
         mine = [c for c in held if c in ds.weather_names]
@@ -368,8 +367,6 @@ def _encode_campaigns(
         BuildenvError: the datasets' shoeboxes are of different zonings, or training or validation weeks have
             outputs that are not finite.
     """
-    from contextlib import ExitStack
-
     with ExitStack() as stack:
         datasets = [stack.enter_context(open_dataset(p)) for p in paths]
         zonings = {ds.zoning for ds in datasets}

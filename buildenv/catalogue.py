@@ -713,6 +713,8 @@ _BY_NAME: dict[str, Variable] = {v.name: v for v in ALL_VARIABLES}
 _ALIASES: dict[str, str] = {v.paper_name.lower(): v.name for v in ALL_VARIABLES if not v.paper_name.startswith("(")}
 
 THETA_NAMES: tuple[str, ...] = tuple(v.name for v in THETA_BUILD)
+#: theta_build variables a building's drawings give (a site states them; calibration does not estimate them).
+GEOMETRY_NAMES: tuple[str, ...] = tuple(v.name for v in THETA_BUILD if v.paper_name == "(geometry)")
 SETTING_NAMES: tuple[str, ...] = tuple(v.name for v in SETTINGS)
 OCCUPANCY_NAMES: tuple[str, ...] = tuple(v.name for v in OCCUPANCY)
 WEATHER_NAMES: tuple[str, ...] = tuple(v.name for v in WEATHER)

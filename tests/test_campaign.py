@@ -8,6 +8,7 @@ import signal
 import subprocess
 import sys
 import time
+from dataclasses import asdict
 from pathlib import Path
 
 import numpy as np
@@ -227,6 +228,49 @@ def test_floor_area_drawn_evenly_in_its_logarithm():
     assert np.all(log == cat.get("floor_area_m2").snap(log))  # on the catalogue's grid
     with pytest.raises(BuildenvError, match="--floor-area-scale"):
         CampaignConfig(weeks=1, floor_area_scale="sqrt").validate()
+
+
+def test_buildings_drawn_around_calibrated_sites_keep_their_geometry_and_the_catalogue(tmp_path):
+    """``--around``: a suite's development sites are the centres (its held-out ones never), each run's building a
+    centre moved by steps of ``spread`` times each range, on the grid, the geometry the site's."""
+    import shutil
+
+    from buildenv.campaign.dataset import simulate_command
+    from buildenv.env.building_week import DEFAULT_SITE
+    from buildenv.sites.suite import calibrated_buildings, write_manifest
+
+    suite = tmp_path / "suite"
+    for name, part in (("dev", "development"), ("held", "held_out")):
+        shutil.copytree(DEFAULT_SITE, suite / name)
+        write_manifest(suite, [{"site": str(suite / name), "part": part, "status": "made"}])
+    (centre,) = calibrated_buildings([suite])
+    assert centre["site"] == str(suite / "dev") and set(centre["theta"]) == set(cat.THETA_NAMES)
+    assert calibrated_buildings([suite / "held"])[0]["site"] == str(suite / "held")  # a site folder given itself
+    with pytest.raises(BuildenvError, match="neither a calibrated site"):
+        calibrated_buildings([tmp_path])
+
+    def thetas(spread: float) -> np.ndarray:
+        config = CampaignConfig(weeks=400, seed=1, weeks_per_run=1, around=[centre], spread=spread)
+        return np.array([task.theta for task in plan_campaign(config)])
+
+    near, far = thetas(0.05), thetas(0.3)
+    middle = np.array([centre["theta"][n] for n in cat.THETA_NAMES])
+    width = np.array([v.max - v.min for v in cat.GROUPS["theta_build"]])
+    for j, variable in enumerate(cat.GROUPS["theta_build"]):
+        assert np.all(near[:, j] == variable.snap(near[:, j])), variable.name  # on the grid, within the range
+        if variable.name in cat.GEOMETRY_NAMES:
+            assert np.all(far[:, j] == variable.snap(middle[j])), variable.name
+    free = [j for j, n in enumerate(cat.THETA_NAMES) if n not in cat.GEOMETRY_NAMES]
+    assert np.abs(near - middle)[:, free].mean() < np.abs(far - middle)[:, free].mean()
+    assert np.median(np.abs(near - middle)[:, free] / width[free]) < 0.1
+    np.testing.assert_array_equal(near, thetas(0.05))  # deterministic
+    config = CampaignConfig(weeks=1, around=[centre], spread=0.05)
+    assert f"--around {suite / 'dev'} --spread 0.05" in simulate_command(tmp_path / "ds", asdict(config))
+    with pytest.raises(BuildenvError, match="--spread"):
+        CampaignConfig(weeks=1, around=[centre], spread=0.0).validate()
+    with pytest.raises(BuildenvError, match="lacks lighting_power_w_m2"):
+        theta = {k: v for k, v in centre["theta"].items() if k != "lighting_power_w_m2"}
+        CampaignConfig(weeks=1, around=[{"site": "x", "theta": theta}]).validate()
 
 
 class _RefusingSimulator:

@@ -45,7 +45,7 @@ from buildenv.schedules import hourly_schedules
 
 WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
 RAMP_HOURS = 0.5
-KNOWN_GEOMETRY = ("floor_area_m2", "number_of_floors")
+KNOWN_GEOMETRY = cat.GEOMETRY_NAMES
 #: A parameter this share of its catalogue range (or less) from one end of it is reported at that bound.
 AT_BOUND_SHARE = 0.02
 #: runs_note: CMA-ES runs within this share of the best run's cost whose held-out RMSE_T differ by this ratio.

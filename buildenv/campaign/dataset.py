@@ -216,6 +216,10 @@ def simulate_command(directory: str | Path, config: dict) -> str:
     words += ["--zoning", str(config.get("zoning", "single"))]
     if config.get("floor_area_scale", "linear") != "linear":
         words += ["--floor-area-scale", str(config["floor_area_scale"])]
+    for site in dict.fromkeys(c["site"] for c in config.get("around", [])):
+        words += ["--around", str(site)]
+    if config.get("around"):
+        words += ["--spread", str(config.get("spread", 0.1))]
     words += ["--out", str(directory)]
     return shlex.join(words)
 

@@ -38,7 +38,7 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import DATA_FILE, data_file_record, simulate_command
-from buildenv.campaign.sampling import FLOOR_AREA_SCALES, METHODS, sample_group, sample_weeks
+from buildenv.campaign.sampling import FLOOR_AREA_SCALES, METHODS, sample_group, sample_weeks, theta_around
 from buildenv.energyplus import workdirs
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError, DatasetError, SimulationError
@@ -67,6 +67,10 @@ class CampaignConfig:
             see :mod:`buildenv.energyplus.shoebox`).
         floor_area_scale: ``linear`` (each floor area of the catalogue's grid equally likely) or ``log`` (uniform
             in its logarithm: small offices as well represented as large ones).
+        around: calibrated buildings to draw the campaign's buildings around instead of over the whole catalogue
+            (:func:`buildenv.campaign.sampling.theta_around`), each ``{"site": folder, "theta": {name: value}}``
+            (``buildenv simulate --around``); the settings, occupancy and weather are drawn as in any campaign.
+        spread: with ``around``, each parameter's random step as a share of its catalogue range.
     """
 
     weeks: int
@@ -76,6 +80,8 @@ class CampaignConfig:
     sampling: str = "uniform"
     zoning: str = DEFAULT_ZONING
     floor_area_scale: str = "linear"
+    around: list[dict] = field(default_factory=list)
+    spread: float = 0.1
 
     def validate(self) -> None:
         """Raise :class:`BuildenvError` on a value no campaign can use."""
@@ -91,6 +97,12 @@ class CampaignConfig:
             raise BuildenvError(
                 f"--floor-area-scale must be one of {', '.join(FLOOR_AREA_SCALES)} (got {self.floor_area_scale!r})"
             )
+        if not 0.0 < self.spread <= 1.0:
+            raise BuildenvError(f"--spread must be a share of each range within (0, 1] (got {self.spread})")
+        for centre in self.around:
+            missing = [n for n in cat.THETA_NAMES if not np.isfinite(centre.get("theta", {}).get(n, np.nan))]
+            if missing:
+                raise BuildenvError(f"--around {centre.get('site')}: its calibration lacks {', '.join(missing)}")
         if not self.epw:
             raise BuildenvError("--epw: give at least one weather file")
         for epw in self.epw:
@@ -122,7 +134,11 @@ def plan_campaign(config: CampaignConfig) -> list[RunTask]:
     n_runs = math.ceil(config.weeks / config.weeks_per_run)
     lengths = [min(config.weeks_per_run, config.weeks - r * config.weeks_per_run) for r in range(n_runs)]
     log_scaled = ("floor_area_m2",) if config.floor_area_scale == "log" else ()
-    thetas = sample_group("theta_build", n_runs, rng, config.sampling, log_scaled)
+    if config.around:
+        centres = np.array([[c["theta"][n] for n in cat.THETA_NAMES] for c in config.around])
+        thetas = theta_around(centres, n_runs, rng, config.spread, cat.GEOMETRY_NAMES)
+    else:
+        thetas = sample_group("theta_build", n_runs, rng, config.sampling, log_scaled)
     settings, occupancy = sample_weeks(config.weeks, rng, config.sampling)
     order = np.resize(rng.permutation(len(config.epw)), n_runs)
     climates = rng.permutation(order)
@@ -223,6 +239,8 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
         previous = json.loads(campaign_file.read_text())
         previous["config"].setdefault("zoning", "single")  # campaigns made before zoning was a choice
         previous["config"].setdefault("floor_area_scale", "linear")
+        previous["config"].setdefault("around", [])  # campaigns made before buildings could be drawn around sites
+        previous["config"].setdefault("spread", 0.1)
         if previous.get("catalogue_hash") != record["catalogue_hash"]:
             raise DatasetError(
                 f"{out} holds a campaign of catalogue {previous.get('catalogue_hash')} ({campaign_file}), this "

@@ -61,3 +61,32 @@ def sample_weeks(n_weeks: int, rng: np.random.Generator, method: str = "uniform"
     occupancy = sample_group("occupancy", n_weeks * 5, rng, method).reshape(n_weeks, 5, -1)
     settings[..., cat.SETTING_NAMES.index("hvac_operating")] = rng.random((n_weeks, 7)) >= np.array(DAY_OFF_SHARE)
     return settings, occupancy
+
+
+def theta_around(
+    centres: np.ndarray, n: int, rng: np.random.Generator, spread: float, fixed: tuple[str, ...] = ()
+) -> np.ndarray:
+    """Draw ``n`` buildings around given ones (the calibrations of sites a metamodel will be used on).
+
+    Each draw takes one of ``centres`` at random and moves every theta_build variable by a normal step of
+    ``spread`` times its catalogue range, kept within the range and rounded to its grid; ``fixed`` variables (the
+    known geometry) keep the centre's value, rounded to the grid.
+
+    Args:
+        centres: ``(m, len(theta_build))`` buildings in catalogue order and physical units.
+        n: number of buildings.
+        rng: random generator (the only source of randomness).
+        spread: standard deviation of each step, as a share of the variable's range.
+        fixed: names of the variables not moved.
+    Returns:
+        ``(n, len(theta_build))`` array in catalogue order and physical units.
+    """
+    variables = cat.GROUPS["theta_build"]
+    centres = np.asarray(centres, dtype=float).reshape(-1, len(variables))
+    picked = centres[rng.integers(0, len(centres), n)]
+    steps = rng.normal(0.0, spread, (n, len(variables)))
+    columns = []
+    for i, variable in enumerate(variables):
+        moved = 0.0 if variable.name in fixed else steps[:, i] * (variable.max - variable.min)
+        columns.append(variable.snap(picked[:, i] + moved))
+    return np.stack(columns, axis=1) if n else np.zeros((0, len(variables)))

@@ -196,6 +196,7 @@ def _cmd_week(args: argparse.Namespace) -> int:
 
 def _cmd_simulate(args: argparse.Namespace) -> int:
     from buildenv.campaign.runs import DEFAULT_CLIMATES, CampaignConfig, run_campaign
+    from buildenv.sites.suite import calibrated_buildings
 
     config = CampaignConfig(
         weeks=args.weeks,
@@ -205,6 +206,8 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         sampling=args.sampling,
         zoning=args.zoning,
         floor_area_scale=args.floor_area_scale,
+        around=calibrated_buildings(args.around) if args.around else [],
+        spread=args.spread,
     )
     path = run_campaign(
         config,
@@ -355,6 +358,19 @@ def build_parser() -> argparse.ArgumentParser:
         default="linear",
         help="draw the floor area evenly on the catalogue's grid (linear) or evenly in its logarithm (log: small "
         "offices as often as large ones)",
+    )
+    p.add_argument(
+        "--around",
+        action="append",
+        metavar="DIR",
+        help="draw the buildings around calibrated ones instead of over the catalogue: a calibrated site folder, or "
+        "a suite folder (its development sites); repeatable",
+    )
+    p.add_argument(
+        "--spread",
+        type=share,
+        default=0.1,
+        help="with --around, each building parameter's random step as a share of its range (default 0.1)",
     )
     p.add_argument(
         "--max-failed-share",

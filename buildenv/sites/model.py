@@ -66,7 +66,7 @@ TOP_LEVEL_KEYS: tuple[str, ...] = (
     "bms",
     "source",
 )
-GEOMETRY_KEYS: tuple[str, ...] = ("floor_area_m2", "number_of_floors")
+GEOMETRY_KEYS: tuple[str, ...] = cat.GEOMETRY_NAMES
 #: Building parameters a site may declare known in ``[known]`` (calibration then keeps them fixed).
 KNOWN_KEYS: tuple[str, ...] = tuple(n for n in cat.THETA_NAMES if n not in GEOMETRY_KEYS)
 #: Keys of ``[meters]``: ``consumption``, the end uses the consumption series sums; ``electricity``, those of the

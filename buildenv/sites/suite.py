@@ -376,6 +376,40 @@ def calibrated_records(out: str | Path, parts: Sequence[str]) -> list[dict]:
     return records
 
 
+def calibrated_buildings(paths: Sequence[str | Path]) -> list[dict]:
+    """The calibrated buildings of site folders, or of a suite's development sites (its held-out part is never
+    used), to draw a campaign around (``buildenv simulate --around``).
+
+    Args:
+        paths: calibrated site folders (with a ``calibration.json``) or suite folders (with a ``suite.json``).
+    Returns:
+        ``[{"site": folder, "theta": {name: value}}]``, every theta_build variable in catalogue units, the geometry
+        the site's.
+    Raises:
+        BuildenvError: a folder that is neither, or a suite without a calibrated development site.
+    """
+    from buildenv.sites.model import CALIBRATION_FILE
+    from buildenv.sites.reader import load_site
+
+    buildings = []
+    for path in map(Path, paths):
+        if (path / MANIFEST).is_file():
+            folders = [Path(r["site"]) for r in calibrated_records(path, ("development",))]
+        elif (path / CALIBRATION_FILE).is_file():
+            folders = [path]
+        else:
+            raise BuildenvError(
+                f"{path}: neither a calibrated site (no {CALIBRATION_FILE}) nor a suite (no {MANIFEST}); calibrate "
+                "it first (buildenv calibrate --site, buildenv suite calibrate)"
+            )
+        for folder in folders:
+            site = load_site(folder)
+            theta = {**site.calibration.get("theta", {}), "floor_area_m2": site.floor_area_m2}
+            theta["number_of_floors"] = site.number_of_floors
+            buildings.append({"site": str(folder), "theta": {k: float(v) for k, v in theta.items()}})
+    return buildings
+
+
 def check_calibrated_sites(
     out: str | Path,
     parts: Sequence[str],

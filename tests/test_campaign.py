@@ -268,6 +268,8 @@ def test_buildings_drawn_around_calibrated_sites_keep_their_geometry_and_the_cat
     assert f"--around {suite / 'dev'} --spread 0.05" in simulate_command(tmp_path / "ds", asdict(config))
     with pytest.raises(BuildenvError, match="--spread"):
         CampaignConfig(weeks=1, around=[centre], spread=0.0).validate()
+    with pytest.raises(BuildenvError, match="floor area is each site's own"):
+        CampaignConfig(weeks=1, around=[centre], floor_area_scale="log").validate()
     with pytest.raises(BuildenvError, match="lacks lighting_power_w_m2"):
         theta = {k: v for k, v in centre["theta"].items() if k != "lighting_power_w_m2"}
         CampaignConfig(weeks=1, around=[{"site": "x", "theta": theta}]).validate()

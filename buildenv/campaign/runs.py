@@ -99,6 +99,8 @@ class CampaignConfig:
             )
         if not 0.0 < self.spread <= 1.0:
             raise BuildenvError(f"--spread must be a share of each range within (0, 1] (got {self.spread})")
+        if self.around and self.floor_area_scale != "linear":
+            raise BuildenvError("--floor-area-scale: with --around the floor area is each site's own; leave it out")
         for centre in self.around:
             missing = [n for n in cat.THETA_NAMES if not np.isfinite(centre.get("theta", {}).get(n, np.nan))]
             if missing:

@@ -262,6 +262,14 @@ def _cmd_verify(args: argparse.Namespace) -> int:
             f"(bias {s['shoebox_vs_building_bias_points']}, Spearman {s['shoebox_spearman']}); the shoebox "
             "lacks the declared effects"
         )
+    for key, what in (
+        ("savings_error_drivers", "the savings error"),
+        ("metamodel_vs_shoebox_drivers", "metamodel - shoebox"),
+        ("shoebox_vs_building_drivers", "shoebox - building"),
+    ):
+        if key in s:
+            follows = ", ".join(f"{d['setting']} (Spearman {d['spearman']:+.2f})" for d in s[key]) or "no one setting"
+            print(f"{what} follows {follows}")
     return 0
 
 

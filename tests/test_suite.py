@@ -18,7 +18,14 @@ from buildenv.calibration.problem import default_weeks
 from buildenv.cli.main import main
 from buildenv.energyplus.reference import STAND_IN_VERSION
 from buildenv.env.levers import grouping, lever_actions, summarise_levers
-from buildenv.env.response import check_suite, first_heldout_week, response_check, split_error, summarise
+from buildenv.env.response import (
+    check_suite,
+    error_drivers,
+    first_heldout_week,
+    response_check,
+    split_error,
+    summarise,
+)
 from buildenv.errors import BuildenvError
 from buildenv.metamodel.surrogate import load_metamodel
 from buildenv.sites import load_site
@@ -189,6 +196,7 @@ def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys)
     assert checked["savings_error_p90_abs_points"] >= checked["savings_error_mean_abs_points"] * 0.5
     # the same settings on the shoebox at the calibrated parameters split the error
     assert checked["shoebox_vs_building_p90_abs_points"] >= 0 and -1.0 <= checked["shoebox_spearman"] <= 1.0
+    assert checked["savings_error_drivers"] == [] and checked["shoebox_vs_building_drivers"] == []  # 3: too few
     env = gym.make("BuildingWeek-v0", site=row["site"], weeks="all")
     historical = env.unwrapped.historical_action  # run as the baseline is: saves nothing on any of the three
     check = response_check(env, first_heldout_week(env), n=1, extra=historical)
@@ -210,6 +218,7 @@ def test_suite_make_calibrate_and_verify_from_the_command_line(tmp_path, capsys)
     assert main(["verify", "--site", row["site"], "--random", "2"]) == 0
     text = capsys.readouterr().out  # a table with the shoebox's column, then the split in one line
     assert "shoebox %" in text and "metamodel - shoebox" in text and "shoebox - building" in text
+    assert "shoebox - building follows no one setting" in text  # two settings: too few to tell
 
     # each lever alone: heating the nights of a January week to the comfort level costs energy in both
     assert main(["verify", "--site", row["site"], "--levers", "--json"]) == 0
@@ -380,6 +389,20 @@ def test_the_split_at_the_shoebox_tells_the_metamodel_from_the_model_structure()
         [10.0, -5.0, 3.0], [10.0, -5.0, 3.0], [-5.0, 10.0, 9.0]
     )  # a faithful imitation of a wrong model
     assert split["metamodel_vs_shoebox_p90_abs_points"] == 0.0 and split["shoebox_spearman"] < 0.0
+
+
+def test_the_settings_an_error_follows_are_named_when_significant():
+    """A savings error that grows with the heating setback names it (a positive correlation); errors that follow
+    nothing name a setting at most at the significance level; settings held constant are not tested."""
+    rng = np.random.default_rng(0)
+    settings = np.stack([rng.uniform(v.min, v.max, (20, 7)) for v in cat.GROUPS["settings"]], axis=-1)
+    settings[..., cat.SETTING_NAMES.index("hvac_operating")] = 1.0
+    setback = settings[..., cat.SETTING_NAMES.index("heating_setback_c")].mean(axis=1)
+    (driver,) = error_drivers(settings, 10.0 * setback + rng.normal(0.0, 1.0, 20))
+    assert driver["setting"] == "heating_setback_c" and driver["spearman"] > 0.8 and driver["p_value"] < 0.05 / 12
+    named = [bool(error_drivers(settings, rng.normal(0.0, 1.0, 20))) for _ in range(200)]
+    assert np.mean(named) <= 0.08  # on errors that follow nothing, a setting named at most at the stated 5 %
+    assert error_drivers(settings[:4], setback[:4]) == []  # too few settings to tell
 
 
 def test_a_copied_suite_folder_names_its_own_sites(tmp_path):

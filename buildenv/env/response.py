@@ -34,7 +34,9 @@ class ResponseCheck:
         predicted_comfort, realised_comfort: ``(N,)`` comfort term, K (lower is better).
         actions: ``(N, A)`` the settings checked (A: the action size).
         summary: ``week``, the figures of :func:`summarise` over the random settings (only ``settings``: 0
-            without any), ``seconds_energyplus``, with the shoebox those of :func:`split_error`, and with chosen
+            without any) and the settings their error follows (``savings_error_drivers``, :func:`error_drivers`),
+            ``seconds_energyplus``, with the shoebox those of :func:`split_error` and each part's drivers
+            (``metamodel_vs_shoebox_drivers``, ``shoebox_vs_building_drivers``), and with chosen
             settings ``"chosen"``: one :func:`chosen_figures` entry each (with the shoebox's savings,
             ``shoebox_savings_percent``).
         shoebox_savings: ``(N,)`` savings on the EnergyPlus shoebox at the calibrated parameters, percent (``None``
@@ -124,6 +126,40 @@ def split_error(predicted, shoebox, realised) -> dict[str, float]:
     }
 
 
+def error_drivers(settings: np.ndarray, error: np.ndarray, alpha: float = 0.05) -> list[dict]:
+    """The settings an error follows across the checked settings: the Spearman rank correlation of each setting's
+    mean over the week with the error, those significant at ``alpha`` over the settings that vary (Bonferroni),
+    strongest first. A lever the model answers wrongly shows here (a positive correlation: the higher the setting,
+    the more the savings are over-predicted).
+
+    Args:
+        settings: ``(N, 7, S)`` the checked weekly settings, catalogue order and units.
+        error: ``(N,)`` their savings error (points, predicted - realised).
+        alpha: family-wise significance level.
+    Returns:
+        ``[{"setting", "spearman", "p_value"}]``; empty with fewer than 5 settings.
+    """
+    from buildenv import catalogue as cat
+
+    means = np.asarray(settings, float).mean(axis=1)
+    error = np.asarray(error, float)
+    varying = [j for j in range(means.shape[1]) if np.ptp(means[:, j]) > 0]
+    if len(error) < 5 or not varying or np.ptp(error) == 0:
+        return []
+    found = []
+    for j in varying:
+        test = spearmanr(means[:, j], error)
+        if test.pvalue < alpha / len(varying):
+            found.append(
+                {
+                    "setting": cat.SETTING_NAMES[j],
+                    "spearman": round(float(test.statistic), 3),
+                    "p_value": float(f"{test.pvalue:.2g}"),
+                }
+            )
+    return sorted(found, key=lambda d: -abs(d["spearman"]))
+
+
 def shoebox_savings(env, week: int, settings: np.ndarray, workers: int | None = None) -> np.ndarray | None:
     """Savings (percent, against the historical settings, as the environment scores them) of settings ``(N, 7, 13)``
     on the EnergyPlus shoebox the metamodel was trained on (its zoning) at the site's calibrated parameters in
@@ -186,12 +222,16 @@ def response_check(
     ps, rs = predicted["savings_percent"], realised["savings_percent"]
     pc, rc = predicted["comfort_k"], realised["comfort_k"]
     summary: dict = {"week": int(week), "settings": 0}
+    settings = predicted["settings"][:n]
     if n > 0:
         summary.update(summarise(ps[:n], rs[:n], pc[:n], rc[:n]))
+        summary["savings_error_drivers"] = error_drivers(settings, ps[:n] - rs[:n])
     summary["seconds_energyplus"] = round(seconds, 1)
     sb = shoebox_savings(env, week, predicted["settings"]) if shoebox else None
     if sb is not None and n > 0:
         summary.update(split_error(ps[:n], sb[:n], rs[:n]))
+        summary["metamodel_vs_shoebox_drivers"] = error_drivers(settings, ps[:n] - sb[:n])
+        summary["shoebox_vs_building_drivers"] = error_drivers(settings, sb[:n] - rs[:n])
     if len(actions) > n:
         summary["chosen"] = [
             {

@@ -404,8 +404,7 @@ def calibrated_buildings(paths: Sequence[str | Path]) -> list[dict]:
             )
         for folder in folders:
             site = load_site(folder)
-            theta = {**site.calibration.get("theta", {}), "floor_area_m2": site.floor_area_m2}
-            theta["number_of_floors"] = site.number_of_floors
+            theta = {**site.calibration.get("theta", {}), **{n: getattr(site, n) for n in cat.GEOMETRY_NAMES}}
             buildings.append({"site": str(folder), "theta": {k: float(v) for k, v in theta.items()}})
     return buildings
 

@@ -7,9 +7,9 @@ The single source of truth for names, units, ranges, steps and granularity: samp
 Groups, after the appendix of Cohen et al. ("End-to-end deep metamodeling to calibrate and optimize energy loads"):
 
 ``theta_build`` (static, one value per building)
-    24 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
-    floor area, number of floors, lighting power, heat recovery, the minimum supply air flow, the economiser and
-    the share of infiltration left while the fans pressurise the building;
+    25 variables: the paper's 17 building parameters with its PC count replaced by plug-load power, plus
+    floor area, number of floors, lighting power, heat recovery, the minimum supply air flow, the economiser,
+    the share of infiltration left while the fans pressurise the building and the night cycle's heating share;
     extensive quantities are per m2 of floor area, so one model covers offices of any size. Ranges are taken
     from practice (the ASHRAE 90.1 2004-2019 reference offices) and are wide enough for the six shipped
     reference offices.
@@ -217,6 +217,20 @@ THETA_BUILD: tuple[Variable, ...] = (
         "volume: the minimum of VAV boxes, supplied at the supply temperature and reheated by the zones; above "
         "the outdoor air it is return air (0: a 100 % outdoor air unit; DOE reference VAV offices about 1.5-2).",
         "(VAV minimum flow)",
+    ),
+    _v(
+        "night_cycle_heating_share",
+        "theta_build",
+        "-",
+        0,
+        1,
+        0.25,
+        S,
+        "Share of the minimum supply flow the air handling unit night-cycles at the supply temperature while the "
+        "coldest zone sits at its heating setback (the zones reheat it): 1 VAV systems with terminal reheat that "
+        "cycle on any zone (the DOE 2004 medium and large offices), 0 units that heat their own supply air or hold "
+        "the setback zone by zone (packaged single-zone units).",
+        "(night cycle in heating)",
     ),
     _v(
         "economiser_share",
@@ -846,7 +860,13 @@ class EarlierCatalogue:
     def same_variables(self) -> bool:
         """Whether it had this catalogue's variables, in this order and units, drawn within this one's ranges (a
         coarser grid or a narrower range): every value it holds is a value of this catalogue."""
-        if self.theta_names != THETA_NAMES or self.renamed or self.implied:
+        return self.theta_names == THETA_NAMES and not self.implied and self.read_by_padding
+
+    @property
+    def read_by_padding(self) -> bool:
+        """Whether its data read as this catalogue's once the variables it lacked are added at their implied values
+        (nothing renamed, every other variable drawn within this one's ranges)."""
+        if self.renamed or set(self.theta_names) | set(self.implied) != set(THETA_NAMES):
             return False
         for name, (lo, hi, step) in self.ranges.items():
             var = get(name)
@@ -860,11 +880,13 @@ class EarlierCatalogue:
 
 _WALLS = ("north", "east", "south", "west")
 _VENTILATION_BY_0_3 = (0.1, 1.6, 0.3)  # the outdoor air grid before the 0.05 1/h step: 0.1, 0.4, ..., 1.6
-_THETA_BEFORE_PRESSURISATION = tuple(v.name for v in THETA_BUILD if v.name != "infiltration_fans_on_share")
+_THETA_BEFORE_NIGHT_HEATING = tuple(v.name for v in THETA_BUILD if v.name != "night_cycle_heating_share")
+_THETA_BEFORE_PRESSURISATION = tuple(n for n in _THETA_BEFORE_NIGHT_HEATING if n != "infiltration_fans_on_share")
 _THETA_BEFORE_ECONOMISER = tuple(n for n in _THETA_BEFORE_PRESSURISATION if n != "economiser_share")
 _THETA_BEFORE_MINIMUM_SUPPLY = tuple(n for n in _THETA_BEFORE_ECONOMISER if n != "minimum_supply_air_ach")
 _NO_DAY_OFF = {"hvac_operating": (1.0, 1.0, 1.0)}  # every day in occupied mode, before days could be set back
-_UNPRESSURISED = {"infiltration_fans_on_share": 1.0}  # infiltration the same with the fans on as off
+_NO_NIGHT_HEATING = {"night_cycle_heating_share": 0.0}  # the heating setback held zone by zone
+_UNPRESSURISED = {"infiltration_fans_on_share": 1.0, **_NO_NIGHT_HEATING}  # and infiltration the same with fans on
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
 EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     "bf68f6178dc1d1b3": EarlierCatalogue(
@@ -904,7 +926,7 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             "heat_recovery_effectiveness": 0.0,
             "minimum_supply_air_ach": 0.0,
             "economiser_share": 0.0,
-            "infiltration_fans_on_share": 1.0,
+            **_UNPRESSURISED,
         },
     ),
     # supply air from 18 degC
@@ -942,6 +964,11 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     # infiltration the same whether the fans ran or not
     "bf2a5f1cabb2a9f8": EarlierCatalogue(
         theta_names=_THETA_BEFORE_PRESSURISATION, ranges={}, renamed={}, implied=dict(_UNPRESSURISED)
+    ),
+    # no night cycling in heating: the air handling units night-cycled only as the warmest zone neared its
+    # cooling setback
+    "c272c689c0c27ec7": EarlierCatalogue(
+        theta_names=_THETA_BEFORE_NIGHT_HEATING, ranges={}, renamed={}, implied=dict(_NO_NIGHT_HEATING)
     ),
 }
 

@@ -23,6 +23,7 @@ DEFAULT_THETA: dict[str, float] = {
     "infiltration_fans_on_share": 1.0,
     "heat_recovery_effectiveness": 0.0,
     "minimum_supply_air_ach": 0.0,
+    "night_cycle_heating_share": 0.0,
     "economiser_share": 0.0,
     "capacitance_kj_per_k_m3": 150,
     "heating_power_w_m2": 60,

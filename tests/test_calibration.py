@@ -118,6 +118,7 @@ def _truth() -> np.ndarray:
         "lighting_power_w_m2": 10.0,
         "heat_recovery_effectiveness": 0.0,
         "minimum_supply_air_ach": 0.0,
+        "night_cycle_heating_share": 0.0,
         "economiser_share": 0.0,
         "infiltration_fans_on_share": 1.0,
         "light_night_percent": 20,

@@ -20,15 +20,16 @@ STEPPED = [v for v in cat.ALL_VARIABLES if v.step is not None]
 # --------------------------------------------------------------------------- group sizes
 def test_group_sizes_match_the_paper():
     # theta_build: the paper's 17 (nb_PCs as plug-load power) + floor area, floors, lighting power, heat recovery,
-    # minimum supply air, economiser share, infiltration left while the fans pressurise the building
-    assert len(cat.THETA_BUILD) == 24
+    # minimum supply air, economiser share, infiltration left while the fans pressurise the building, the night
+    # cycle's heating share
+    assert len(cat.THETA_BUILD) == 25
     assert {"lighting_power_w_m2", "heat_recovery_effectiveness", "plug_load_w_m2"} <= set(cat.THETA_NAMES)
     assert "pc_density_per_m2" not in cat.THETA_NAMES
     assert len(cat.SETTINGS) == 13 and cat.SETTING_NAMES[-1] == "hvac_operating"  # + a day set back entirely
     assert len(cat.OCCUPANCY) == 2
     assert len(cat.WEATHER) == 9
     assert len(cat.OUTPUTS) == 8
-    assert len(cat.ALL_VARIABLES) == 24 + 13 + 2 + 9 + 8
+    assert len(cat.ALL_VARIABLES) == 25 + 13 + 2 + 9 + 8
     assert set(cat.GROUPS) == {"theta_build", "settings", "occupancy", "weather", "outputs"}
 
 
@@ -328,6 +329,7 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
         "minimum_supply_air_ach": 0.0,
         "economiser_share": 0.0,
         "infiltration_fans_on_share": 1.0,
+        "night_cycle_heating_share": 0.0,
     }
     for name, value in earlier.implied.items():
         cat.get(name).check(value)
@@ -336,9 +338,11 @@ def test_earlier_catalogue_describes_the_one_it_replaced():
         var = cat.get(name)
         assert var.min <= lo <= hi <= var.max, name
     assert earlier.ranges["ventilation_ach"] == (0.7, 1.7, 0.3)
-    # no catalogue before the last one set a day back entirely: a metamodel of one knows operating days only
-    *before, last = cat.EARLIER_CATALOGUES.values()
-    assert all(e.ranges["hvac_operating"] == (1.0, 1.0, 1.0) for e in before) and "hvac_operating" not in last.ranges
+    # no catalogue up to d40fb58bb6ff03a6 set a day back entirely: a metamodel of one knows operating days only
+    names = list(cat.EARLIER_CATALOGUES)
+    k = names.index("d40fb58bb6ff03a6") + 1
+    assert all(cat.EARLIER_CATALOGUES[n].ranges["hvac_operating"] == (1.0, 1.0, 1.0) for n in names[:k])
+    assert not any("hvac_operating" in cat.EARLIER_CATALOGUES[n].ranges for n in names[k:])
 
 
 def test_a_switch_is_on_or_off_and_nothing_between():
@@ -365,7 +369,7 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
     # a full theta of the catalogue before the minimum supply flow: its 100 % outdoor air units
     before = {n: cat.get(n).min for n in cat.EARLIER_CATALOGUES["6f2f25c1acea3f20"].theta_names}
     assert "minimum_supply_air_ach" not in before
-    unpressurised = {"infiltration_fans_on_share": 1.0}
+    unpressurised = {"infiltration_fans_on_share": 1.0, "night_cycle_heating_share": 0.0}
     assert cat.upgrade_theta(before) == {
         **before,
         "minimum_supply_air_ach": 0.0,
@@ -392,8 +396,8 @@ def test_upgrade_theta_converts_pc_density_and_fills_what_was_missing():
 def test_shipped_checkpoints_read_through_their_earlier_catalogues():
     from buildenv.metamodel.surrogate import load_metamodel
 
-    default = load_metamodel()  # of this catalogue: every range its own, days set back entirely included
-    assert default.earlier is None and default.implied == {}
+    default = load_metamodel()  # every range its own, days set back entirely included; its zoning has no night cycle
+    assert default.implied == {"night_cycle_heating_share": 0.0} and default.earlier.ranges == {}
     assert default.domain["hvac_operating"] == (0.0, 1.0) and default.domain["ventilation_ach"] == (0.1, 1.7)
     surrogate = load_metamodel("diagnosis")
     assert surrogate.checkpoint.metadata["catalogue_hash"] in cat.EARLIER_CATALOGUES
@@ -454,10 +458,21 @@ def test_describe_selected_groups():
     json.dumps(rows)
 
 
-def test_datasets_of_a_catalogue_that_lacked_a_variable_are_not_read():
-    from buildenv.campaign.dataset import readable_catalogue
+def test_datasets_of_a_catalogue_that_lacked_a_variable_read_it_at_the_value_its_shoebox_had():
+    import numpy as np
+
+    from buildenv.campaign.dataset import PaddedTheta, readable_catalogue
 
     assert readable_catalogue(cat.catalogue_hash())
-    assert not readable_catalogue("bf2a5f1cabb2a9f8")  # before the infiltration with fans on: a variable it lacked
-    assert not readable_catalogue("bda1c8ff3b9294aa")  # before the economiser
+    assert readable_catalogue("bf2a5f1cabb2a9f8")  # before the infiltration with fans on and night heating
+    assert not readable_catalogue("bf68f6178dc1d1b3")  # PCs, not plug-load power: a renamed variable
     assert not readable_catalogue("0123456789abcdef") and not readable_catalogue(None)
+    earlier = cat.EARLIER_CATALOGUES["bf2a5f1cabb2a9f8"]
+    stored = np.arange(3 * len(earlier.theta_names), dtype=np.float32).reshape(3, -1)
+    padded = PaddedTheta(stored, earlier)
+    assert padded.shape == (3, len(cat.THETA_NAMES))
+    rows = padded[np.array([0, 2])]
+    for j, name in enumerate(cat.THETA_NAMES):
+        want = earlier.implied[name] if name in earlier.implied else stored[[0, 2], earlier.theta_names.index(name)]
+        np.testing.assert_array_equal(rows[:, j], want)
+    np.testing.assert_array_equal(padded[1], padded[:][1])

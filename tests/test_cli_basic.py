@@ -16,7 +16,7 @@ def test_catalogue_json(capsys):
     out = capsys.readouterr().out
     data = json.loads(out)
     assert data["catalogue_hash"] == cat.catalogue_hash()
-    assert len(data["variables"]) == len(cat.ALL_VARIABLES) == 56
+    assert len(data["variables"]) == len(cat.ALL_VARIABLES) == 57
     assert [v["name"] for v in data["variables"]] == [v.name for v in cat.ALL_VARIABLES]
     area = data["variables"][0]
     assert area["name"] == "floor_area_m2" and area["min"] == 300 and area["max"] == 50000 and area["step"] == 100

@@ -225,3 +225,21 @@ def test_five_zone_vav_night_cycles_the_whole_building_on_its_warmest_zone():
     # in winter the fan coils hold the heating setback zone by zone; the air handling units stay off
     winter = run(vav, "five_zone", JANUARY)
     assert winter[off, OUT["Q_AHU_H"]].sum() == 0 and winter[off, OUT["Q_HEAT_OFFICE"]].sum() > 0
+
+
+def test_a_vav_system_night_cycles_cold_supply_air_that_the_zones_reheat_at_its_heating_share():
+    settings, occupancy = default_week()
+    settings[..., cat.SETTING_NAMES.index("supply_air_c")] = 13.0  # the DOE offices' 12.8 degC
+    off = hourly_schedules(settings, occupancy)["ventilation_on"][0] == 0
+    vav = {**DEFAULT_THETA, "minimum_supply_air_ach": 1.5, "heating_power_w_m2": 100}
+
+    def night_heating(share, zoning="five_zone"):
+        theta = {**vav, "night_cycle_heating_share": share}
+        out = simulate_weeks(theta, settings, occupancy, "usa_il_chicago", JANUARY, zoning=zoning).outputs[0]
+        return out[off, OUT["Q_HEAT_OFFICE"]].sum() + out[off, OUT["Q_AHU_H"]].sum()
+
+    # the larger the share of the minimum flow cycled at the supply temperature, the more the zones reheat at night
+    none, half, full = (night_heating(s) for s in (0.0, 0.5, 1.0))
+    assert none > 0 and full > 1.15 * half > 1.3 * none
+    # a shoebox that does not night-cycle ignores it
+    assert night_heating(1.0, "core_perimeter") == pytest.approx(night_heating(0.0, "core_perimeter"), rel=1e-9)

@@ -6,7 +6,7 @@ A dataset directory holds ``dataset.h5`` (chunked HDF5, read lazily: nothing is 
 ==============  =========================  ==========================================================
 name            shape                      content
 ==============  =========================  ==========================================================
-theta           (weeks, 21)                theta_build of the week's building
+theta           (weeks, 25)                theta_build of the week's building
 settings        (weeks, 7, 13)             I_k, day x setting
 occupancy       (weeks, 5, 2)              O_k, weekday x (start hour, end hour)
 weather         (weeks, 168, 9)            W_k, hourly
@@ -22,7 +22,8 @@ The manifest records, under ``files``, each data file's size, modification time 
 :func:`open_dataset` hashes ``dataset.h5`` again when its size or modification time differs from the
 manifest's (a copy, an edit) and refuses a file whose bytes changed, or that HDF5 cannot read, with one line
 naming the file and the command to regenerate it. A manifest written before checksums were recorded loads
-without the check.
+without the check. A dataset of an earlier catalogue that lacked variables reads with them at the values its
+building model had (:class:`PaddedTheta`).
 """
 
 from __future__ import annotations
@@ -69,6 +70,9 @@ class Dataset:
     _h5: object
 
     def __getattr__(self, name: str):
+        if name == "theta":
+            earlier = cat.EARLIER_CATALOGUES.get(self.manifest.get("catalogue_hash"))
+            return self._h5[name] if earlier is None else PaddedTheta(self._h5[name], earlier)
         if name in ARRAYS:
             return self._h5[name]
         raise AttributeError(name)
@@ -236,12 +240,36 @@ def _regenerate(directory: Path, manifest: dict) -> str:
 
 def readable_catalogue(made_with: object) -> bool:
     """Whether a dataset made under catalogue ``made_with`` (a :func:`buildenv.catalogue.catalogue_hash`) reads as
-    one of this catalogue: the same, or an earlier one of the same variables
-    (:attr:`buildenv.catalogue.EarlierCatalogue.same_variables`)."""
+    one of this catalogue: the same, or an earlier one whose variables are this one's less those it implies
+    (:attr:`buildenv.catalogue.EarlierCatalogue.read_by_padding`; :class:`PaddedTheta` adds them)."""
     if made_with == cat.catalogue_hash():
         return True
     earlier = cat.EARLIER_CATALOGUES.get(made_with) if isinstance(made_with, str) else None
-    return earlier is not None and earlier.same_variables
+    return earlier is not None and earlier.read_by_padding
+
+
+class PaddedTheta:
+    """The ``theta`` array of a dataset made under an ``earlier`` catalogue, read as this catalogue's ``(weeks,
+    len(THETA_NAMES))``: its columns by name, those it lacked at the value its building model had. Indexed by rows
+    as an ``h5py.Dataset`` is (an int, a slice, increasing indices)."""
+
+    def __init__(self, stored, earlier: cat.EarlierCatalogue):
+        self._stored = stored
+        self._columns = [earlier.theta_names.index(n) if n in earlier.theta_names else -1 for n in cat.THETA_NAMES]
+        self._implied = np.array([earlier.implied.get(n, np.nan) for n in cat.THETA_NAMES])
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return (int(self._stored.shape[0]), len(cat.THETA_NAMES))
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __getitem__(self, rows) -> np.ndarray:
+        stored = np.asarray(self._stored[rows])
+        flat = stored.reshape(-1, stored.shape[-1])
+        out = np.where(np.array(self._columns) >= 0, flat[:, np.maximum(self._columns, 0)], self._implied)
+        return out.astype(stored.dtype).reshape(*stored.shape[:-1], len(cat.THETA_NAMES))
 
 
 def verify_data_file(path: str | Path, record: dict | None, regenerate: str = "", always: bool = False) -> None:

@@ -33,8 +33,10 @@ Modelling choices (each a constant below, so that a reader can find and change i
 - Night cycling (``five_zone`` with a minimum supply flow, a VAV system): outside the ventilation period every
   zone's air handling unit supplies return air brought to the supply temperature as the warmest zone nears the
   cooling setback (an EMS program), up to the minimum supply flow at the setback, as the reference offices' VAV
-  systems start on their warmest zone (their on/off cycles averaged over a proportional band); the heating
-  setback is held zone by zone; a 100 % outdoor air unit does not night-cycle.
+  systems start on their warmest zone (their on/off cycles averaged over a proportional band); likewise, up to
+  theta's ``night_cycle_heating_share`` of that flow, as the coldest zone nears the heating setback (the zones
+  reheat the cold supply air, as VAV boxes with reheat do; at 0 the setback is held zone by zone); a 100 %
+  outdoor air unit does not night-cycle.
 - Mixed air: with ``minimum_supply_air_ach`` above the outdoor air the unit supplies that minimum, the rest
   return air, as VAV systems at their boxes' minimum flow do (the zones reheat it). The exchanger then has
   effectiveness 1 on an exhaust stream of the return air plus the heat-recovered share of the outdoor air, so
@@ -729,7 +731,8 @@ def build_epjson(
         _add_zone_loads(add, zone, share, t, g, infiltration=share / envelope_share if zone in envelope else 0.0)
         _add_zone_hvac(add, zone, share, t, g, air_schedules)
     if night_cycle:
-        _add_night_cycle(add, tuple(shares), t["minimum_supply_air_ach"] / air_unit_largest_ach(t))
+        fraction = t["minimum_supply_air_ach"] / air_unit_largest_ach(t)
+        _add_night_cycle(add, tuple(shares), fraction, t["night_cycle_heating_share"])
 
     for i, (key, variable) in enumerate(output_variables(zoning)):
         add("Output:Variable", f"Output {i}", key_value=key, variable_name=variable, reporting_frequency="Hourly")
@@ -798,12 +801,14 @@ def night_cycling(zoning: str, t: dict[str, float]) -> bool:
     return zoning == "five_zone" and t["minimum_supply_air_ach"] > 0.0
 
 
-def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
-    """Night cycling as VAV systems do it in summer: outside the ventilation period, as the warmest zone comes
-    within :data:`NIGHT_CYCLE_BAND_K` of the cooling setback, every zone's air handling unit supplies return air
-    brought to the supply temperature, its flow rising in proportion up to ``fraction`` of its largest flow (the
-    minimum supply flow) at the setback, where the fan coils hold the warmest zone. The heating setback is held
-    zone by zone by the fan coils. Within the ventilation period the units follow the Schedule:File."""
+def _add_night_cycle(add, zones: tuple[str, ...], fraction: float, heating_share: float) -> None:
+    """Night cycling as VAV systems do it: outside the ventilation period, as the warmest zone comes within
+    :data:`NIGHT_CYCLE_BAND_K` of the cooling setback, every zone's air handling unit supplies return air brought
+    to the supply temperature, its flow rising in proportion up to ``fraction`` of its largest flow (the minimum
+    supply flow) at the setback, where the fan coils hold the warmest zone; as the coldest zone comes as near the
+    heating setback, up to ``heating_share`` x ``fraction`` (the larger call wins), the fan coils reheating the
+    supply air and holding every zone at its setback. Within the ventilation period the units follow the
+    Schedule:File."""
     for name in NIGHT_CYCLE_AIR_SCHEDULES.values():
         add("Schedule:Constant", name, schedule_type_limits_name="Any Number", hourly_value=0.0)
     sensors = {
@@ -811,6 +816,7 @@ def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
         "supply_file": ("supply_fraction", "Schedule Value"),
         "exhaust_file": ("exhaust_fraction", "Schedule Value"),
         "cooling_sp": ("cooling_setpoint_c", "Schedule Value"),
+        "heating_sp": ("heating_setpoint_c", "Schedule Value"),
         **{f"zone_t_{i}": (zone, "Zone Mean Air Temperature") for i, zone in enumerate(zones)},
     }
     for name, (key, variable) in sensors.items():
@@ -829,7 +835,10 @@ def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
             actuated_component_type="Schedule:Constant",
             actuated_component_control_type="Schedule Value",
         )
-    extremes = ["SET warmest = zone_t_0"] + [f"SET warmest = @Max warmest zone_t_{i}" for i in range(1, len(zones))]
+    extremes = []
+    for name, pick in (("warmest", "@Max"), ("coldest", "@Min")):
+        extremes.append(f"SET {name} = zone_t_0")
+        extremes += [f"SET {name} = {pick} {name} zone_t_{i}" for i in range(1, len(zones))]
     band = NIGHT_CYCLE_BAND_K
     lines = [
         "IF vent_on > 0.5",
@@ -841,6 +850,11 @@ def _add_night_cycle(add, zones: tuple[str, ...], fraction: float) -> None:
         f"SET call = (warmest - cooling_sp + {band}) / {band}",
         "SET call = @Min call 1",
         "SET call = @Max call 0",
+        f"SET heating_call = (heating_sp + {band} - coldest) / {band}",
+        "SET heating_call = @Min heating_call 1",
+        "SET heating_call = @Max heating_call 0",
+        f"SET heating_call = {heating_share:.6g} * heating_call",
+        "SET call = @Max call heating_call",
         "IF call > 0",
         "SET ahu_on = 1",
         "ELSE",

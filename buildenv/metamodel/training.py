@@ -364,8 +364,8 @@ def _encode_campaigns(
     out) over the datasets at ``paths``, concatenated in order, and their ``zoning``.
 
     Raises:
-        BuildenvError: the datasets' shoeboxes are of different zonings, or training or validation weeks have
-            outputs that are not finite.
+        BuildenvError: the datasets' shoeboxes are of different zonings, training or validation weeks have
+            outputs that are not finite, or no campaign has a week in the training, validation or test part.
     """
     with ExitStack() as stack:
         datasets = [stack.enter_context(open_dataset(p)) for p in paths]
@@ -379,7 +379,7 @@ def _encode_campaigns(
         for name in names:
             pieces = []
             for ds, path, part in zip(datasets, paths, parts):
-                if name == "holdout_climate" and not len(part[name]):
+                if not len(part[name]):  # none of this campaign's weeks fell in the part (a small campaign)
                     continue
                 x, y = sg.encode_dataset(ds, part[name], context_hours=ctx, temperature_before=temperature_before)
                 missing = ~np.isfinite(y).all(axis=(1, 2))
@@ -390,11 +390,13 @@ def _encode_campaigns(
                         "again or train on a subset that has them (--max-weeks of a carried pack)"
                     )
                 pieces.append((x, y))
+            if not pieces and name != "holdout_climate":
+                raise BuildenvError(f"--data: no {_PART_WORDS[name]} weeks in any campaign: simulate more weeks")
             encoded[name] = tuple(np.concatenate(arrays) if len(pieces) > 1 else arrays[0] for arrays in zip(*pieces))
     return encoded
 
 
-_PART_WORDS = {"train": "training", "val": "validation"}
+_PART_WORDS = {"train": "training", "val": "validation", "test": "test"}
 
 
 def _initial_checkpoint(

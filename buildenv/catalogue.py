@@ -886,7 +886,8 @@ _THETA_BEFORE_ECONOMISER = tuple(n for n in _THETA_BEFORE_PRESSURISATION if n !=
 _THETA_BEFORE_MINIMUM_SUPPLY = tuple(n for n in _THETA_BEFORE_ECONOMISER if n != "minimum_supply_air_ach")
 _NO_DAY_OFF = {"hvac_operating": (1.0, 1.0, 1.0)}  # every day in occupied mode, before days could be set back
 _NO_NIGHT_HEATING = {"night_cycle_heating_share": 0.0}  # the heating setback held zone by zone
-_UNPRESSURISED = {"infiltration_fans_on_share": 1.0, **_NO_NIGHT_HEATING}  # and infiltration the same with fans on
+#: what the catalogues before the fans pressurised imply: infiltration the same with the fans on, no night heating
+_BEFORE_PRESSURISATION = {"infiltration_fans_on_share": 1.0, **_NO_NIGHT_HEATING}
 #: Catalogues this one replaced, by :func:`catalogue_hash`.
 EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
     "bf68f6178dc1d1b3": EarlierCatalogue(
@@ -926,7 +927,7 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
             "heat_recovery_effectiveness": 0.0,
             "minimum_supply_air_ach": 0.0,
             "economiser_share": 0.0,
-            **_UNPRESSURISED,
+            **_BEFORE_PRESSURISATION,
         },
     ),
     # supply air from 18 degC
@@ -934,36 +935,39 @@ EARLIER_CATALOGUES: dict[str, EarlierCatalogue] = {
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={**_NO_DAY_OFF, "supply_air_c": (18.0, 26.0, 0.5), "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0, **_UNPRESSURISED},
+        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0, **_BEFORE_PRESSURISATION},
     ),
     # no minimum supply air flow: 100 % outdoor air units only
     "6f2f25c1acea3f20": EarlierCatalogue(
         theta_names=_THETA_BEFORE_MINIMUM_SUPPLY,
         ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0, **_UNPRESSURISED},
+        implied={"minimum_supply_air_ach": 0.0, "economiser_share": 0.0, **_BEFORE_PRESSURISATION},
     ),
     # no economiser: the fan coils cool mechanically only
     "bda1c8ff3b9294aa": EarlierCatalogue(
         theta_names=_THETA_BEFORE_ECONOMISER,
         ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied={"economiser_share": 0.0, **_UNPRESSURISED},
+        implied={"economiser_share": 0.0, **_BEFORE_PRESSURISATION},
     ),
     # outdoor air by 0.3 air changes per hour
     "88d16120a6d2221f": EarlierCatalogue(
         theta_names=_THETA_BEFORE_PRESSURISATION,
         ranges={**_NO_DAY_OFF, "ventilation_ach": _VENTILATION_BY_0_3},
         renamed={},
-        implied=dict(_UNPRESSURISED),
+        implied=dict(_BEFORE_PRESSURISATION),
     ),
     # no day set back entirely: every day ran its heating, cooling and ventilation periods
     "d40fb58bb6ff03a6": EarlierCatalogue(
-        theta_names=_THETA_BEFORE_PRESSURISATION, ranges=dict(_NO_DAY_OFF), renamed={}, implied=dict(_UNPRESSURISED)
+        theta_names=_THETA_BEFORE_PRESSURISATION,
+        ranges=dict(_NO_DAY_OFF),
+        renamed={},
+        implied=dict(_BEFORE_PRESSURISATION),
     ),
     # infiltration the same whether the fans ran or not
     "bf2a5f1cabb2a9f8": EarlierCatalogue(
-        theta_names=_THETA_BEFORE_PRESSURISATION, ranges={}, renamed={}, implied=dict(_UNPRESSURISED)
+        theta_names=_THETA_BEFORE_PRESSURISATION, ranges={}, renamed={}, implied=dict(_BEFORE_PRESSURISATION)
     ),
     # no night cycling in heating: the air handling units night-cycled only as the warmest zone neared its
     # cooling setback

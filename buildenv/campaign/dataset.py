@@ -255,7 +255,10 @@ class PaddedTheta:
 
     def __init__(self, stored, earlier: cat.EarlierCatalogue):
         self._stored = stored
-        self._columns = [earlier.theta_names.index(n) if n in earlier.theta_names else -1 for n in cat.THETA_NAMES]
+        self._stored_at = np.array(
+            [earlier.theta_names.index(n) if n in earlier.theta_names else 0 for n in cat.THETA_NAMES]
+        )
+        self._stored_has = np.array([n in earlier.theta_names for n in cat.THETA_NAMES])
         self._implied = np.array([earlier.implied.get(n, np.nan) for n in cat.THETA_NAMES])
 
     @property
@@ -268,7 +271,7 @@ class PaddedTheta:
     def __getitem__(self, rows) -> np.ndarray:
         stored = np.asarray(self._stored[rows])
         flat = stored.reshape(-1, stored.shape[-1])
-        out = np.where(np.array(self._columns) >= 0, flat[:, np.maximum(self._columns, 0)], self._implied)
+        out = np.where(self._stored_has, flat[:, self._stored_at], self._implied)
         return out.astype(stored.dtype).reshape(*stored.shape[:-1], len(cat.THETA_NAMES))
 
 

@@ -21,6 +21,7 @@ import gymnasium as gym
 import numpy as np
 from scipy.stats import spearmanr
 
+from buildenv import catalogue as cat
 from buildenv.sites.suite import check_calibrated_sites
 
 
@@ -139,8 +140,6 @@ def error_drivers(settings: np.ndarray, error: np.ndarray, alpha: float = 0.05) 
     Returns:
         ``[{"setting", "spearman", "p_value"}]``; empty with fewer than 5 settings.
     """
-    from buildenv import catalogue as cat
-
     means = np.asarray(settings, float).mean(axis=1)
     error = np.asarray(error, float)
     varying = [j for j in range(means.shape[1]) if np.ptp(means[:, j]) > 0]
@@ -168,7 +167,6 @@ def shoebox_savings(env, week: int, settings: np.ndarray, workers: int | None = 
     as warm-up) or a run cannot stay inside one year."""
     import dataclasses
 
-    from buildenv import catalogue as cat
     from buildenv.calibration.energyplus import ShoeboxPool, plan_site_run
     from buildenv.calibration.problem import CalibrationError
     from buildenv.env import objectives as obj

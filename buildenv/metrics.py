@@ -18,7 +18,8 @@ Conventions (the paper's Table 1, stated once):
 :func:`pooled_scores` gives ``r2_t_pooled`` and ``r2_q_pooled``: ``r2_score`` over every hour of every week as
 one series, which measures errors against the spread across weeks (a week whose temperature barely moves has
 a tiny per-week variance). :func:`daily_errors` splits the errors by day of the week. :func:`week_summary`
-totals one week; :func:`site_metrics` scores predictions against a site's measurements.
+totals one week; :func:`site_metrics` scores predictions against a site's measurements. :func:`response_scores`
+scores the response to settings: the same weeks under several settings, their savings predicted against simulated.
 """
 
 from __future__ import annotations
@@ -117,6 +118,46 @@ def summarise(per_week: dict[str, np.ndarray]) -> dict[str, float]:
         out[f"{name}_std"] = float(np.std(values))
     out["weeks"] = int(len(next(iter(per_week.values()))))
     return out
+
+
+def response_scores(
+    true_energy: np.ndarray, pred_energy: np.ndarray, groups: np.ndarray, floor: float
+) -> dict[str, float | int | None]:
+    """The savings of one setting against another on the same week, predicted against simulated.
+
+    Args:
+        true_energy, pred_energy: ``(N,)`` weekly HVAC energy (Wh/m2 per hour), simulated and predicted.
+        groups: ``(N,)`` one integer per week that is the same for the same building and week under other
+            settings; each week is compared with its group's first.
+        floor: smallest reference energy a saving is divided by (Wh/m2 per hour).
+    Returns:
+        ``response_pairs`` (weeks compared), ``response_savings_error_mean_abs_points``, ``..._p90_abs_points``,
+        ``response_savings_bias_points`` (predicted - simulated savings, percent points) and
+        ``response_savings_spearman`` over every pair (``None`` under three pairs or with constant savings);
+        ``{"response_pairs": 0}`` when no group has two weeks.
+    """
+    from scipy.stats import spearmanr
+
+    _, first, inverse = np.unique(groups, return_index=True, return_inverse=True)
+    reference = first[inverse]
+    pair = reference != np.arange(len(groups))
+    if not pair.any():
+        return {"response_pairs": 0}
+
+    def savings(energy: np.ndarray) -> np.ndarray:
+        ref = energy[reference[pair]]
+        return 100.0 * (1.0 - energy[pair] / np.maximum(ref, floor))
+
+    sim, pred = savings(np.asarray(true_energy, float)), savings(np.asarray(pred_energy, float))
+    err = pred - sim
+    rho = float(spearmanr(pred, sim).statistic) if pair.sum() > 2 else float("nan")
+    return {
+        "response_pairs": int(pair.sum()),
+        "response_savings_error_mean_abs_points": float(np.abs(err).mean()),
+        "response_savings_error_p90_abs_points": float(np.percentile(np.abs(err), 90)),
+        "response_savings_bias_points": float(err.mean()),
+        "response_savings_spearman": rho if np.isfinite(rho) else None,
+    }
 
 
 def week_summary(outputs: np.ndarray, occupancy_fraction: np.ndarray, floor_area_m2: float) -> dict[str, float]:

@@ -9,6 +9,10 @@ For one example (a week) with temperature channels T and consumption channels Q,
 averaged over the examples of a batch (alpha = 1, beta = 0.3 in the paper). The RMSE sits inside the log,
 as the paper's equation reads (its public code put the MSE there). An optional ``mask`` of hours (e.g. the
 context hours that precede the week) drops hours from both errors.
+
+:func:`response_loss` scores the response to settings: two weeks of one building and weather under different
+settings, the difference of their energies predicted against simulated, as a share of the second's energy (the
+savings error, as a fraction).
 """
 
 from __future__ import annotations
@@ -49,3 +53,36 @@ def paper_loss(
     delta_t = _rmse(pred, target, temperature_channels, mask)
     delta_q = _rmse(pred, target, consumption_channels, mask)
     return (alpha * torch.log1p(delta_t) + beta * torch.log1p(delta_q)).mean()
+
+
+def response_loss(
+    pred: torch.Tensor,
+    partner_pred: torch.Tensor,
+    target: torch.Tensor,
+    partner_target: torch.Tensor,
+    channels: list[int],
+    mean: torch.Tensor,
+    std: torch.Tensor,
+    floor: float,
+    mask: torch.Tensor | None = None,
+) -> torch.Tensor:
+    """RMS over the batch of the savings error between paired weeks (fraction, dimensionless).
+
+    Args:
+        pred, target: ``(batch, hours, outputs)`` normalised predictions and targets of weeks.
+        partner_pred, partner_target: the same of each week's partner (same building and weather, other settings).
+        channels: output indices summed into the energy (the HVAC energies).
+        mean, std: ``(len(channels),)`` the normalisation of those channels (energy = value * std + mean).
+        floor: smallest partner energy a difference is divided by (physical units of the channels).
+        mask: optional ``(hours,)`` boolean, True for hours that count.
+    Returns:
+        A scalar tensor: ``sqrt(mean(((E - E_partner)_pred - (E - E_partner)_true) / max(E_partner_true, floor))^2)``.
+    """
+
+    def energy(y: torch.Tensor) -> torch.Tensor:
+        hourly = (y[..., channels] * std + mean).sum(-1)  # (B, H)
+        return hourly[:, mask].mean(-1) if mask is not None else hourly.mean(-1)
+
+    reference = energy(partner_target)
+    err = (energy(pred) - energy(partner_pred) - (energy(target) - reference)) / reference.clamp_min(floor)
+    return torch.sqrt((err**2).mean() + EPS)

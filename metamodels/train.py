@@ -18,7 +18,7 @@ from pathlib import Path
 import torch
 
 from metamodels.checkpoint import Checkpoint, load_checkpoint
-from metamodels.loss import paper_loss
+from metamodels.loss import paper_loss, response_loss
 
 log = logging.getLogger(__name__)
 
@@ -40,6 +40,9 @@ class TrainConfig:
     device: str = "auto"  # "auto": CUDA when present, else CPU
     temperature_channels: list[int] = field(default_factory=list)
     consumption_channels: list[int] = field(default_factory=list)
+    response_weight: float = 0.0  # weight of :func:`metamodels.loss.response_loss` on weeks that have a partner
+    energy_channels: list[int] = field(default_factory=list)  # outputs summed into the energy the response compares
+    energy_floor: float = 0.0  # smallest partner energy a difference is divided by (units of those outputs)
 
 
 def learning_rate(cfg: TrainConfig, epoch: int) -> float:
@@ -116,6 +119,7 @@ def fit(
     cfg: TrainConfig,
     out: Path,
     progress: bool = True,
+    partner: torch.Tensor | None = None,
 ) -> dict:
     """Train ``checkpoint.model`` in place and save the best model to ``out``.
 
@@ -127,6 +131,9 @@ def fit(
         cfg: hyper-parameters.
         out: path of the best checkpoint; ``out.last`` and ``out.csv`` sit beside it.
         progress: show a progress bar per epoch.
+        partner: ``(weeks,)`` long, for each training week the index of its partner (the same building and weather
+            under other settings) or -1; with ``cfg.response_weight`` > 0 a batch runs its weeks' partners too and
+            adds ``response_weight`` x :func:`metamodels.loss.response_loss` over the pairs.
     Returns:
         ``{"best_val_loss", "best_epoch", "epochs_run", "weeks_seen", "seconds", "history": [...]}``
         (``weeks_seen``: training weeks drawn, summed over epochs; a budget's last epoch may be partial).
@@ -166,6 +173,13 @@ def fit(
         torch.randperm(len(x_train), generator=generator)
     mask = hour_mask.to(device)
     x_train, y_train = _resident(x_train, device), _resident(y_train, device)
+    respond = partner is not None and cfg.response_weight > 0 and bool((partner >= 0).any())
+    if respond:
+        partner = partner.to(x_train.device)
+        energy_norm = [
+            torch.as_tensor(getattr(checkpoint.output_norm, k)[cfg.energy_channels], dtype=torch.float32).to(device)
+            for k in ("mean", "std")
+        ]
     with open(log_path, "a", newline="") as handle:
         writer = csv.writer(handle)
         if state["epoch"] == 0:
@@ -195,16 +209,32 @@ def fit(
                     for group in optimiser.param_groups:
                         group["lr"] = cosine_rate(cfg, spent)
                 idx = order[start : start + cfg.batch_size]
-                xb, yb = x_train[idx].to(device), y_train[idx].to(device)
+                mates = partner[idx][partner[idx] >= 0] if respond else idx[:0]
+                rows = torch.cat([idx, mates]) if len(mates) else idx
+                xb, yb = x_train[rows].to(device), y_train[rows].to(device)
+                pred = model(xb)
+                n = len(idx)
                 loss = paper_loss(
-                    model(xb),
-                    yb,
+                    pred[:n],
+                    yb[:n],
                     cfg.temperature_channels,
                     cfg.consumption_channels,
                     cfg.alpha,
                     cfg.beta,
-                    mask.expand(len(idx), -1),
+                    mask.expand(n, -1),
                 )
+                if len(mates):
+                    paired = (partner[idx] >= 0).to(device)
+                    loss = loss + cfg.response_weight * response_loss(
+                        pred[:n][paired],
+                        pred[n:],
+                        yb[:n][paired],
+                        yb[n:],
+                        cfg.energy_channels,
+                        *energy_norm,
+                        cfg.energy_floor,
+                        mask,
+                    )
                 optimiser.zero_grad(set_to_none=True)
                 loss.backward()
                 optimiser.step()

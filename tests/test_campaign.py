@@ -354,3 +354,44 @@ def test_simulate_command_reports_the_runs_it_left_out(tmp_path, monkeypatch, ca
     out, err = capsys.readouterr()
     assert json.loads(out)["failed_runs"] == 1 and json.loads(out)["weeks"] == 6
     assert f"run {refused.run_id} (2 weeks) left out" in err
+
+
+def test_settings_draws_share_a_building_weather_and_occupancy_and_draw_their_own_settings():
+    config = CampaignConfig(weeks=10, seed=2, epw=["usa_il_chicago", "usa_fl_miami"], weeks_per_run=3, settings_draws=2)
+    tasks = plan_campaign(config)
+    assert [t.n_weeks for t in tasks] == [3, 3, 3, 1]
+    for a, b in (tasks[0:2], tasks[2:4]):
+        np.testing.assert_array_equal(a.theta, b.theta)
+        assert (a.epw, a.start_week) == (b.epw, b.start_week)
+        np.testing.assert_array_equal(a.occupancy[: b.n_weeks], b.occupancy)
+        assert not np.array_equal(a.settings[: b.n_weeks], b.settings)
+    assert not np.array_equal(tasks[0].theta, tasks[2].theta)
+    with pytest.raises(BuildenvError, match="--settings-draws"):
+        plan_campaign(CampaignConfig(weeks=4, settings_draws=0))
+
+
+def test_response_scores_compare_savings_within_each_group():
+    from buildenv.metrics import response_scores
+
+    truth = np.array([10.0, 8.0, 12.0, 5.0, 4.0, 6.0])
+    groups = np.array([0, 0, 0, 1, 1, 1])
+    exact = response_scores(truth, 1.3 * truth, groups, floor=0.5)  # a constant factor saves the same shares
+    assert exact["response_pairs"] == 4 and exact["response_savings_error_p90_abs_points"] == pytest.approx(0.0)
+    assert exact["response_savings_spearman"] == pytest.approx(1.0)
+    offset = response_scores(truth, truth + 1.0, groups, floor=0.5)  # 20 % saved on 10 -> 2/11 = 18.2 % predicted
+    assert offset["response_savings_error_mean_abs_points"] > 1.0
+    assert response_scores(truth, truth, np.arange(6), floor=0.5) == {"response_pairs": 0}
+
+
+def test_evaluate_scores_the_response_on_a_campaign_of_settings_draws(tmp_path, capsys):
+    from buildenv.cli.main import main
+
+    out = tmp_path / "pairs"
+    words = ["simulate", "--weeks", "4", "--weeks-per-run", "2", "--settings-draws", "2", "--seed", "1"]
+    assert main([*words, "--epw", "usa_il_chicago", "--zoning", "core_perimeter", "--out", str(out), "--quiet"]) == 0
+    assert "--settings-draws 2" in json.loads((out / "manifest.json").read_text())["command"]
+    capsys.readouterr()
+    assert main(["evaluate", "--data", str(out), "--json"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["response_pairs"] == 2
+    assert 0.0 <= result["response_savings_error_p90_abs_points"] < 100.0

@@ -13,7 +13,7 @@ from buildenv.errors import BuildenvError, DatasetError
 from buildenv.metamodel import surrogate as sg
 from buildenv.metamodel.training import evaluate_metamodel, train_metamodel
 from metamodels.checkpoint import Checkpoint, load_checkpoint
-from metamodels.loss import paper_loss
+from metamodels.loss import paper_loss, response_loss
 from metamodels.models import MODELS, band_mask, build, with_more_inputs
 from metamodels.normalisation import StandardisedModel, Standardiser
 
@@ -53,6 +53,17 @@ def test_paper_loss_is_log_of_rmse():
     mask[0, :5] = True
     target[0, 5:] = 100.0  # masked hours do not count
     assert float(paper_loss(pred, target, [0], [1], mask=mask)) == pytest.approx(float(loss), rel=1e-5)
+
+
+def test_response_loss_is_the_rms_savings_error_between_partners():
+    def week(energy: float) -> torch.Tensor:  # one HVAC channel, standardised with mean 2 and deviation 4
+        return torch.full((1, 5, 2), (energy - 2.0) / 4.0)
+
+    args = ([1], torch.tensor([2.0]), torch.tensor([4.0]), 0.5)
+    # simulated: 8 against a partner's 10 (20 % saved); predicted: 9 against 10 (10 %): an error of 0.1
+    assert float(response_loss(week(9.0), week(10.0), week(8.0), week(10.0), *args)) == pytest.approx(0.1, rel=1e-4)
+    # a constant error on both weeks leaves the difference, and so the savings, right
+    assert float(response_loss(week(11.0), week(13.0), week(8.0), week(10.0), *args)) == pytest.approx(0.0, abs=1e-5)
 
 
 def test_transformer_attention_is_local():
@@ -171,6 +182,29 @@ def test_train_evaluate_resume_and_catalogue_check(tiny_dataset, tmp_path, monke
     monkeypatch.setattr(cat, "catalogue_hash", lambda: "0000000000000000")
     with pytest.raises(sg.CheckpointError, match="catalogue"):
         sg.load_metamodel(ckpt)
+
+
+def test_training_with_a_response_weight_runs_each_weeks_partner_under_other_settings(tmp_path):
+    data = tmp_path / "pairs"
+    config = CampaignConfig(weeks=12, seed=2, epw=["usa_il_chicago"], weeks_per_run=3, settings_draws=2)
+    run_campaign(config, data, workers=2, progress=False)
+    runs = {}
+    for weight in (0.0, 1.0):
+        runs[weight] = train_metamodel(
+            data,
+            "ffn",
+            tmp_path / f"w{weight}.pt",
+            split="random",
+            model_config={"layers": 1},
+            epochs=1,
+            batch_size=4,
+            progress=False,
+            response_weight=weight,
+        )
+    assert runs[1.0]["paired_train_weeks"] > 0
+    first = [r["fit"]["best_val_loss"] for r in runs.values()]
+    assert first[0] != pytest.approx(first[1], rel=1e-6)  # the partners' savings error moved the weights
+    assert np.isfinite(first).all()
 
 
 def test_a_longer_context_carries_the_previous_days_or_repeats_the_first_day(tiny_dataset):

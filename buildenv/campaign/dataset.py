@@ -106,6 +106,28 @@ class Dataset:
                 index[i] = key.get((int(r), int(w) - 1), -1)
         return index
 
+    def settings_groups(self) -> np.ndarray | None:
+        """Each week's group of runs that share a building, weather and occupancy under their own settings (a
+        campaign with ``settings_draws`` above 1), or ``None`` when every run was drawn anew."""
+        draws = int(self.manifest.get("config", {}).get("settings_draws", 1))
+        return None if draws < 2 else self._h5["run_id"][:] // draws
+
+    def settings_partners(self, idx: np.ndarray) -> np.ndarray:
+        """For each week of ``idx``, the position in ``idx`` of its partner: the week of the same building and
+        weather under the next settings draw of its group (the draws in a ring), or -1 when ``idx`` holds none."""
+        groups = self.settings_groups()
+        partner = np.full(len(idx), -1, dtype=np.int64)
+        if groups is None or not len(idx):
+            return partner
+        slots = groups[idx] * cat.WEEKS_PER_YEAR + self._h5["week_in_run"][:][idx]
+        order = np.lexsort((np.asarray(idx), slots))
+        start = np.r_[True, slots[order][1:] != slots[order][:-1]]
+        first = np.maximum.accumulate(np.where(start, np.arange(len(order)), 0))
+        end = np.r_[start[1:], True]
+        nxt = np.where(end, first, np.arange(len(order)) + 1)  # the next in the slot, the last to the first
+        partner[order] = np.where(nxt != np.arange(len(order)), order[nxt], -1)
+        return partner
+
     def _climate_ids(self, names: list[str]) -> list[int]:
         unknown = [c for c in names if c not in self.weather_names]
         if unknown:
@@ -224,6 +246,8 @@ def simulate_command(directory: str | Path, config: dict) -> str:
         words += ["--around", str(site)]
     if config.get("around"):
         words += ["--spread", str(config.get("spread", 0.1))]
+    if config.get("settings_draws", 1) > 1:
+        words += ["--settings-draws", str(config["settings_draws"])]
     words += ["--out", str(directory)]
     return shlex.join(words)
 

@@ -71,6 +71,10 @@ class CampaignConfig:
             (:func:`buildenv.campaign.sampling.theta_around`), each ``{"site": folder, "theta": {name: value}}``
             (``buildenv simulate --around``); the settings, occupancy and weather are drawn as in any campaign.
         spread: with ``around``, each parameter's random step as a share of its catalogue range.
+        settings_draws: runs that share a building, a weather file, start week and occupancy, each under its own
+            settings (``buildenv simulate --settings-draws``): runs ``K g`` to ``K g + K - 1`` form group ``g``, so
+            the dataset holds the same weeks under ``K`` settings, from which a metamodel's response to settings is
+            scored (:func:`buildenv.metamodel.training.response_scores`); 1 draws every run anew.
     """
 
     weeks: int
@@ -82,6 +86,7 @@ class CampaignConfig:
     floor_area_scale: str = "linear"
     around: list[dict] = field(default_factory=list)
     spread: float = 0.1
+    settings_draws: int = 1
 
     def validate(self) -> None:
         """Raise :class:`BuildenvError` on a value no campaign can use."""
@@ -97,6 +102,8 @@ class CampaignConfig:
             raise BuildenvError(
                 f"--floor-area-scale must be one of {', '.join(FLOOR_AREA_SCALES)} (got {self.floor_area_scale!r})"
             )
+        if self.settings_draws < 1:
+            raise BuildenvError(f"--settings-draws must be at least 1 (got {self.settings_draws})")
         if not 0.0 < self.spread <= 1.0:
             raise BuildenvError(f"--spread must be a share of each range within (0, 1] (got {self.spread})")
         if self.around and self.floor_area_scale != "linear":
@@ -130,32 +137,38 @@ class RunTask:
 
 
 def plan_campaign(config: CampaignConfig) -> list[RunTask]:
-    """Draw every run of a campaign from its seed (deterministic; the same config gives the same plan)."""
+    """Draw every run of a campaign from its seed (deterministic; the same config gives the same plan). With
+    ``settings_draws`` K > 1, each group of K consecutive runs shares its building, weather, start week and
+    occupancy, and draws its own settings."""
     config.validate()
     rng = np.random.default_rng(config.seed)
     n_runs = math.ceil(config.weeks / config.weeks_per_run)
     lengths = [min(config.weeks_per_run, config.weeks - r * config.weeks_per_run) for r in range(n_runs)]
+    draws = config.settings_draws
+    n_buildings = math.ceil(n_runs / draws)
     log_scaled = ("floor_area_m2",) if config.floor_area_scale == "log" else ()
     if config.around:
         centres = np.array([[c["theta"][n] for n in cat.THETA_NAMES] for c in config.around])
-        thetas = theta_around(centres, n_runs, rng, config.spread, cat.GEOMETRY_NAMES)
+        thetas = theta_around(centres, n_buildings, rng, config.spread, cat.GEOMETRY_NAMES)
     else:
-        thetas = sample_group("theta_build", n_runs, rng, config.sampling, log_scaled)
+        thetas = sample_group("theta_build", n_buildings, rng, config.sampling, log_scaled)
     settings, occupancy = sample_weeks(config.weeks, rng, config.sampling)
-    order = np.resize(rng.permutation(len(config.epw)), n_runs)
+    order = np.resize(rng.permutation(len(config.epw)), n_buildings)
     climates = rng.permutation(order)
-    starts = [int(rng.integers(0, cat.WEEKS_PER_YEAR - n + 1)) for n in lengths]
+    starts = [int(rng.integers(0, cat.WEEKS_PER_YEAR - lengths[g * draws] + 1)) for g in range(n_buildings)]
     tasks, offset = [], 0
     for r, n in enumerate(lengths):
+        g = r // draws
+        first = g * draws * config.weeks_per_run  # the group's first run's weeks: its occupancy
         tasks.append(
             RunTask(
                 r,
-                thetas[r],
+                thetas[g],
                 settings[offset : offset + n],
-                occupancy[offset : offset + n],
-                config.epw[climates[r]],
-                int(climates[r]),
-                starts[r],
+                occupancy[first : first + n],
+                config.epw[climates[g]],
+                int(climates[g]),
+                starts[g],
                 config.zoning,
             )
         )
@@ -243,6 +256,7 @@ def _prepare_directory(out: Path, config: CampaignConfig) -> None:
         previous["config"].setdefault("floor_area_scale", "linear")
         previous["config"].setdefault("around", [])  # campaigns made before buildings could be drawn around sites
         previous["config"].setdefault("spread", 0.1)
+        previous["config"].setdefault("settings_draws", 1)  # campaigns made before runs could share a building
         if previous.get("catalogue_hash") != record["catalogue_hash"]:
             raise DatasetError(
                 f"{out} holds a campaign of catalogue {previous.get('catalogue_hash')} ({campaign_file}), this "

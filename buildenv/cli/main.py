@@ -33,7 +33,7 @@ from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLITS
 from buildenv.campaign.runs import MAX_FAILED_SHARE
 from buildenv.campaign.sampling import FLOOR_AREA_SCALES
-from buildenv.cli.argtypes import positive_minutes, share
+from buildenv.cli.argtypes import positive_int, positive_minutes, share
 from buildenv.energyplus.shoebox import DEFAULT_ZONING, ZONINGS
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
@@ -208,6 +208,7 @@ def _cmd_simulate(args: argparse.Namespace) -> int:
         floor_area_scale=args.floor_area_scale,
         around=calibrated_buildings(args.around) if args.around else [],
         spread=args.spread,
+        settings_draws=args.settings_draws,
     )
     path = run_campaign(
         config,
@@ -270,6 +271,7 @@ def _cmd_train(args: argparse.Namespace) -> int:
         patience=args.patience,
         device=args.device,
         minutes=args.minutes,
+        response_weight=args.response_weight,
     )
     hint = f"the training diverged or the dataset holds non-finite values ({args.out} is saved)"
     print(dumps(result, where="the training result", hint=hint, indent=None if args.json else 2))
@@ -373,6 +375,14 @@ def build_parser() -> argparse.ArgumentParser:
         help="with --around, each building parameter's random step as a share of its range (default 0.1)",
     )
     p.add_argument(
+        "--settings-draws",
+        type=positive_int,
+        default=1,
+        metavar="K",
+        help="simulate each drawn building, weather and occupancy under K settings draws, so that `buildenv "
+        "evaluate` can score the response to settings (default 1: every run drawn anew)",
+    )
+    p.add_argument(
         "--max-failed-share",
         type=share,
         default=MAX_FAILED_SHARE,
@@ -442,6 +452,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="learning rate: cosine decay to 0 over --epochs, or constant",
     )
     p.add_argument("--patience", type=int, default=10, help="early stopping: epochs without improvement")
+    p.add_argument(
+        "--response-weight",
+        type=float,
+        default=0.0,
+        help="weight of the savings error between a week and the same week under other settings (campaigns of "
+        "`buildenv simulate --settings-draws`) beside the paper's loss (default 0: the paper's loss alone)",
+    )
     p.add_argument(
         "--minutes",
         type=positive_minutes,

@@ -17,9 +17,10 @@ import numpy as np
 
 from buildenv import catalogue as cat
 from buildenv.campaign.dataset import SPLIT_VERSION, Dataset, open_dataset
+from buildenv.env.objectives import ENERGY_FLOOR_WH_M2, hvac_energy
 from buildenv.errors import BuildenvError, DatasetError
 from buildenv.metamodel import surrogate as sg
-from buildenv.metrics import daily_errors, pooled_scores, summarise, week_metrics
+from buildenv.metrics import daily_errors, pooled_scores, response_scores, summarise, week_metrics
 
 
 @contextmanager
@@ -102,7 +103,8 @@ def train_metamodel(
             :data:`TEMPERATURE_BEFORE_HIDDEN` share of the weeks; needs the ground temperature.
         train_options: fields of :class:`metamodels.train.TrainConfig` (epochs, batch_size, lr, patience, ...).
     Returns:
-        ``{"model", "train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test": {metrics}}``.
+        ``{"model", "train_weeks", "paired_train_weeks", "val_weeks", "test_weeks", "seconds", "fit": {...}, "test":
+        {metrics}}`` (``paired_train_weeks``: training weeks with a partner under other settings).
     Raises:
         BuildenvError: a resumed or ``init`` checkpoint does not fit the run, a dataset lacks outputs, or the datasets
             are repeated or of different zonings.
@@ -155,6 +157,7 @@ def train_metamodel(
         )
     encoded = _encode_campaigns(paths, split, seed, holdout_climates, max_weeks, split_version, ctx, temperature_before)
     ds_zoning = encoded.pop("zoning")
+    partner = encoded.pop("train_partner")
     (x_tr, y_tr), (x_va, y_va), (x_te, y_te) = encoded["train"], encoded["val"], encoded["test"]
     apart = encoded.get("holdout_climate")
     if temperature_before:
@@ -203,6 +206,8 @@ def train_metamodel(
         seed=seed,
         temperature_channels=sg.TEMPERATURE_CHANNELS,
         consumption_channels=sg.CONSUMPTION_CHANNELS,
+        energy_channels=[cat.OUTPUT_NAMES.index(n) for n in cat.HVAC_OUTPUTS],
+        energy_floor=ENERGY_FLOOR_WH_M2,
         **train_options,
     )
     hour_mask = torch.tensor([False] * ctx + [True] * cat.HOURS_PER_WEEK)
@@ -215,6 +220,7 @@ def train_metamodel(
             cfg,
             Path(out),
             progress,
+            partner=torch.as_tensor(partner),
         )
     surrogate = sg.Surrogate(ck)
     test = score(surrogate, x_te, y_te)
@@ -234,6 +240,7 @@ def train_metamodel(
         "config": ck.config,
         "train": asdict(cfg),
         "train_weeks": int(len(x_tr)),
+        "paired_train_weeks": int((partner >= 0).sum()),
         "val_weeks": int(len(x_va)),
         "test_weeks": int(len(x_te)),
         "seconds": round(time.perf_counter() - started, 1),
@@ -361,7 +368,9 @@ def _encode_campaigns(
     temperature_before: bool,
 ) -> dict:
     """Encoded ``(x, y)`` of each part (``train``, ``val``, ``test``, and ``holdout_climate`` when climates are held
-    out) over the datasets at ``paths``, concatenated in order, and their ``zoning``.
+    out) over the datasets at ``paths``, concatenated in order, their ``zoning``, and ``train_partner``: each
+    training week's partner under other settings (:meth:`.Dataset.settings_partners`, an index into the
+    concatenated training weeks, or -1).
 
     Raises:
         BuildenvError: the datasets' shoeboxes are of different zonings, training or validation weeks have
@@ -376,6 +385,12 @@ def _encode_campaigns(
         parts = training_splits(datasets, split, seed, holdout_climates, max_weeks, version)
         names = ["train", "val", "test"] + (["holdout_climate"] if holdout_climates else [])
         encoded: dict = {"zoning": zonings.pop()}
+        partners, offset = [], 0
+        for ds, part in zip(datasets, parts):
+            mine = ds.settings_partners(part["train"])
+            partners.append(np.where(mine >= 0, mine + offset, -1))
+            offset += len(part["train"])
+        encoded["train_partner"] = np.concatenate(partners)
         for name in names:
             pieces = []
             for ds, path, part in zip(datasets, paths, parts):
@@ -443,9 +458,10 @@ def week_scores(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray, pred: np.
     return week_metrics(y, pred, occupied, norm.mean, norm.std)
 
 
-def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray) -> dict[str, float]:
-    """Metrics (mean and std over weeks) of a surrogate on encoded weeks ``x`` with true outputs ``y``."""
-    pred = surrogate.predict_encoded(x)
+def score(surrogate: sg.Surrogate, x: np.ndarray, y: np.ndarray, pred: np.ndarray | None = None) -> dict[str, float]:
+    """Metrics (mean and std over weeks) of a surrogate on encoded weeks ``x`` with true outputs ``y`` (its
+    predictions ``pred``, standardised, when already made)."""
+    pred = surrogate.predict_encoded(x) if pred is None else pred
     norm = surrogate.checkpoint.output_norm
     return {
         **summarise(week_scores(surrogate, x, y, pred)),
@@ -459,7 +475,9 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
 
     ``subset="test"`` scores the checkpoint's own held-out weeks when ``data`` is one of the datasets it was
     trained on (same split kind and seed), and every week otherwise; ``subset="holdout_climate"`` the weeks of the
-    climates kept out of its training; ``subset="all"`` scores every week.
+    climates kept out of its training; ``subset="all"`` scores every week. A campaign that simulated each building
+    under several settings (``buildenv simulate --settings-draws``) adds the response to settings
+    (:func:`buildenv.metrics.response_scores`, each week against the same week under its group's first settings).
     """
     surrogate = sg.load_metamodel(checkpoint)
     meta = surrogate.checkpoint.metadata
@@ -477,6 +495,13 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
         x, y = sg.encode_dataset(
             ds, idx, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
         )
-    result = score(surrogate, x, y)
+        groups = ds.settings_groups()
+        slots = None if groups is None else groups[idx] * cat.WEEKS_PER_YEAR + ds.week_in_run[:][idx]
+    pred = surrogate.predict_encoded(x)
+    result = score(surrogate, x, y, pred)
+    if slots is not None:
+        norm = surrogate.checkpoint.output_norm
+        energy = [hvac_energy(v * norm.std + norm.mean) for v in (y, pred)]
+        result.update(response_scores(*energy, slots, ENERGY_FLOOR_WH_M2))
     result["subset"] = subset if subset == "holdout_climate" or (subset == "test" and same) else "all"
     return result

@@ -7,10 +7,14 @@ checkpoint, in one run, on
 - ``own test``: the checkpoint's own held-out weeks on its training dataset (``--data``, optional);
 - ``fresh buildings``: every week of an independent campaign (``--fresh``, another seed: buildings, settings
   and occupancy never seen; made with ``buildenv simulate`` if the folder does not exist yet);
-- ``unseen climate``: the weeks of the climates the checkpoint kept out of training, in the fresh campaign.
+- ``unseen climate``: the weeks of the climates the checkpoint kept out of training, in the fresh campaign;
+- ``settings draws``: every week of a campaign of new buildings each simulated under several settings (``--pairs``,
+  made with ``buildenv simulate --settings-draws 4`` if missing), with the response to settings: the savings of each
+  week against the same week under its group's first settings, predicted against simulated.
 
     .venv/bin/python bench/metamodel_generalisation.py --model shipped=default \
-        --model new=data/runs/new.pt --fresh data/campaign-cp-fresh-seed1 [--fresh-weeks 4160 --fresh-seed 1]
+        --model new=data/runs/new.pt --fresh data/campaign-cp-fresh-seed1 [--fresh-weeks 4160 --fresh-seed 1] \
+        [--pairs data/campaign-pairs-4160-s28 --pairs-seed 28]
 
 Writes ``bench/results/metamodel_generalisation.{md,json}`` (``--name`` changes the stem).
 """
@@ -40,7 +44,18 @@ COLUMNS = [
     ("RMSE_T degC", "rmse_t_celsius", 1.0, 3),
     ("CV(RMSE)_Q %", "cv_rmse_q_percent", 1.0, 2),
     ("RMSE_T day 1 / days 2-7", "day1_ratio", 1.0, 2),
+    ("savings error p90, points", "response_savings_error_p90_abs_points", 1.0, 2),
+    ("savings error mean, points", "response_savings_error_mean_abs_points", 1.0, 2),
+    ("savings Spearman", "response_savings_spearman", 1.0, 3),
 ]
+
+
+def simulate(out: Path, weeks: int, seed: int, weeks_per_run: int, *extra: str) -> None:
+    """Make the campaign ``out`` with ``buildenv simulate`` unless it is already complete."""
+    if (out / "manifest.json").is_file():
+        return
+    words = ["simulate", "--weeks", str(weeks), "--seed", str(seed), "--weeks-per-run", str(weeks_per_run)]
+    subprocess.run([str(Path(sys.executable).with_name("buildenv")), *words, *extra, "--out", str(out)], check=True)
 
 
 def with_day1_ratio(scores: dict) -> dict:
@@ -84,25 +99,15 @@ def main() -> None:
     parser.add_argument("--fresh-weeks", type=int, default=4160)
     parser.add_argument("--fresh-seed", type=int, default=1)
     parser.add_argument("--fresh-weeks-per-run", type=int, default=13, help="13: four buildings a year of weeks")
+    parser.add_argument("--pairs", help="campaign of new buildings under 4 settings draws each (made if missing)")
+    parser.add_argument("--pairs-seed", type=int, default=28)
     parser.add_argument("--name", default="metamodel_generalisation")
     args = parser.parse_args()
     fresh = Path(args.fresh)
-    if not (fresh / "manifest.json").is_file():
-        subprocess.run(
-            [
-                str(Path(sys.executable).with_name("buildenv")),
-                "simulate",
-                "--weeks",
-                str(args.fresh_weeks),
-                "--seed",
-                str(args.fresh_seed),
-                "--weeks-per-run",
-                str(args.fresh_weeks_per_run),
-                "--out",
-                str(fresh),
-            ],
-            check=True,
-        )
+    simulate(fresh, args.fresh_weeks, args.fresh_seed, args.fresh_weeks_per_run)
+    if args.pairs:
+        pair_words = ("--settings-draws", "4", "--zoning", "core_perimeter", "--floor-area-scale", "log")
+        simulate(Path(args.pairs), args.fresh_weeks, args.pairs_seed, args.fresh_weeks_per_run, *pair_words)
     manifest = json.loads((fresh / "manifest.json").read_text())
     results: dict[str, dict] = {}
     for item in args.model:
@@ -114,6 +119,10 @@ def main() -> None:
             if own["subset"] == "test":
                 row["own test"] = own
         row.update(fresh_scores(checkpoint, fresh))
+        if args.pairs:
+            row["settings draws"] = evaluate_metamodel(
+                None if checkpoint == "default" else checkpoint, args.pairs, "all"
+            )
         results[label] = {"checkpoint": checkpoint, "scores": {k: with_day1_ratio(v) for k, v in row.items()}}
     date = time.strftime("%Y-%m-%d")
     header = "| model | test set | weeks | " + " | ".join(c[0] for c in COLUMNS) + " |"
@@ -126,7 +135,14 @@ def main() -> None:
         f"(seed {manifest.get('config', {}).get('seed', '?')}, "
         f"{manifest.get('config', {}).get('weeks_per_run', '?')} weeks per EnergyPlus run) over every "
         "shipped climate; unseen climate: its weeks of the climates the checkpoint kept out of training. "
-        "Definitions in `buildenv/metrics.py`.",
+        "Definitions in `buildenv/metrics.py`."
+        + (
+            f" Settings draws: `{args.pairs}`, new buildings (log-spaced floor areas, core + perimeter) each "
+            "simulated under 4 settings draws; the savings of each week against the same week under its group's "
+            "first settings, predicted against simulated, in percent points."
+            if args.pairs
+            else ""
+        ),
         "",
         header,
         "|---" * (len(COLUMNS) + 3) + "|",
@@ -135,7 +151,9 @@ def main() -> None:
         for part, s in result["scores"].items():
             lines.append(
                 f"| {label} | {part} | {s['weeks']} | "
-                + " | ".join(f"{s[key] * scale:.{digits}f}" for _, key, scale, digits in COLUMNS)
+                + " | ".join(
+                    "-" if s.get(key) is None else f"{s[key] * scale:.{digits}f}" for _, key, scale, digits in COLUMNS
+                )
                 + " |"
             )
     lines += [""] + [f"- {label}: `{r['checkpoint']}`" for label, r in results.items()]

@@ -498,6 +498,8 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
         tiny_dataset, "transformer", base, split="random", model_config=config, epochs=1, batch_size=4, progress=False
     )
     start = sg.load_metamodel(base).checkpoint
+    start.metadata["split_version"] = 1  # a start split the earlier way: its fine-tune splits its weeks alike
+    start.save(base)
     tuned = tmp_path / "tuned72.pt"
     # lr 0: the run starts from the base's weights and its normalisation, so nothing moves but the context
     train_metamodel(
@@ -513,7 +515,7 @@ def test_fine_tuning_starts_from_the_checkpoint_and_keeps_its_normalisation(tiny
         lr=0.0,
     )
     ck = sg.load_metamodel(tuned).checkpoint
-    assert ck.config == config and ck.metadata["context_hours"] == 72
+    assert ck.config == config and ck.metadata["context_hours"] == 72 and ck.metadata["split_version"] == 1
     assert ck.metadata["initialised_from"] == {
         "checkpoint": str(base),
         "dataset": start.metadata["dataset"],

@@ -94,8 +94,9 @@ def train_metamodel(
         progress: progress bars.
         context_hours: hours before each week the model sees (a whole number of days; recorded in the checkpoint).
         init: a checkpoint (or ``"default"``) to fine-tune: the same ``model``, configuration, split and held-out
-            climates (so the test weeks stay unseen); inputs it lacks are added with zero weights. It may come from
-            shoeboxes of another zoning (the outputs are the same building totals); its zoning is recorded.
+            climates, split as it was (its ``split_version``), so its test weeks stay unseen; inputs it lacks are
+            added with zero weights. It may come from shoeboxes of another zoning (the outputs are the same
+            building totals); its zoning is recorded.
         ground_temperature: give the model the ground temperature under the slab (:mod:`buildenv.metamodel.surrogate`);
             ``False`` trains on the other channels only, as checkpoints made before it existed.
         temperature_before: give the model the previous week's ``T_INT_OFFICE`` over the context hours
@@ -155,6 +156,9 @@ def train_metamodel(
             "--split climate draws test climates per campaign, so one campaign's could be another's training: "
             "train on several campaigns with --split weather_weeks (and --holdout-climate for a climate left out)"
         )
+    start = None if init is None else _initial_checkpoint(init, model, model_config, split, seed, holdout_climates)
+    if start is not None and not last.exists():  # the start's test weeks stay unseen: its split, drawn alike
+        split_version = int(start.metadata.get("split_version", 1))
     encoded = _encode_campaigns(paths, split, seed, holdout_climates, max_weeks, split_version, ctx, temperature_before)
     ds_zoning = encoded.pop("zoning")
     partner = encoded.pop("train_partner")
@@ -176,8 +180,7 @@ def train_metamodel(
         "train_weeks": int(len(x_tr)),
         "zoning": ds_zoning,
     }
-    if init is not None:
-        start = _initial_checkpoint(init, model, model_config, split, seed, holdout_climates)
+    if start is not None:
         metadata["initialised_from"] = {
             "checkpoint": str(init),
             "dataset": start.metadata.get("dataset"),

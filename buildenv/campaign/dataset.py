@@ -106,20 +106,22 @@ class Dataset:
                 index[i] = key.get((int(r), int(w) - 1), -1)
         return index
 
-    def settings_groups(self) -> np.ndarray | None:
-        """Each week's group of runs that share a building, weather and occupancy under their own settings (a
-        campaign with ``settings_draws`` above 1), or ``None`` when every run was drawn anew."""
+    def settings_slots(self) -> np.ndarray | None:
+        """One integer per week, the same for the same building and week under other settings draws (a campaign
+        with ``settings_draws`` above 1), or ``None`` when every run was drawn anew."""
         draws = int(self.manifest.get("config", {}).get("settings_draws", 1))
-        return None if draws < 2 else self._h5["run_id"][:] // draws
+        if draws < 2:
+            return None
+        return self._h5["run_id"][:] // draws * cat.WEEKS_PER_YEAR + self._h5["week_in_run"][:]
 
     def settings_partners(self, idx: np.ndarray) -> np.ndarray:
         """For each week of ``idx``, the position in ``idx`` of its partner: the week of the same building and
         weather under the next settings draw of its group (the draws in a ring), or -1 when ``idx`` holds none."""
-        groups = self.settings_groups()
+        every = self.settings_slots()
         partner = np.full(len(idx), -1, dtype=np.int64)
-        if groups is None or not len(idx):
+        if every is None or not len(idx):
             return partner
-        slots = groups[idx] * cat.WEEKS_PER_YEAR + self._h5["week_in_run"][:][idx]
+        slots = every[idx]
         order = np.lexsort((np.asarray(idx), slots))
         start = np.r_[True, slots[order][1:] != slots[order][:-1]]
         first = np.maximum.accumulate(np.where(start, np.arange(len(order)), 0))

@@ -74,7 +74,7 @@ class CampaignConfig:
         settings_draws: runs that share a building, a weather file, start week and occupancy, each under its own
             settings (``buildenv simulate --settings-draws``): runs ``K g`` to ``K g + K - 1`` form group ``g``, so
             the dataset holds the same weeks under ``K`` settings, from which a metamodel's response to settings is
-            scored (:func:`buildenv.metamodel.training.response_scores`); 1 draws every run anew.
+            scored (:func:`buildenv.metrics.response_scores`); 1 draws every run anew.
     """
 
     weeks: int

@@ -498,13 +498,12 @@ def evaluate_metamodel(checkpoint: str | Path | None, data: str | Path, subset: 
         x, y = sg.encode_dataset(
             ds, idx, context_hours=surrogate.context_hours, temperature_before=surrogate.uses_temperature_before
         )
-        groups = ds.settings_groups()
-        slots = None if groups is None else groups[idx] * cat.WEEKS_PER_YEAR + ds.week_in_run[:][idx]
+        slots = ds.settings_slots()
     pred = surrogate.predict_encoded(x)
     result = score(surrogate, x, y, pred)
     if slots is not None:
         norm = surrogate.checkpoint.output_norm
         energy = [hvac_energy(v * norm.std + norm.mean) for v in (y, pred)]
-        result.update(response_scores(*energy, slots, ENERGY_FLOOR_WH_M2))
+        result.update(response_scores(*energy, slots[idx], ENERGY_FLOOR_WH_M2))
     result["subset"] = subset if subset == "holdout_climate" or (subset == "test" and same) else "all"
     return result

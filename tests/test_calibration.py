@@ -636,3 +636,84 @@ def test_a_week_given_twice_is_refused_not_counted_twice(surrogate):
 
     with pytest.raises(cal.CalibrationError, match=r"week\(s\) \[0\] given twice"):
         cal.build_problem(load_site(DEFAULT_SITE), [0, 0, 1], context_hours=surrogate.context_hours)
+
+
+def _series_problem(consumption: np.ndarray, daily_weight: float) -> cal.Problem:
+    weeks = consumption.shape[0]
+    temperature = 21.0 + np.sin(np.arange(weeks * 168) / 24 * 2 * np.pi).reshape(weeks, 168)
+    return cal.Problem(
+        np.zeros((weeks, 168, 1)), temperature, consumption, {}, [], np.zeros(0), np.zeros(0), daily_weight=daily_weight
+    )
+
+
+def test_the_daily_term_charges_a_fit_whose_days_are_off_but_not_one_whose_hours_scatter():
+    rng = np.random.default_rng(0)
+    measured = 5.0 + 3.0 * rng.random((2, 168))
+    sign = np.tile([1.0, -1.0], 84)  # errors that cancel within each day
+    day_sign = np.repeat(np.tile([1.0, -1.0], 7), 24)[:168]  # the same errors, one sign a day
+    scattered, shifted = measured + 0.5 * sign, measured + 0.5 * day_sign
+    t = np.broadcast_to(_series_problem(measured, 0.0).temperature_c, (2, 2, 168))
+    q = np.stack([scattered, shifted])
+    plain = cal.costs(_series_problem(measured, 0.0), t, q)
+    daily = cal.costs(_series_problem(measured, 1.0), t, q)
+    np.testing.assert_allclose(plain[0], plain[1])  # the hourly terms cannot tell them apart
+    np.testing.assert_allclose(daily[0], plain[0], atol=1e-9)  # scattered hours leave the days' totals right
+    assert daily[1] > plain[1] + 0.5
+    gaps = measured.copy()
+    gaps[0, 5] = np.nan  # a day with a missing hour is left out of the daily term, not counted as zero
+    assert np.isfinite(cal.costs(_series_problem(gaps, 1.0), t, q)).all()
+
+
+def test_the_gradient_calibrations_meter_cost_is_the_cost_of_the_problem():
+    torch = pytest.importorskip("torch")
+    from buildenv.calibration.gradient import _meter_cost
+
+    rng = np.random.default_rng(1)
+    measured = 5.0 + 3.0 * rng.random((2, 168))
+    measured[1, 40] = np.nan
+    q = measured[None] + rng.normal(0, 0.5, (3, 2, 168))
+    q = np.nan_to_num(q, nan=5.0)
+    problem = _series_problem(measured, 1.0)
+    t = np.broadcast_to(problem.temperature_c, (3, 2, 168))
+    expected = cal.costs(problem, t, q)  # temperature term 0: the model reads it exactly
+    got = _meter_cost(
+        torch.tensor(np.nan_to_num(measured)), torch.tensor(q), torch.tensor(np.isfinite(measured)), 1.0
+    ).numpy()
+    np.testing.assert_allclose(got, expected, rtol=1e-6)
+
+
+def test_the_calibrate_command_takes_the_daily_weight_and_records_it(tmp_path, surrogate, capsys):
+    from buildenv.cli.main import main
+
+    _synthetic_site(tmp_path, surrogate, _truth(), weeks=2)
+    args = ["calibrate", "--site", str(tmp_path), "--evaluations", "100", "--quiet", "--json", "--no-prior"]
+    assert main([*args, "--daily-weight", "1"]) == 0
+    result = json.loads(capsys.readouterr().out)
+    assert result["daily_weight"] == 1.0 == json.loads((tmp_path / "calibration.json").read_text())["daily_weight"]
+    site = load_site(tmp_path)
+    problem = cal.build_problem(site, result["fit_weeks"], context_hours=surrogate.context_hours, daily_weight=1.0)
+    params = np.array([*(result["theta"][n] for n in cal.free_theta()), *np.ravel(result["occupancy"])])
+    assert result["cost"] == pytest.approx(float(cal.evaluate(problem, surrogate, params[None])[0]), abs=1e-4)
+    with pytest.raises(SystemExit):
+        main([*args, "--daily-weight", "nan"])
+    assert "expected a weight of 0 or more" in capsys.readouterr().err
+
+
+def test_a_first_fit_kept_under_the_prior_keeps_each_of_its_runs(tmp_path, surrogate, monkeypatch):
+    import buildenv.calibration.calibrate as calibrate_module
+
+    real = calibrate_module.calibrate_cmaes
+
+    def no_better_under_the_prior(problem, surrogate, seed, max_evaluations, **kwargs):
+        best, info = real(problem, surrogate, seed, max_evaluations, **kwargs)
+        if kwargs.get("anchor"):  # the search under the prior finds nothing better than the first fit
+            far = np.repeat(problem.lo[None], len(info["run_costs"]), axis=0)
+            info = {**info, "run_parameters": far, "run_costs": [1e9] * len(far)}
+        return best, info
+
+    monkeypatch.setattr(calibrate_module, "calibrate_cmaes", no_better_under_the_prior)
+    site = _synthetic_site(tmp_path, surrogate, _truth(), weeks=2)
+    result = calibrate_site(site, surrogate, seed=3, max_evaluations=150, restarts=2, save=False)
+    assert result["prior"]["kept_first_fit"]
+    assert [r["seed"] for r in result["runs"]] == [3, 4]
+    assert min(r["cost"] for r in result["runs"]) == pytest.approx(result["cost"], abs=1e-5)

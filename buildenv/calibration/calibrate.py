@@ -83,6 +83,7 @@ def calibrate_site(
     restarts: int = 1,
     effects: tuple[str, ...] | None = None,
     prior: bool = True,
+    daily_weight: float = 1.0,
 ) -> dict:
     """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
 
@@ -103,21 +104,26 @@ def calibrate_site(
             takes the site's own (``site.toml``'s ``effects``, :attr:`buildenv.sites.Site.effects`), ``()`` none.
         prior: with CMA-ES, the maximum a posteriori estimate under the building parameters' prior
             (:mod:`buildenv.calibration.prior`, weighted by a first fit without it); ``False``: least squares only.
+        daily_weight: weight of the meters' daily totals in the cost (:func:`buildenv.calibration.problem.costs`);
+            0 (default): the paper's cost.
     Returns:
         ``{"fit", "heldout"}`` metrics (:func:`buildenv.metrics.site_metrics`, with ``weeks``; ``heldout`` only
         when there are held-out weeks), ``"theta": {name: value}`` (catalogue units), ``"occupancy"``
         (``[[start, end] x 5]``, h), ``"known"``, ``"method"``, ``"seconds"``, ``"evaluations"``, ``"cost"``
         (CMA-ES also ``"run_costs"``), ``"fit_weeks"``, ``"heldout_weeks"``, ``"guideline14_p"``,
-        ``"metamodel"``, ``"catalogue_hash"``, ``"prior"`` (its weight and the residuals' effective hours, ``None``
-        without it) and ``"at_bounds"``
+        ``"metamodel"``, ``"catalogue_hash"``, ``"daily_weight"``, ``"prior"`` (its weight and the residuals'
+        effective hours, ``None`` without it) and ``"at_bounds"``
         (:func:`buildenv.calibration.problem.parameters_at_bounds`). With ``effects``:
         ``"declared_effects": [names]``, ``"effects": {effect: {parameter: value}}`` and
         ``"cost_without_effects"``. With CMA-ES ``restarts`` > 1 and held-out weeks, ``"runs"``: each run's
         ``seed``, ``cost`` (before the declared effects) and ``heldout_rmse_t_celsius`` (degC) and
         ``heldout_r2_t`` without the declared effects (:func:`buildenv.calibration.problem.runs_note`).
     Raises:
-        CalibrationError: an unknown ``method``, a declared effect that is not declarable, or bad ``weeks``.
+        CalibrationError: an unknown ``method``, a declared effect that is not declarable, bad ``weeks`` or a
+            negative ``daily_weight``.
     """
+    if not daily_weight >= 0:
+        raise CalibrationError(f"daily_weight={daily_weight}: give a weight of 0 or more (0: the paper's cost)")
     effects = check_declared_effects(site.effects if effects is None else effects)
     _warn_outside_domain(site, surrogate)
     started = time.perf_counter()
@@ -132,6 +138,7 @@ def calibrate_site(
         context_hours=surrogate.context_hours,
         temperature_before=surrogate.uses_temperature_before,
         metamodel=surrogate,
+        daily_weight=daily_weight,
     )
     _check_meters_vary(site, problem, fit_weeks)
     prior_record = None
@@ -154,6 +161,7 @@ def calibrate_site(
             context_hours=surrogate.context_hours,
             temperature_before=surrogate.uses_temperature_before,
             metamodel=surrogate,
+            daily_weight=daily_weight,
         )
         best, stage = fit_declared_effects(problem, surrogate, best, seed)
         info = {**info, "evaluations": info["evaluations"] + stage["evaluations"], "cost": stage["cost"]}
@@ -180,6 +188,7 @@ def calibrate_site(
         "at_bounds": parameters_at_bounds(dict(zip(cat.THETA_NAMES, theta[0].tolist())), site.known, surrogate),
         **metamodel_record(surrogate),
         "catalogue_hash": cat.catalogue_hash(),
+        "daily_weight": float(daily_weight),
         "prior": prior_record,
         **declared,
     }
@@ -238,8 +247,16 @@ def _with_prior(problem, surrogate, best, info, seed, max_evaluations, restarts)
     # first fit is the estimate
     first = float(info["cost"]) + anchor * float((((problem.to_unit(best) - 0.5) ** 2)[theta[problem.free]]).sum())
     record["kept_first_fit"] = first <= min(second["run_costs"])
-    if record["kept_first_fit"]:
-        found, second = best, {**second, "cost": info["cost"], "run_parameters": best[None], "run_costs": [first]}
+    if record["kept_first_fit"]:  # the first fit's runs stand, each scored under the prior
+        runs = info["run_parameters"]
+        pulls = anchor * (((np.stack([problem.to_unit(r) for r in runs]) - 0.5) ** 2)[:, theta[problem.free]]).sum(-1)
+        found = best
+        second = {
+            **second,
+            "cost": info["cost"],
+            "run_parameters": runs,
+            "run_costs": (np.asarray(info["run_costs"]) + pulls).tolist(),
+        }
     record["run_costs_with_prior"] = second["run_costs"]
     second["run_costs"] = evaluate(problem, surrogate, second["run_parameters"]).tolist()  # the plain cost, as "cost"
     return found, {**second, "evaluations": info["evaluations"] + second["evaluations"]}, record

@@ -30,6 +30,17 @@ def _r2_torch(y, p, mask):
     return 1.0 - ((p[:, mask] - yv) ** 2).sum(-1) / ss_tot
 
 
+def _meter_cost(y, p, mask, daily_weight: float):
+    """A meter's part of the cost for each start (torch, :func:`buildenv.calibration.problem.costs`): ``w_Q (1 - R2)``
+    of its hours plus ``daily_weight`` times ``1 - R2`` of its fully measured days' totals."""
+    cost = WEIGHTS["consumption"] * (1 - _r2_torch(y, p, mask))
+    whole = mask.reshape(mask.shape[0], 7, 24).all(-1)
+    if daily_weight > 0 and int(whole.sum()) >= 2:
+        days = (y * mask).reshape(mask.shape[0], 7, 24).sum(-1)
+        cost = cost + daily_weight * (1 - _r2_torch(days, p.reshape(len(p), mask.shape[0], 7, 24).sum(-1), whole))
+    return cost
+
+
 def calibrate_adam(
     problem: Problem,
     surrogate: sg.Surrogate,
@@ -93,10 +104,10 @@ def calibrate_adam(
         x[:, :, :ctx, c_occ] = week[:, None, -ctx:]  # context: the last days of the week before (build_problem)
         y = model(((x - in_mean) / in_std).reshape(-1, *x.shape[2:]))[:, ctx:] * out_std + out_mean
         y = y.reshape(len(params), weeks, cat.HOURS_PER_WEEK, -1)
-        meters = 1 - _r2_torch(y_q, y[..., q_idx].sum(-1), m_q)
+        meters = _meter_cost(y_q, y[..., q_idx].sum(-1), m_q, problem.daily_weight)
         if second is not None:
-            meters = (meters + 1 - _r2_torch(y_e, y[..., e_idx].sum(-1), m_e)) / 2
-        return WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t)) + WEIGHTS["consumption"] * meters
+            meters = (meters + _meter_cost(y_e, y[..., e_idx].sum(-1), m_e, problem.daily_weight)) / 2
+        return WEIGHTS["temperature"] * (1 - _r2_torch(y_t, y[..., t_idx], m_t)) + meters
 
     from tqdm import tqdm
 

@@ -4,9 +4,10 @@ A few weeks of one temperature and one meter do not pin every building parameter
 about a parameter, least squares leaves it wherever the metamodel's small errors push it, often at a bound of
 its range (all the glazing on the north wall, no insulation): a building that fits the measured weeks but
 answers a change of settings unlike any real office. A prior says what the catalogue's ranges already say:
-they span the buildings of practice (ASHRAE 90.1 tables, DOE reference buildings), so each parameter is drawn
-from a normal distribution centred on its range (the catalogue's within the metamodel's) with
-:data:`PRIOR_SD_SHARE` of the range as standard deviation (the range is four standard deviations wide).
+they run from the lowest to the highest values of practice (ASHRAE 90.1 tables, DOE reference buildings), so most
+buildings lie well inside them: each parameter is drawn from a normal distribution centred on its range (the
+catalogue's within the metamodel's) with :data:`PRIOR_SD_SHARE` of the range as standard deviation (a bound is
+about three standard deviations from the centre).
 
 **Weight from the site's own data.** With residuals of unknown variance, the negative log-likelihood of a
 channel is ``n / 2 * log(SSE)``, whose slope at the fit is ``n / (2 * cost)`` per unit of the paper's cost
@@ -24,8 +25,8 @@ import numpy as np
 
 from buildenv import catalogue as cat
 
-#: standard deviation of the prior, as a share of a parameter's range (the range spans +-2 standard deviations)
-PRIOR_SD_SHARE = 0.25
+#: standard deviation of the prior, as a share of a parameter's range (the range spans about +-3.3 of them)
+PRIOR_SD_SHARE = 0.15
 
 
 def effective_hours(residual: np.ndarray) -> float:

@@ -6,8 +6,11 @@ weekly occupancy schedule (start and end hour of each weekday) shared by all wee
 catalogue; the optimisers search ``[0, 1]`` per free parameter, mapped linearly onto ``[min, max]``.
 
 **Cost** (the paper's): ``w_T (1 - R2_T) + w_Q (1 - R2_Q)`` (:data:`WEIGHTS`), R2 pooled over the
-calibration weeks' measured hours; missing hours are left out. The site's consumption (kWh per hour) per floor
-area is compared with the sum of the metamodel outputs of the end uses its meter sums
+calibration weeks' measured hours; missing hours are left out. With :attr:`Problem.daily_weight` ``w_D`` > 0 it
+adds ``w_D (1 - R2_D)``, the R2 of the meter's daily totals over the fully measured days: an hourly R2 lets a fit
+trade the level of a day's energy (a bias, what a day off uses against a working day) for the shape of its hours,
+and ASHRAE Guideline 14's NMBE and the savings of a change of settings are sums over days. The site's consumption
+(kWh per hour) per floor area is compared with the sum of the metamodel outputs of the end uses its meter sums
 (:meth:`buildenv.sites.Site.consumption_outputs`, Wh/m2 per hour; :attr:`Problem.consumption_idx`). A site with a
 second meter (``electricity_kwh``) has ``1 - R2_Q`` replaced by the mean of both meters' (its outputs:
 :attr:`Problem.electricity_idx`); its metrics carry ``_e`` keys beside the ``_q`` ones.
@@ -76,6 +79,7 @@ class Problem:
     consumption_idx: tuple[int, ...] = tuple(cat.OUTPUT_NAMES.index(n) for n in cat.consumption_outputs())
     electricity_wh_m2: np.ndarray | None = None  # (weeks, 168) the site's second meter, measured; None: none
     electricity_idx: tuple[int, ...] = ()  # indices into catalogue.OUTPUT_NAMES of the outputs it sums
+    daily_weight: float = 0.0  # w_D of the meters' daily totals in the cost (0: the paper's cost)
 
     @property
     def free(self) -> np.ndarray:
@@ -125,6 +129,7 @@ def build_problem(
     context_hours: int = sg.CONTEXT_HOURS,
     temperature_before: bool = False,
     metamodel: sg.Surrogate | None = None,
+    daily_weight: float = 0.0,
 ) -> Problem:
     """Encode a site's weeks, each with the days before it as context.
 
@@ -147,6 +152,8 @@ def build_problem(
             (:attr:`~buildenv.metamodel.surrogate.Surrogate.domain`) and the variables it does not read are held
             at the value it learnt (:attr:`~buildenv.metamodel.surrogate.Surrogate.implied`); ``None``: the
             catalogue's ranges.
+        daily_weight: weight of the meters' daily totals in the cost (:attr:`Problem.daily_weight`; 0: the
+            paper's cost).
     """
     if not weeks:
         raise CalibrationError("no weeks to calibrate on")
@@ -201,6 +208,7 @@ def build_problem(
         consumption_idx=tuple(cat.OUTPUT_NAMES.index(n) for n in site.consumption_outputs()),
         electricity_wh_m2=second[0][1][idx] if second else None,
         electricity_idx=tuple(cat.OUTPUT_NAMES.index(n) for n in second[0][2]) if second else (),
+        daily_weight=float(daily_weight),
     )
 
 
@@ -291,17 +299,32 @@ def electricity_series(problem: Problem, outputs: np.ndarray) -> np.ndarray | No
     return outputs[..., list(problem.electricity_idx)].sum(-1)
 
 
+def daily_r2(measured: np.ndarray, modelled: np.ndarray) -> np.ndarray:
+    """R2 of each candidate's daily totals ``modelled (pop, weeks, 168)`` against ``measured (weeks, 168)`` over the
+    days measured in every hour (1 where fewer than two such days)."""
+    weeks = measured.shape[0]
+    whole = np.isfinite(measured).reshape(weeks, 7, 24).all(-1)
+    if whole.sum() < 2:
+        return np.ones(len(modelled))
+    days = np.nan_to_num(measured).reshape(weeks, 7, 24).sum(-1)
+    return r2_masked(days, np.asarray(modelled).reshape(len(modelled), weeks, 7, 24).sum(-1), whole)
+
+
 def costs(problem: Problem, t: np.ndarray, q: np.ndarray, e: np.ndarray | None = None) -> np.ndarray:
-    """The paper's cost of each candidate from its temperature and consumption ``(pop, weeks, 168)`` (and, for a
-    site with a second meter, that meter's series ``e`` of the same shape)."""
+    """The cost of each candidate from its temperature and consumption ``(pop, weeks, 168)`` (and, for a site with
+    a second meter, that meter's series ``e`` of the same shape): the paper's, plus the daily totals' term when
+    ``problem.daily_weight`` > 0 (each meter's, averaged as the hourly ones are)."""
     mt, mq = np.isfinite(problem.temperature_c), np.isfinite(problem.consumption_wh_m2)
-    meters = 1 - r2_masked(problem.consumption_wh_m2, q, mq)
+    meters = [(problem.consumption_wh_m2, q, mq)]
     if problem.electricity_wh_m2 is not None:
         if e is None:
             raise CalibrationError("the site has a second meter (electricity_kwh): give its model series too")
-        me = np.isfinite(problem.electricity_wh_m2)
-        meters = (meters + 1 - r2_masked(problem.electricity_wh_m2, e, me)) / 2
-    return WEIGHTS["temperature"] * (1 - r2_masked(problem.temperature_c, t, mt)) + WEIGHTS["consumption"] * meters
+        meters.append((problem.electricity_wh_m2, e, np.isfinite(problem.electricity_wh_m2)))
+    hourly = np.mean([1 - r2_masked(y, p, m) for y, p, m in meters], axis=0)
+    cost = WEIGHTS["temperature"] * (1 - r2_masked(problem.temperature_c, t, mt)) + WEIGHTS["consumption"] * hourly
+    if problem.daily_weight > 0:
+        cost = cost + problem.daily_weight * np.mean([1 - daily_r2(y, p) for y, p, _ in meters], axis=0)
+    return cost
 
 
 def evaluate(problem: Problem, surrogate: sg.Surrogate, params: np.ndarray) -> np.ndarray:

@@ -27,15 +27,19 @@ RESULTS = "calibration.json"
 TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT = 15.0, 5.0
 
 
-def calibrate_case(record: dict, surrogate, seed: int = 0, max_evaluations: int = 6000, prior: bool = True) -> dict:
-    """Calibrate one suite site (a :func:`buildenv.sites.suite.make_case` record; ``prior`` as
+def calibrate_case(
+    record: dict, surrogate, seed: int = 0, max_evaluations: int = 6000, prior: bool = True, daily_weight: float = 1.0
+) -> dict:
+    """Calibrate one suite site (a :func:`buildenv.sites.suite.make_case` record; ``prior`` and ``daily_weight`` as
     :func:`buildenv.calibration.calibrate.calibrate_site`) and return its row."""
     from buildenv.calibration.calibrate import calibrate_site
     from buildenv.sites.reader import load_site
 
     site = load_site(record["site"])
     started = time.perf_counter()
-    result = calibrate_site(site, surrogate, seed=seed, max_evaluations=max_evaluations, prior=prior)
+    result = calibrate_site(
+        site, surrogate, seed=seed, max_evaluations=max_evaluations, prior=prior, daily_weight=daily_weight
+    )
     held = result["heldout"]
     cv, nmbe = held["cv_rmse_q_percent"], held["nmbe_q_percent"]
     meters = {}
@@ -80,8 +84,9 @@ def calibrate_suite(
     max_evaluations: int = 6000,
     progress: bool = True,
     prior: bool = True,
+    daily_weight: float = 1.0,
 ) -> list[dict]:
-    """Calibrate every made site of ``suite`` in ``parts`` (``prior``: as
+    """Calibrate every made site of ``suite`` in ``parts`` (``prior`` and ``daily_weight``: as
     :func:`buildenv.calibration.calibrate.calibrate_site`); rows are also written to ``<suite>/calibration.json``.
 
     Raises:
@@ -97,7 +102,7 @@ def calibrate_suite(
     surrogate = load_metamodel(checkpoint)
     rows = []
     for record in tqdm(records, desc="calibrate", unit="site", disable=not progress):
-        rows.append(calibrate_case(record, surrogate, seed, max_evaluations, prior))
+        rows.append(calibrate_case(record, surrogate, seed, max_evaluations, prior, daily_weight))
     path = Path(suite) / RESULTS
     text = dumps({"rows": rows, "summary": summarise(rows)}, where=str(path), nonfinite="null", indent=1)
     path.write_text(text + "\n", encoding="utf-8")

@@ -38,6 +38,28 @@ def positive_minutes(text: str) -> float:
     return value
 
 
+def weight(text: str) -> float:
+    """A finite weight of 0 or more."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = float("nan")
+    if not 0.0 <= value < float("inf"):
+        raise argparse.ArgumentTypeError(f"expected a weight of 0 or more, got {text!r}")
+    return value
+
+
+def daily_weight_argument(p: argparse.ArgumentParser) -> None:
+    """``--daily-weight W``: the meters' daily totals in the calibration cost."""
+    p.add_argument(
+        "--daily-weight",
+        type=weight,
+        default=1.0,
+        help="add W x (1 - R2) of the meters' daily totals to the calibration cost: less bias in the energy "
+        "(Guideline 14's NMBE), at some cost to the response to settings (docs/calibration.md); default 0",
+    )
+
+
 def strict_calibration_argument(p: argparse.ArgumentParser) -> None:
     """Add ``--strict-calibration``: refuse a site whose calibration fails ASHRAE Guideline 14 (else a warning)."""
     p.add_argument(

@@ -7,7 +7,7 @@ import datetime as dt
 import sys
 from pathlib import Path
 
-from buildenv.cli.argtypes import positive_int
+from buildenv.cli.argtypes import daily_weight_argument, positive_int
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
 
@@ -236,6 +236,7 @@ def _cmd_calibrate(args: argparse.Namespace) -> int:
         restarts=args.restarts,
         effects=declared_for_calibration(site, args.effect, args.no_site_effects),
         prior=not args.no_prior,
+        daily_weight=args.daily_weight,
     )
     result["plot"] = str(
         plot_calibration(
@@ -416,6 +417,7 @@ def register(sub) -> None:
         help="least squares only: leave out the prior that keeps parameters the data do not pin near the middle "
         "of their ranges (CMA-ES)",
     )
+    daily_weight_argument(p)
     p.add_argument("--checkpoint", default="default", help="metamodel checkpoint or 'default'")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--json", action="store_true", help="one-line JSON")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from buildenv.cli.argtypes import positive_int
+from buildenv.cli.argtypes import daily_weight_argument, positive_int
 from buildenv.jsonio import dumps
 
 
@@ -68,6 +68,7 @@ def _cmd_suite_calibrate(args: argparse.Namespace) -> int:
         max_evaluations=args.evaluations,
         progress=not args.quiet,
         prior=not args.no_prior,
+        daily_weight=args.daily_weight,
     )
     if args.json:
         print(dumps({"rows": rows, "summary": summarise(rows)}, where="the suite calibration", nonfinite="null"))
@@ -197,6 +198,7 @@ def register(sub) -> None:
     p.add_argument("--evaluations", type=int, default=6000, help="CMA-ES budget of cost evaluations per site")
     p.add_argument("--seed", type=int, default=0, help="seed of CMA-ES")
     p.add_argument("--no-prior", action="store_true", help="least squares only (as buildenv calibrate --no-prior)")
+    daily_weight_argument(p)
     p.add_argument("--json", action="store_true", help="one JSON object")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=_cmd_suite_calibrate)

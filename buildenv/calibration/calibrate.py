@@ -16,6 +16,7 @@ from buildenv import catalogue as cat
 from buildenv.calibration.gradient import calibrate_adam
 from buildenv.calibration.prior import prior_anchor
 from buildenv.calibration.problem import (
+    DAILY_WEIGHT,
     CalibrationError,
     _scale,
     _split,
@@ -83,7 +84,7 @@ def calibrate_site(
     restarts: int = 1,
     effects: tuple[str, ...] | None = None,
     prior: bool = True,
-    daily_weight: float = 1.0,
+    daily_weight: float = DAILY_WEIGHT,
 ) -> dict:
     """Calibrate the metamodel to a site and score it on calibration and held-out weeks.
 
@@ -105,7 +106,7 @@ def calibrate_site(
         prior: with CMA-ES, the maximum a posteriori estimate under the building parameters' prior
             (:mod:`buildenv.calibration.prior`, weighted by a first fit without it); ``False``: least squares only.
         daily_weight: weight of the meters' daily totals in the cost (:func:`buildenv.calibration.problem.costs`);
-            0 (default): the paper's cost.
+            default :data:`~buildenv.calibration.problem.DAILY_WEIGHT`, 0: the paper's cost.
     Returns:
         ``{"fit", "heldout"}`` metrics (:func:`buildenv.metrics.site_metrics`, with ``weeks``; ``heldout`` only
         when there are held-out weeks), ``"theta": {name: value}`` (catalogue units), ``"occupancy"``

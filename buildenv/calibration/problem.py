@@ -47,6 +47,8 @@ from buildenv.metrics import guideline14_monthly, r2_masked, site_metrics
 from buildenv.schedules import hourly_schedules
 
 WEIGHTS = {"temperature": 1.0, "consumption": 1.0}
+#: w_D of a site calibration (:func:`buildenv.calibration.calibrate.calibrate_site`): the hourly terms' weight
+DAILY_WEIGHT = 1.0
 RAMP_HOURS = 0.5
 KNOWN_GEOMETRY = cat.GEOMETRY_NAMES
 #: A parameter this share of its catalogue range (or less) from one end of it is reported at that bound.

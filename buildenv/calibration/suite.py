@@ -17,6 +17,7 @@ from pathlib import Path
 
 import numpy as np
 
+from buildenv.calibration.problem import DAILY_WEIGHT
 from buildenv.errors import BuildenvError
 from buildenv.jsonio import dumps
 from buildenv.metrics import GUIDELINE14_HOURLY_CV_PERCENT, GUIDELINE14_HOURLY_NMBE_PERCENT, guideline14
@@ -28,7 +29,12 @@ TIGHT_CV_PERCENT, TIGHT_NMBE_PERCENT = 15.0, 5.0
 
 
 def calibrate_case(
-    record: dict, surrogate, seed: int = 0, max_evaluations: int = 6000, prior: bool = True, daily_weight: float = 1.0
+    record: dict,
+    surrogate,
+    seed: int = 0,
+    max_evaluations: int = 6000,
+    prior: bool = True,
+    daily_weight: float = DAILY_WEIGHT,
 ) -> dict:
     """Calibrate one suite site (a :func:`buildenv.sites.suite.make_case` record; ``prior`` and ``daily_weight`` as
     :func:`buildenv.calibration.calibrate.calibrate_site`) and return its row."""
@@ -84,7 +90,7 @@ def calibrate_suite(
     max_evaluations: int = 6000,
     progress: bool = True,
     prior: bool = True,
-    daily_weight: float = 1.0,
+    daily_weight: float = DAILY_WEIGHT,
 ) -> list[dict]:
     """Calibrate every made site of ``suite`` in ``parts`` (``prior`` and ``daily_weight``: as
     :func:`buildenv.calibration.calibrate.calibrate_site`); rows are also written to ``<suite>/calibration.json``.

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import argparse
 
+from buildenv.calibration.problem import DAILY_WEIGHT
+
 
 def positive_int(text: str) -> int:
     """A whole number of at least 1 (weeks, cases, storeys)."""
@@ -53,10 +55,11 @@ def daily_weight_argument(p: argparse.ArgumentParser) -> None:
     """``--daily-weight W``: the meters' daily totals in the calibration cost."""
     p.add_argument(
         "--daily-weight",
+        metavar="W",
         type=weight,
-        default=1.0,
-        help="add W x (1 - R2) of the meters' daily totals to the calibration cost: less bias in the energy "
-        "(Guideline 14's NMBE), at some cost to the response to settings (docs/calibration.md); default 0",
+        default=DAILY_WEIGHT,
+        help=f"weight W of (1 - R2) of the meters' daily totals in the calibration cost, against a day's energy "
+        f"level traded for its hours' shape (docs/calibration.md); default {DAILY_WEIGHT:g}, 0: the paper's cost",
     )
 
 
